@@ -1,0 +1,370 @@
+"""Geometries: where the balls sit and which of them touch.
+
+A geometry produces plain data that the compiled loop consumes (`Contacts`):
+for each contact the two balls ``i, j`` and the unit vector at each end pointing
+to the other ball (``t_i`` at ``i``, ``t_j`` at ``j``). In flat space
+``t_j = -t_i``; on a curved surface they live in different tangent planes, and
+the loop does not care. People get the same contacts as a networkx graph.
+"""
+
+from __future__ import annotations
+
+import functools
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+__all__ = ["Contacts", "Geometry", "FlatTorus", "HalfPlane", "GraphGeometry"]
+
+SQRT3 = float(np.sqrt(3.0))
+_INT32_MAX = np.iinfo(np.int32).max
+
+
+@dataclass(frozen=True, eq=False)
+class Contacts:
+    """Contacts in the compact form the compiled loop reads.
+
+    table: ``(n_contacts, 4) int32`` rows ``(i, j, a, b)``: the balls, and the rows
+        of ``units`` holding ``t_i`` and ``t_j``. One row is one cache line's worth.
+    units: ``(n_units, dim) float64`` unit vectors (a lattice needs only six).
+    """
+
+    table: np.ndarray
+    units: np.ndarray
+
+    @property
+    def pairs(self) -> np.ndarray:
+        """``(n_contacts, 2)`` ball indices ``i, j``."""
+        return self.table[:, :2]
+
+    @property
+    def t_i(self) -> np.ndarray:
+        """``(n_contacts, dim)`` unit vector at ``i`` pointing to ``j``."""
+        return self.units[self.table[:, 2]]
+
+    @property
+    def t_j(self) -> np.ndarray:
+        """``(n_contacts, dim)`` unit vector at ``j`` pointing to ``i``."""
+        return self.units[self.table[:, 3]]
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+
+class Geometry(ABC):
+    """Balls at fixed centres and the contacts between them.
+
+    Subclasses set ``positions`` and implement `_build_contacts`. Ball radius is
+    ``radius`` (contact distance ``2 * radius``).
+    """
+
+    positions: np.ndarray  #: ``(n_balls, k) float64`` ball centres
+    radius: float = 1.0
+
+    @abstractmethod
+    def _build_contacts(self) -> Contacts:
+        """The contacts, built once on first use."""
+
+    @functools.cached_property
+    def contacts(self) -> Contacts:
+        """The contacts as compact arrays (built on first use, then kept)."""
+        return self._build_contacts()
+
+    @property
+    def n_balls(self) -> int:
+        return len(self.positions)
+
+    @property
+    def dim(self) -> int:
+        """Components of a velocity."""
+        return self.contacts.units.shape[1]
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.contacts)
+
+    def degrees(self) -> np.ndarray:
+        """``(n_balls,)`` number of contacts of each ball."""
+        return np.bincount(self.contacts.pairs.ravel(), minlength=self.n_balls)
+
+    def contact_graph(self) -> nx.Graph:
+        """A networkx graph: nodes ``0..n_balls-1`` with ``"pos"``, one edge per contact.
+
+        Each edge carries ``"units" = {i: t_i, j: t_j}``, so that
+        ``GraphGeometry(geom.contact_graph())`` rebuilds exactly these contacts,
+        periodic or curved ones included.
+        """
+        g = nx.Graph(dim=self.dim)
+        for n, p in enumerate(self.positions):
+            g.add_node(n, pos=tuple(float(x) for x in p))
+        c = self.contacts
+        t_i, t_j = c.t_i, c.t_j
+        for e, (i, j) in enumerate(c.pairs.tolist()):
+            g.add_edge(i, j, units={i: tuple(t_i[e].tolist()), j: tuple(t_j[e].tolist())})
+        return g
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(n_balls={self.n_balls}, n_contacts={self.n_contacts}, dim={self.dim})"
+
+
+# ---------------------------------------------------------------- triangular lattices
+
+#: unit vectors of the triangular lattice: row d + 3 is minus row d
+_LATTICE_UNITS = np.array(
+    [[1.0, 0.0], [0.5, SQRT3 / 2], [-0.5, SQRT3 / 2], [-1.0, 0.0], [-0.5, -SQRT3 / 2], [0.5, -SQRT3 / 2]]
+)
+
+
+def _check_int(name: str, value, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}: must be >= {minimum}, got {value}")
+    return int(value)
+
+
+def _check_radius(radius) -> float:
+    if isinstance(radius, bool) or not isinstance(radius, (int, float, np.number)):
+        raise TypeError(f"radius: must be a number, got {radius!r}")
+    if not np.isfinite(radius) or radius <= 0:
+        raise ValueError(f"radius: must be finite and > 0, got {radius}")
+    return float(radius)
+
+
+def _lattice_positions(rows: int, cols: int, radius: float) -> np.ndarray:
+    """``(rows*cols, 2)`` centres: ball ``r*cols + c`` at ``(2c + r%2, r*sqrt(3))`` radii."""
+    r, c = np.divmod(np.arange(rows * cols), cols)
+    return radius * np.column_stack([2.0 * c + (r % 2), SQRT3 * r])
+
+
+def _lattice_contacts(rows: int, cols: int, periodic: bool) -> Contacts:
+    """Contacts of the triangular lattice, ball by ball: right, then the two above.
+
+    Odd rows are shifted right by one radius. Built with array operations only.
+    """
+    n = rows * cols
+    r, c = np.divmod(np.arange(n, dtype=np.int64), cols)
+    odd = r % 2
+    up = r + 1
+    # candidate neighbours (n, 3): right, upper-left-ish, upper-right-ish
+    nr = np.stack([r, up, up], axis=1)
+    nc = np.stack([c + 1, c - 1 + odd, c + odd], axis=1)
+    direction = np.broadcast_to(np.array([0, 2, 1], dtype=np.int32), (n, 3))
+    if periodic:
+        valid = np.ones((n, 3), dtype=bool)
+        nr %= rows
+        nc %= cols
+    else:
+        valid = (nr < rows) & (nc >= 0) & (nc < cols)
+    i = np.broadcast_to(np.arange(n, dtype=np.int64)[:, None], (n, 3))[valid]
+    j = (nr * cols + nc)[valid]
+    a = direction[valid]
+    table = np.empty((len(i), 4), dtype=np.int32)
+    table[:, 0] = i
+    table[:, 1] = j
+    table[:, 2] = a
+    table[:, 3] = a + 3
+    return Contacts(table=table, units=_LATTICE_UNITS.copy())
+
+
+class FlatTorus(Geometry):
+    """Triangular lattice with periodic boundaries: ``rows * cols`` balls, each touching 6.
+
+    Ball ``r * cols + c`` sits at ``(2c + r % 2, r * sqrt(3))`` radii; the box is
+    ``2 * cols`` by ``rows * sqrt(3)`` radii. ``rows`` must be even (so the
+    shifted rows close up) and at least 4, ``cols`` at least 3 (so that no two
+    balls touch twice).
+    """
+
+    def __init__(self, rows: int, cols: int, radius: float = 1.0):
+        rows = _check_int("rows", rows, 4)
+        cols = _check_int("cols", cols, 3)
+        if rows % 2:
+            raise ValueError(f"rows: must be even for a flat torus, got {rows}")
+        if rows * cols > _INT32_MAX // 3:
+            raise ValueError(f"rows*cols: at most {_INT32_MAX // 3} balls, got {rows * cols}")
+        self.rows, self.cols, self.radius = rows, cols, _check_radius(radius)
+        self.positions = _lattice_positions(rows, cols, self.radius)
+
+    @property
+    def period(self) -> np.ndarray:
+        """``(2,)`` side lengths of the periodic box."""
+        return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
+
+    def _build_contacts(self) -> Contacts:
+        return _lattice_contacts(self.rows, self.cols, periodic=True)
+
+
+class HalfPlane(Geometry):
+    """Triangular lattice in a rectangle; row 0 is the boundary of the half-plane.
+
+    ``rows`` rows of ``cols`` balls; odd rows are shifted right by one radius.
+    The boundary line passes through the centres of row 0, so row ``r`` is at
+    distance ``r * sqrt(3)`` radii from it. Interior balls touch 6 others.
+    """
+
+    def __init__(self, rows: int, cols: int, radius: float = 1.0):
+        self.rows = _check_int("rows", rows, 1)
+        self.cols = _check_int("cols", cols, 1)
+        if self.rows * self.cols > _INT32_MAX // 3:
+            raise ValueError(f"rows*cols: at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
+        self.radius = _check_radius(radius)
+        self.positions = _lattice_positions(self.rows, self.cols, self.radius)
+
+    @classmethod
+    def from_size(cls, length: float, depth: float, radius: float = 1.0) -> "HalfPlane":
+        """The paper's ``length x depth`` rectangle (in radii), long side on the boundary.
+
+        ``cols = floor(length / 2)`` balls side by side; ``rows = floor((depth - 1) / sqrt(3)) + 1``
+        rows, the last one's balls still inside the depth. ``from_size(100, 50)`` gives
+        29 rows of 50 balls.
+        """
+        for name, value in (("length", length), ("depth", depth)):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
+                raise TypeError(f"{name}: must be a finite number, got {value!r}")
+            if value < 2:
+                raise ValueError(f"{name}: must be >= 2 (one ball is 2 radii wide), got {value}")
+        cols = int(np.floor(length / 2 + 1e-9))
+        rows = int(np.floor((depth - 1) / SQRT3 + 1e-9)) + 1
+        return cls(rows=rows, cols=cols, radius=radius)
+
+    def boundary_distance(self) -> np.ndarray:
+        """``(n_balls,)`` distance of each centre from the boundary line."""
+        return self.positions[:, 1].copy()
+
+    def boundary_center(self) -> int:
+        """Index of the boundary ball nearest the middle of row 0."""
+        return (self.cols - 1) // 2
+
+    def _build_contacts(self) -> Contacts:
+        return _lattice_contacts(self.rows, self.cols, periodic=False)
+
+
+# ---------------------------------------------------------------- arbitrary graphs
+
+
+def _as_positions(positions) -> np.ndarray:
+    try:
+        p = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"positions: must be an array of numbers ({exc})") from None
+    if p.ndim == 1:
+        p = p[:, None]
+    if p.ndim != 2 or p.shape[1] < 1:
+        raise ValueError(f"positions: must have shape (n_balls, d), got {p.shape}")
+    if not np.isfinite(p).all():
+        raise ValueError("positions: contain NaN or inf")
+    return p
+
+
+def _flat_units(positions: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """``(n_contacts, d)`` unit vectors from ``i`` to ``j`` in flat space."""
+    delta = positions[pairs[:, 1]] - positions[pairs[:, 0]]
+    norm = np.linalg.norm(delta, axis=1)
+    bad = np.flatnonzero(norm == 0)
+    if len(bad):
+        i, j = pairs[bad[0]]
+        raise ValueError(f"contacts: balls {i} and {j} have the same centre, so no line of centres")
+    return delta / norm[:, None]
+
+
+class GraphGeometry(Geometry):
+    """Any contact graph: balls anywhere in ``R^d`` (``d >= 1``), edges are contacts.
+
+    ``graph`` is a networkx graph whose nodes carry ``"pos"`` (a length-``d``
+    sequence). Ball ``n`` is the ``n``-th node of ``graph.nodes``. An edge may
+    carry ``"units" = {u: t_u, v: t_v}`` (needed for periodic or curved spaces);
+    otherwise ``t_u`` points from ``u`` to ``v`` in a straight line and ``t_v = -t_u``.
+    """
+
+    def __init__(self, graph: nx.Graph, radius: float = 1.0):
+        if not isinstance(graph, nx.Graph) or graph.is_directed() or graph.is_multigraph():
+            raise TypeError(f"graph: must be an undirected networkx.Graph, got {type(graph).__name__}")
+        if graph.number_of_nodes() == 0:
+            raise ValueError("graph: has no nodes")
+        nodes = list(graph.nodes)
+        index = {node: n for n, node in enumerate(nodes)}
+        missing = [node for node in nodes if "pos" not in graph.nodes[node]]
+        if missing:
+            raise ValueError(f"graph: node {missing[0]!r} has no 'pos' attribute")
+        try:
+            positions = _as_positions([graph.nodes[node]["pos"] for node in nodes])
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"graph: node 'pos' attributes must be equal-length finite sequences ({exc})") from None
+        loops = list(nx.selfloop_edges(graph))
+        if loops:
+            raise ValueError(f"graph: self-loop at node {loops[0][0]!r}; a ball cannot touch itself")
+        pairs = np.array([(index[u], index[v]) for u, v in graph.edges], dtype=np.int64).reshape(-1, 2)
+        t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, positions.shape[1]))
+        t_j = -t_i
+        for e, (u, v, units) in enumerate(graph.edges(data="units")):
+            if units is not None:
+                t_i[e], t_j[e] = self._given_units(u, v, units, positions.shape[1])
+        self._init(positions, pairs, t_i, t_j, radius)
+        self.nodes = nodes
+
+    @staticmethod
+    def _given_units(u, v, units, dim: int) -> tuple[np.ndarray, np.ndarray]:
+        try:
+            tu, tv = np.asarray(units[u], dtype=float), np.asarray(units[v], dtype=float)
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"graph: edge ({u!r}, {v!r}) 'units' must map both ends to a vector") from None
+        for t in (tu, tv):
+            if t.shape != (dim,) or not np.isfinite(t).all() or abs(np.linalg.norm(t) - 1) > 1e-9:
+                raise ValueError(f"graph: edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim}")
+        return tu, tv
+
+    def _init(self, positions, pairs, t_i, t_j, radius) -> None:
+        n = len(positions)
+        if n > _INT32_MAX or 2 * len(pairs) > _INT32_MAX:
+            raise ValueError("graph: too large for 32-bit contact tables")
+        self.positions = positions
+        self.radius = _check_radius(radius)
+        e = len(pairs)
+        table = np.empty((e, 4), dtype=np.int32)
+        table[:, :2] = pairs
+        table[:, 2] = np.arange(0, 2 * e, 2)
+        table[:, 3] = np.arange(1, 2 * e, 2)
+        units = np.empty((2 * e, positions.shape[1]))
+        units[0::2], units[1::2] = t_i, t_j
+        self._contacts = Contacts(table=table, units=units)
+
+    def _build_contacts(self) -> Contacts:
+        return self._contacts
+
+    @property
+    def dim(self) -> int:
+        return self.positions.shape[1]
+
+    @classmethod
+    def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6) -> "GraphGeometry":
+        """Balls of ``radius`` at ``positions`` ``(n_balls, d)``; contacts are pairs at distance ``2*radius``.
+
+        Distances within ``rtol * 2 * radius`` of contact count as touching (centres
+        computed by repeated addition still touch); closer pairs are overlapping
+        balls and an error. Uses a scipy KD-tree: ``O(n log n)``.
+        """
+        from scipy.spatial import cKDTree
+
+        p = _as_positions(positions)
+        radius = _check_radius(radius)
+        if not (0 <= rtol < 0.5):
+            raise ValueError(f"rtol: must be in [0, 0.5), got {rtol}")
+        contact = 2.0 * radius
+        pairs = cKDTree(p).query_pairs(contact * (1 + rtol), output_type="ndarray").astype(np.int64)
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else pairs.reshape(0, 2)
+        dist = np.linalg.norm(p[pairs[:, 1]] - p[pairs[:, 0]], axis=1)
+        overlap = np.flatnonzero(dist < contact * (1 - rtol))
+        if len(overlap):
+            i, j = pairs[overlap[0]]
+            raise ValueError(
+                f"positions: balls {i} and {j} overlap (centres {dist[overlap[0]]:.6g} apart, "
+                f"contact distance {contact:.6g}); {len(overlap)} overlapping pair(s) in all"
+            )
+        self = cls.__new__(cls)
+        t_i = _flat_units(p, pairs) if len(pairs) else np.zeros((0, p.shape[1]))
+        self._init(p, pairs, t_i, -t_i, radius)
+        self.nodes = list(range(len(p)))
+        return self

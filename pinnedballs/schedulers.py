@@ -1,0 +1,96 @@
+"""Schedulers: which contact to try next.
+
+A scheduler is a Python object whose `kernel` hands the compiled loop a jitted
+function ``pick(state, rng, n_contacts) -> int`` and whose `initial_state`
+gives its ``int64`` state array. ``rng`` is the simulation's one random stream
+(`pinnedballs.random`), so a scheduler never owns randomness of its own and a
+checkpoint of ``state`` and ``rng`` resumes it exactly.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Callable
+
+import numpy as np
+from numba import njit
+
+from .random import bounded
+
+__all__ = ["Scheduler", "UniformRandomPair", "Sweep", "RandomSweep"]
+
+
+@njit(cache=True, inline="always")
+def pick_uniform(state, rng, n_contacts):
+    """The paper's Algorithm 2: a contact uniformly at random."""
+    return bounded(rng, n_contacts)
+
+
+@njit(cache=True, inline="always")
+def pick_sweep(state, rng, n_contacts):
+    """Contacts ``0, 1, ..., n-1, 0, 1, ...``; ``state[0]`` is the next one."""
+    k = state[0]
+    state[0] = k + 1 if k + 1 < n_contacts else 0
+    return k
+
+
+@njit(cache=True, inline="always")
+def pick_random_sweep(state, rng, n_contacts):
+    """Every contact once per sweep in a fresh random order (Fisher-Yates).
+
+    ``state[0]`` is the position in the sweep, ``state[1:]`` the current order.
+    """
+    order = state[1:]
+    if state[0] >= n_contacts:
+        for m in range(n_contacts - 1, 0, -1):
+            r = bounded(rng, m + 1)
+            order[m], order[r] = order[r], order[m]
+        state[0] = 0
+    k = order[state[0]]
+    state[0] += 1
+    return k
+
+
+class Scheduler(ABC):
+    """Chooses which contact the loop tries next."""
+
+    @abstractmethod
+    def kernel(self) -> Callable:
+        """The jitted ``pick(state, rng, n_contacts) -> int``."""
+
+    def initial_state(self, n_contacts: int) -> np.ndarray:
+        """The ``int64`` state array ``pick`` starts from."""
+        return np.zeros(1, dtype=np.int64)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+    def __eq__(self, other) -> bool:
+        return type(other) is type(self)
+
+
+class UniformRandomPair(Scheduler):
+    """Each step tries one contact chosen uniformly at random (the paper's scheduler)."""
+
+    def kernel(self) -> Callable:
+        return pick_uniform
+
+
+class Sweep(Scheduler):
+    """Tries every contact once per sweep, in the geometry's fixed contact order."""
+
+    def kernel(self) -> Callable:
+        return pick_sweep
+
+
+class RandomSweep(Scheduler):
+    """Tries every contact once per sweep, in a fresh uniformly random order each sweep."""
+
+    def kernel(self) -> Callable:
+        return pick_random_sweep
+
+    def initial_state(self, n_contacts: int) -> np.ndarray:
+        state = np.empty(n_contacts + 1, dtype=np.int64)
+        state[0] = n_contacts  # shuffle before the first pick
+        state[1:] = np.arange(n_contacts)
+        return state

@@ -1,0 +1,190 @@
+"""`Simulation`: owns the velocities, the counters and the random stream."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import Geometry
+from .kernels import APPROACHING, COLLISIONS, STEPS, approaching_flags, incidence, run_chain
+from .random import seed_state
+from .rules import CollisionRule, Elastic
+from .schedulers import Scheduler, UniformRandomPair
+
+__all__ = ["Simulation"]
+
+_NO_LIMIT = np.iinfo(np.int64).max
+
+
+def _count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: must be an integer, got {value!r}")
+    if value < 0:
+        raise ValueError(f"{name}: must be >= 0, got {value}")
+    return int(value)
+
+
+class Simulation:
+    """Pinned billiard balls on ``geometry``, run by ``scheduler`` under ``rule``.
+
+    velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
+    masses: ``(n_balls,)`` positive masses, or None for all equal.
+    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream.
+
+    Each step the scheduler picks a contact; if its balls approach, the rule
+    collides them. ``steps`` counts picks, ``collisions`` the picks that changed
+    velocities. Same inputs and seed give bit-identical velocities and counters,
+    however the run is split into calls.
+    """
+
+    def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
+                 scheduler: Scheduler | None = None, masses=None, seed=0):
+        if not isinstance(geometry, Geometry):
+            raise TypeError(f"geometry: must be a pinnedballs Geometry, got {type(geometry).__name__}")
+        rule = Elastic() if rule is None else rule
+        scheduler = UniformRandomPair() if scheduler is None else scheduler
+        if not isinstance(rule, CollisionRule):
+            raise TypeError(f"rule: must be a CollisionRule such as Elastic(), got {type(rule).__name__}")
+        if not isinstance(scheduler, Scheduler):
+            raise TypeError(f"scheduler: must be a Scheduler such as UniformRandomPair(), got {type(scheduler).__name__}")
+        if geometry.n_contacts == 0:
+            raise ValueError("geometry: has no contacts, so nothing can ever collide")
+        self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
+        self.velocities = self._check_velocities(velocities)
+        self.masses = self._check_masses(masses)
+        equal = self.masses is None or bool(np.all(self.masses == self.masses[0]))
+        self._collide, self._params = rule.kernel(equal)
+        self._mass_array = np.ones(geometry.n_balls) if self.masses is None else self.masses
+        self._pick = scheduler.kernel()
+        self._sched_state = scheduler.initial_state(geometry.n_contacts)
+        self._rng = seed_state(seed)
+        self._counters = np.zeros(3, dtype=np.int64)
+        self._incidence = None
+
+    # ------------------------------------------------------------ input checks
+    def _check_velocities(self, velocities) -> np.ndarray:
+        g = self.geometry
+        try:
+            v = np.array(velocities, dtype=np.float64, order="C")
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"velocities: must be an array of numbers ({exc})") from None
+        if v.shape != (g.n_balls, g.dim):
+            raise ValueError(f"velocities: must have shape (n_balls, dim) = {(g.n_balls, g.dim)}, got {v.shape}")
+        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+        if len(bad):
+            raise ValueError(f"velocities: ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
+        return v
+
+    def _check_masses(self, masses) -> np.ndarray | None:
+        if masses is None:
+            return None
+        try:
+            m = np.array(masses, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"masses: must be an array of numbers ({exc})") from None
+        if m.ndim == 0:
+            m = np.full(self.geometry.n_balls, float(m))
+        if m.shape != (self.geometry.n_balls,):
+            raise ValueError(f"masses: must have shape (n_balls,) = ({self.geometry.n_balls},), got {m.shape}")
+        if not (np.isfinite(m).all() and (m > 0).all()):
+            raise ValueError("masses: must all be finite and > 0")
+        return m
+
+    # ------------------------------------------------------------ counters
+    @property
+    def steps(self) -> int:
+        """Contacts tried so far."""
+        return int(self._counters[STEPS])
+
+    @property
+    def collisions(self) -> int:
+        """Contacts tried so far that changed velocities."""
+        return int(self._counters[COLLISIONS])
+
+    # ------------------------------------------------------------ running
+    def run(self, steps: int | None = None, collisions: int | None = None) -> int:
+        """Pick ``steps`` more contacts, or run until ``collisions`` in total, whichever comes first.
+
+        With only ``collisions`` given, the run also stops if the system freezes first
+        (see `is_frozen`). Returns the number of steps taken.
+        """
+        if steps is None and collisions is None:
+            raise ValueError("run: give steps= or collisions= (or use run_until_frozen)")
+        max_steps = _NO_LIMIT if steps is None else _count("steps", steps)
+        max_collisions = _NO_LIMIT if collisions is None else _count("collisions", collisions)
+        return self._run(max_steps, max_collisions, track=steps is None)
+
+    def run_until_frozen(self, max_steps: int) -> bool:
+        """Run until no contact approaches, for at most ``max_steps`` more steps.
+
+        Stops right after the collision that freezes the system, so ``steps`` is the
+        exact step of the last collision. Returns True if frozen.
+        """
+        self._run(_count("max_steps", max_steps), _NO_LIMIT, track=True)
+        return self._counters[APPROACHING] == 0
+
+    def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
+        g = self.geometry.contacts
+        if track:
+            if self._incidence is None:
+                self._incidence = incidence(g.table, self.geometry.n_balls)
+            ptr, inc = self._incidence
+            flags = np.empty(len(g.table), dtype=np.uint8)
+            self._counters[APPROACHING] = approaching_flags(self.velocities, g.table, g.units, flags)
+        else:
+            ptr, inc, flags = _EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS
+        return run_chain(self.velocities, g.table, g.units, self._mass_array, self._params, self._collide,
+                         self._pick, self._sched_state, self._rng, self._counters, max_steps, max_collisions,
+                         track, ptr, inc, flags)
+
+    # ------------------------------------------------------------ observables
+    def approaching(self) -> int:
+        """Number of contacts whose balls approach (0 means frozen)."""
+        g = self.geometry.contacts
+        return int(approaching_flags(self.velocities, g.table, g.units, np.empty(len(g.table), dtype=np.uint8)))
+
+    def is_frozen(self) -> bool:
+        """True when no contact approaches, so no collision can ever happen again."""
+        return self.approaching() == 0
+
+    def energy(self) -> float:
+        """Kinetic energy ``sum m |v|^2 / 2``."""
+        return float(0.5 * np.dot(self._mass_array, np.einsum("ij,ij->i", self.velocities, self.velocities)))
+
+    def momentum(self) -> np.ndarray:
+        """``(dim,)`` total momentum ``sum m v`` (meaningful in flat space)."""
+        return self._mass_array @ self.velocities
+
+    # ------------------------------------------------------------ state for checkpoints
+    def get_state(self) -> dict:
+        """Everything that changes during a run, as copies: enough to resume bit for bit."""
+        return {
+            "velocities": self.velocities.copy(),
+            "steps": self.steps,
+            "collisions": self.collisions,
+            "rng_state": self._rng.copy(),
+            "scheduler_state": self._sched_state.copy(),
+        }
+
+    def set_state(self, state: dict) -> None:
+        """Restore a state from `get_state` (of a simulation with the same geometry, rule and scheduler)."""
+        velocities = self._check_velocities(state["velocities"])
+        rng = np.asarray(state["rng_state"], dtype=np.uint64)
+        sched = np.asarray(state["scheduler_state"], dtype=np.int64)
+        if rng.shape != (4,) or not rng.any():
+            raise ValueError(f"rng_state: must be 4 not-all-zero uint64 words, got shape {rng.shape}")
+        if sched.shape != self._sched_state.shape:
+            raise ValueError(f"scheduler_state: must have shape {self._sched_state.shape}, got {sched.shape}")
+        self.velocities = velocities
+        self._rng = rng.copy()
+        self._sched_state = sched.copy()
+        self._counters[STEPS] = _count("steps", state["steps"])
+        self._counters[COLLISIONS] = _count("collisions", state["collisions"])
+
+    def __repr__(self) -> str:
+        return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
+                f"steps={self.steps}, collisions={self.collisions})")
+
+
+_EMPTY_PTR = np.zeros(1, dtype=np.int64)
+_EMPTY_INC = np.zeros(0, dtype=np.int32)
+_EMPTY_FLAGS = np.zeros(0, dtype=np.uint8)
