@@ -22,35 +22,58 @@ SQRT3 = float(np.sqrt(3.0))
 _INT32_MAX = np.iinfo(np.int32).max
 
 
+def _index_dtype(n: int) -> np.dtype:
+    """The smallest unsigned integer type that indexes ``n`` rows."""
+    for dtype in (np.uint8, np.uint16, np.uint32):
+        if n <= np.iinfo(dtype).max + 1:
+            return np.dtype(dtype)
+    raise ValueError(f"contacts: {n} rows is too many for 32-bit tables")
+
+
 @dataclass(frozen=True, eq=False)
 class Contacts:
     """Contacts in the compact form the compiled loop reads.
 
-    table: ``(n_contacts, 4) int32`` rows ``(i, j, a, b)``: the balls, and the rows
-        of ``units`` holding ``t_i`` and ``t_j``. One row is one cache line's worth.
-    units: ``(n_units, dim) float64`` unit vectors (a lattice needs only six).
+    pairs: ``(n_contacts, 2) uint32`` the balls ``i, j`` of each contact.
+    ends: ``(n_contacts, 2)`` unsigned rows of ``units`` holding ``t_i`` and ``t_j``
+        (uint8 for lattices, which need only six unit vectors).
+    units: ``(n_units, dim) float64`` unit vectors.
+
+    Unsigned, narrow indices keep the tables small (a 1000x1000 torus needs 30 MB)
+    and spare the loop the negative-index checks.
     """
 
-    table: np.ndarray
+    pairs: np.ndarray
+    ends: np.ndarray
     units: np.ndarray
 
-    @property
-    def pairs(self) -> np.ndarray:
-        """``(n_contacts, 2)`` ball indices ``i, j``."""
-        return self.table[:, :2]
+    @classmethod
+    def build(cls, pairs, ends, units) -> "Contacts":
+        """Contacts from integer arrays ``pairs (E, 2)``, ``ends (E, 2)`` and ``units (K, dim)``."""
+        units = np.ascontiguousarray(units, dtype=np.float64)
+        return cls(
+            pairs=np.ascontiguousarray(pairs, dtype=np.uint32).reshape(-1, 2),
+            ends=np.ascontiguousarray(ends, dtype=_index_dtype(len(units))).reshape(-1, 2),
+            units=units,
+        )
 
     @property
     def t_i(self) -> np.ndarray:
         """``(n_contacts, dim)`` unit vector at ``i`` pointing to ``j``."""
-        return self.units[self.table[:, 2]]
+        return self.units[self.ends[:, 0]]
 
     @property
     def t_j(self) -> np.ndarray:
         """``(n_contacts, dim)`` unit vector at ``j`` pointing to ``i``."""
-        return self.units[self.table[:, 3]]
+        return self.units[self.ends[:, 1]]
+
+    @functools.cached_property
+    def flat(self) -> bool:
+        """True when every ``t_j`` is exactly ``-t_i`` (flat space): the loop then reads only ``t_i``."""
+        return bool(np.array_equal(np.signbit(self.t_j), ~np.signbit(self.t_i)) and np.array_equal(self.t_j, -self.t_i))
 
     def __len__(self) -> int:
-        return len(self.table)
+        return len(self.pairs)
 
 
 class Geometry(ABC):
@@ -87,7 +110,7 @@ class Geometry(ABC):
 
     def degrees(self) -> np.ndarray:
         """``(n_balls,)`` number of contacts of each ball."""
-        return np.bincount(self.contacts.pairs.ravel(), minlength=self.n_balls)
+        return np.bincount(self.contacts.pairs.ravel().astype(np.intp), minlength=self.n_balls)
 
     def contact_graph(self) -> nx.Graph:
         """A networkx graph: nodes ``0..n_balls-1`` with ``"pos"``, one edge per contact.
@@ -111,10 +134,9 @@ class Geometry(ABC):
 
 # ---------------------------------------------------------------- triangular lattices
 
-#: unit vectors of the triangular lattice: row d + 3 is minus row d
-_LATTICE_UNITS = np.array(
-    [[1.0, 0.0], [0.5, SQRT3 / 2], [-0.5, SQRT3 / 2], [-1.0, 0.0], [-0.5, -SQRT3 / 2], [0.5, -SQRT3 / 2]]
-)
+#: unit vectors of the triangular lattice: row d + 3 is exactly minus row d (signed zeros too)
+_LATTICE_UNITS = np.array([[1.0, 0.0], [0.5, SQRT3 / 2], [-0.5, SQRT3 / 2]])
+_LATTICE_UNITS = np.concatenate([_LATTICE_UNITS, -_LATTICE_UNITS])
 
 
 def _check_int(name: str, value, minimum: int) -> int:
@@ -158,15 +180,14 @@ def _lattice_contacts(rows: int, cols: int, periodic: bool) -> Contacts:
         nc %= cols
     else:
         valid = (nr < rows) & (nc >= 0) & (nc < cols)
-    i = np.broadcast_to(np.arange(n, dtype=np.int64)[:, None], (n, 3))[valid]
-    j = (nr * cols + nc)[valid]
-    a = direction[valid]
-    table = np.empty((len(i), 4), dtype=np.int32)
-    table[:, 0] = i
-    table[:, 1] = j
-    table[:, 2] = a
-    table[:, 3] = a + 3
-    return Contacts(table=table, units=_LATTICE_UNITS.copy())
+    e = int(valid.sum())
+    pairs = np.empty((e, 2), dtype=np.uint32)
+    pairs[:, 0] = np.broadcast_to(np.arange(n, dtype=np.uint32)[:, None], (n, 3))[valid]
+    pairs[:, 1] = (nr * cols + nc)[valid]
+    ends = np.empty((e, 2), dtype=np.uint8)
+    ends[:, 0] = direction[valid]
+    ends[:, 1] = ends[:, 0] + 3
+    return Contacts(pairs=pairs, ends=ends, units=_LATTICE_UNITS.copy())
 
 
 class FlatTorus(Geometry):
@@ -323,13 +344,10 @@ class GraphGeometry(Geometry):
         self.positions = positions
         self.radius = _check_radius(radius)
         e = len(pairs)
-        table = np.empty((e, 4), dtype=np.int32)
-        table[:, :2] = pairs
-        table[:, 2] = np.arange(0, 2 * e, 2)
-        table[:, 3] = np.arange(1, 2 * e, 2)
         units = np.empty((2 * e, positions.shape[1]))
         units[0::2], units[1::2] = t_i, t_j
-        self._contacts = Contacts(table=table, units=units)
+        ends = np.arange(2 * e).reshape(e, 2)
+        self._contacts = Contacts.build(pairs, ends, units)
 
     def _build_contacts(self) -> Contacts:
         return self._contacts

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["seed_state", "next_uint64", "bounded", "random_float"]
+__all__ = ["seed_state", "load", "store", "next_uint64", "bounded", "random_float"]
 
 _U32 = np.uint64(0xFFFFFFFF)
 _2_32 = 1 << 32
@@ -43,44 +43,64 @@ def _rotl(x, k):
 
 
 @njit(cache=True, inline="always")
+def load(words):
+    """The ``(4,) uint64`` state array as the 4-tuple the compiled code threads through."""
+    return (words[0], words[1], words[2], words[3])
+
+
+@njit(cache=True, inline="always")
+def store(words, s):
+    """Write the 4-tuple ``s`` back into the ``(4,) uint64`` state array."""
+    words[0], words[1], words[2], words[3] = s
+
+
+@njit(cache=True, inline="always")
 def next_uint64(s):
-    """Advance the ``(4,) uint64`` state ``s`` in place; return the next 64 random bits."""
-    result = _rotl(s[1] * np.uint64(5), 7) * np.uint64(9)
-    t = s[1] << np.uint64(17)
-    s[2] ^= s[0]
-    s[3] ^= s[1]
-    s[1] ^= s[2]
-    s[0] ^= s[3]
-    s[2] ^= t
-    s[3] = _rotl(s[3], 45)
-    return result
+    """``(bits, s')``: the next 64 random bits and the advanced 4-tuple state.
+
+    The state is a tuple rather than an array so that it stays in registers in the hot loop.
+    """
+    s0, s1, s2, s3 = s
+    result = _rotl(s1 * np.uint64(5), 7) * np.uint64(9)
+    t = s1 << np.uint64(17)
+    s2 ^= s0
+    s3 ^= s1
+    s1 ^= s2
+    s0 ^= s3
+    s2 ^= t
+    s3 = _rotl(s3, 45)
+    return result, (s0, s1, s2, s3)
 
 
 @njit(cache=True, inline="always")
 def bounded(s, n):
-    """A uniform integer in ``[0, n)``, without bias (Lemire 2019); ``1 <= n``."""
-    if n <= _2_32:
-        n64 = np.uint64(n)
-        m = (next_uint64(s) >> np.uint64(32)) * n64
+    """``(k, s')``: ``k`` uniform in ``[0, n)`` as uint64, without bias (Lemire 2019); ``1 <= n``."""
+    n64 = np.uint64(n)
+    if n64 <= np.uint64(_2_32):
+        x, s = next_uint64(s)
+        m = (x >> np.uint64(32)) * n64
         low = m & _U32
         if low < n64:
             threshold = (np.uint64(_2_32) - n64) % n64
             while low < threshold:
-                m = (next_uint64(s) >> np.uint64(32)) * n64
+                x, s = next_uint64(s)
+                m = (x >> np.uint64(32)) * n64
                 low = m & _U32
-        return np.int64(m >> np.uint64(32))
+        return m >> np.uint64(32), s
     # more than 2**32 choices: mask and reject
-    n64 = np.uint64(n)
     mask = np.uint64(1)
     while mask < n64 - np.uint64(1):
         mask = (mask << np.uint64(1)) | np.uint64(1)
-    x = next_uint64(s) & mask
+    x, s = next_uint64(s)
+    x &= mask
     while x >= n64:
-        x = next_uint64(s) & mask
-    return np.int64(x)
+        x, s = next_uint64(s)
+        x &= mask
+    return x, s
 
 
 @njit(cache=True, inline="always")
 def random_float(s):
-    """A uniform float64 in ``[0, 1)`` with 53 random bits."""
-    return np.float64(next_uint64(s) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    """``(u, s')``: ``u`` uniform in ``[0, 1)`` with 53 random bits."""
+    x, s = next_uint64(s)
+    return np.float64(x >> np.uint64(11)) * (1.0 / 9007199254740992.0), s

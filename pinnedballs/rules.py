@@ -10,9 +10,11 @@ For equal masses and ``r = 1`` this is the paper's exchange of the components
 along the line of centres (Algorithm 1).
 
 A rule is a Python object whose `kernel` hands the compiled loop a jitted
-function ``collide(v, units, i, j, a, b, masses, params) -> bool`` (``t_i =
-units[a]``, ``t_j = units[b]``) that changes ``v`` in place and says whether it
-collided, plus its ``params`` array. A new rule is a new such function: it must
+function ``collide(v, units, i, j, a, b, masses, params, dim, flat) -> bool``
+that changes ``v`` in place and says whether it collided, plus its ``params``
+array. ``t_i = units[a]`` and ``t_j = units[b]``, or ``t_j = -t_i`` when
+``flat`` (the same numbers: negation is exact, so flat space skips one lookup).
+``dim`` and ``flat`` are compile-time constants of the loop. A new rule is a new such function: it must
 collide exactly when `closing_speed` is positive.
 """
 
@@ -28,39 +30,45 @@ __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "collide_
 
 
 @njit(cache=True, inline="always")
-def closing_speed(v, units, i, j, a, b):
+def _t_j(units, a, b, k, flat):
+    """Component ``k`` of ``t_j``: ``-t_i`` in flat space, else ``units[b]``."""
+    return -units[a, k] if flat else units[b, k]
+
+
+@njit(cache=True, inline="always")
+def closing_speed(v, units, i, j, a, b, dim, flat):
     """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching."""
     w = 0.0
-    for k in range(v.shape[1]):
-        w += v[i, k] * units[a, k] + v[j, k] * units[b, k]
+    for k in range(dim):
+        w += v[i, k] * units[a, k] + v[j, k] * _t_j(units, a, b, k, flat)
     return w
 
 
 @njit(cache=True, inline="always")
-def collide_equal(v, units, i, j, a, b, masses, params):
+def collide_equal(v, units, i, j, a, b, masses, params, dim, flat):
     """Equal masses, ``params[0] = (1 + r) / 2`` (1.0 for elastic: the exact exchange)."""
-    w = closing_speed(v, units, i, j, a, b)
+    w = closing_speed(v, units, i, j, a, b, dim, flat)
     if w <= 0.0:
         return False
     c = w * params[0]
-    for k in range(v.shape[1]):
+    for k in range(dim):
         v[i, k] -= c * units[a, k]
-        v[j, k] -= c * units[b, k]
+        v[j, k] -= c * _t_j(units, a, b, k, flat)
     return True
 
 
 @njit(cache=True, inline="always")
-def collide_masses(v, units, i, j, a, b, masses, params):
+def collide_masses(v, units, i, j, a, b, masses, params, dim, flat):
     """General masses, ``params[0] = 1 + r``."""
-    w = closing_speed(v, units, i, j, a, b)
+    w = closing_speed(v, units, i, j, a, b, dim, flat)
     if w <= 0.0:
         return False
     s = params[0] * w / (masses[i] + masses[j])
     ci = s * masses[j]
     cj = s * masses[i]
-    for k in range(v.shape[1]):
+    for k in range(dim):
         v[i, k] -= ci * units[a, k]
-        v[j, k] -= cj * units[b, k]
+        v[j, k] -= cj * _t_j(units, a, b, k, flat)
     return True
 
 

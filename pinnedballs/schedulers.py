@@ -1,10 +1,11 @@
 """Schedulers: which contact to try next.
 
 A scheduler is a Python object whose `kernel` hands the compiled loop a jitted
-function ``pick(state, rng, n_contacts) -> int`` and whose `initial_state`
-gives its ``int64`` state array. ``rng`` is the simulation's one random stream
-(`pinnedballs.random`), so a scheduler never owns randomness of its own and a
-checkpoint of ``state`` and ``rng`` resumes it exactly.
+function ``pick(state, rng, n_contacts) -> (k, rng)`` and whose `initial_state`
+gives its ``int64`` state array. ``rng`` is the simulation's one random stream,
+a 4-tuple of uint64 words (`pinnedballs.random`); ``pick`` returns the advanced
+tuple. A scheduler never owns randomness of its own, so a checkpoint of
+``state`` and ``rng`` resumes it exactly.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ def pick_sweep(state, rng, n_contacts):
     """Contacts ``0, 1, ..., n-1, 0, 1, ...``; ``state[0]`` is the next one."""
     k = state[0]
     state[0] = k + 1 if k + 1 < n_contacts else 0
-    return k
+    return np.uint64(k), rng
 
 
 @njit(cache=True, inline="always")
@@ -43,12 +44,12 @@ def pick_random_sweep(state, rng, n_contacts):
     order = state[1:]
     if state[0] >= n_contacts:
         for m in range(n_contacts - 1, 0, -1):
-            r = bounded(rng, m + 1)
+            r, rng = bounded(rng, m + 1)
             order[m], order[r] = order[r], order[m]
         state[0] = 0
     k = order[state[0]]
     state[0] += 1
-    return k
+    return np.uint64(k), rng
 
 
 class Scheduler(ABC):
@@ -56,7 +57,7 @@ class Scheduler(ABC):
 
     @abstractmethod
     def kernel(self) -> Callable:
-        """The jitted ``pick(state, rng, n_contacts) -> int``."""
+        """The jitted ``pick(state, rng, n_contacts) -> (k, rng)``."""
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         """The ``int64`` state array ``pick`` starts from."""
