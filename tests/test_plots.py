@@ -1,0 +1,196 @@
+"""Plots: PNGs of the right size, and the drawn data equal to the observables."""
+
+import os
+import subprocess
+import sys
+import types
+
+import matplotlib.image
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import EllipseCollection
+from matplotlib.quiver import Quiver
+
+import pinnedballs as pb
+from pinnedballs import observables as obs
+from pinnedballs import plots
+
+
+def read_png(path, fig):
+    """The image at ``path``, checked to be a PNG of the figure's size in pixels."""
+    assert path.stat().st_size > 0
+    image = matplotlib.image.imread(path)
+    width, height = fig.get_size_inches() * fig.dpi
+    assert image.shape[:2] == (round(height), round(width))
+    return image
+
+
+def one_ball_state(geom):
+    v = np.zeros((geom.n_balls, 2))
+    v[1] = [0.0, 10.0]
+    return v
+
+
+def normal_state(n, seed=0):
+    return np.random.default_rng(seed).normal(size=(n, 2))
+
+
+# ---------------------------------------------------------------- states
+
+def test_quiver_draws_balls_and_one_arrow_per_moving_ball(tmp_path):
+    half = pb.HalfPlane(rows=5, cols=8)
+    fig = plots.quiver(half.positions, one_ball_state(half), title="initial", path=tmp_path / "q.png")
+    image = read_png(tmp_path / "q.png", fig)
+    assert image[..., :3].std() > 0                          # not a blank page
+    ax = fig.axes[0]
+    balls = [c for c in ax.collections if isinstance(c, EllipseCollection)]
+    arrows = [c for c in ax.collections if isinstance(c, Quiver)]
+    assert len(balls) == 1 and len(balls[0].get_offsets()) == half.n_balls
+    assert len(arrows) == 1 and arrows[0].N == 1
+    assert ax.get_title() == "initial"
+    assert isinstance(fig.canvas, FigureCanvasAgg)
+
+
+def test_quiver_axes_reach_the_arrow_tips():
+    half = pb.HalfPlane(rows=3, cols=4)
+    v = np.zeros((half.n_balls, 2))
+    v[1] = [0.0, -1.0]                                        # points out of the lattice, below row 0
+    ax = plots.quiver(half.positions, v).axes[0]
+    tip = half.positions[1, 1] - 3 * 2.0                      # a lone arrow is three spacings long
+    assert ax.get_ylim()[0] < tip
+
+
+def test_arrow_scale_keeps_arrows_visible():
+    spacing = 2.0
+    one = np.zeros(1000)
+    one[7] = 14.0
+    assert 14.0 * plots.arrow_scale(one, spacing) == pytest.approx(3 * spacing)   # a lone arrow: 3 spacings
+    spread = np.linalg.norm(normal_state(1000), axis=1)
+    k = plots.arrow_scale(spread, spacing)
+    assert np.quantile(spread, 0.95) * k == pytest.approx(spacing)
+    assert 0.3 * spacing < np.median(spread) * k < spacing   # typical arrows: a fair part of a spacing
+    assert spread.max() * k <= 3 * spacing
+
+
+def test_quiver_of_a_state_at_rest_has_no_arrows():
+    torus = pb.FlatTorus(rows=4, cols=3)
+    ax = plots.quiver(torus.positions, np.zeros((12, 2))).axes[0]
+    assert not any(isinstance(c, Quiver) for c in ax.collections)
+
+
+def test_quiver_rejects_bad_shapes():
+    with pytest.raises(ValueError, match="^positions:"):
+        plots.quiver(np.zeros((4, 3)), np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="^velocities:"):
+        plots.quiver(np.zeros((4, 2)), np.zeros((5, 2)))
+
+
+# ---------------------------------------------------------------- energy against distance
+
+def test_energy_by_distance_bars_are_the_profile_and_sum_to_one(tmp_path):
+    half = pb.HalfPlane(rows=6, cols=5)
+    d, v = half.boundary_distance(), normal_state(half.n_balls, seed=1)
+    fig = plots.energy_by_distance(d, v, path=tmp_path / "bars.png")
+    read_png(tmp_path / "bars.png", fig)
+    bars = fig.axes[0].patches
+    centres, fraction = obs.energy_profile(d, v)
+    assert len(bars) == half.rows
+    heights = [b.get_height() for b in bars]
+    assert sum(heights) == pytest.approx(1.0)
+    np.testing.assert_allclose(heights, fraction)
+    np.testing.assert_allclose([b.get_x() + b.get_width() / 2 for b in bars], centres, atol=1e-12)
+
+
+def test_energy_profiles_draw_one_line_per_system(tmp_path):
+    profiles = {}
+    for rows, cols in [(3, 5), (6, 10), (9, 15)]:
+        half = pb.HalfPlane(rows=rows, cols=cols)
+        profiles[f"{2 * cols} x {rows}"] = obs.energy_profile(half.boundary_distance(),
+                                                              normal_state(half.n_balls, rows))
+    fig = plots.energy_profiles(profiles, title="sizes", logy=True, path=tmp_path / "profiles.png")
+    read_png(tmp_path / "profiles.png", fig)
+    ax = fig.axes[0]
+    assert [line.get_label() for line in ax.lines] == list(profiles)
+    for line, (centres, fraction) in zip(ax.lines, profiles.values()):
+        np.testing.assert_array_equal(line.get_xdata(), centres)
+        np.testing.assert_array_equal(line.get_ydata(), fraction)
+    assert ax.get_yscale() == "log"
+
+
+# ---------------------------------------------------------------- distributions
+
+def test_component_histograms_with_fitted_normal(tmp_path):
+    v = normal_state(2000, seed=2) * [1.0, 2.0]
+    fig = plots.component_histograms(v, path=tmp_path / "hist.png")
+    read_png(tmp_path / "hist.png", fig)
+    assert len(fig.axes) == 2
+    scale = np.abs(v).max()                                   # one scale for both panels
+    for k, ax in enumerate(fig.axes):
+        heights = np.array([b.get_height() for b in ax.patches])
+        assert len(heights) == 80 and heights.sum() == 2000
+        assert [b.get_width() for b in ax.patches] == pytest.approx([0.025] * 80)
+        (line,) = ax.lines
+        x, y = line.get_xdata(), line.get_ydata()
+        area = np.sum((y[1:] + y[:-1]) / 2 * np.diff(x))
+        assert area == pytest.approx(0.025 * heights.sum(), rel=0.01)   # curve and bars hold the same area
+        assert x[np.argmax(y)] == pytest.approx(v[:, k].mean() / scale, abs=0.01)
+
+
+def test_correlation_histogram_counts_runs(tmp_path):
+    values = np.random.default_rng(3).normal(0.0, 0.05, size=240)
+    fig = plots.correlation_histogram(values, title="line of centres", path=tmp_path / "corr.png")
+    read_png(tmp_path / "corr.png", fig)
+    ax = fig.axes[0]
+    heights = np.array([b.get_height() for b in ax.patches])
+    assert len(heights) == 100 and heights.sum() == 240       # bin width 0.02 on [-1, 1]
+    (mean_line,) = ax.lines
+    assert mean_line.get_xdata()[0] == pytest.approx(values.mean())
+
+
+def test_plots_never_import_pyplot():
+    code = ("import sys, numpy as np; from pinnedballs import plots; "
+            "plots.quiver(np.zeros((2, 2)) + [[0, 0], [2, 0]], np.ones((2, 2))); "
+            "print('matplotlib.pyplot' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={**os.environ, "MPLBACKEND": "TkAgg"})   # a GUI backend, were pyplot used
+    assert out.stdout.strip() == "False"
+
+
+# ---------------------------------------------------------------- one run
+
+def results(geometry, velocities, snapshots, masses=None):
+    """A stand-in for what `pinnedballs.load` returns."""
+    return types.SimpleNamespace(positions=geometry.positions, velocities=velocities, geometry=geometry,
+                                 masses=masses, snapshots=snapshots)
+
+
+def snapshot(step, collisions, velocities):
+    return types.SimpleNamespace(step=step, collisions=collisions, velocities=velocities)
+
+
+def test_write_figures_for_a_half_plane_run(tmp_path):
+    half = pb.HalfPlane(rows=4, cols=6)
+    v0, v1 = one_ball_state(half), normal_state(half.n_balls, seed=4)
+    res = results(half, v1, [snapshot(0, 0, v0), snapshot(250, 40, v1)], masses=np.ones(half.n_balls))
+    paths = plots.write_figures(res, tmp_path / "figs")
+    names = [p.name for p in paths]
+    assert names == ["state_initial.png", "state_step_250.png", "state_final.png",
+                     "energy_by_distance.png", "velocity_histograms.png"]
+    for p in paths:
+        assert p.parent == tmp_path / "figs"
+        assert matplotlib.image.imread(p).shape[2] in (3, 4)
+
+
+def test_write_figures_for_a_torus_run_has_no_energy_bars(tmp_path):
+    torus = pb.FlatTorus(rows=4, cols=4)
+    v = normal_state(16)
+    paths = plots.write_figures(results(torus, v, (snapshot(10, 3, v),)), tmp_path)
+    assert [p.name for p in paths] == ["state_step_10.png", "state_final.png", "velocity_histograms.png"]
+
+
+def test_write_figures_skips_pictures_of_states_that_are_not_planar(tmp_path):
+    geom = pb.GraphGeometry.from_positions(np.array([[0.0, 0, 0], [2.0, 0, 0], [4.0, 0, 0]]))
+    v = np.ones((3, 3))
+    assert plots.write_figures(results(geom, v, [snapshot(0, 0, v)]), tmp_path) == []
+    assert list(tmp_path.iterdir()) == []
