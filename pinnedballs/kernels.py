@@ -67,43 +67,53 @@ class _ClosureCache(FunctionCache):
 
     numba keys a closure on a pickle of its captured values, and a pickled
     dispatcher carries a per-process id: every process would miss and compile
-    again. Here a captured dispatcher counts by its module, name and the hash of
-    its source file, so an edit to a rule or scheduler also invalidates the entry.
+    again. Here a captured dispatcher counts by its module, name and a hash of
+    its source file (and of the engine files the loop inlines), so an edit to a
+    rule or scheduler also invalidates the entry.
     """
 
     def _index_key(self, sig, codegen):
-        captured = [cell.cell_contents for cell in self._py_func.__closure__ or ()]
-        parts = [self._py_func.__code__.co_code, _source_digest(inspect.getsourcefile(self._py_func))]
-        for value in captured:
+        parts = [self._py_func.__code__.co_code]
+        for value in _captured(self._py_func):
             if isinstance(value, Dispatcher):
                 f = value.py_func
-                parts.append(f"{f.__module__}.{f.__qualname__}".encode())
-                parts.append(_source_digest(inspect.getsourcefile(f)))
+                parts += [f"{f.__module__}.{f.__qualname__}".encode(), _source_digest(_source_file(f))]
             else:
                 parts.append(repr(value).encode())
         return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
 
 
-_ENGINE_FILES = [str(Path(__file__).with_name(name)) for name in ("kernels.py", "random.py", "rules.py")]
+_ENGINE_FILES = tuple(str(Path(__file__).with_name(name)) for name in ("kernels.py", "random.py", "rules.py"))
+
+
+def _captured(py_func: Callable) -> list:
+    return [cell.cell_contents for cell in py_func.__closure__ or ()]
+
+
+def _source_file(f: Callable) -> str | None:
+    """The readable source file defining ``f``, or None (a notebook cell, ``exec``)."""
+    try:
+        path = inspect.getsourcefile(f)
+    except TypeError:
+        return None
+    return path if path and Path(path).is_file() else None
 
 
 @functools.cache
-def _source_digest(path: str | None) -> bytes:
-    """Hash of a source file and of the engine files every kernel inlines."""
+def _source_digest(path: str) -> bytes:
+    """Hash of a source file and of the engine files every loop inlines."""
     h = hashlib.sha256()
-    for name in sorted({path or "", *_ENGINE_FILES}):
-        try:
-            with open(name, "rb") as f:
-                h.update(f.read())
-        except OSError:
-            h.update(name.encode())
+    for name in sorted({path, *_ENGINE_FILES}):
+        h.update(Path(name).read_bytes())
     return h.hexdigest().encode()
 
 
-def _cached_jit(py_func: Callable) -> Callable:
-    """``njit`` with `_ClosureCache` as its on-disk cache."""
+def _jit_cached_if_possible(py_func: Callable) -> Callable:
+    """``njit`` with `_ClosureCache` on disk, or no disk cache when a captured
+    function has no source file to key it by (it is then compiled once per process)."""
     dispatcher = njit(py_func)
-    dispatcher._cache = _ClosureCache(py_func)
+    if all(_source_file(v.py_func) for v in _captured(py_func) if isinstance(v, Dispatcher)):
+        dispatcher._cache = _ClosureCache(py_func)
     return dispatcher
 
 
@@ -123,7 +133,7 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Cal
 
     D, FLAT = dim, flat  # constants of the compiled loop: component loops unroll
 
-    @_cached_jit
+    @_jit_cached_if_possible
     def chain(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
               max_steps, max_collisions, track, ptr, inc, flags):
         n = pairs.shape[0]

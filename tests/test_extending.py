@@ -1,0 +1,78 @@
+"""The examples of docs/extending.md run, and do what the page says."""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "extending.md"
+
+
+@pytest.fixture(scope="module")
+def doc():
+    """The namespace after running every python block of the page, in order."""
+    ns = {}
+    for block in re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S):
+        exec(compile(block, str(DOC), "exec"), ns)
+    return ns
+
+
+def test_chain_geometry_is_a_path_with_flat_units(doc):
+    chain = doc["Chain"](5)
+    assert chain.n_contacts == 4 and chain.dim == 2
+    assert chain.contacts.flat
+    assert sorted(chain.degrees()) == [1, 1, 2, 2, 2]
+    ref = pb.GraphGeometry.from_positions(chain.positions)
+    np.testing.assert_array_equal(ref.contacts.pairs, chain.contacts.pairs)
+    np.testing.assert_array_equal(ref.contacts.t_i, chain.contacts.t_i)
+
+
+def test_newtons_cradle_on_the_chain(doc):
+    """Equal masses on a line: the velocity passes to the far end, and the chain freezes."""
+    chain = doc["Chain"](5)
+    v = np.zeros((5, 2))
+    v[0, 0] = 1.0
+    sim = pb.Simulation(chain, v, scheduler=pb.Sweep())
+    assert sim.run_until_frozen(max_steps=100)
+    expected = np.zeros((5, 2))
+    expected[4, 0] = 1.0
+    np.testing.assert_array_equal(sim.velocities, expected)
+    assert sim.collisions == 4
+
+
+def test_sticky_with_keep_one_is_elastic_bit_for_bit(doc):
+    torus = pb.FlatTorus(6, 6)
+    v = np.random.default_rng(3).normal(size=(torus.n_balls, 2))
+    a = pb.Simulation(torus, v, rule=doc["Sticky"](1.0), seed=5)
+    b = pb.Simulation(torus, v, rule=pb.Elastic(), seed=5)
+    a.run(steps=20_000)
+    b.run(steps=20_000)
+    np.testing.assert_array_equal(a.velocities, b.velocities)
+    assert a.collisions == b.collisions
+
+
+def test_sticky_loses_energy_keeps_momentum(doc):
+    torus = pb.FlatTorus(6, 6)
+    v = np.random.default_rng(4).normal(size=(torus.n_balls, 2))
+    sim = pb.Simulation(torus, v, rule=doc["Sticky"](0.5), seed=1)
+    e0, p0 = sim.energy(), sim.momentum()
+    sim.run(steps=5_000)
+    assert sim.energy() < 0.5 * e0
+    np.testing.assert_allclose(sim.momentum(), p0, atol=1e-12 * np.sqrt(e0) * torus.n_balls)
+
+
+def test_among_touches_only_its_contacts(doc):
+    torus = pb.FlatTorus(8, 8)
+    v = np.random.default_rng(5).normal(size=(torus.n_balls, 2))
+    chosen = np.arange(0, 30, 3)
+    sim = pb.Simulation(torus, v, scheduler=doc["Among"](chosen), seed=2)
+    sim.run(steps=2_000)
+    touched = np.unique(torus.contacts.pairs[chosen].astype(np.int64))
+    untouched = np.setdiff1d(np.arange(torus.n_balls), touched)
+    assert sim.collisions > 0
+    np.testing.assert_array_equal(sim.velocities[untouched], v[untouched])
+    with pytest.raises(ValueError, match="contacts: must be a non-empty list of indices below 192"):
+        pb.Simulation(torus, v, scheduler=doc["Among"]([192]))
