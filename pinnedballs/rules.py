@@ -26,7 +26,8 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-__all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "collide_equal", "collide_masses"]
+__all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "collide_exchange", "collide_equal",
+           "collide_masses"]
 
 
 @njit(cache=True, inline="always")
@@ -37,11 +38,26 @@ def _t_j(units, a, b, k, flat):
 
 @njit(cache=True, inline="always")
 def closing_speed(v, units, i, j, a, b, dim, flat):
-    """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching."""
-    w = 0.0
-    for k in range(dim):
+    """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching.
+
+    The sum is ``(v_i0 t_i0 + v_j0 t_j0) + (v_i1 t_i1 + v_j1 t_j1) + ...``, left to right.
+    """
+    w = v[i, 0] * units[a, 0] + v[j, 0] * _t_j(units, a, b, 0, flat)
+    for k in range(1, dim):
         w += v[i, k] * units[a, k] + v[j, k] * _t_j(units, a, b, k, flat)
     return w
+
+
+@njit(cache=True, inline="always")
+def collide_exchange(v, units, i, j, a, b, masses, params, dim, flat):
+    """Equal masses, elastic: the paper's exchange, ``v_i -= w t_i``, ``v_j -= w t_j``."""
+    w = closing_speed(v, units, i, j, a, b, dim, flat)
+    if w <= 0.0:
+        return False
+    for k in range(dim):
+        v[i, k] -= w * units[a, k]
+        v[j, k] -= w * _t_j(units, a, b, k, flat)
+    return True
 
 
 @njit(cache=True, inline="always")
@@ -91,6 +107,8 @@ class Restitution(CollisionRule):
         self.r = float(r)
 
     def kernel(self, equal_masses: bool) -> tuple[Callable, np.ndarray]:
+        if equal_masses and self.r == 1.0:
+            return collide_exchange, np.array([1.0])  # the same numbers as collide_equal: w * 1.0 == w
         if equal_masses:
             return collide_equal, np.array([(1.0 + self.r) / 2.0])
         return collide_masses, np.array([1.0 + self.r])

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Geometry
-from .kernels import APPROACHING, COLLISIONS, STEPS, approaching_flags, chain_kernel, incidence
+from .kernels import (APPROACHING, COLLISIONS, LOOKAHEAD_BYTES, NO_LIMIT, STEPS, approaching_flags,
+                      chain_kernel, incidence)
 from .random import seed_state
 from .rules import CollisionRule, Elastic
 from .schedulers import Scheduler, UniformRandomPair
 
 __all__ = ["Simulation"]
 
-_NO_LIMIT = np.iinfo(np.int64).max
 
 
 def _count(name: str, value) -> int:
@@ -123,8 +123,8 @@ class Simulation:
         """
         if steps is None and collisions is None:
             raise ValueError("run: give steps= or collisions= (or use run_until_frozen)")
-        max_steps = _NO_LIMIT if steps is None else _count("steps", steps)
-        max_collisions = _NO_LIMIT if collisions is None else _count("collisions", collisions)
+        max_steps = NO_LIMIT if steps is None else _count("steps", steps)
+        max_collisions = NO_LIMIT if collisions is None else _count("collisions", collisions)
         return self._run(max_steps, max_collisions, track=steps is None)
 
     def run_until_frozen(self, max_steps: int) -> bool:
@@ -133,7 +133,7 @@ class Simulation:
         Stops right after the collision that freezes the system, so ``steps`` is the
         exact step of the last collision. Returns True if frozen.
         """
-        self._run(_count("max_steps", max_steps), _NO_LIMIT, track=True)
+        self._run(_count("max_steps", max_steps), NO_LIMIT, track=True)
         return self._counters[APPROACHING] == 0
 
     def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
@@ -146,9 +146,11 @@ class Simulation:
             self._counters[APPROACHING] = approaching_flags(self.velocities, c.pairs, c.ends, c.units, flags)
         else:
             ptr, inc, flags = _EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS
+        lookahead = (not track and max_collisions == NO_LIMIT
+                     and c.pairs.nbytes + c.ends.nbytes + self.velocities.nbytes > LOOKAHEAD_BYTES)
         return self._chain(self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params,
                            self._sched_state, self._rng, self._counters, max_steps, max_collisions,
-                           track, ptr, inc, flags)
+                           track, ptr, inc, flags, lookahead)
 
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
