@@ -8,6 +8,8 @@ from .geometry import Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation
+from .io import load
+from .spec import RunSpec
 
 __version__ = "0.1.0"
 
@@ -16,4 +18,5 @@ __all__ = [
     "CollisionRule", "Elastic", "Restitution",
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
     "Simulation", "__version__",
+    "load", "RunSpec",
 ]
