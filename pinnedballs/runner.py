@@ -51,22 +51,8 @@ def advance(sim: Simulation, steps: int, collisions: int | None = None, until_fr
     """Run at most ``steps`` more steps, stopping at ``collisions`` in total if given, and
     at the exact freeze if ``until_frozen``. Returns True if it stopped because the system froze.
     """
-    if collisions is None:
-        if until_frozen:
-            return sim.run_until_frozen(max_steps=steps)
-        sim.run(steps=steps)
-        return False
-    if not until_frozen:
-        sim.run(steps=steps, collisions=collisions)
-        return False
-    # run(steps=, collisions=) does not watch for a freeze: redo the chunk with
-    # run_until_frozen when it froze short of the target, to stop at the exact step
-    saved = sim.get_state()
-    sim.run(steps=steps, collisions=collisions)
-    if sim.collisions < collisions and sim.is_frozen():
-        sim.set_state(saved)
-        return sim.run_until_frozen(max_steps=steps)
-    return False
+    sim.run(steps=steps, collisions=collisions, until_frozen=until_frozen)
+    return until_frozen and sim.is_frozen()
 
 
 def _counter(sim: Simulation, name: str) -> int:

@@ -115,17 +115,18 @@ class Simulation:
         return int(self._counters[COLLISIONS])
 
     # ------------------------------------------------------------ running
-    def run(self, steps: int | None = None, collisions: int | None = None) -> int:
+    def run(self, steps: int | None = None, collisions: int | None = None, *, until_frozen: bool = False) -> int:
         """Pick ``steps`` more contacts, or run until ``collisions`` in total, whichever comes first.
 
-        With only ``collisions`` given, the run also stops if the system freezes first
-        (see `is_frozen`). Returns the number of steps taken.
+        With ``until_frozen`` (implied when only ``collisions`` is given, which a frozen
+        system could never reach) the run also stops right after the collision that
+        leaves no contact approaching. Returns the number of steps taken.
         """
         if steps is None and collisions is None:
             raise ValueError("run: give steps= or collisions= (or use run_until_frozen)")
         max_steps = NO_LIMIT if steps is None else _count("steps", steps)
         max_collisions = NO_LIMIT if collisions is None else _count("collisions", collisions)
-        return self._run(max_steps, max_collisions, track=steps is None)
+        return self._run(max_steps, max_collisions, track=until_frozen or steps is None)
 
     def run_until_frozen(self, max_steps: int) -> bool:
         """Run until no contact approaches, for at most ``max_steps`` more steps.
@@ -134,7 +135,7 @@ class Simulation:
         exact step of the last collision. Returns True if frozen.
         """
         self._run(_count("max_steps", max_steps), NO_LIMIT, track=True)
-        return self._counters[APPROACHING] == 0
+        return bool(self._counters[APPROACHING] == 0)
 
     def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
         c = self.geometry.contacts
