@@ -8,7 +8,8 @@ import textwrap
 import numpy as np
 from numba import njit
 
-from pinnedballs.kernels import _ClosureCache, chain_kernel
+from pinnedballs.jitcache import _ClosureCache
+from pinnedballs.kernels import chain_kernel
 from pinnedballs.rules import collide_equal, collide_exchange, collide_masses
 from pinnedballs.schedulers import pick_random_sweep, pick_sweep, pick_uniform
 
@@ -28,7 +29,8 @@ def test_every_combination_has_its_own_key():
 def test_key_is_the_same_in_another_process():
     here = _key(chain_kernel(collide_equal, pick_sweep, 2, True))
     code = textwrap.dedent("""
-        from pinnedballs.kernels import _ClosureCache, chain_kernel
+        from pinnedballs.jitcache import _ClosureCache
+        from pinnedballs.kernels import chain_kernel
         from pinnedballs.rules import collide_equal
         from pinnedballs.schedulers import pick_sweep
         k = chain_kernel(collide_equal, pick_sweep, 2, True)

@@ -1,0 +1,94 @@
+"""numba's on-disk cache for loops that are closures over jitted functions.
+
+A compiled loop is a closure over a rule's ``collide`` and a scheduler's
+``pick``, so that numba inlines them. numba keys a closure's cache entry on a
+pickle of the values it captures, and a pickled dispatcher carries a
+per-process id: every process would miss and compile again (seconds each).
+`jit_cached_if_possible` keys them by name and source instead.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+from pathlib import Path
+from typing import Callable
+
+from numba import njit
+from numba.core.caching import FunctionCache
+from numba.core.dispatcher import Dispatcher
+
+__all__ = ["jit_cached_if_possible"]
+
+
+class _ClosureCache(FunctionCache):
+    """numba's on-disk cache, keyed so that closures over jitted functions hit across processes.
+
+    numba keys a closure on a pickle of its captured values, and a pickled
+    dispatcher carries a per-process id: every process would miss and compile
+    again. Here a captured dispatcher counts by its module, name, bytecode and a
+    hash of its source file and of the package's files, recursing into the values
+    it captures in turn, so an edit to a rule or scheduler invalidates the entry.
+    """
+
+    def _index_key(self, sig, codegen):
+        parts = [self._py_func.__code__.co_code, *_closure_parts(self._py_func)]
+        return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
+
+
+#: every source file of the package: a loop may inline any of them, so an edit to one invalidates
+_ENGINE_FILES = tuple(sorted(str(p) for p in Path(__file__).parent.glob("*.py")))
+
+
+def _captured(py_func: Callable) -> list:
+    return [cell.cell_contents for cell in py_func.__closure__ or ()]
+
+
+def _closure_parts(py_func: Callable) -> list[bytes]:
+    """What identifies the values ``py_func`` captures, recursing into captured jitted closures."""
+    parts = []
+    for value in _captured(py_func):
+        if isinstance(value, Dispatcher):
+            f = value.py_func
+            parts += [f"{f.__module__}.{f.__qualname__}".encode(), _source_digest(_source_file(f)),
+                      f.__code__.co_code, b"(", *_closure_parts(f), b")"]
+        else:
+            parts.append(repr(value).encode())
+    return parts
+
+
+def _all_captured_functions(py_func: Callable) -> list[Callable]:
+    """Every Python function behind the jitted functions ``py_func`` captures, recursively."""
+    found = []
+    for value in _captured(py_func):
+        if isinstance(value, Dispatcher):
+            found += [value.py_func, *_all_captured_functions(value.py_func)]
+    return found
+
+
+def _source_file(f: Callable) -> str | None:
+    """The readable source file defining ``f``, or None (a notebook cell, ``exec``)."""
+    try:
+        path = inspect.getsourcefile(f)
+    except TypeError:
+        return None
+    return path if path and Path(path).is_file() else None
+
+
+@functools.cache
+def _source_digest(path: str) -> bytes:
+    """Hash of a source file and of the package's own source files."""
+    h = hashlib.sha256()
+    for name in sorted({path, *_ENGINE_FILES}):
+        h.update(Path(name).read_bytes())
+    return h.hexdigest().encode()
+
+
+def jit_cached_if_possible(py_func: Callable) -> Callable:
+    """``njit`` with `_ClosureCache` on disk, or no disk cache when a captured
+    function has no source file to key it by (it is then compiled once per process)."""
+    dispatcher = njit(py_func)
+    if all(_source_file(f) for f in _all_captured_functions(py_func)):
+        dispatcher._cache = _ClosureCache(py_func)
+    return dispatcher
