@@ -1,7 +1,7 @@
 """The compiled loop (numba) and its helpers for tracking frozen states.
 
-`chain_kernel(collide, pick, dim, flat)` builds the one hot loop for a
-collision rule and a scheduler: pick a contact, try to collide it, count. The
+`chain_kernel(collide, pick, dim, flat)` builds the hot loops for a collision
+rule and a scheduler: pick a contact, try to collide it, count. The
 rule's ``collide`` and the scheduler's ``pick`` are compiled into the loop
 (inlined, not called through pointers); each combination is built once per
 process and cached on disk (`pinnedballs.jitcache`), so later processes load it.
@@ -10,7 +10,7 @@ process and cached on disk (`pinnedballs.jitcache`), so later processes load it.
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -20,7 +20,8 @@ from .prefetch import prefetch
 from .random import load, store
 from .rules import closing_speed
 
-__all__ = ["chain_kernel", "approaching_flags", "incidence", "STEPS", "COLLISIONS", "APPROACHING"]
+__all__ = ["chain_kernel", "Loops", "approaching_flags", "incidence", "STEPS", "COLLISIONS", "APPROACHING",
+           "NO_LIMIT"]
 
 #: indices into the ``counters`` array shared by Python and the loop
 STEPS, COLLISIONS, APPROACHING = 0, 1, 2
@@ -68,46 +69,56 @@ def _refresh(v, pairs, ends, units, ptr, inc, flags, ball, dim, flat):
     return delta
 
 
-@functools.cache
-def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Callable:
-    """The compiled loop for one rule's ``collide``, one scheduler's ``pick``, ``dim`` and
-    ``flat`` (every ``t_j == -t_i``, so the loop reads one unit vector per contact).
+class Loops(NamedTuple):
+    """The compiled loops of one (rule, scheduler, dim, flat), each compiled on first use.
 
-    ``chain(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
-    max_steps, max_collisions, track, ptr, inc, flags, lookahead) -> steps taken``
-    runs in place and stops after ``max_steps`` picks, at ``max_collisions`` in total
-    (`NO_LIMIT`: none), or, when ``track``, right after the collision that leaves no
-    contact approaching. ``lookahead`` (steps only) prefetches: same results, faster
-    when the tables do not fit in cache.
+    steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps)
+        picks ``max_steps`` contacts;
+    steps_prefetched(... same ...)
+        the same, bit for bit, prefetching rows of picks drawn a few steps early (faster
+        when the tables do not fit in cache);
+    limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
+            max_steps, max_collisions, track, ptr, inc, flags)
+        stops after ``max_steps`` picks, at ``max_collisions`` in total (`NO_LIMIT`: none)
+        or, when ``track``, right after the collision that leaves no contact approaching.
 
     Shapes: v ``(n_balls, dim)``; pairs, ends ``(E, 2)``; units ``(K, dim)``; rng_words
     ``(4,) uint64``; counters ``(3,) int64`` totals ``[steps, collisions, approaching]``,
     approaching exact only when ``track``, kept with ``flags (E,) uint8`` and the
-    incidence ``ptr, inc`` (see `incidence`).
+    incidence ``ptr, inc`` (see `incidence`). Each returns the number of steps taken.
     """
-    D, FLAT = dim, flat  # constants of the compiled loop: component loops unroll
+
+    steps: Callable
+    steps_prefetched: Callable
+    limited: Callable
+
+
+@functools.cache
+def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loops:
+    """The compiled loops for one rule's ``collide``, one scheduler's ``pick``, ``dim`` and
+    ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
+    D, FLAT = dim, flat  # constants of the compiled loops: component loops unroll
 
     @njit(inline="always")
     def attempt(v, pairs, ends, units, masses, params, k):
         return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT)
 
-    @njit(inline="always")
-    def steps_only(v, pairs, ends, units, masses, params, sched_state, rng, max_steps):
-        """``max_steps`` picks: the plainest loop. Returns ``(rng, collisions made)``."""
-        n, made = pairs.shape[0], 0
+    @jit_cached_if_possible
+    def steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
+        n, made, rng = pairs.shape[0], 0, load(rng_words)
         for _ in range(max_steps):
             k, rng = pick(sched_state, rng, n)
             made += attempt(v, pairs, ends, units, masses, params, k)
-        return rng, made
+        store(rng_words, rng)
+        counters[STEPS] += max_steps
+        counters[COLLISIONS] += made
+        return max_steps
 
-    @njit(inline="always")
-    def steps_only_prefetched(v, pairs, ends, units, masses, params, sched_state, rng, max_steps):
-        """As `steps_only`, drawing picks LOOKAHEAD steps early and prefetching their rows.
-
-        Every pick drawn is used before returning, so the scheduler and random state
-        left behind are the plain loop's, bit for bit.
-        """
-        n, made = pairs.shape[0], 0
+    @jit_cached_if_possible
+    def steps_prefetched(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
+        # Every pick drawn is used before returning, so the scheduler and random
+        # state left behind are those of `steps`, bit for bit.
+        n, made, rng = pairs.shape[0], 0, load(rng_words)
         ring = np.empty(_RING, dtype=np.uint64)
         for t in range(min(LOOKAHEAD, max_steps)):
             ring[t], rng = pick(sched_state, rng, n)
@@ -124,13 +135,15 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Cal
                 prefetch(v, pairs[k, 0])
                 prefetch(v, pairs[k, 1])
             made += attempt(v, pairs, ends, units, masses, params, ring[t % _RING])
-        return rng, made
+        store(rng_words, rng)
+        counters[STEPS] += max_steps
+        counters[COLLISIONS] += made
+        return max_steps
 
-    @njit(inline="always")
-    def limited(v, pairs, ends, units, masses, params, sched_state, rng, counters,
+    @jit_cached_if_possible
+    def limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
                 max_steps, max_collisions, track, ptr, inc, flags):
-        """Until a step cap, a collision total or (``track``) the freeze. Returns ``(rng, steps)``."""
-        n, steps = pairs.shape[0], 0
+        n, steps, rng = pairs.shape[0], 0, load(rng_words)
         collisions, approaching = counters[COLLISIONS], counters[APPROACHING]
         while steps < max_steps and collisions < max_collisions and not (track and approaching == 0):
             k, rng = pick(sched_state, rng, n)
@@ -140,25 +153,9 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Cal
                 if track:
                     approaching += _refresh(v, pairs, ends, units, ptr, inc, flags, pairs[k, 0], D, FLAT)
                     approaching += _refresh(v, pairs, ends, units, ptr, inc, flags, pairs[k, 1], D, FLAT)
-        counters[COLLISIONS], counters[APPROACHING] = collisions, approaching
-        return rng, steps
-
-    @jit_cached_if_possible
-    def chain(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
-              max_steps, max_collisions, track, ptr, inc, flags, lookahead):
-        rng = load(rng_words)
-        if track or max_collisions != NO_LIMIT:
-            rng, steps = limited(v, pairs, ends, units, masses, params, sched_state, rng, counters,
-                                 max_steps, max_collisions, track, ptr, inc, flags)
-        else:
-            if lookahead:
-                rng, made = steps_only_prefetched(v, pairs, ends, units, masses, params, sched_state, rng, max_steps)
-            else:
-                rng, made = steps_only(v, pairs, ends, units, masses, params, sched_state, rng, max_steps)
-            counters[COLLISIONS] += made
-            steps = max_steps
         store(rng_words, rng)
         counters[STEPS] += steps
+        counters[COLLISIONS], counters[APPROACHING] = collisions, approaching
         return steps
 
-    return chain
+    return Loops(steps, steps_prefetched, limited)

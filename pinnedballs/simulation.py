@@ -68,7 +68,7 @@ class Simulation:
         self._collide, self._params = rule.kernel(equal)
         self._mass_array = np.ones(geometry.n_balls) if self.masses is None else self.masses
         self._pick = scheduler.kernel()
-        self._chain = chain_kernel(self._collide, self._pick, geometry.dim, geometry.contacts.flat)
+        self._loops = chain_kernel(self._collide, self._pick, geometry.dim, geometry.contacts.flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
         self._rng = seed_state(seed)
         self._counters = np.zeros(3, dtype=np.int64)
@@ -139,6 +139,11 @@ class Simulation:
 
     def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
         c = self.geometry.contacts
+        common = (self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params,
+                  self._sched_state, self._rng, self._counters, max_steps)
+        if not track and max_collisions == NO_LIMIT:
+            large = c.pairs.nbytes + c.ends.nbytes + self.velocities.nbytes > LOOKAHEAD_BYTES
+            return (self._loops.steps_prefetched if large else self._loops.steps)(*common)
         if track:
             if self._incidence is None:
                 self._incidence = incidence(c.pairs, self.geometry.n_balls)
@@ -147,11 +152,7 @@ class Simulation:
             self._counters[APPROACHING] = approaching_flags(self.velocities, c.pairs, c.ends, c.units, flags)
         else:
             ptr, inc, flags = _EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS
-        lookahead = (not track and max_collisions == NO_LIMIT
-                     and c.pairs.nbytes + c.ends.nbytes + self.velocities.nbytes > LOOKAHEAD_BYTES)
-        return self._chain(self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params,
-                           self._sched_state, self._rng, self._counters, max_steps, max_collisions,
-                           track, ptr, inc, flags, lookahead)
+        return self._loops.limited(*common, max_collisions, track, ptr, inc, flags)
 
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:

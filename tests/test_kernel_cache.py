@@ -14,7 +14,8 @@ from pinnedballs.rules import collide_equal, collide_exchange, collide_masses
 from pinnedballs.schedulers import pick_random_sweep, pick_sweep, pick_uniform
 
 
-def _key(kernel):
+def _key(loops):
+    kernel = loops.limited
     return _ClosureCache(kernel.py_func)._index_key(("sig",), kernel.targetctx.codegen())
 
 
@@ -33,7 +34,7 @@ def test_key_is_the_same_in_another_process():
         from pinnedballs.kernels import chain_kernel
         from pinnedballs.rules import collide_equal
         from pinnedballs.schedulers import pick_sweep
-        k = chain_kernel(collide_equal, pick_sweep, 2, True)
+        k = chain_kernel(collide_equal, pick_sweep, 2, True).limited
         print(repr(_ClosureCache(k.py_func)._index_key(("sig",), k.targetctx.codegen())))
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -43,8 +44,8 @@ def test_key_is_the_same_in_another_process():
 def test_function_without_source_file_is_not_disk_cached():
     ns = {}
     exec("def f(v, units, i, j, a, b, masses, params, dim, flat):\n    return False", ns)
-    kernel = chain_kernel(njit(ns["f"]), pick_uniform, 2, True)
-    assert not isinstance(kernel._cache, _ClosureCache)
+    loops = chain_kernel(njit(ns["f"]), pick_uniform, 2, True)
+    assert not any(isinstance(kernel._cache, _ClosureCache) for kernel in loops)
 
 
 def test_cached_loops_give_each_rule_its_own_physics(tmp_path):
