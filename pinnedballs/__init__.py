@@ -10,6 +10,7 @@ from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation
 from .io import load
 from .spec import RunSpec
+from .ensemble import run_ensemble
 
 __version__ = "0.1.0"
 
@@ -18,5 +19,5 @@ __all__ = [
     "CollisionRule", "Elastic", "Restitution",
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
     "Simulation", "__version__",
-    "load", "RunSpec",
+    "load", "RunSpec", "run_ensemble",
 ]

@@ -198,3 +198,7 @@ def _plots_available() -> bool:
     import importlib.util
 
     return importlib.util.find_spec("pinnedballs.plots") is not None
+
+
+# subcommands that live in their own modules register themselves on import
+from . import ensemble as _ensemble, reproduce as _reproduce  # noqa: E402,F401

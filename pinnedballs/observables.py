@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import math
+
 import numpy as np
 from scipy import stats
 
@@ -18,8 +20,8 @@ from .geometry import Geometry, HalfPlane
 
 __all__ = [
     "energy_per_ball", "total_energy", "total_momentum",
-    "boundary_rows", "energy_profile", "boundary_share", "outward_energy_fraction",
-    "Histogram", "component_histogram", "normality_tests",
+    "boundary_rows", "energy_profile", "boundary_share", "far_shares", "outward_energy_fraction",
+    "Histogram", "component_histogram", "normality_tests", "ad_critical_5pct",
     "line_of_centres_components", "line_of_centres_correlation", "xy_correlation",
     "closing_speeds", "approaching_fraction", "summary",
 ]
@@ -171,6 +173,22 @@ def boundary_share(distances, velocities, masses=None) -> float:
     return _fraction(e[row == 0].sum(), e.sum())
 
 
+def far_shares(distances, velocities, masses=None) -> dict[str, float]:
+    """Energy far from the boundary: ``far_half_share`` (balls beyond half the largest distance)
+    and ``far_row_share`` (the row farthest from the boundary).
+
+    distances: ``(n_balls,)`` from the boundary; velocities: ``(n_balls, dim)``. NaN if the energy is 0.
+    """
+    d = np.asarray(distances, dtype=np.float64)
+    e = energy_per_ball(velocities, masses)
+    row, _ = boundary_rows(d)
+    total = e.sum()
+    if not total > 0:
+        return {"far_half_share": math.nan, "far_row_share": math.nan}
+    return {"far_half_share": float(e[d > 0.5 * d.max()].sum() / total),
+            "far_row_share": float(e[row == row.max()].sum() / total)}
+
+
 def outward_energy_fraction(velocities, outward=HALF_PLANE_OUTWARD, masses=None) -> float:
     """Share of these balls' energy held by balls moving outward (``v . outward > 0``).
 
@@ -229,7 +247,7 @@ def component_histogram(values, bin_width: float = 0.025, span=(-1.0, 1.0), norm
     return Histogram(counts, edges, mean, std, float(scale))
 
 
-def _ad_critical_5pct(n: int) -> float:
+def ad_critical_5pct(n: int) -> float:
     """5 % critical value of Anderson–Darling for a normal with fitted mean and variance.
 
     Stephens (1974), as tabulated by ``scipy.stats.anderson``: ``0.752 / (1 + 0.75/n + 2.25/n^2)``.
@@ -264,7 +282,7 @@ def normality_tests(values) -> dict[str, float]:
     return {
         "n": float(len(x)), "mean": mean, "std": std,
         "ks_statistic": float(ks.statistic), "ks_pvalue": float(ks.pvalue),
-        "ad_statistic": _ad_statistic(x), "ad_critical_5pct": _ad_critical_5pct(len(x)),
+        "ad_statistic": _ad_statistic(x), "ad_critical_5pct": ad_critical_5pct(len(x)),
     }
 
 

@@ -132,7 +132,7 @@ def test_normality_tests_reject_uniform_sample_of_5000():
 
 def test_anderson_darling_critical_value_matches_stephens_table():
     # scipy.stats.anderson's tabulated 5 % value for n = 100 (rounded to 3 decimals) is 0.746
-    assert round(obs._ad_critical_5pct(100), 3) == 0.746
+    assert round(obs.ad_critical_5pct(100), 3) == 0.746
 
 
 def test_normality_tests_need_spread():
