@@ -115,9 +115,10 @@ class Geometry(ABC):
     def contact_graph(self) -> nx.Graph:
         """A networkx graph: nodes ``0..n_balls-1`` with ``"pos"``, one edge per contact.
 
-        Each edge carries ``"units" = {i: t_i, j: t_j}``, so that
-        ``GraphGeometry(geom.contact_graph())`` rebuilds exactly these contacts,
-        periodic or curved ones included.
+        Each edge carries ``"units" = {i: t_i, j: t_j}``, its index ``"contact"`` and its
+        orientation ``"pair" = (i, j)``, so that ``GraphGeometry(geom.contact_graph())``
+        rebuilds exactly these contacts in the same order (the same seed then gives the same
+        run), periodic or curved ones included.
         """
         g = nx.Graph(dim=self.dim)
         for n, p in enumerate(self.positions):
@@ -125,7 +126,7 @@ class Geometry(ABC):
         c = self.contacts
         t_i, t_j = c.t_i, c.t_j
         for e, (i, j) in enumerate(c.pairs.tolist()):
-            g.add_edge(i, j, units={i: tuple(t_i[e].tolist()), j: tuple(t_j[e].tolist())})
+            g.add_edge(i, j, contact=e, pair=(i, j), units={i: tuple(t_i[e].tolist()), j: tuple(t_j[e].tolist())})
         return g
 
     def __repr__(self) -> str:
@@ -317,14 +318,33 @@ class GraphGeometry(Geometry):
         loops = list(nx.selfloop_edges(graph))
         if loops:
             raise ValueError(f"graph: self-loop at node {loops[0][0]!r}; a ball cannot touch itself")
-        pairs = np.array([(index[u], index[v]) for u, v in graph.edges], dtype=np.int64).reshape(-1, 2)
+        edges = self._ordered_edges(graph)
+        pairs = np.array([(index[u], index[v]) for u, v, _ in edges], dtype=np.int64).reshape(-1, 2)
         t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, positions.shape[1]))
         t_j = -t_i
-        for e, (u, v, units) in enumerate(graph.edges(data="units")):
-            if units is not None:
-                t_i[e], t_j[e] = self._given_units(u, v, units, positions.shape[1])
+        for e, (u, v, data) in enumerate(edges):
+            if data.get("units") is not None:
+                t_i[e], t_j[e] = self._given_units(u, v, data["units"], positions.shape[1])
         self._init(positions, pairs, t_i, t_j, radius)
         self.nodes = nodes
+
+    @staticmethod
+    def _ordered_edges(graph: nx.Graph) -> list[tuple]:
+        """``(u, v, data)`` per edge: in contact order, ``u`` first, when every edge carries
+        ``"contact"`` (its index) and ``"pair"`` (``(u, v)``), as `Geometry.contact_graph`
+        writes them; otherwise in networkx's order."""
+        edges = list(graph.edges(data=True))
+        if not edges or not all("contact" in d and "pair" in d for _, _, d in edges):
+            return edges
+        ordered = sorted(edges, key=lambda edge: edge[2]["contact"])
+        if [d["contact"] for _, _, d in ordered] != list(range(len(edges))):
+            raise ValueError("graph: edge 'contact' attributes must number the edges 0, 1, ..., n_contacts - 1")
+        out = []
+        for u, v, d in ordered:
+            if {*d["pair"]} != {u, v} or len(d["pair"]) != 2:
+                raise ValueError(f"graph: edge ({u!r}, {v!r}) has 'pair' {d['pair']!r}, not its two ends")
+            out.append((*d["pair"], d))
+        return out
 
     @staticmethod
     def _given_units(u, v, units, dim: int) -> tuple[np.ndarray, np.ndarray]:

@@ -37,8 +37,9 @@ class _ClosureCache(FunctionCache):
         return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
 
 
-#: every source file of the package: a loop may inline any of them, so an edit to one invalidates
-_ENGINE_FILES = tuple(sorted(str(p) for p in Path(__file__).parent.glob("*.py")))
+#: the package's files whose functions a loop inlines: an edit to one invalidates every loop
+_ENGINE_FILES = tuple(str(Path(__file__).with_name(f"{name}.py"))
+                      for name in ("jitcache", "kernels", "prefetch", "random", "rules", "schedulers"))
 
 
 def _captured(py_func: Callable) -> list:
@@ -78,7 +79,7 @@ def _source_file(f: Callable) -> str | None:
 
 @functools.cache
 def _source_digest(path: str) -> bytes:
-    """Hash of a source file and of the package's own source files."""
+    """Hash of a source file and of the engine files every loop inlines."""
     h = hashlib.sha256()
     for name in sorted({path, *_ENGINE_FILES}):
         h.update(Path(name).read_bytes())

@@ -1,4 +1,4 @@
-"""The compiled loop (numba) and its helpers for tracking frozen states.
+"""The compiled loops (numba), and the incidence they use to track the freeze.
 
 `chain_kernel(collide, pick, dim, flat)` builds the hot loops for a collision
 rule and a scheduler: pick a contact, try to collide it, count. The
@@ -18,13 +18,11 @@ from numba import njit
 from .jitcache import jit_cached_if_possible
 from .prefetch import prefetch
 from .random import load, store
-from .rules import closing_speed
 
-__all__ = ["chain_kernel", "Loops", "approaching_flags", "incidence", "STEPS", "COLLISIONS", "APPROACHING",
-           "NO_LIMIT"]
+__all__ = ["chain_kernel", "Loops", "incidence", "STEPS", "COLLISIONS", "LIVE", "NO_LIMIT"]
 
-#: indices into the ``counters`` array shared by Python and the loop
-STEPS, COLLISIONS, APPROACHING = 0, 1, 2
+#: indices into the ``counters`` array shared by Python and the loops
+STEPS, COLLISIONS, LIVE = 0, 1, 2
 
 NO_LIMIT = np.iinfo(np.int64).max  #: "no limit" for max_steps or max_collisions
 
@@ -36,17 +34,6 @@ _RING = 16  # ring buffer of drawn picks: a power of two > LOOKAHEAD
 LOOKAHEAD_BYTES = 4 << 20
 
 
-@njit(cache=True)
-def approaching_flags(v, pairs, ends, units, flags):
-    """Set ``flags[k] = 1`` where contact ``k`` approaches; return how many do."""
-    count = 0
-    for k in range(pairs.shape[0]):
-        w = closing_speed(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], v.shape[1], False)
-        flags[k] = 1 if w > 0.0 else 0
-        count += flags[k]
-    return count
-
-
 def incidence(pairs: np.ndarray, n_balls: int) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of each ball in CSR form: ``(ptr (n_balls+1,) int64, contacts (2E,) uint32)``."""
     balls = pairs.ravel()
@@ -54,19 +41,6 @@ def incidence(pairs: np.ndarray, n_balls: int) -> tuple[np.ndarray, np.ndarray]:
     ptr = np.zeros(n_balls + 1, dtype=np.int64)
     np.cumsum(np.bincount(balls.astype(np.intp), minlength=n_balls), out=ptr[1:])
     return ptr, contacts
-
-
-@njit(cache=True, inline="always")
-def _refresh(v, pairs, ends, units, ptr, inc, flags, ball, dim, flat):
-    """Re-test the contacts of ``ball``; return the change in the number approaching."""
-    delta = 0
-    for m in range(ptr[ball], ptr[ball + 1]):
-        c = inc[m]
-        w = closing_speed(v, units, pairs[c, 0], pairs[c, 1], ends[c, 0], ends[c, 1], dim, flat)
-        new = 1 if w > 0.0 else 0
-        delta += new - flags[c]
-        flags[c] = new
-    return delta
 
 
 class Loops(NamedTuple):
@@ -80,17 +54,21 @@ class Loops(NamedTuple):
     limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
             max_steps, max_collisions, track, ptr, inc, flags)
         stops after ``max_steps`` picks, at ``max_collisions`` in total (`NO_LIMIT`: none)
-        or, when ``track``, right after the collision that leaves no contact approaching.
+        or, when ``track``, right after the collision that leaves no live contact;
+    live_flags(v, pairs, ends, units, masses, params, flags) -> count
+        sets ``flags[k] = 1`` where picking contact ``k`` would change velocities (it is
+        *live*: approaching, and not by a rounding remnant) and counts them.
 
     Shapes: v ``(n_balls, dim)``; pairs, ends ``(E, 2)``; units ``(K, dim)``; rng_words
-    ``(4,) uint64``; counters ``(3,) int64`` totals ``[steps, collisions, approaching]``,
-    approaching exact only when ``track``, kept with ``flags (E,) uint8`` and the
-    incidence ``ptr, inc`` (see `incidence`). Each returns the number of steps taken.
+    ``(4,) uint64``; counters ``(3,) int64`` totals ``[steps, collisions, live contacts]``,
+    the last exact only when ``track``, kept with ``flags (E,) uint8`` and the incidence
+    ``ptr, inc`` (see `incidence`). The loops return the number of steps taken.
     """
 
     steps: Callable
     steps_prefetched: Callable
     limited: Callable
+    live_flags: Callable
 
 
 @functools.cache
@@ -100,15 +78,34 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
     D, FLAT = dim, flat  # constants of the compiled loops: component loops unroll
 
     @njit(inline="always")
-    def attempt(v, pairs, ends, units, masses, params, k):
-        return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT)
+    def attempt(v, pairs, ends, units, masses, params, k, write):
+        return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT, write)
+
+    @njit(inline="always")
+    def refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball):
+        """Re-test the contacts of ``ball``; return the change in the number of live ones."""
+        delta = 0
+        for m in range(ptr[ball], ptr[ball + 1]):
+            c = inc[m]
+            live = 1 if attempt(v, pairs, ends, units, masses, params, c, False) else 0
+            delta += live - flags[c]
+            flags[c] = live
+        return delta
+
+    @jit_cached_if_possible
+    def live_flags(v, pairs, ends, units, masses, params, flags):
+        count = 0
+        for k in range(pairs.shape[0]):
+            flags[k] = 1 if attempt(v, pairs, ends, units, masses, params, k, False) else 0
+            count += flags[k]
+        return count
 
     @jit_cached_if_possible
     def steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
         n, made, rng = pairs.shape[0], 0, load(rng_words)
         for _ in range(max_steps):
             k, rng = pick(sched_state, rng, n)
-            made += attempt(v, pairs, ends, units, masses, params, k)
+            made += attempt(v, pairs, ends, units, masses, params, k, True)
         store(rng_words, rng)
         counters[STEPS] += max_steps
         counters[COLLISIONS] += made
@@ -134,7 +131,7 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
                 k = ring[(t + HALFWAY) % _RING]
                 prefetch(v, pairs[k, 0])
                 prefetch(v, pairs[k, 1])
-            made += attempt(v, pairs, ends, units, masses, params, ring[t % _RING])
+            made += attempt(v, pairs, ends, units, masses, params, ring[t % _RING], True)
         store(rng_words, rng)
         counters[STEPS] += max_steps
         counters[COLLISIONS] += made
@@ -144,18 +141,18 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
     def limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
                 max_steps, max_collisions, track, ptr, inc, flags):
         n, steps, rng = pairs.shape[0], 0, load(rng_words)
-        collisions, approaching = counters[COLLISIONS], counters[APPROACHING]
-        while steps < max_steps and collisions < max_collisions and not (track and approaching == 0):
+        collisions, live = counters[COLLISIONS], counters[LIVE]
+        while steps < max_steps and collisions < max_collisions and not (track and live == 0):
             k, rng = pick(sched_state, rng, n)
             steps += 1
-            if attempt(v, pairs, ends, units, masses, params, k):
+            if attempt(v, pairs, ends, units, masses, params, k, True):
                 collisions += 1
                 if track:
-                    approaching += _refresh(v, pairs, ends, units, ptr, inc, flags, pairs[k, 0], D, FLAT)
-                    approaching += _refresh(v, pairs, ends, units, ptr, inc, flags, pairs[k, 1], D, FLAT)
+                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0])
+                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1])
         store(rng_words, rng)
         counters[STEPS] += steps
-        counters[COLLISIONS], counters[APPROACHING] = collisions, approaching
+        counters[COLLISIONS], counters[LIVE] = collisions, live
         return steps
 
-    return Loops(steps, steps_prefetched, limited)
+    return Loops(steps, steps_prefetched, limited, live_flags)

@@ -10,12 +10,18 @@ For equal masses and ``r = 1`` this is the paper's exchange of the components
 along the line of centres (Algorithm 1).
 
 A rule is a Python object whose `kernel` hands the compiled loop a jitted
-function ``collide(v, units, i, j, a, b, masses, params, dim, flat) -> bool``
-that changes ``v`` in place and says whether it collided, plus its ``params``
-array. ``t_i = units[a]`` and ``t_j = units[b]``, or ``t_j = -t_i`` when
-``flat`` (the same numbers: negation is exact, so flat space skips one lookup).
-``dim`` and ``flat`` are compile-time constants of the loop. A new rule is a new such function: it must
-collide exactly when `closing_speed` is positive.
+function ``collide(v, units, i, j, a, b, masses, params, dim, flat, write) -> bool``
+and its ``params`` array. ``t_i = units[a]`` and ``t_j = units[b]``, or
+``t_j = -t_i`` when ``flat`` (the same numbers: negation is exact, so flat
+space skips one lookup). ``dim`` and ``flat`` are compile-time constants.
+
+``collide`` returns True when the collision changes (with ``write``: changed)
+at least one velocity component, and writes the new velocities only if
+``write``. So a *collision* is a pick that changed velocities, as in the paper,
+and a system is *frozen* when no pick can change anything: a closing speed of
+1e-17 left by rounding after an inelastic collision does not keep it going.
+A new rule is a new such function; it collides only when `closing_speed` is
+positive.
 """
 
 from __future__ import annotations
@@ -49,43 +55,40 @@ def closing_speed(v, units, i, j, a, b, dim, flat):
 
 
 @njit(cache=True, inline="always")
-def collide_exchange(v, units, i, j, a, b, masses, params, dim, flat):
+def _impulse(v, units, i, j, a, b, ci, cj, dim, flat, write):
+    """``v_i -= ci t_i``, ``v_j -= cj t_j`` (only if ``write``); True if any component changes."""
+    changed = False
+    for k in range(dim):
+        new_i = v[i, k] - ci * units[a, k]
+        new_j = v[j, k] - cj * _t_j(units, a, b, k, flat)
+        changed |= (new_i != v[i, k]) | (new_j != v[j, k])
+        if write:
+            v[i, k] = new_i
+            v[j, k] = new_j
+    return changed
+
+
+@njit(cache=True, inline="always")
+def collide_exchange(v, units, i, j, a, b, masses, params, dim, flat, write):
     """Equal masses, elastic: the paper's exchange, ``v_i -= w t_i``, ``v_j -= w t_j``."""
     w = closing_speed(v, units, i, j, a, b, dim, flat)
-    if w <= 0.0:
-        return False
-    for k in range(dim):
-        v[i, k] -= w * units[a, k]
-        v[j, k] -= w * _t_j(units, a, b, k, flat)
-    return True
+    return w > 0.0 and _impulse(v, units, i, j, a, b, w, w, dim, flat, write)
 
 
 @njit(cache=True, inline="always")
-def collide_equal(v, units, i, j, a, b, masses, params, dim, flat):
-    """Equal masses, ``params[0] = (1 + r) / 2`` (1.0 for elastic: the exact exchange)."""
+def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
+    """Equal masses, ``params[0] = (1 + r) / 2`` (1.0 gives `collide_exchange`'s numbers)."""
     w = closing_speed(v, units, i, j, a, b, dim, flat)
-    if w <= 0.0:
-        return False
     c = w * params[0]
-    for k in range(dim):
-        v[i, k] -= c * units[a, k]
-        v[j, k] -= c * _t_j(units, a, b, k, flat)
-    return True
+    return w > 0.0 and _impulse(v, units, i, j, a, b, c, c, dim, flat, write)
 
 
 @njit(cache=True, inline="always")
-def collide_masses(v, units, i, j, a, b, masses, params, dim, flat):
+def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
     """General masses, ``params[0] = 1 + r``."""
     w = closing_speed(v, units, i, j, a, b, dim, flat)
-    if w <= 0.0:
-        return False
     s = params[0] * w / (masses[i] + masses[j])
-    ci = s * masses[j]
-    cj = s * masses[i]
-    for k in range(dim):
-        v[i, k] -= ci * units[a, k]
-        v[j, k] -= cj * _t_j(units, a, b, k, flat)
-    return True
+    return w > 0.0 and _impulse(v, units, i, j, a, b, s * masses[j], s * masses[i], dim, flat, write)
 
 
 class CollisionRule(ABC):

@@ -63,6 +63,15 @@ class Scheduler(ABC):
         """The ``int64`` state array ``pick`` starts from."""
         return np.zeros(1, dtype=np.int64)
 
+    def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        """Raise ValueError unless ``state`` is one this scheduler can resume from.
+
+        The compiled loop indexes with it unchecked, so a corrupt checkpoint must stop here.
+        """
+        expected = self.initial_state(n_contacts).shape
+        if state.shape != expected:
+            raise ValueError(f"scheduler_state: must have shape {expected} for {self!r}, got {state.shape}")
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
 
@@ -83,12 +92,24 @@ class Sweep(Scheduler):
     def kernel(self) -> Callable:
         return pick_sweep
 
+    def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        super().check_state(state, n_contacts)
+        if not 0 <= state[0] < n_contacts:
+            raise ValueError(f"scheduler_state: the next contact must be in [0, {n_contacts}), got {state[0]}")
+
 
 class RandomSweep(Scheduler):
     """Tries every contact once per sweep, in a fresh uniformly random order each sweep."""
 
     def kernel(self) -> Callable:
         return pick_random_sweep
+
+    def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        super().check_state(state, n_contacts)
+        if not 0 <= state[0] <= n_contacts:
+            raise ValueError(f"scheduler_state: the position in the sweep must be in [0, {n_contacts}], got {state[0]}")
+        if not np.array_equal(np.sort(state[1:]), np.arange(n_contacts)):
+            raise ValueError(f"scheduler_state: the sweep order must be a permutation of 0..{n_contacts - 1}")
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         state = np.empty(n_contacts + 1, dtype=np.int64)

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Geometry
-from .kernels import (APPROACHING, COLLISIONS, LOOKAHEAD_BYTES, NO_LIMIT, STEPS, approaching_flags,
-                      chain_kernel, incidence)
+from .kernels import COLLISIONS, LIVE, LOOKAHEAD_BYTES, NO_LIMIT, STEPS, chain_kernel, incidence
 from .random import seed_state
 from .rules import CollisionRule, Elastic
 from .schedulers import Scheduler, UniformRandomPair
@@ -120,7 +119,7 @@ class Simulation:
 
         With ``until_frozen`` (implied when only ``collisions`` is given, which a frozen
         system could never reach) the run also stops right after the collision that
-        leaves no contact approaching. Returns the number of steps taken.
+        leaves no live contact (see `approaching`). Returns the number of steps taken.
         """
         if steps is None and collisions is None:
             raise ValueError("run: give steps= or collisions= (or use run_until_frozen)")
@@ -135,7 +134,7 @@ class Simulation:
         exact step of the last collision. Returns True if frozen.
         """
         self._run(_count("max_steps", max_steps), NO_LIMIT, track=True)
-        return bool(self._counters[APPROACHING] == 0)
+        return bool(self._counters[LIVE] == 0)
 
     def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
         c = self.geometry.contacts
@@ -149,19 +148,24 @@ class Simulation:
                 self._incidence = incidence(c.pairs, self.geometry.n_balls)
             ptr, inc = self._incidence
             flags = np.empty(len(c), dtype=np.uint8)
-            self._counters[APPROACHING] = approaching_flags(self.velocities, c.pairs, c.ends, c.units, flags)
+            self._counters[LIVE] = self._loops.live_flags(self.velocities, c.pairs, c.ends, c.units,
+                                                          self._mass_array, self._params, flags)
         else:
             ptr, inc, flags = _EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS
         return self._loops.limited(*common, max_collisions, track, ptr, inc, flags)
 
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
-        """Number of contacts whose balls approach (0 means frozen)."""
+        """Number of live contacts: those whose balls approach, so that picking one would
+        change velocities (0 means frozen). A closing speed so small that the collision
+        would change no bit of any velocity, a remnant of rounding, does not count."""
         c = self.geometry.contacts
-        return int(approaching_flags(self.velocities, c.pairs, c.ends, c.units, np.empty(len(c), dtype=np.uint8)))
+        flags = np.empty(len(c), dtype=np.uint8)
+        return int(self._loops.live_flags(self.velocities, c.pairs, c.ends, c.units, self._mass_array,
+                                          self._params, flags))
 
     def is_frozen(self) -> bool:
-        """True when no contact approaches, so no collision can ever happen again."""
+        """True when no contact is live, so no collision can ever happen again."""
         return self.approaching() == 0
 
     def energy(self) -> float:
@@ -184,19 +188,23 @@ class Simulation:
         }
 
     def set_state(self, state: dict) -> None:
-        """Restore a state from `get_state` (of a simulation with the same geometry, rule and scheduler)."""
+        """Restore a state from `get_state` (of a simulation with the same geometry, rule and
+        scheduler). Everything is checked before anything changes."""
         velocities = self._check_velocities(state["velocities"])
-        rng = np.asarray(state["rng_state"], dtype=np.uint64)
-        sched = np.asarray(state["scheduler_state"], dtype=np.int64)
-        if rng.shape != (4,) or not rng.any():
-            raise ValueError(f"rng_state: must be 4 not-all-zero uint64 words, got shape {rng.shape}")
-        if sched.shape != self._sched_state.shape:
-            raise ValueError(f"scheduler_state: must have shape {self._sched_state.shape}, got {sched.shape}")
+        rng = np.asarray(state["rng_state"])
+        if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
+            raise ValueError(f"rng_state: must be 4 uint64 words, not all zero, got {rng.dtype} {rng.shape}")
+        sched = np.asarray(state["scheduler_state"])
+        if sched.dtype != np.int64:
+            raise ValueError(f"scheduler_state: must be int64, got {sched.dtype}")
+        self.scheduler.check_state(sched, self.geometry.n_contacts)
+        steps, collisions = _count("steps", state["steps"]), _count("collisions", state["collisions"])
+        if collisions > steps:
+            raise ValueError(f"collisions: {collisions} is more than the {steps} steps taken")
         self.velocities = velocities
         self._rng = rng.copy()
         self._sched_state = sched.copy()
-        self._counters[STEPS] = _count("steps", state["steps"])
-        self._counters[COLLISIONS] = _count("collisions", state["collisions"])
+        self._counters[STEPS], self._counters[COLLISIONS] = steps, collisions
 
     def __repr__(self) -> str:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "

@@ -1,0 +1,6 @@
+"""Shared test setup: make the plain-Python twin (`reference.py`) importable."""
+
+import pathlib
+import sys
+
+sys.path.insert(0, str(pathlib.Path(__file__).parent))
