@@ -224,9 +224,10 @@ def write_figures(res, out_dir) -> list[Path]:
 
     res: what `pinnedballs.load` returns (``positions (n, 2)``, final
     ``velocities (n, dim)``, ``snapshots`` with ``.step``, ``.collisions``,
-    ``.velocities``, ``geometry``, ``masses`` or None). Writes, for a 2-D state:
-    ``state_initial.png`` (a snapshot at step 0), ``state_step_<N>.png`` (every
-    other snapshot), ``state_final.png``, ``velocity_histograms.png``; on a
+    ``.velocities``, ``geometry``, ``masses`` or None, and ``initial_velocities`` if it
+    has them). Writes, for a 2-D state: ``state_initial.png`` (the initial velocities,
+    or a snapshot at step 0), ``state_step_<N>.png`` (every other snapshot),
+    ``state_final.png``, ``velocity_histograms.png``; on a
     `HalfPlane` also ``energy_by_distance.png``. Pictures of states need 2-D
     positions and velocities; histograms need 2-D velocities.
     """
@@ -243,7 +244,11 @@ def write_figures(res, out_dir) -> list[Path]:
         written.append(path)
 
     if planar and positions.ndim == 2 and positions.shape[1] == 2:
-        for snap in (() if res.snapshots is None else res.snapshots):
+        snapshots = list(() if res.snapshots is None else res.snapshots)
+        initial = getattr(res, "initial_velocities", None)
+        if initial is not None and not any(int(snap.step) == 0 for snap in snapshots):
+            emit("state_initial.png", quiver(positions, initial, title="initial state"))
+        for snap in snapshots:
             step = int(snap.step)
             name = "state_initial.png" if step == 0 else f"state_step_{step}.png"
             title = "initial state" if step == 0 else f"after {step:,} steps ({int(snap.collisions):,} collisions)"

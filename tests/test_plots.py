@@ -194,3 +194,16 @@ def test_write_figures_skips_pictures_of_states_that_are_not_planar(tmp_path):
     v = np.ones((3, 3))
     assert plots.write_figures(results(geom, v, [snapshot(0, 0, v)]), tmp_path) == []
     assert list(tmp_path.iterdir()) == []
+
+
+def test_write_figures_draws_the_initial_state_from_the_results_without_a_step_0_snapshot(tmp_path, monkeypatch):
+    half = pb.HalfPlane(rows=4, cols=6)
+    v0, v1 = one_ball_state(half), normal_state(half.n_balls, seed=5)
+    res = results(half, v1, [snapshot(250, 40, v1)])
+    res.initial_velocities = v0
+    drawn = []
+    quiver = plots.quiver
+    monkeypatch.setattr(plots, "quiver", lambda p, v, **kw: drawn.append(v) or quiver(p, v, **kw))
+    names = [p.name for p in plots.write_figures(res, tmp_path)]
+    assert names[:3] == ["state_initial.png", "state_step_250.png", "state_final.png"]
+    assert drawn[0] is v0 and drawn[1] is v1 and drawn[2] is v1
