@@ -227,21 +227,27 @@ def _in_process(jobs, tick) -> dict[int, list[dict]]:
     return results
 
 
-def _on_processes(jobs, workers: int, tick) -> dict[int, list[dict]]:
+def _collect(finished, futures: dict, tick) -> dict[int, list[dict]]:
+    """The rows of each future in ``finished`` (an iterator in completion order); a future that
+    raised (a worker process died, a worker was lost) becomes an error row with its seed."""
     results = {}
+    for future in finished:
+        _, _, k, seed = futures[future]
+        try:
+            results[k] = future.result()
+        except Exception as exc:  # noqa: BLE001 - reported in the table, the others kept
+            results[k] = [_error_row(k, seed, exc)]
+        tick()
+    return results
+
+
+def _on_processes(jobs, workers: int, tick) -> dict[int, list[dict]]:
     pool = ProcessPoolExecutor(max_workers=workers)
     try:
         futures = {pool.submit(_attempt, *job): job for job in jobs}
-        for future in as_completed(futures):
-            _, _, k, seed = futures[future]
-            try:
-                results[k] = future.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. a worker process died
-                results[k] = [_error_row(k, seed, exc)]
-            tick()
+        return _collect(as_completed(futures), futures, tick)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    return results
 
 
 def _client(address: str | None, cluster, option: str = "dask_address"):
@@ -261,19 +267,11 @@ def _client(address: str | None, cluster, option: str = "dask_address"):
 def _on_dask(client, jobs, tick) -> dict[int, list[dict]]:
     from dask.distributed import as_completed as dask_completed
 
-    results = {}
     futures = {client.submit(_attempt, *job, pure=False): job for job in jobs}
     try:
-        for future in dask_completed(list(futures), loop=client.loop):
-            _, _, k, seed = futures[future]
-            try:
-                results[k] = future.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. a worker was lost
-                results[k] = [_error_row(k, seed, exc)]
-            tick()
+        return _collect(dask_completed(list(futures), loop=client.loop), futures, tick)
     finally:
         client.cancel([f for f in futures if not f.done()])
-    return results
 
 
 class _progress:
