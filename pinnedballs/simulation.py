@@ -13,12 +13,12 @@ from .schedulers import Scheduler, UniformRandomPair
 __all__ = ["Simulation"]
 
 
-
 def _count(name: str, value) -> int:
+    """A count in ``[0, 2**63 - 1]`` (the loop's counters are int64)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name}: must be an integer, got {value!r}")
-    if value < 0:
-        raise ValueError(f"{name}: must be >= 0, got {value}")
+    if not 0 <= value <= NO_LIMIT:
+        raise ValueError(f"{name}: must be >= 0 and < 2**63, got {value}")
     return int(value)
 
 
@@ -137,6 +137,7 @@ class Simulation:
         return bool(self._counters[LIVE] == 0)
 
     def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
+        max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
         c = self.geometry.contacts
         common = (self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params,
                   self._sched_state, self._rng, self._counters, max_steps)

@@ -58,8 +58,10 @@ def test_steps_bound_a_frozen_system_that_keeps_picking(frozen_at):
 
 @pytest.mark.parametrize("kwargs, message", [
     ({}, "run: give steps= or collisions="),
-    ({"steps": -1}, "steps: must be >= 0, got -1"),
-    ({"collisions": -5}, "collisions: must be >= 0, got -5"),
+    ({"steps": -1}, r"steps: must be >= 0 and < 2\*\*63, got -1"),
+    ({"collisions": -5}, r"collisions: must be >= 0 and < 2\*\*63, got -5"),
+    ({"steps": 2**63}, r"steps: must be >= 0 and < 2\*\*63, got 9223372036854775808"),
+    ({"steps": 2**64 + 5}, r"steps: must be >= 0 and < 2\*\*63, got 18446744073709551621"),
 ])
 def test_bad_limits(kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -69,3 +71,13 @@ def test_bad_limits(kwargs, message):
 def test_steps_must_be_an_integer():
     with pytest.raises(TypeError, match="steps: must be an integer, got 1.5"):
         _half_plane().run(steps=1.5)
+
+
+def test_a_step_cap_near_the_int64_limit_never_wraps_the_counter(frozen_at):
+    steps, collisions, _ = frozen_at
+    sim = _half_plane()
+    sim.run_until_frozen(max_steps=2**63 - 1)
+    assert (sim.steps, sim.collisions) == (steps, collisions)
+    sim.set_state({**sim.get_state(), "steps": 2**63 - 10})
+    sim.run(steps=2**63 - 1)  # only 9 steps are left before the counter would wrap
+    assert sim.steps == 2**63 - 1
