@@ -16,6 +16,7 @@ others are kept. `write_outputs` writes ``replicas.csv``, ``summary.json``,
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -30,6 +31,7 @@ import numpy as np
 
 from .cli import arg, subcommand
 from .geometry import Geometry, HalfPlane
+from .io import write_text_atomic
 from .spec import InputError, RunSpec, load_spec
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
@@ -309,14 +311,14 @@ def _cell(value) -> str:
 
 
 def write_table(result: EnsembleResult, path) -> Path:
-    """Write ``result.rows`` as CSV at ``path`` (missing cells empty)."""
-    path = Path(path)
+    """Write ``result.rows`` as CSV at ``path`` (missing cells empty), atomically."""
+    path, text = Path(path), io.StringIO()
     columns = result.columns
-    with path.open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(columns)
-        for row in result.rows:
-            w.writerow([_cell(row.get(c)) for c in columns])
+    w = csv.writer(text, lineterminator="\n")
+    w.writerow(columns)
+    for row in result.rows:
+        w.writerow([_cell(row.get(c)) for c in columns])
+    write_text_atomic(path, text.getvalue())
     return path
 
 
@@ -362,9 +364,9 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
         "spec": json.loads(result.spec.model_dump_json()),
     }
     path = out / SUMMARY_NAME
-    path.write_text(json.dumps(_json_safe(summary), indent=2) + "\n", encoding="utf-8")
+    write_text_atomic(path, json.dumps(_json_safe(summary), indent=2) + "\n")
     path2 = out / SPEC_NAME
-    path2.write_text(result.spec.to_json() + "\n", encoding="utf-8")
+    write_text_atomic(path2, result.spec.to_json() + "\n")
     written += [path, path2]
     if figures:
         from .plots import correlation_histogram

@@ -179,6 +179,15 @@ def _tmp(path: Path) -> Path:
     return path.with_name(path.name + ".tmp")
 
 
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename: a kill leaves the
+    old file or the new one, never half of one."""
+    path = Path(path)
+    tmp = _tmp(path)
+    tmp.write_text(text, encoding="utf-8")
+    _commit(tmp, path)
+
+
 def _commit(tmp: Path, path: Path) -> None:
     """Flush ``tmp`` to disk and rename it over ``path`` (atomic on POSIX)."""
     fd = os.open(tmp, os.O_RDONLY)

@@ -219,6 +219,17 @@ def correlation_histogram(values, bin_width: float = 0.02, span=(-1.0, 1.0), ax=
 
 # ---------------------------------------------------------------- one run
 
+#: the names `write_figures` gives its files
+FIGURE_PATTERNS = ("state_initial.png", "state_step_*.png", "state_final.png", "energy_by_distance.png",
+                   "velocity_histograms.png")
+
+
+def figure_files(out_dir) -> list[Path]:
+    """The files in ``out_dir`` that `write_figures` may have written (to clear a stale run's)."""
+    out = Path(out_dir)
+    return sorted({p for pattern in FIGURE_PATTERNS for p in out.glob(pattern)})
+
+
 def write_figures(res, out_dir) -> list[Path]:
     """Write the figures of one run's results into ``out_dir``; return their paths.
 

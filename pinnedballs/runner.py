@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Callable, Iterator
 
-from .io import RESULTS_NAME, Record, Results, checkpoint, create, load
+from .io import RESULTS_NAME, Record, Results, checkpoint, create, load, write_text_atomic
 from .simulation import Simulation
 from .spec import InputError, RunSpec
 
@@ -137,7 +137,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
         res = load(path)
         _check_same_run(res, spec)
         if not (out / "spec.json").exists():
-            (out / "spec.json").write_text(res.spec.to_json() + "\n", encoding="utf-8")
+            write_text_atomic(out / "spec.json", res.spec.to_json() + "\n")
         if res.complete:
             if figures:
                 write_figures(out)
@@ -149,9 +149,10 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
         _check_out_dir(out, force, ours_only=resume)
         out.mkdir(parents=True, exist_ok=True)
         _remove(out / _TMP_NAME)
+        _remove_figures(out)  # a replaced run's pictures would pass for this one's
         from . import __version__
         create(path, spec, sim.geometry, sim.masses, Record.of(sim), __version__)
-        (out / "spec.json").write_text(spec.to_json() + "\n", encoding="utf-8")
+        write_text_atomic(out / "spec.json", spec.to_json() + "\n")
         taken, elapsed = 0, 0.0
     _run_with_checkpoints(spec, sim, path, taken, elapsed, progress)
     if figures:
@@ -299,7 +300,17 @@ def _progress_bar(spec: RunSpec, sim: Simulation, show: bool | None) -> Iterator
 
 
 def write_figures(run_dir: str | os.PathLike) -> list[Path]:
-    """Draw the figures of the run in ``run_dir`` (PNG files beside its results); the paths written."""
+    """Draw the figures of the run in ``run_dir`` (PNG files beside its results), first removing
+    any figures an earlier run left there; the paths written."""
     from .plots import write_figures as draw
 
-    return list(draw(load(run_dir), Path(run_dir)))
+    res = load(run_dir)
+    _remove_figures(Path(run_dir))
+    return list(draw(res, Path(run_dir)))
+
+
+def _remove_figures(run_dir: Path) -> None:
+    from .plots import figure_files
+
+    for old in figure_files(run_dir):
+        old.unlink()

@@ -267,3 +267,17 @@ def test_process_run_is_quiet_off_a_terminal(tmp_path):
     assert done.returncode == 0 and done.stderr == ""  # stderr is a pipe: no progress bar
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["results.h5", "spec.json"]
     assert done.stdout.startswith("steps: 1,000 steps")
+
+
+@pytest.mark.skipif(not HAS_PLOTS, reason="needs pinnedballs.plots")
+@pytest.mark.parametrize("figures", [True, False], ids=["figures", "no-figures"])
+def test_force_leaves_no_figure_of_the_replaced_run(tmp_path, figures):
+    out = tmp_path / "out"
+    assert call("run", write(tmp_path / "a.json", TORUS), "--out", out, "--quiet")[0] == 0
+    assert (out / "state_step_250.png").exists()
+    flags = () if figures else ("--no-figures",)
+    b = spec(snapshots={"at_steps": [100]})
+    assert call("run", write(tmp_path / "b.json", b), "--out", out, "--force", "--quiet", *flags)[0] == 0
+    pngs = sorted(p.name for p in out.glob("*.png"))
+    expected = ["state_final.png", "state_initial.png", "state_step_100.png", "velocity_histograms.png"]
+    assert pngs == (expected if figures else [])
