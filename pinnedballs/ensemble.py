@@ -256,9 +256,16 @@ def _client(address: str | None, cluster, option: str = "dask_address"):
     """``(client, owned)``: a Dask client for ``address`` or ``cluster`` (an `InputError` naming ``option``
     if unreachable)."""
     from dask.distributed import Client
+    from distributed.comm.addressing import get_address_host_port
 
     if cluster is not None and isinstance(cluster, Client):
         return cluster, False
+    if cluster is None:
+        try:  # before Client(): a half-built one prints a traceback when collected
+            get_address_host_port(address)
+        except (ValueError, TypeError) as exc:
+            raise InputError(f"{option} {address}: not a Dask scheduler address such as tcp://host:8786 "
+                             f"({' '.join(str(exc).split())})") from None
     try:
         return Client(cluster if cluster is not None else address, timeout="10s", set_as_default=False), True
     except (OSError, TimeoutError, ValueError, TypeError) as exc:

@@ -191,11 +191,15 @@ def write_spec(tmp_path, data=TORUS):
     (["--replicas", "0"], "--replicas: must be an integer >= 1, got 0"),
     (["--replicas", "2", "--workers", "0"], "--workers: must be an integer >= 1, got 0"),
     (["--replicas", "2", "--workers", "1", "--dask", "tcp://127.0.0.1:1"], "give one of them, not both"),
+    (["--replicas", "2", "--dask", "notanaddress"],
+     "--dask notanaddress: not a Dask scheduler address such as tcp://host:8786 (missing port number"),
+    (["--replicas", "2", "--dask", "foo://x:1"], "--dask foo://x:1: not a Dask scheduler address"),
 ])
 def test_cli_bad_arguments_exit_2(tmp_path, capsys, argv, message):
     out = tmp_path / "out"
     assert cli.main(["ensemble", str(write_spec(tmp_path)), "--out", str(out), *argv]) == 2
-    assert message in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists()
 
 
