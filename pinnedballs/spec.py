@@ -225,8 +225,9 @@ class SingleBallSpec(_Spec):
         norm = float(np.linalg.norm(d))
         if norm == 0:
             raise SpecError("initial.direction", "must not be the zero vector")
-        v[ball] = np.sqrt(2.0 * self.energy / masses[ball]) * (d / norm)
-        return v
+        with np.errstate(all="ignore"):
+            v[ball] = np.sqrt(2.0 * self.energy / masses[ball]) * (d / norm)
+        return _finite_speeds(v, masses)
 
     def _index(self, geometry: Geometry) -> int:
         if self.ball == "boundary_center":
@@ -260,7 +261,19 @@ class GaussianSpec(_Spec):
         energy = 0.5 * float(masses @ np.einsum("ij,ij->i", v, v))
         if energy == 0:
             raise SpecError("initial.zero_momentum", "leaves no velocity to scale (a single ball?)")
-        return v * np.sqrt(self.energy / energy)
+        with np.errstate(all="ignore"):
+            return _finite_speeds(v * np.sqrt(self.energy / energy), masses)
+
+
+def _finite_speeds(v: np.ndarray, masses: np.ndarray) -> np.ndarray:
+    """``v``, or a `SpecError` on ``initial.energy`` when the speeds or the total energy
+    ``sum m |v|^2 / 2`` overflow float64."""
+    with np.errstate(all="ignore"):
+        energy = 0.5 * float(masses @ np.einsum("ij,ij->i", v, v))
+    if not (np.isfinite(v).all() and np.isfinite(energy)):
+        raise SpecError("initial.energy", "too large for these masses: the speeds or the total energy "
+                                          "overflow float64")
+    return v
 
 
 class FromFileSpec(_Spec):

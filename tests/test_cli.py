@@ -83,6 +83,10 @@ BAD_SPECS = {
     "frozen without max_steps": (lambda d: spec(HALF_PLANE, stop={"frozen": True}),
                                  ["stop.max_steps: required with frozen"]),
     "negative mass": (lambda d: spec(masses=0), ["masses: input should be greater than 0, got 0"]),
+    "overflowing energy": (lambda d: spec(initial__energy=1e308),
+                           ["initial.energy: too large for these masses: the speeds or the total energy overflow"]),
+    "overflowing gaussian energy": (lambda d: spec(initial={"kind": "gaussian", "energy": 1e308}),
+                                    ["initial.energy: too large for these masses"]),
 }
 
 
