@@ -285,3 +285,15 @@ def test_force_leaves_no_figure_of_the_replaced_run(tmp_path, figures):
     pngs = sorted(p.name for p in out.glob("*.png"))
     expected = ["state_final.png", "state_initial.png", "state_step_100.png", "velocity_histograms.png"]
     assert pngs == (expected if figures else [])
+
+
+def test_a_closed_pipe_ends_quietly():
+    """``pinnedballs schema | head -1``: the reader leaves early; no traceback, exit 0."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # every write the command makes now fails with EPIPE
+    try:
+        proc = subprocess.run([sys.executable, "-m", "pinnedballs", "schema"], stdout=write_end,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write_end)
+    assert (proc.returncode, proc.stderr) == (0, "")
