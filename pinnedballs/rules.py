@@ -122,6 +122,9 @@ class Restitution(CollisionRule):
     def __eq__(self, other) -> bool:
         return type(other) is type(self) and other.r == self.r
 
+    def __hash__(self) -> int:
+        return hash((type(self), self.r))
+
 
 class Elastic(Restitution):
     """Totally elastic collisions (``r = 1``): energy and momentum conserved, any masses."""

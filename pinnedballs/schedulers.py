@@ -76,7 +76,13 @@ class Scheduler(ABC):
         return f"{type(self).__name__}()"
 
     def __eq__(self, other) -> bool:
-        return type(other) is type(self)
+        """Same class and same parameters (attributes, arrays compared element by element)."""
+        if type(other) is not type(self) or vars(other).keys() != vars(self).keys():
+            return False
+        return all(np.array_equal(value, vars(other)[key]) for key, value in vars(self).items())
+
+    def __hash__(self) -> int:
+        return hash(type(self))
 
 
 class UniformRandomPair(Scheduler):

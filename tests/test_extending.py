@@ -76,3 +76,13 @@ def test_among_touches_only_its_contacts(doc):
     np.testing.assert_array_equal(sim.velocities[untouched], v[untouched])
     with pytest.raises(ValueError, match="contacts: must be a non-empty list of indices below 192"):
         pb.Simulation(torus, v, scheduler=doc["Among"]([192]))
+
+
+def test_schedulers_and_rules_compare_by_parameters_and_hash(doc):
+    among = doc["Among"]
+    assert among([1, 2]) == among([1, 2]) and among([1, 2]) != among([1, 3])
+    assert pb.Sweep() == pb.Sweep() and pb.Sweep() != pb.RandomSweep()
+    assert pb.Restitution(0.5) != pb.Restitution(0.6) and pb.Restitution(1.0) != pb.Elastic()
+    table = {pb.Elastic(): "e", pb.Restitution(0.5): "r", pb.Sweep(): "s", among([1, 2]): "a"}
+    assert table[pb.Elastic()] == "e" and table[pb.Restitution(0.5)] == "r"
+    assert table[pb.Sweep()] == "s" and table[among([1, 2])] == "a"
