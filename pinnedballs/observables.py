@@ -325,7 +325,11 @@ def closing_speeds(velocities, pairs, t_i, t_j) -> np.ndarray:
 
 
 def approaching_fraction(velocities, pairs, t_i, t_j) -> float:
-    """Fraction of contacts whose balls approach (``w > 0``); 0 means frozen."""
+    """Fraction of contacts whose balls approach (closing speed ``w > 0``), the physical
+    definition. It can stay slightly above 0 in a frozen state: after inelastic collisions
+    rounding leaves closing speeds of ~1e-17 whose collision would change no bit of any
+    velocity. The engine's `Simulation.approaching` counts only contacts whose pick would
+    change something, and that is what decides frozen."""
     w = closing_speeds(velocities, pairs, t_i, t_j)
     return float(np.mean(w > 0)) if len(w) else float("nan")
 
