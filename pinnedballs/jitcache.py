@@ -27,13 +27,17 @@ class _ClosureCache(FunctionCache):
 
     numba keys a closure on a pickle of its captured values, and a pickled
     dispatcher carries a per-process id: every process would miss and compile
-    again. Here a captured dispatcher counts by its module, name, bytecode and a
-    hash of its source file and of the package's files, recursing into the values
-    it captures in turn, so an edit to a rule or scheduler invalidates the entry.
+    again. Here every jitted function the loop reaches (through closures or
+    globals, recursively) counts by its module, name, bytecode and a hash of its
+    source file and of the engine's files, so an edit to a rule, a scheduler or a
+    helper they call, in any module, invalidates the entry.
     """
 
     def _index_key(self, sig, codegen):
-        parts = [self._py_func.__code__.co_code, *_closure_parts(self._py_func)]
+        parts = [self._py_func.__code__.co_code, *map(_constant, _cells(self._py_func))]
+        for f in reachable_functions(self._py_func):
+            parts += [f"{f.__module__}.{f.__qualname__}".encode(), f.__code__.co_code,
+                      _source_digest(_source_file(f)), *map(_constant, _cells(f))]
         return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
 
 
@@ -42,29 +46,27 @@ _ENGINE_FILES = tuple(str(Path(__file__).with_name(f"{name}.py"))
                       for name in ("jitcache", "kernels", "prefetch", "random", "rules", "schedulers"))
 
 
-def _captured(py_func: Callable) -> list:
-    return [cell.cell_contents for cell in py_func.__closure__ or ()]
+def _cells(f: Callable) -> list:
+    return [cell.cell_contents for cell in f.__closure__ or ()]
 
 
-def _closure_parts(py_func: Callable) -> list[bytes]:
-    """What identifies the values ``py_func`` captures, recursing into captured jitted closures."""
-    parts = []
-    for value in _captured(py_func):
-        if isinstance(value, Dispatcher):
-            f = value.py_func
-            parts += [f"{f.__module__}.{f.__qualname__}".encode(), _source_digest(_source_file(f)),
-                      f.__code__.co_code, b"(", *_closure_parts(f), b")"]
-        else:
-            parts.append(repr(value).encode())
-    return parts
+def _constant(value) -> bytes:
+    """A captured value as key material (a captured jitted function is keyed separately)."""
+    return b"<jitted>" if isinstance(value, Dispatcher) else repr(value).encode()
 
 
-def _all_captured_functions(py_func: Callable) -> list[Callable]:
-    """Every Python function behind the jitted functions ``py_func`` captures, recursively."""
-    found = []
-    for value in _captured(py_func):
-        if isinstance(value, Dispatcher):
-            found += [value.py_func, *_all_captured_functions(value.py_func)]
+def reachable_functions(py_func: Callable) -> list[Callable]:
+    """The Python functions behind every jitted function ``py_func`` uses, through its
+    closure or its globals, and the ones those use, in a fixed order."""
+    found, seen, stack = [], set(), [py_func]
+    while stack:
+        f = stack.pop()
+        used = _cells(f) + [f.__globals__.get(name) for name in f.__code__.co_names]
+        for value in used:
+            if isinstance(value, Dispatcher) and id(value.py_func) not in seen:
+                seen.add(id(value.py_func))
+                found.append(value.py_func)
+                stack.append(value.py_func)
     return found
 
 
@@ -90,6 +92,6 @@ def jit_cached_if_possible(py_func: Callable) -> Callable:
     """``njit`` with `_ClosureCache` on disk, or no disk cache when a captured
     function has no source file to key it by (it is then compiled once per process)."""
     dispatcher = njit(py_func)
-    if all(_source_file(f) for f in _all_captured_functions(py_func)):
+    if all(_source_file(f) for f in reachable_functions(py_func)):
         dispatcher._cache = _ClosureCache(py_func)
     return dispatcher

@@ -66,3 +66,45 @@ def test_cached_loops_give_each_rule_its_own_physics(tmp_path):
     expected = [[0.0, 1.0], [0.5, 0.5], [-0.5, 0.5]]  # exchange; stick together; 1 hits 3 head-on
     for run in runs:
         np.testing.assert_allclose(eval(run.stdout), expected, rtol=0, atol=1e-15)
+
+
+def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
+    """Editing a jitted helper that a user's rule calls from a third module changes the key,
+    so the cached loop is not reused with the old helper's numbers."""
+    helper = tmp_path / "myhelpers.py"
+    rule = tmp_path / "myrule.py"
+    rule.write_text(textwrap.dedent("""
+        from numba import njit
+        from myhelpers import scale
+        from pinnedballs.rules import collide_equal
+
+        @njit(inline="always")
+        def collide(v, units, i, j, a, b, masses, params, dim, flat, write):
+            return collide_equal(v, units, i, j, a, b, masses, params * scale(), dim, flat, write)
+    """))
+    code = textwrap.dedent("""
+        import numpy as np, pinnedballs as pb
+        from pinnedballs.jitcache import _ClosureCache
+        from pinnedballs.kernels import chain_kernel
+        from pinnedballs.schedulers import pick_sweep
+        import myrule
+        loops = chain_kernel(myrule.collide, pick_sweep, 2, True)
+        k = loops.steps
+        key = _ClosureCache(k.py_func)._index_key(("sig",), k.targetctx.codegen())
+        v = np.array([[1.0, 0.0], [0.0, 0.0]])
+        g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0]])
+        counters = np.zeros(3, np.int64)
+        k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0]),
+          np.zeros(1, np.int64), pb.random.seed_state(0), counters, 1)
+        print(repr(key), v[:, 0].tolist())
+    """)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
+    outputs = []
+    for factor in ("1.0", "0.5", "0.5"):
+        helper.write_text(f"from numba import njit\n\n@njit\ndef scale():\n    return {factor}\n")
+        run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+        outputs.append(run.stdout.split(" [", 1))
+    (key1, v1), (key2, v2), (key3, v3) = outputs
+    assert key1 != key2 and key2 == key3
+    assert v1.strip() == "0.0, 1.0]"          # elastic exchange with scale 1
+    assert v2.strip() == v3.strip() == "0.5, 0.5]"  # half the exchange: they share the momentum
