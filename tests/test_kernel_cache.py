@@ -10,7 +10,7 @@ from numba import njit
 
 from pinnedballs.jitcache import _ClosureCache
 from pinnedballs.kernels import chain_kernel
-from pinnedballs.rules import collide_equal, collide_exchange, collide_masses
+from pinnedballs.rules import collide_equal, collide_masses
 from pinnedballs.schedulers import pick_random_sweep, pick_sweep, pick_uniform
 
 
@@ -21,7 +21,7 @@ def _key(loops):
 
 def test_every_combination_has_its_own_key():
     """A shared key would load one rule's compiled loop for another (a bug we once had)."""
-    combos = [(c, p, d, f) for c in (collide_exchange, collide_equal, collide_masses)
+    combos = [(c, p, d, f) for c in (collide_equal, collide_masses)
               for p in (pick_uniform, pick_sweep, pick_random_sweep) for d in (1, 2, 3) for f in (True, False)]
     keys = {_key(chain_kernel(*combo)) for combo in combos}
     assert len(keys) == len(combos)
