@@ -72,16 +72,20 @@ def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
     """Equal masses, ``params[0] = (1 + r) / 2``: 1 for elastic, the paper's exchange
     ``v_i -= w t_i``, ``v_j -= w t_j`` (``w * 1.0`` is ``w``, bit for bit)."""
     w = closing_speed(v, units, i, j, a, b, dim, flat)
+    if w <= 0.0:  # an early return: `w > 0 and _impulse(...)` compiles to a 1.5x slower loop
+        return False
     c = w * params[0]
-    return w > 0.0 and _impulse(v, units, i, j, a, b, c, c, dim, flat, write)
+    return _impulse(v, units, i, j, a, b, c, c, dim, flat, write)
 
 
 @njit(cache=True, inline="always")
 def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
     """General masses, ``params[0] = 1 + r``."""
     w = closing_speed(v, units, i, j, a, b, dim, flat)
+    if w <= 0.0:
+        return False
     s = params[0] * w / (masses[i] + masses[j])
-    return w > 0.0 and _impulse(v, units, i, j, a, b, s * masses[j], s * masses[i], dim, flat, write)
+    return _impulse(v, units, i, j, a, b, s * masses[j], s * masses[i], dim, flat, write)
 
 
 class CollisionRule(ABC):
