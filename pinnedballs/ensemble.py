@@ -31,7 +31,7 @@ import numpy as np
 
 from .cli import arg, subcommand
 from .geometry import Geometry, HalfPlane
-from .io import write_text_atomic
+from .io import check_out_dir, write_text_atomic
 from .spec import InputError, RunSpec, load_spec
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
@@ -390,19 +390,6 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
                                       xlabel=name.replace("_", " "), path=fig_path)
                 written.append(fig_path)
     return written
-
-
-def check_out_dir(out, force: bool, option: str = "--out") -> Path:
-    """``out`` as a Path; an `InputError` if it is a file, or a non-empty directory without ``force``."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{option} {out}: exists and is not a directory")
-    if out.is_dir() and not force:
-        entries = sorted(p.name for p in out.iterdir())
-        if entries:
-            raise InputError(f"{option} {out}: directory is not empty ({', '.join(entries[:3])}"
-                             f"{', ...' if len(entries) > 3 else ''}); use --force to write into it")
-    return out
 
 
 def _remove_old_outputs(out: Path) -> None:

@@ -179,6 +179,21 @@ def _tmp(path: Path) -> Path:
     return path.with_name(path.name + ".tmp")
 
 
+def check_out_dir(out: str | os.PathLike, force: bool, *, may_hold: frozenset[str] = frozenset(),
+                  hint: str = "use --force to write into it", option: str = "--out") -> Path:
+    """``out`` as a Path; an `InputError` naming ``option`` if it is a file, or a directory
+    holding anything beyond ``may_hold`` without ``force``."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{option} {out}: exists and is not a directory")
+    if out.is_dir() and not force:
+        entries = sorted(p.name for p in out.iterdir())
+        if not set(entries) <= may_hold:
+            shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+            raise InputError(f"{option} {out}: directory is not empty ({shown}); {hint}")
+    return out
+
+
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename: a kill leaves the
     old file or the new one, never half of one."""

@@ -31,6 +31,7 @@ import numpy as np
 
 from . import ensemble as ens
 from .cli import arg, subcommand
+from .io import check_out_dir
 from .spec import InputError, RunSpec, parse_spec
 
 __all__ = ["Plan", "FULL", "QUICK", "PAPER_SIZES", "Check", "reproduce", "expected_figures",
@@ -310,7 +311,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     t0 = time.perf_counter()
     plan = dataclasses.replace(plan or (QUICK if quick else FULL), **overrides)
     _check_plan(plan)
-    out = ens.check_out_dir(out, force)
+    out = check_out_dir(out, force)
     say = log or (lambda message: None)
     say_t = lambda message: say(f"[{time.perf_counter() - t0:6.1f} s] {message}")  # noqa: E731
     # every spec is built (and so validated) before anything is written
@@ -777,7 +778,7 @@ def reproduce_command(args) -> int:
     """``pinnedballs reproduce``: exit 0, 1 if a replica failed (the report is still written), 2 on bad input."""
     if args.workers is not None:
         ens._check_count("--workers", args.workers)
-    ens.check_out_dir(args.out, args.force)
+    check_out_dir(args.out, args.force)
     log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
     report = reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
                        progress=False if args.quiet else None, log=log)

@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Callable, Iterator
 
-from .io import RESULTS_NAME, Record, Results, checkpoint, create, load, write_text_atomic
+from .io import RESULTS_NAME, Record, Results, check_out_dir, checkpoint, create, load, write_text_atomic
 from .simulation import Simulation
 from .spec import InputError, RunSpec
 
@@ -146,7 +146,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
         sim, taken, elapsed = res.simulation(), len(res.snapshots), res.elapsed_seconds
     else:
         sim = spec.build()
-        _check_out_dir(out, force, ours_only=resume)
+        # what a run killed at birth leaves may be resumed over
+        check_out_dir(out, force, may_hold=frozenset({"spec.json", _TMP_NAME}) if resume else frozenset(),
+                      hint="use --force to overwrite or --resume to continue")
         out.mkdir(parents=True, exist_ok=True)
         _remove(out / _TMP_NAME)
         _remove_figures(out)  # a replaced run's pictures would pass for this one's
@@ -161,20 +163,6 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
 
 
 _TMP_NAME = RESULTS_NAME + ".tmp"
-
-
-def _check_out_dir(out: Path, force: bool, ours_only: bool) -> None:
-    """Refuse a non-empty ``out`` unless ``force``; with ``ours_only``, what a run killed at birth leaves is fine."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a directory")
-    if out.is_dir() and not force:
-        entries = sorted(p.name for p in out.iterdir())
-        if ours_only and set(entries) <= {"spec.json", _TMP_NAME}:
-            return
-        if entries:
-            shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
-            raise InputError(f"--out {out}: directory is not empty ({shown}); "
-                             f"use --force to overwrite or --resume to continue")
 
 
 def _check_same_run(res: Results, spec: RunSpec) -> None:
