@@ -31,18 +31,24 @@ FIT_COLOUR = "tab:orange"
 COMPONENT_NAMES = "xyz"
 
 
+def new_figure(figsize) -> Figure:
+    """A figure of ``figsize`` inches drawn by Agg: never a window, whatever the backend."""
+    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def _new_axes(ax, figsize, title):
-    """``(figure, ax)``: the given axes, or one axes on a new Agg figure of ``figsize`` inches."""
+    """``(figure, ax)``: the given axes, or one axes on a `new_figure` of ``figsize`` inches."""
     if ax is None:
-        fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot()
+        ax = new_figure(figsize).add_subplot()
     if title:
         ax.set_title(title)
     return ax.figure, ax
 
 
-def _save(fig: Figure, path) -> Figure:
+def save(fig: Figure, path) -> Figure:
+    """Write ``fig`` as a PNG at ``path`` (its folder created) unless ``path`` is None."""
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=DPI, format="png")
@@ -107,7 +113,7 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
     ax.set_aspect("equal")
     ax.set_xlabel("x")
     ax.set_ylabel("y")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary
@@ -130,7 +136,7 @@ def energy_by_distance(distances, velocities, masses=None, bin_width: float | No
     ax.set_xlabel("distance from the boundary")
     ax.set_ylabel("fraction of the energy")
     ax.set_ylim(0, 1.05 * max(np.nanmax(fraction) if np.isfinite(fraction).any() else 1.0, 1e-12))
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def energy_profiles(profiles: dict, ax=None, title: str | None = None, logy: bool = False,
@@ -154,7 +160,7 @@ def energy_profiles(profiles: dict, ax=None, title: str | None = None, logy: boo
     ax.set_ylabel("fraction of the energy")
     if profiles:
         ax.legend(title="system")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # ---------------------------------------------------------------- distributions
@@ -194,7 +200,7 @@ def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0),
         ax.set_title(f"{name}-component")
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def correlation_histogram(values, bin_width: float = 0.02, span=(-1.0, 1.0), ax=None, title: str | None = None,
@@ -214,7 +220,7 @@ def correlation_histogram(values, bin_width: float = 0.02, span=(-1.0, 1.0), ax=
         ax.axvline(hist.mean, color="k", linestyle="--", linewidth=1,
                    label=f"mean {hist.mean:.4f} over {len(x)} runs")
         ax.legend(loc="upper right", fontsize="small")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # ---------------------------------------------------------------- one run
@@ -251,7 +257,7 @@ def write_figures(res, out_dir) -> list[Path]:
 
     def emit(name: str, fig: Figure) -> None:
         path = out / name
-        _save(fig, path)
+        save(fig, path)
         written.append(path)
 
     if planar and positions.ndim == 2 and positions.shape[1] == 2:

@@ -241,22 +241,10 @@ def _yes(flag: bool | None) -> str:
 # ---------------------------------------------------------------- figures of our own
 
 
-def _figure(figsize):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=100, format="png")
-    return path
-
-
 def _frozen_collisions_figure(ours: np.ndarray, paper_lattice: np.ndarray, labels: tuple[str, str], path: Path):
-    fig = _figure((8.0, 4.0))
+    from . import plots
+
+    fig = plots.new_figure((8.0, 4.0))
     ax = fig.add_subplot()
     data = [x for x in (ours, paper_lattice) if len(x)]
     lo = min(x.min() for x in data) if data else 0
@@ -270,11 +258,14 @@ def _frozen_collisions_figure(ours: np.ndarray, paper_lattice: np.ndarray, label
     ax.set_ylabel("runs")
     ax.set_title("collisions until frozen, 100x50 half-plane, over seeds")
     ax.legend(fontsize="small")
-    return _save(fig, path)
+    plots.save(fig, path)
+    return path
 
 
 def _far_share_figure(rows: list[tuple[str, int, np.ndarray, np.ndarray]], path: Path):
-    fig = _figure((8.0, 4.0))
+    from . import plots
+
+    fig = plots.new_figure((8.0, 4.0))
     ax = fig.add_subplot()
     n = np.array([r[1] for r in rows], dtype=float)
     for k, (name, marker) in enumerate((("far half (distance > depth / 2)", "o"), ("farthest row", "s"))):
@@ -291,7 +282,8 @@ def _far_share_figure(rows: list[tuple[str, int, np.ndarray, np.ndarray]], path:
     ax.set_ylabel("share of the energy (mean ± sd over runs)")
     ax.set_title("energy far from the boundary in the frozen state")
     ax.legend(fontsize="small")
-    return _save(fig, path)
+    plots.save(fig, path)
+    return path
 
 
 # ---------------------------------------------------------------- the whole reproduction
@@ -471,14 +463,15 @@ def _figures_half_plane(out: Path, plan: Plan, geom, by_steps: _Run, by_collisio
 
 
 def _figure_sizes(out: Path, profiles: dict) -> None:
+    from . import plots
     from .plots import energy_profiles
 
-    fig = _figure((9.0, 7.5))
+    fig = plots.new_figure((9.0, 7.5))
     top, bottom = fig.subplots(2, 1)
     energy_profiles(profiles, ax=top, title="energy against distance from the boundary, frozen state (seed 0)")
     energy_profiles(profiles, ax=bottom, logy=True)
     bottom.get_legend().remove()
-    _save(fig, out / "fig4_energy_by_distance_sizes.png")
+    plots.save(fig, out / "fig4_energy_by_distance_sizes.png")
 
 
 def _figure_paper_lattice(out: Path, run: _Run) -> None:
