@@ -372,10 +372,6 @@ class GraphGeometry(Geometry):
     def _build_contacts(self) -> Contacts:
         return self._contacts
 
-    @property
-    def dim(self) -> int:
-        return self.positions.shape[1]
-
     @classmethod
     def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6) -> "GraphGeometry":
         """Balls of ``radius`` at ``positions`` ``(n_balls, d)``; contacts are pairs at distance ``2*radius``.

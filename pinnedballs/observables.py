@@ -17,6 +17,7 @@ import numpy as np
 from scipy import stats
 
 from .geometry import Geometry, HalfPlane
+from .simulation import mass_array
 
 __all__ = [
     "energy_per_ball", "total_energy", "total_momentum",
@@ -48,17 +49,6 @@ def _velocities(velocities) -> np.ndarray:
     if v.shape[1] < 1:
         raise ValueError(f"velocities: must have shape (n_balls, dim) with dim >= 1, got {v.shape}")
     return v
-
-
-def _masses(masses, n: int) -> np.ndarray:
-    if masses is None:
-        return np.ones(n)
-    m = np.asarray(masses, dtype=np.float64)
-    if m.ndim == 0:
-        return np.full(n, float(m))
-    if m.shape != (n,):
-        raise ValueError(f"masses: must have shape (n_balls,) = ({n},), got {m.shape}")
-    return m
 
 
 def _distances(distances, n: int) -> np.ndarray:
@@ -102,7 +92,7 @@ def _pearson(a: np.ndarray, b: np.ndarray) -> float:
 def energy_per_ball(velocities, masses=None) -> np.ndarray:
     """``(n_balls,)`` kinetic energy ``m |v|^2 / 2`` of each ball."""
     v = _velocities(velocities)
-    return 0.5 * _masses(masses, len(v)) * np.einsum("ij,ij->i", v, v)
+    return 0.5 * mass_array(masses, len(v)) * np.einsum("ij,ij->i", v, v)
 
 
 def total_energy(velocities, masses=None) -> float:
@@ -113,7 +103,7 @@ def total_energy(velocities, masses=None) -> float:
 def total_momentum(velocities, masses=None) -> np.ndarray:
     """``(dim,)`` momentum ``sum m v`` (meaningful in flat space only)."""
     v = _velocities(velocities)
-    return _masses(masses, len(v)) @ v
+    return mass_array(masses, len(v)) @ v
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary
@@ -351,7 +341,7 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
     if v.shape != (geometry.n_balls, geometry.dim):
         raise ValueError(f"velocities: must have shape (n_balls, dim) = {(geometry.n_balls, geometry.dim)}, "
                          f"got {v.shape}")
-    m = _masses(masses, len(v))
+    m = mass_array(masses, len(v))
     c = geometry.contacts
     contacts = (c.pairs, c.t_i, c.t_j)
     out = {"energy": total_energy(v, m)}

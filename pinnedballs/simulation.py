@@ -10,7 +10,24 @@ from .random import seed_state
 from .rules import CollisionRule, Elastic
 from .schedulers import Scheduler, UniformRandomPair
 
-__all__ = ["Simulation"]
+__all__ = ["Simulation", "mass_array"]
+
+
+def mass_array(masses, n_balls: int) -> np.ndarray:
+    """``(n_balls,)`` masses from None (all 1), one number, or an array; each finite and > 0."""
+    if masses is None:
+        return np.ones(n_balls)
+    try:
+        m = np.array(masses, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"masses: must be an array of numbers ({exc})") from None
+    if m.ndim == 0:
+        m = np.full(n_balls, float(m))
+    if m.shape != (n_balls,):
+        raise ValueError(f"masses: must have shape (n_balls,) = ({n_balls},), got {m.shape}")
+    if not (np.isfinite(m).all() and (m > 0).all()):
+        raise ValueError("masses: must all be finite and > 0")
+    return m
 
 
 def _count(name: str, value) -> int:
@@ -62,10 +79,9 @@ class Simulation:
             raise ValueError("geometry: has no contacts, so nothing can ever collide")
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
         self.velocities = self._check_velocities(velocities)
-        self.masses = self._check_masses(masses)
-        equal = self.masses is None or bool(np.all(self.masses == self.masses[0]))
-        self._collide, self._params = rule.kernel(equal)
-        self._mass_array = np.ones(geometry.n_balls) if self.masses is None else self.masses
+        self._mass_array = mass_array(masses, geometry.n_balls)
+        self.masses = None if masses is None else self._mass_array
+        self._collide, self._params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
         self._pick = scheduler.kernel()
         self._loops = chain_kernel(self._collide, self._pick, geometry.dim, geometry.contacts.flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
@@ -86,21 +102,6 @@ class Simulation:
         if len(bad):
             raise ValueError(f"velocities: ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
         return _sparse_copy(v)
-
-    def _check_masses(self, masses) -> np.ndarray | None:
-        if masses is None:
-            return None
-        try:
-            m = np.array(masses, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"masses: must be an array of numbers ({exc})") from None
-        if m.ndim == 0:
-            m = np.full(self.geometry.n_balls, float(m))
-        if m.shape != (self.geometry.n_balls,):
-            raise ValueError(f"masses: must have shape (n_balls,) = ({self.geometry.n_balls},), got {m.shape}")
-        if not (np.isfinite(m).all() and (m > 0).all()):
-            raise ValueError("masses: must all be finite and > 0")
-        return m
 
     # ------------------------------------------------------------ counters
     @property

@@ -30,7 +30,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationEr
 from .geometry import FlatTorus, Geometry, GraphGeometry, HalfPlane
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
-from .simulation import Simulation
+from .simulation import Simulation, mass_array
 
 __all__ = [
     "InputError", "SpecError", "RunSpec", "load_spec", "parse_spec", "describe",
@@ -481,8 +481,9 @@ class RunSpec(_Spec):
             np.random.SeedSequence(self.seed if seed is None else seed)
         geometry = self.geometry.build()
         masses = self.build_masses(geometry.n_balls)
-        mass_array = np.ones(geometry.n_balls) * (1.0 if masses is None else masses)
-        velocities = self.initial.build(geometry, mass_array, seq)
+        with engine_errors("", {"masses": "masses"}):
+            masses_all = mass_array(masses, geometry.n_balls)
+        velocities = self.initial.build(geometry, masses_all, seq)
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",

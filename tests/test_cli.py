@@ -45,6 +45,13 @@ def assert_input_error(code: int, err: str, *words: str) -> None:
 # ---------------------------------------------------------------- bad input: exit 2, one line, no files
 
 
+def _negative_masses(d: Path) -> dict:
+    m = np.ones(16)
+    m[5] = -1.0
+    np.save(d / "m.npy", m)
+    return spec(masses="m.npy")
+
+
 def _nan_velocities(d: Path) -> dict:
     v = np.zeros((16, 2))
     v[3, 1] = np.nan
@@ -83,6 +90,7 @@ BAD_SPECS = {
     "frozen without max_steps": (lambda d: spec(HALF_PLANE, stop={"frozen": True}),
                                  ["stop.max_steps: required with frozen"]),
     "negative mass": (lambda d: spec(masses=0), ["masses: input should be greater than 0, got 0"]),
+    "negative mass in a file": (_negative_masses, ["masses:", "m.npy: must all be finite and > 0"]),
     "overflowing energy": (lambda d: spec(initial__energy=1e308),
                            ["initial.energy: too large for these masses: the speeds or the total energy overflow"]),
     "overflowing gaussian energy": (lambda d: spec(initial={"kind": "gaussian", "energy": 1e308}),
