@@ -230,7 +230,8 @@ def _commit(tmp: Path, path: Path) -> None:
 class Results:
     """A run read back from its results file (finished, or the last checkpoint of an unfinished one).
 
-    velocities ``(n, d)``, steps, collisions: the latest state; positions ``(n, k)``,
+    velocities ``(n, d)``, steps, collisions, rng_state, scheduler_state: the latest
+    state (views of `state`'s single copy); positions ``(n, k)``,
     pairs ``(E, 2)``, t_i / t_j ``(E, d)``: the geometry; snapshots: list of
     `Snapshot` ``(step, collisions, velocities (n, d))``; observables: dict of
     per-snapshot columns ``steps, collisions, energy, approaching (F,)``, ``momentum (F, d)``.
@@ -241,15 +242,10 @@ class Results:
     version: str
     status: str
     stop_reason: str
-    velocities: np.ndarray
-    steps: int
-    collisions: int
     energy: float
     momentum: np.ndarray
     approaching: int
     frozen: bool
-    rng_state: np.ndarray
-    scheduler_state: np.ndarray
     positions: np.ndarray
     pairs: np.ndarray
     t_i: np.ndarray
@@ -263,7 +259,27 @@ class Results:
     checkpoints: int
     created: str
     updated: str
-    raw_state: dict = field(default_factory=dict, repr=False)
+    raw_state: dict = field(default_factory=dict, repr=False)  #: as from `Simulation.get_state`
+
+    @property
+    def velocities(self) -> np.ndarray:
+        return self.raw_state["velocities"]
+
+    @property
+    def steps(self) -> int:
+        return int(self.raw_state["steps"])
+
+    @property
+    def collisions(self) -> int:
+        return int(self.raw_state["collisions"])
+
+    @property
+    def rng_state(self) -> np.ndarray:
+        return self.raw_state["rng_state"]
+
+    @property
+    def scheduler_state(self) -> np.ndarray:
+        return self.raw_state["scheduler_state"]
 
     @property
     def complete(self) -> bool:
@@ -334,10 +350,8 @@ def _read(p: Path, f: h5py.File) -> Results:
     return Results(
         path=p, spec=spec, version=str(f.attrs["version"]), status=str(f.attrs["status"]),
         stop_reason=str(f.attrs["stop_reason"]),
-        velocities=s["velocities"][()], steps=int(s.attrs["steps"]), collisions=int(s.attrs["collisions"]),
         energy=float(s.attrs["energy"]), momentum=s["momentum"][()], approaching=int(s.attrs["approaching"]),
-        frozen=bool(s.attrs["frozen"]), rng_state=s["rng_state"][()], scheduler_state=s["scheduler_state"][()],
-        positions=g["positions"][()], pairs=g["pairs"][()], t_i=g["t_i"][()], t_j=g["t_j"][()],
+        frozen=bool(s.attrs["frozen"]), positions=g["positions"][()], pairs=g["pairs"][()], t_i=g["t_i"][()], t_j=g["t_j"][()],
         masses=g["masses"][()] if "masses" in g else None,
         initial_velocities=f["initial/velocities"][()], initial_energy=float(f["initial"].attrs["energy"]),
         snapshots=[Snapshot(int(a), int(b), v) for a, b, v in zip(steps, collisions, frames)],
