@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 from scipy import stats
 
 from . import observables as obs
@@ -80,12 +81,21 @@ def arrow_scale(speeds: np.ndarray, spacing: float) -> float:
     return spacing / reference if reference > 0 else 1.0
 
 
+def key_speed(speed: float) -> float:
+    """The round speed (1, 2 or 5 times a power of ten) nearest ``speed`` (> 0) on a log scale:
+    the speed of the arrow-scale key, drawn about one spacing long."""
+    power = 10.0 ** np.floor(np.log10(speed))
+    candidates = np.array([1.0, 2.0, 5.0, 10.0]) * power
+    return float(candidates[np.argmin(np.abs(np.log(candidates / speed)))])
+
+
 def quiver(positions, velocities, ax=None, title: str | None = None, path=None) -> Figure:
     """The paper's state pictures: velocities as arrows over grey balls.
 
     positions: ``(n_balls, 2)`` centres; velocities: ``(n_balls, 2)``. Balls are
     grey dots (``BALL_SIZE`` of the typical spacing across); see `arrow_scale`
-    for arrow lengths. Balls at rest get no arrow; the axes reach every arrow's tip.
+    for arrow lengths, and the key below the bottom right corner for the scale. Balls at rest
+    get no arrow; the axes reach every arrow's tip.
     """
     p = np.asarray(positions, dtype=np.float64)
     v = np.asarray(velocities, dtype=np.float64)
@@ -99,15 +109,19 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
     reach = np.concatenate([p, p + k * v]) if len(p) else np.array([[0.0, 0.0], [1.0, 1.0]])
     lo, hi = reach.min(axis=0) - spacing, reach.max(axis=0) + spacing
     width, height = hi - lo
-    fig, ax = _new_axes(ax, (8.0, float(np.clip(8.0 * height / width, 2.5, 10.0)) + 0.5), title)
+    lines = 1 + (title or "").count("\n")  # room for every line of the title, and the key below
+    fig, ax = _new_axes(ax, (8.0, float(np.clip(8.0 * height / width, 2.5, 10.0)) + 0.6 + 0.25 * lines), title)
     ax.add_collection(EllipseCollection(
         BALL_SIZE * spacing, BALL_SIZE * spacing, 0.0, units="xy", offsets=p, offset_transform=ax.transData,
         facecolors=BALL_COLOUR, edgecolors="none"))
     moving = speeds > 0
     if moving.any():
-        ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR,
-                  angles="xy", scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing,
-                  headwidth=3.5, headlength=4.0, headaxislength=3.5, minlength=0.0)
+        arrows = ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR,
+                           angles="xy", scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing,
+                           headwidth=3.5, headlength=4.0, headaxislength=3.5, minlength=0.0)
+        key = key_speed(spacing / k)
+        ax.quiverkey(arrows, X=0.95, Y=-0.07, U=key, label=f"speed {key:g}", labelpos="W",
+                     coordinates="axes", fontproperties={"size": "small"})
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
@@ -165,38 +179,58 @@ def energy_profiles(profiles: dict, ax=None, title: str | None = None, logy: boo
 
 # ---------------------------------------------------------------- distributions
 
-def _histogram_panel(ax, hist: obs.Histogram, n: int, bin_width: float, xlabel: str, fit: bool) -> None:
-    ax.bar(hist.edges[:-1], hist.counts, width=np.diff(hist.edges), align="edge", color="tab:blue")
-    if fit and hist.std > 0:
-        x = np.linspace(hist.edges[0], hist.edges[-1], 801)
-        ax.plot(x, n * bin_width * stats.norm.pdf(x, hist.mean, hist.std), color=FIT_COLOUR,
-                label=f"normal fit: mean {hist.mean:.3f}, std {hist.std:.3f}")
-        ax.legend(loc="upper right", fontsize="small")
-    ax.set_xlim(hist.edges[0], hist.edges[-1])
-    ax.set_xlabel(xlabel)
+def _bars(ax, counts: np.ndarray, edges: np.ndarray) -> None:
+    ax.bar(edges[:-1], counts, width=np.diff(edges), align="edge", color="tab:blue")
+    ax.set_xlim(edges[0], edges[-1])
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts of balls or runs
     ax.set_ylabel("count")
+
+
+def _normal_panel(ax, values: np.ndarray, hist: obs.Histogram, bin_width: float) -> None:
+    """Bars of ``hist`` in the values' own units; the fitted normal only where the
+    Anderson-Darling test (5 %) does not reject it, and the test's verdict either way."""
+    edges = hist.edges * hist.scale
+    _bars(ax, hist.counts, edges)
+    mean, sd = hist.mean * hist.scale, hist.std * hist.scale
+    if len(values) < 8 or not sd > 0:
+        return
+    test = obs.normality_tests(values)
+    a2, critical = test["ad_statistic"], test["ad_critical_5pct"]
+    fits = a2 <= critical
+    if fits:
+        x = np.linspace(edges[0], edges[-1], 801)
+        ax.plot(x, len(values) * bin_width * hist.scale * stats.norm.pdf(x, mean, sd), color=FIT_COLOUR)
+    verdict = "not rejected (orange: the fitted normal)" if fits else "rejected: no normal curve drawn"
+    ax.text(0.02, 0.97, f"mean {mean:.3g}, sd {sd:.3g}\nAnderson-Darling A\u00b2 = {a2:.3g} "
+            f"{'<=' if fits else '>'} {critical:.3g}\nnormality at 5 %: {verdict}",
+            transform=ax.transAxes, ha="left", va="top", fontsize="small",
+            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none"})
+    ax.set_ylim(0, 1.4 * max(hist.counts.max(), 1))  # room for the text above the bars
 
 
 def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0), title: str | None = None,
                          path=None) -> Figure:
-    """Histograms of each velocity component with the fitted normal (the paper's Figure 6).
+    """Histograms of each velocity component, in the velocities' own units (the paper's Figure 6).
 
-    velocities: ``(n_balls, dim)``; one panel per component. All components are
-    divided by the same scale, the largest absolute component, so the panels
-    compare directly. The orange curve is ``n * bin_width * pdf``, whose area
-    equals the histogram's. See `observables.component_histogram`.
+    velocities: ``(n_balls, dim)``; one panel per component. The bins are the paper's:
+    ``bin_width`` (0.025) of the largest absolute component, over ``span`` times it, the
+    same bins for every panel. Each panel gives the mean, the sd and the Anderson-Darling
+    test of normality (fitted parameters, 5 %); the fitted normal (``n * bin * pdf``, the
+    histogram's area) is drawn only where the test does not reject it. See
+    `observables.component_histogram` and `observables.normality_tests`.
     """
     v = np.asarray(velocities, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] < 1:
         raise ValueError(f"velocities: must have shape (n_balls, dim), got {v.shape}")
     dim = v.shape[1]
     scale = float(np.abs(v).max()) if v.size else 0.0
-    fig = Figure(figsize=(5.0 * dim, 4.0), dpi=DPI, layout="constrained")
+    fig = Figure(figsize=(5.0 * dim, 4.2), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     for k, ax in enumerate(fig.subplots(1, dim, squeeze=False)[0]):
         hist = obs.component_histogram(v[:, k], bin_width, span, scale=scale)
         name = COMPONENT_NAMES[k] if dim <= 3 else str(k)
-        _histogram_panel(ax, hist, len(v), bin_width, f"{name}-component / {hist.scale:.4g}", fit=True)
+        _normal_panel(ax, v[:, k], hist, bin_width)
+        ax.set_xlabel(f"{name}-component of velocity (bins of {bin_width * hist.scale:.3g})")
         ax.set_title(f"{name}-component")
     if title:
         fig.suptitle(title)
@@ -207,18 +241,30 @@ def correlation_histogram(values, bin_width: float = 0.02, span=(-1.0, 1.0), ax=
                           xlabel: str = "correlation", path=None) -> Figure:
     """Histogram of correlations over independent runs (the paper's Figures 7 and 8).
 
-    values: ``(n_runs,)`` correlations in ``[-1, 1]``, not rescaled. A dashed
-    line marks their mean.
+    values: ``(n_runs,)`` correlations in ``[-1, 1]``, not rescaled, in bins of
+    ``bin_width`` over ``span``. The axis is scaled to the data (a few bins beyond the
+    extreme values); a dashed line marks the mean, and a band the mean plus or minus
+    its standard error (``sd / sqrt(n_runs)``).
     """
     x = np.asarray(values, dtype=np.float64)
     if x.ndim != 1:
         raise ValueError(f"values: must have shape (n_runs,), got {x.shape}")
     hist = obs.component_histogram(x, bin_width, span, normalise=False)
     fig, ax = _new_axes(ax, (7.0, 4.0), title)
-    _histogram_panel(ax, hist, len(x), bin_width, xlabel, fit=False)
-    if len(x):
-        ax.axvline(hist.mean, color="k", linestyle="--", linewidth=1,
-                   label=f"mean {hist.mean:.4f} over {len(x)} runs")
+    _bars(ax, hist.counts, hist.edges)
+    ax.set_xlabel(xlabel)
+    finite = x[np.isfinite(x)]
+    if len(finite):
+        lo = max(span[0], finite.min() - 3 * bin_width)
+        hi = min(span[1], finite.max() + 3 * bin_width)
+        ax.set_xlim(lo, hi)
+        mean = float(finite.mean())
+        se = float(finite.std(ddof=1) / np.sqrt(len(finite))) if len(finite) > 1 else float("nan")
+        ax.axvline(mean, color="k", linestyle="--", linewidth=1,
+                   label=f"mean {mean:.4f} \u00b1 {se:.4f} (s.e.) over {len(finite)} runs")
+        if np.isfinite(se):
+            ax.fill_betweenx([0, 1], mean - se, mean + se, transform=ax.get_xaxis_transform(),
+                             color="0.5", alpha=0.3, linewidth=0)
         ax.legend(loc="upper right", fontsize="small")
     return save(fig, path)
 

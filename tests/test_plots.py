@@ -121,20 +121,35 @@ def test_energy_profiles_draw_one_line_per_system(tmp_path):
 # ---------------------------------------------------------------- distributions
 
 def test_component_histograms_with_fitted_normal(tmp_path):
+    """Bars in the velocities' own units (the paper's bins: 1/80 of the largest |component|),
+    and a normal curve holding the histogram's area where Anderson-Darling accepts it."""
     v = normal_state(2000, seed=2) * [1.0, 2.0]
     fig = plots.component_histograms(v, path=tmp_path / "hist.png")
     read_png(tmp_path / "hist.png", fig)
     assert len(fig.axes) == 2
-    scale = np.abs(v).max()                                   # one scale for both panels
+    scale = np.abs(v).max()                                   # one set of bins for both panels
     for k, ax in enumerate(fig.axes):
         heights = np.array([b.get_height() for b in ax.patches])
         assert len(heights) == 80 and heights.sum() == 2000
-        assert [b.get_width() for b in ax.patches] == pytest.approx([0.025] * 80)
+        assert [b.get_width() for b in ax.patches] == pytest.approx([0.025 * scale] * 80)
         (line,) = ax.lines
         x, y = line.get_xdata(), line.get_ydata()
         area = np.sum((y[1:] + y[:-1]) / 2 * np.diff(x))
-        assert area == pytest.approx(0.025 * heights.sum(), rel=0.01)   # curve and bars hold the same area
-        assert x[np.argmax(y)] == pytest.approx(v[:, k].mean() / scale, abs=0.01)
+        assert area == pytest.approx(0.025 * scale * heights.sum(), rel=0.01)  # curve and bars: same area
+        assert x[np.argmax(y)] == pytest.approx(v[:, k].mean(), abs=0.01 * scale)
+        (note,) = ax.texts
+        assert f"sd {v[:, k].std():.3g}" in note.get_text() and "not rejected" in note.get_text()
+        assert f"bins of {0.025 * scale:.3g}" in ax.get_xlabel()
+
+
+def test_component_histograms_draw_no_normal_curve_the_test_rejects():
+    """A component that is visibly not normal (uniform, n = 2000: Anderson-Darling A^2 ~ 20)
+    gets the test's verdict and no fitted curve that would pass it off as normal."""
+    v = np.random.default_rng(4).uniform(-1, 1, size=(2000, 2))
+    fig = plots.component_histograms(v)
+    for ax in fig.axes:
+        assert len(ax.lines) == 0
+        assert "rejected: no normal curve drawn" in ax.texts[0].get_text()
 
 
 def test_correlation_histogram_counts_runs(tmp_path):
@@ -146,6 +161,14 @@ def test_correlation_histogram_counts_runs(tmp_path):
     assert len(heights) == 100 and heights.sum() == 240       # bin width 0.02 on [-1, 1]
     (mean_line,) = ax.lines
     assert mean_line.get_xdata()[0] == pytest.approx(values.mean())
+    lo, hi = ax.get_xlim()                                    # scaled to the data, not [-1, 1]
+    assert lo == pytest.approx(values.min() - 0.06) and hi == pytest.approx(values.max() + 0.06)
+    se = values.std(ddof=1) / np.sqrt(240)
+    assert f"{values.mean():.4f} \u00b1 {se:.4f} (s.e.) over 240 runs" in ax.get_legend().texts[0].get_text()
+    (band,) = ax.collections                                  # mean +- standard error
+    xs = band.get_paths()[0].vertices[:, 0]
+    assert xs.min() == pytest.approx(values.mean() - se) and xs.max() == pytest.approx(values.mean() + se)
+    assert all(float(tick).is_integer() for tick in ax.get_yticks())   # counts of runs
 
 
 def test_plots_never_import_pyplot():
