@@ -30,6 +30,7 @@ from typing import Callable
 import numpy as np
 
 from .cli import arg, subcommand
+from .daskprobe import check_scheduler
 from .geometry import Geometry, HalfPlane
 from .io import check_out_dir, write_text_atomic
 from .spec import InputError, RunSpec, load_spec
@@ -42,6 +43,8 @@ TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json
 #: the first columns of every row; observables follow, then `ERROR_COLUMN`
 KEY_COLUMNS = ("replica", "seed_entropy", "spawn_key", "at", "steps", "collisions", "frozen", "stop_reason")
 ERROR_COLUMN = "error"
+#: seconds to reach a Dask scheduler at ``dask_address``: its handshake, then `Client`'s connect
+CONNECT_TIMEOUT = 10.0
 #: the ``at`` of a replica's final state (snapshots are ``"steps=N"`` or ``"collisions=N"``)
 FINAL = "final"
 #: correlation columns drawn as histograms over replicas (bin width 0.02 on [-1, 1])
@@ -266,8 +269,10 @@ def _client(address: str | None, cluster, option: str = "dask_address"):
         except (ValueError, TypeError) as exc:
             raise InputError(f"{option} {address}: not a Dask scheduler address such as tcp://host:8786 "
                              f"({' '.join(str(exc).split())})") from None
+        check_scheduler(address, CONNECT_TIMEOUT, option)  # Dask itself hangs or crashes on a non-Dask server
     try:
-        return Client(cluster if cluster is not None else address, timeout="10s", set_as_default=False), True
+        return Client(cluster if cluster is not None else address, timeout=f"{CONNECT_TIMEOUT}s",
+                      set_as_default=False), True
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
         what = f"{option} {address}" if address is not None else "cluster"
         raise InputError(f"{what}: cannot connect to a Dask scheduler ({' '.join(str(exc).split())})") from None
