@@ -8,7 +8,8 @@ length: a server that sends nothing (an HTTP server, a dashboard port) makes it 
 for ever, and one that sends garbage makes it allocate what the first 8 bytes say
 (exabytes). `check_scheduler` reads the greeting itself, within the timeout, and
 refuses the address unless it is a Dask handshake of sane size. The probe closes
-its connection after the greeting; a real scheduler logs that at debug level.
+its connection after the greeting; a real scheduler logs that at info level
+("closed before handshake completed").
 Only plain ``tcp://`` addresses are probed (TLS and other transports are left to Dask).
 """
 

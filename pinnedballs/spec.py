@@ -125,11 +125,14 @@ def _load_npy(path: str, field: str) -> np.ndarray:
 
 def _npy_header(f, path: str, field: str) -> tuple[tuple[int, ...], np.dtype]:
     """``(shape, dtype)`` from the header of the open ``.npy`` file ``f``; the dtype must be numeric."""
-    version = np.lib.format.read_magic(f)
-    if version not in ((1, 0), (2, 0)):
-        raise ValueError(f".npy format version {version} is not supported for numeric arrays")
-    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-    shape, _, dtype = read(f)
+    try:
+        version = np.lib.format.read_magic(f)
+        if version not in ((1, 0), (2, 0)):
+            raise ValueError(f".npy format version {version} is not supported for numeric arrays")
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read(f)
+    except Exception as exc:  # noqa: BLE001 - numpy parses the header with ast and tokenize: any error
+        raise ValueError(f"{type(exc).__name__}: {exc}") from None
     if dtype.kind not in "iuf":
         raise SpecError(field, f"{path} must hold a numeric array, got {dtype}")
     return tuple(int(n) for n in shape), dtype
