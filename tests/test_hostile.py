@@ -183,6 +183,17 @@ def test_a_million_by_a_million_torus_is_refused_with_its_size_from_python_and_f
                 "geometry: rows*cols: a 1000000 x 1000000 flat torus needs about 646.0 TB of memory")
 
 
+def test_an_ensemble_of_a_trillion_replicas_is_refused_with_its_size(tmp_path):
+    """4096 bytes a replica (seed, job, row) times 10**12: 4.1 PB, before any seed is drawn."""
+    code, out, err = call("ensemble", write(tmp_path / "s.json", TORUS), "--replicas", 10**12, "--workers", 1,
+                          "--out", tmp_path / "out")
+    assert_refused(code, err, "--replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB of memory")
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(FieldError, match="^replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB") as info:
+        pb.run_ensemble(parse_spec(TORUS), 10**12, workers=1)
+    assert info.value.field == "replicas"
+
+
 def test_run_bytes_bounds_what_a_torus_holds():
     """The estimate is above the arrays a 40x40 torus and its simulation really hold."""
     g = pb.FlatTorus(40, 40)
