@@ -17,7 +17,7 @@ import networkx as nx
 import numpy as np
 
 from .errors import FieldError, FieldTypeError
-from .limits import check_memory, run_bytes
+from .limits import check_memory, format_count, run_bytes
 
 __all__ = ["Contacts", "Geometry", "FlatTorus", "HalfPlane", "GraphGeometry"]
 
@@ -208,7 +208,8 @@ class FlatTorus(Geometry):
         cols = _check_int("cols", cols, 3)
         if rows % 2:
             raise FieldError("rows", f"must be even for a flat torus, got {rows}")
-        check_memory(run_bytes(rows * cols, 3 * rows * cols), "rows*cols", f"a {rows} x {cols} flat torus")
+        check_memory(run_bytes(rows * cols, 3 * rows * cols), "rows*cols",
+                     f"a {format_count(rows)} x {format_count(cols)} flat torus")
         if rows * cols > _INT32_MAX // 3:
             raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {rows * cols}")
         self.rows, self.cols, self.radius = rows, cols, _check_radius(radius)
@@ -235,7 +236,7 @@ class HalfPlane(Geometry):
         self.rows = _check_int("rows", rows, 1)
         self.cols = _check_int("cols", cols, 1)
         check_memory(run_bytes(self.rows * self.cols, 3 * self.rows * self.cols), "rows*cols",
-                     f"a {self.rows} x {self.cols} half-plane lattice")
+                     f"a {format_count(self.rows)} x {format_count(self.cols)} half-plane lattice")
         if self.rows * self.cols > _INT32_MAX // 3:
             raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
         self.radius = _check_radius(radius)

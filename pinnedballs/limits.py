@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import FieldError
 
-__all__ = ["available_memory", "check_memory", "run_bytes", "format_bytes",
+__all__ = ["available_memory", "check_memory", "run_bytes", "format_bytes", "format_count",
            "check_speeds", "ENERGY_LIMIT", "SPEED_LIMIT"]
 
 _FLOAT_MAX = float(np.finfo(np.float64).max)
@@ -70,12 +70,19 @@ def available_memory() -> int | None:
 
 
 def format_bytes(n: float) -> str:
-    """``n`` bytes in a readable unit: ``"1.5 GB"``."""
+    """``n`` bytes in a readable unit: ``"1.5 GB"``; ``"10^21 bytes"`` from 1000 PB on (any int)."""
+    if n >= 10**18:
+        return f"10^{math.floor(math.log10(n))} bytes"
     for unit in ("bytes", "kB", "MB", "GB", "TB", "PB"):
         if abs(n) < 1000 or unit == "PB":
             return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
         n /= 1000
     return f"{n:.1f} PB"
+
+
+def format_count(n: int) -> str:
+    """``n`` in full up to 15 digits, else ``"~10^k"`` (keeps messages one short line)."""
+    return str(n) if abs(n) < 10**15 else f"~10^{math.floor(math.log10(abs(n)))}"
 
 
 def check_memory(nbytes: int, field: str, what: str) -> None:

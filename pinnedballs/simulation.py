@@ -76,7 +76,8 @@ class Simulation:
         if not isinstance(rule, CollisionRule):
             raise FieldTypeError("rule", f"must be a CollisionRule such as Elastic(), got {type(rule).__name__}")
         if not isinstance(scheduler, Scheduler):
-            raise FieldTypeError("scheduler", f"must be a Scheduler such as UniformRandomPair(), got {type(scheduler).__name__}")
+            raise FieldTypeError("scheduler", f"must be a Scheduler such as UniformRandomPair(), "
+                                              f"got {type(scheduler).__name__}")
         if geometry.n_contacts == 0:
             raise FieldError("geometry", "has no contacts, so nothing can ever collide")
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler

@@ -623,7 +623,8 @@ def _check_tree(data: Any, source: str) -> None:
         elif isinstance(value, _LongInt) or (
                 isinstance(value, int) and not isinstance(value, bool) and not -2**63 <= value < 2**63):
             digits = len(str(value).lstrip("-")) if isinstance(value, str) or value.bit_length() < 10**4 else "many"
-            raise SpecError(where, f"an integer of {digits} digits is out of range (a spec field holds at most 2**63 - 1)")
+            raise SpecError(where, f"an integer of {digits} digits is out of range "
+                                   f"(a spec field holds at most 2**63 - 1)")
         elif isinstance(value, str) and not _is_text(value):
             raise SpecError(where, f"not valid UTF-8 text (a lone surrogate?): {_short_text(value)}")
 

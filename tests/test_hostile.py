@@ -189,9 +189,21 @@ def test_an_ensemble_of_a_trillion_replicas_is_refused_with_its_size(tmp_path):
                           "--out", tmp_path / "out")
     assert_refused(code, err, "--replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB of memory")
     assert not (tmp_path / "out").exists()
-    with pytest.raises(FieldError, match="^replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB") as info:
+    with pytest.raises(FieldError, match="^replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB") \
+            as info:
         pb.run_ensemble(parse_spec(TORUS), 10**12, workers=1)
     assert info.value.field == "replicas"
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: pb.HalfPlane.from_size(1e300, 1e300),
+     r"^rows\*cols: a ~10\^299 x ~10\^299 half-plane lattice needs about 10\^602 bytes of memory"),
+    (lambda: pb.FlatTorus(10**400, 4), r"^rows\*cols: a ~10\^400 x 4 flat torus needs about 10\^403 bytes of memory"),
+])
+def test_astronomical_sizes_from_python_are_refused_with_their_size(make, words):
+    with pytest.raises(FieldError, match=words) as info:
+        make()
+    assert info.value.field == "rows*cols"
 
 
 def test_run_bytes_bounds_what_a_torus_holds():
