@@ -72,7 +72,7 @@ class _Spec(BaseModel):
     @classmethod
     def _text(cls, value: Any) -> Any:
         if isinstance(value, str) and not _is_text(value):
-            raise ValueError(f"not valid UTF-8 text (a lone surrogate?): {_short_text(value)}")
+            raise ValueError(f"not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8): {_short_text(value)}")
         return value
 
 
@@ -587,6 +587,8 @@ def parse_spec(data: str | bytes | dict, base_dir: str | os.PathLike | None = No
         raise SpecError(_join(source, error.path) if source else error.path, error.problem) from None
 
 
+#: bytes of Python objects per character of JSON, from above (``[1,2,...]``: 36 bytes per 2 characters)
+_JSON_BYTES_PER_CHAR = 32
 #: deepest nesting of objects and arrays a spec may have (a spec needs 3 or 4)
 _MAX_DEPTH = 32
 
@@ -615,7 +617,7 @@ def _check_tree(data: Any, source: str) -> None:
             items = []
             for key, item in value.items():
                 if not isinstance(key, str) or not _is_text(key):
-                    raise SpecError(where, f"a key is not valid UTF-8 text (a lone surrogate?): {_short_text(key)}")
+                    raise SpecError(where, f"a key is not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8): {_short_text(key)}")
                 items.append((item, _dot(path, key), depth + 1))
             stack.extend(reversed(items))
         elif isinstance(value, (list, tuple)):
@@ -626,16 +628,19 @@ def _check_tree(data: Any, source: str) -> None:
             raise SpecError(where, f"an integer of {digits} digits is out of range "
                                    f"(a spec field holds at most 2**63 - 1)")
         elif isinstance(value, str) and not _is_text(value):
-            raise SpecError(where, f"not valid UTF-8 text (a lone surrogate?): {_short_text(value)}")
+            raise SpecError(where, f"not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8): {_short_text(value)}")
 
 
 def load_spec(path: str | os.PathLike) -> RunSpec:
     """Read and validate the JSON spec at ``path``; relative paths in it resolve against its directory."""
     path = Path(path)
     try:
+        check_memory(_JSON_BYTES_PER_CHAR * path.stat().st_size, str(path), "reading this spec file")
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise SpecError(str(path), "no such spec file") from None
+    except FieldError as exc:
+        raise SpecError(str(path), exc.problem) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SpecError(str(path), f"cannot read the spec file ({exc})") from None
     try:

@@ -154,6 +154,16 @@ def test_npy_needing_more_memory_than_available_is_refused_with_the_size(tmp_pat
     assert call("validate", tmp_path / "s.json")[0] == 0
 
 
+def test_spec_file_too_large_to_parse_is_refused_before_reading(tmp_path, monkeypatch):
+    """32 bytes of Python objects per character of JSON, from above."""
+    path = write(tmp_path / "s.json", spec(snapshots__at_steps=list(range(1000))))
+    size = path.stat().st_size
+    monkeypatch.setattr(limits, "available_memory", lambda: 32 * size - 1)
+    run_refused(tmp_path, path, "s.json: reading this spec file needs about")
+    monkeypatch.setattr(limits, "available_memory", lambda: 32 * size)
+    assert call("validate", path)[0] == 0
+
+
 def test_check_memory_refuses_one_byte_over_what_is_available(monkeypatch):
     monkeypatch.setattr(limits, "available_memory", lambda: 10**9)
     limits.check_memory(10**9, "rows", "it")
