@@ -114,7 +114,8 @@ class RandomSweep(Scheduler):
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
         super().check_state(state, n_contacts)
         if not 0 <= state[0] <= n_contacts:
-            raise FieldError("scheduler_state", f"the position in the sweep must be in [0, {n_contacts}], got {state[0]}")
+            raise FieldError("scheduler_state",
+                             f"the position in the sweep must be in [0, {n_contacts}], got {state[0]}")
         if not np.array_equal(np.sort(state[1:]), np.arange(n_contacts)):
             raise FieldError("scheduler_state", f"the sweep order must be a permutation of 0..{n_contacts - 1}")
 

@@ -30,9 +30,9 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationEr
 
 from .errors import FieldError, InputError
 from .geometry import FlatTorus, Geometry, GraphGeometry, HalfPlane
+from .limits import check_memory, check_speeds, format_bytes
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
-from .limits import check_memory, check_speeds, format_bytes
 from .simulation import Simulation, mass_array
 
 __all__ = [
@@ -72,8 +72,11 @@ class _Spec(BaseModel):
     @classmethod
     def _text(cls, value: Any) -> Any:
         if isinstance(value, str) and not _is_text(value):
-            raise ValueError(f"not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8): {_short_text(value)}")
+            raise ValueError(f"{_NOT_TEXT}: {_short_text(value)}")
         return value
+
+
+_NOT_TEXT = "not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8)"
 
 
 def _is_text(value: str) -> bool:
@@ -110,8 +113,8 @@ def _load_npy(path: str, field: str) -> np.ndarray:
             held = os.fstat(f.fileno()).st_size - f.tell()
             needed = math.prod(shape) * dtype.itemsize
             if needed > held:
-                raise SpecError(field, f"{path}: the header claims shape {shape} of {dtype} ({format_bytes(needed)}), "
-                                       f"but the file holds {format_bytes(held)} of data")
+                raise SpecError(field, f"{path}: the header claims shape {shape} of {dtype} "
+                                       f"({format_bytes(needed)}), but the file holds {format_bytes(held)} of data")
             check_memory(needed + 8 * math.prod(shape), field, f"the array in {path}")
         array = np.load(path, allow_pickle=False)
     except FileNotFoundError:
@@ -529,7 +532,8 @@ class RunSpec(_Spec):
         """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``."""
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
-            raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, got {_short(seed)}")
+            raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
+                                    f"got {_short(seed)}")
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
             np.random.SeedSequence(self.seed if seed is None else seed)
         geometry = self.geometry.build()
@@ -616,9 +620,9 @@ def _check_tree(data: Any, source: str) -> None:
         if isinstance(value, dict):
             items = []
             for key, item in value.items():
-                if not isinstance(key, str) or not _is_text(key):
-                    raise SpecError(where, f"a key is not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8): {_short_text(key)}")
-                items.append((item, _dot(path, key), depth + 1))
+                if isinstance(key, str) and not _is_text(key):
+                    raise SpecError(where, f"a key is {_NOT_TEXT}: {_short_text(key)}")
+                items.append((item, _dot(path, str(key)), depth + 1))
             stack.extend(reversed(items))
         elif isinstance(value, (list, tuple)):
             stack.extend(reversed([(item, f"{path}[{i}]", depth + 1) for i, item in enumerate(value)]))
@@ -628,7 +632,7 @@ def _check_tree(data: Any, source: str) -> None:
             raise SpecError(where, f"an integer of {digits} digits is out of range "
                                    f"(a spec field holds at most 2**63 - 1)")
         elif isinstance(value, str) and not _is_text(value):
-            raise SpecError(where, f"not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8): {_short_text(value)}")
+            raise SpecError(where, f"{_NOT_TEXT}: {_short_text(value)}")
 
 
 def load_spec(path: str | os.PathLike) -> RunSpec:
