@@ -18,33 +18,13 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs import cli, limits
+from pinnedballs import limits
 from pinnedballs.errors import FieldError, FieldTypeError, InputError
 from pinnedballs.spec import SpecError, engine_errors, parse_spec
 from runspecs import TORUS, spec, write
+from test_cli import assert_input_error, call  # exit 2, one line, no traceback
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def call(*argv) -> tuple[int, str, str]:
-    """``(exit status, stdout, stderr)`` of ``pinnedballs ARGV`` run in this process."""
-    import contextlib
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli.main([str(a) for a in argv])
-    return code, out.getvalue(), err.getvalue()
-
-
-def assert_refused(code: int, err: str, *words: str) -> None:
-    """Exit 2, exactly one line on stderr holding every word, no traceback."""
-    assert code == 2, err
-    assert "Traceback" not in err
-    lines = err.splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("pinnedballs: error: ")
-    for w in words:
-        assert w in lines[0], (w, lines[0])
 
 
 def run_refused(tmp_path: Path, spec_path: Path, *words: str) -> None:
@@ -52,7 +32,7 @@ def run_refused(tmp_path: Path, spec_path: Path, *words: str) -> None:
     out = tmp_path / "out"
     for argv in (["run", spec_path, "--out", out], ["validate", spec_path]):
         code, stdout, err = call(*argv)
-        assert_refused(code, err, *words)
+        assert_input_error(code, err, *words)
         assert stdout == ""
         assert not out.exists()
 
@@ -197,7 +177,7 @@ def test_an_ensemble_of_a_trillion_replicas_is_refused_with_its_size(tmp_path):
     """4096 bytes a replica (seed, job, row) times 10**12: 4.1 PB, before any seed is drawn."""
     code, out, err = call("ensemble", write(tmp_path / "s.json", TORUS), "--replicas", 10**12, "--workers", 1,
                           "--out", tmp_path / "out")
-    assert_refused(code, err, "--replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB of memory")
+    assert_input_error(code, err, "--replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB of memory")
     assert not (tmp_path / "out").exists()
     with pytest.raises(FieldError, match="^replicas: an ensemble of 1,000,000,000,000 replicas needs about 4.1 PB") \
             as info:
@@ -402,7 +382,7 @@ def test_dask_address_of_a_server_that_is_not_dask_exits_2(tmp_path, server, wor
         code, err = _ensemble_cli(tmp_path, f"tcp://127.0.0.1:{s.port}", timeout=2)
     finally:
         s.close()
-    assert_refused(code, err, f"--dask tcp://127.0.0.1:{s.port}: " + words)
+    assert_input_error(code, err, f"--dask tcp://127.0.0.1:{s.port}: " + words)
     assert not (tmp_path / "out").exists()
 
 
