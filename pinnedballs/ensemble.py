@@ -30,8 +30,10 @@ from typing import Callable
 import numpy as np
 
 from .cli import arg, subcommand
+from .daskprobe import check_scheduler
 from .geometry import Geometry, HalfPlane
 from .io import check_out_dir, write_text_atomic
+from .limits import check_memory
 from .spec import InputError, RunSpec, load_spec
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
@@ -42,6 +44,8 @@ TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json
 #: the first columns of every row; observables follow, then `ERROR_COLUMN`
 KEY_COLUMNS = ("replica", "seed_entropy", "spawn_key", "at", "steps", "collisions", "frozen", "stop_reason")
 ERROR_COLUMN = "error"
+#: seconds to reach a Dask scheduler at ``dask_address``: its handshake, then `Client`'s connect
+CONNECT_TIMEOUT = 10.0
 #: the ``at`` of a replica's final state (snapshots are ``"steps=N"`` or ``"collisions=N"``)
 FINAL = "final"
 #: correlation columns drawn as histograms over replicas (bin width 0.02 on [-1, 1])
@@ -183,6 +187,15 @@ def _check_count(name: str, value, minimum: int = 1) -> int:
     return int(value)
 
 
+#: bytes held per replica while an ensemble runs: its seed, its job and a row (upper estimate)
+REPLICA_BYTES = 4096
+
+
+def _check_replicas_memory(replicas: int, name: str) -> None:
+    """Refuse (naming ``name``) more replicas than the memory can track at once."""
+    check_memory(replicas * REPLICA_BYTES, name, f"an ensemble of {replicas:,} replicas")
+
+
 def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, dask_address: str | None = None,
                  cluster=None, progress: bool | None = False, task: Task | None = None) -> EnsembleResult:
     """Run ``replicas`` independent replicas of ``spec``; see the module docstring for seeds and rows.
@@ -197,6 +210,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     if not isinstance(spec, RunSpec):
         raise InputError(f"spec: must be a RunSpec, got {type(spec).__name__}")
     replicas = _check_count("replicas", replicas)
+    _check_replicas_memory(replicas, "replicas")
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
         raise InputError("workers, dask_address, cluster: give at most one")
     task = run_replica if task is None else task
@@ -266,8 +280,10 @@ def _client(address: str | None, cluster, option: str = "dask_address"):
         except (ValueError, TypeError) as exc:
             raise InputError(f"{option} {address}: not a Dask scheduler address such as tcp://host:8786 "
                              f"({' '.join(str(exc).split())})") from None
+        check_scheduler(address, CONNECT_TIMEOUT, option)  # Dask itself hangs or crashes on a non-Dask server
     try:
-        return Client(cluster if cluster is not None else address, timeout="10s", set_as_default=False), True
+        return Client(cluster if cluster is not None else address, timeout=f"{CONNECT_TIMEOUT}s",
+                      set_as_default=False), True
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
         what = f"{option} {address}" if address is not None else "cluster"
         raise InputError(f"{what}: cannot connect to a Dask scheduler ({' '.join(str(exc).split())})") from None
@@ -415,6 +431,7 @@ def _remove_old_outputs(out: Path) -> None:
 def ensemble_command(args) -> int:
     """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
     replicas = _check_count("--replicas", args.replicas)
+    _check_replicas_memory(replicas, "--replicas")
     if args.workers is not None:
         _check_count("--workers", args.workers)
         if args.dask is not None:

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .errors import FieldError, FieldTypeError
+
 __all__ = ["seed_state", "load", "store", "next_uint64", "bounded", "random_float"]
 
 _U32 = np.uint64(0xFFFFFFFF)
@@ -27,10 +29,10 @@ def seed_state(seed: int | np.random.SeedSequence | None) -> np.ndarray:
         seq = np.random.SeedSequence()
     elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
         if seed < 0:
-            raise ValueError(f"seed: must be a non-negative integer, got {seed}")
+            raise FieldError("seed", f"must be a non-negative integer, got {seed}")
         seq = np.random.SeedSequence(int(seed))
     else:
-        raise TypeError(f"seed: must be a non-negative int or numpy SeedSequence, got {type(seed).__name__}")
+        raise FieldTypeError("seed", f"must be a non-negative int or numpy SeedSequence, got {type(seed).__name__}")
     state = seq.generate_state(4, dtype=np.uint64)
     if not state.any():  # the one state xoshiro cannot leave
         state[0] = np.uint64(0x9E3779B97F4A7C15)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import difflib
 import json
+import math
 import os
 import re
 import types
@@ -27,7 +28,9 @@ import numpy as np
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo,
                       field_validator, model_validator)
 
+from .errors import FieldError, InputError
 from .geometry import FlatTorus, Geometry, GraphGeometry, HalfPlane
+from .limits import check_memory, check_speeds, format_bytes
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation, mass_array
@@ -46,16 +49,15 @@ __all__ = [
 INIT_STREAM_KEY = 0x696E6974
 
 
-class InputError(ValueError):
-    """Bad input from the user: a spec, a data file or an output directory."""
-
-
-class SpecError(InputError):
-    """A spec field is wrong. ``path`` is the dotted field path (``"geometry.rows"``)."""
+class SpecError(FieldError):
+    """A spec field is wrong. ``path`` (also ``field``) is the dotted field path (``"geometry.rows"``)."""
 
     def __init__(self, path: str, problem: str):
-        self.path, self.problem = path, problem
-        super().__init__(f"{path}: {problem}" if path else problem)
+        super().__init__(path, problem)
+
+    @property
+    def path(self) -> str:
+        return self.field
 
 
 # ---------------------------------------------------------------- building blocks
@@ -65,6 +67,25 @@ class _Spec(BaseModel):
     """Base of every spec: strict types, no unknown keys, no NaN, immutable."""
 
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _text(cls, value: Any) -> Any:
+        if isinstance(value, str) and not _is_text(value):
+            raise ValueError(f"{_NOT_TEXT}: {_short_text(value)}")
+        return value
+
+
+_NOT_TEXT = "not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8)"
+
+
+def _is_text(value: str) -> bool:
+    """True if ``value`` encodes as UTF-8 (no lone surrogates), so files and HDF5 can hold it."""
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _resolve_path(value: str, info: ValidationInfo) -> str:
@@ -81,34 +102,64 @@ Positive = Annotated[float, Field(gt=0)]
 
 
 def _load_npy(path: str, field: str) -> np.ndarray:
-    """The array in the ``.npy`` file at ``path``; a `SpecError` on ``field`` if unreadable."""
+    """The array in the ``.npy`` file at ``path`` as float64; a `SpecError` on ``field`` if unreadable.
+
+    The header is checked before any data is read: a numeric dtype, and no more data
+    than the file holds or the machine's memory can take (`check_memory`).
+    """
     try:
+        with open(path, "rb") as f:
+            shape, dtype = _npy_header(f, path, field)
+            held = os.fstat(f.fileno()).st_size - f.tell()
+            needed = math.prod(shape) * dtype.itemsize
+            if needed > held:
+                raise SpecError(field, f"{path}: the header claims shape {shape} of {dtype} "
+                                       f"({format_bytes(needed)}), but the file holds {format_bytes(held)} of data")
+            check_memory(needed + 8 * math.prod(shape), field, f"the array in {path}")
         array = np.load(path, allow_pickle=False)
     except FileNotFoundError:
         raise SpecError(field, f"file not found: {path}") from None
-    except (OSError, ValueError, EOFError) as exc:
-        raise SpecError(field, f"cannot read {path} as a .npy array ({exc})") from None
-    if not isinstance(array, np.ndarray) or array.dtype.kind not in "iuf":
-        raise SpecError(field, f"{path} must hold a numeric array, got {getattr(array, 'dtype', type(array))}")
+    except (SpecError, FieldError) as exc:
+        raise SpecError(field, exc.problem) from None
+    except (OSError, ValueError, EOFError, MemoryError) as exc:
+        raise SpecError(field, f"cannot read {path} as a .npy array ({' '.join(str(exc).split())})") from None
     return array.astype(np.float64)
+
+
+def _npy_header(f, path: str, field: str) -> tuple[tuple[int, ...], np.dtype]:
+    """``(shape, dtype)`` from the header of the open ``.npy`` file ``f``; the dtype must be numeric."""
+    try:
+        version = np.lib.format.read_magic(f)
+        if version not in ((1, 0), (2, 0)):
+            raise ValueError(f".npy format version {version} is not supported for numeric arrays")
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read(f)
+    except Exception as exc:  # noqa: BLE001 - numpy parses the header with ast and tokenize: any error
+        raise ValueError(f"{type(exc).__name__}: {exc}") from None
+    if dtype.kind not in "iuf":
+        raise SpecError(field, f"{path} must hold a numeric array, got {dtype}")
+    return tuple(int(n) for n in shape), dtype
 
 
 @contextlib.contextmanager
 def engine_errors(path: str, fields: dict[str, str] | None = None) -> Iterator[None]:
-    """Turn a ``ValueError/TypeError("name: problem")`` from the engine into a `SpecError`.
+    """Turn an error from the engine into a `SpecError`.
 
-    ``fields`` maps the engine's argument names to spec field paths; other names
-    are reported under ``path``.
+    ``fields`` maps the engine's argument names (a `FieldError`'s ``field``) to spec
+    field paths; other errors are reported under ``path``, whole.
     """
     try:
         yield
     except SpecError:
         raise
-    except (ValueError, TypeError) as exc:
-        name, sep, problem = str(exc).partition(": ")
-        if sep and fields and name in fields:
-            raise SpecError(fields[name], problem) from None
+    except FieldError as exc:
+        if fields and exc.field in fields:
+            raise SpecError(fields[exc.field], exc.problem) from None
         raise SpecError(path, str(exc)) from None
+    except (ValueError, TypeError) as exc:
+        raise SpecError(path, str(exc)) from None
+    except MemoryError as exc:
+        raise SpecError(path, f"needs more memory than this machine has ({' '.join(str(exc).split())})") from None
 
 
 # ---------------------------------------------------------------- geometry
@@ -267,12 +318,14 @@ class GaussianSpec(_Spec):
 
 def _finite_speeds(v: np.ndarray, masses: np.ndarray) -> np.ndarray:
     """``v``, or a `SpecError` on ``initial.energy`` when the speeds or the total energy
-    ``sum m |v|^2 / 2`` overflow float64."""
-    with np.errstate(all="ignore"):
-        energy = 0.5 * float(masses @ np.einsum("ij,ij->i", v, v))
-    if not (np.isfinite(v).all() and np.isfinite(energy)):
-        raise SpecError("initial.energy", "too large for these masses: the speeds or the total energy "
-                                          "overflow float64")
+    ``sum m |v|^2 / 2`` overflow float64, now or in a collision (`check_speeds`)."""
+    try:
+        if not np.isfinite(v).all():
+            raise FieldError("", "a speed is not finite")
+        check_speeds(v, masses)
+    except FieldError as exc:
+        raise SpecError("initial.energy", f"too large for these masses: the speeds or the total energy "
+                                          f"overflow float64 ({exc.problem})") from None
     return v
 
 
@@ -477,6 +530,10 @@ class RunSpec(_Spec):
 
     def build(self, seed: int | np.random.SeedSequence | None = None) -> Simulation:
         """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``."""
+        if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
+                isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
+            raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
+                                    f"got {_short(seed)}")
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
             np.random.SeedSequence(self.seed if seed is None else seed)
         geometry = self.geometry.build()
@@ -512,28 +569,82 @@ def parse_spec(data: str | bytes | dict, base_dir: str | os.PathLike | None = No
     context = {"base_dir": os.fspath(base_dir) if base_dir is not None else None}
     try:
         if isinstance(data, dict):
+            _check_tree(data, source)
             return RunSpec.model_validate(data, context=context)
         if isinstance(data, bytes):
-            data = data.decode("utf-8")
+            try:
+                data = data.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise SpecError(source, f"not UTF-8 text ({exc})") from None
         try:
-            parsed = json.loads(data)
+            parsed = json.loads(data, parse_int=_parse_int)
         except json.JSONDecodeError as exc:
             raise SpecError(source, f"not valid JSON: {exc}") from None
+        except RecursionError:
+            raise SpecError(source, f"not a spec: JSON nested more than {_MAX_DEPTH} levels deep") from None
         if not isinstance(parsed, dict):
             raise SpecError(source, f"a spec must be a JSON object, got {type(parsed).__name__}")
+        _check_tree(parsed, source)
         return RunSpec.model_validate(parsed, context=context)
     except ValidationError as exc:
         error = _first_error(exc)
         raise SpecError(_join(source, error.path) if source else error.path, error.problem) from None
 
 
+#: bytes of Python objects per character of JSON, from above (``[1,2,...]``: 36 bytes per 2 characters)
+_JSON_BYTES_PER_CHAR = 32
+#: deepest nesting of objects and arrays a spec may have (a spec needs 3 or 4)
+_MAX_DEPTH = 32
+
+
+class _LongInt(str):
+    """The digits of a JSON integer too long for any spec field (kept as text, never converted)."""
+
+
+def _parse_int(digits: str) -> int | _LongInt:
+    return int(digits) if len(digits.lstrip("-")) <= 19 else _LongInt(digits)
+
+
+def _check_tree(data: Any, source: str) -> None:
+    """Refuse, naming the field, what no spec field can hold: nesting deeper than `_MAX_DEPTH`,
+    integers outside int64, and strings that are not UTF-8 text (lone surrogates).
+
+    Walks ``data`` (parsed JSON or a dict) without recursion, fields in document order.
+    """
+    stack = [(data, "", 0)]
+    while stack:
+        value, path, depth = stack.pop()
+        where = path or source
+        if depth > _MAX_DEPTH:
+            raise SpecError(where, f"nested more than {_MAX_DEPTH} levels deep")
+        if isinstance(value, dict):
+            items = []
+            for key, item in value.items():
+                if isinstance(key, str) and not _is_text(key):
+                    raise SpecError(where, f"a key is {_NOT_TEXT}: {_short_text(key)}")
+                items.append((item, _dot(path, str(key)), depth + 1))
+            stack.extend(reversed(items))
+        elif isinstance(value, (list, tuple)):
+            stack.extend(reversed([(item, f"{path}[{i}]", depth + 1) for i, item in enumerate(value)]))
+        elif isinstance(value, _LongInt) or (
+                isinstance(value, int) and not isinstance(value, bool) and not -2**63 <= value < 2**63):
+            digits = len(str(value).lstrip("-")) if isinstance(value, str) or value.bit_length() < 10**4 else "many"
+            raise SpecError(where, f"an integer of {digits} digits is out of range "
+                                   f"(a spec field holds at most 2**63 - 1)")
+        elif isinstance(value, str) and not _is_text(value):
+            raise SpecError(where, f"{_NOT_TEXT}: {_short_text(value)}")
+
+
 def load_spec(path: str | os.PathLike) -> RunSpec:
     """Read and validate the JSON spec at ``path``; relative paths in it resolve against its directory."""
     path = Path(path)
     try:
+        check_memory(_JSON_BYTES_PER_CHAR * path.stat().st_size, str(path), "reading this spec file")
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise SpecError(str(path), "no such spec file") from None
+    except FieldError as exc:
+        raise SpecError(str(path), exc.problem) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SpecError(str(path), f"cannot read the spec file ({exc})") from None
     try:
@@ -623,6 +734,12 @@ def _suggest(word: str, choices: list[str]) -> str:
 
 def _dot(path: str, name: str) -> str:
     return f"{path}.{name}" if path and name else path or name
+
+
+def _short_text(value: Any) -> str:
+    """``ascii(value)``, cut to 60 characters: shows lone surrogates as escapes."""
+    text = ascii(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _short(value: Any) -> str:
