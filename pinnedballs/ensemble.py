@@ -30,7 +30,7 @@ from typing import Callable
 import numpy as np
 
 from .cli import arg, subcommand
-from .geometry import Geometry, HalfPlane
+from .geometry import Geometry
 from .io import check_out_dir, write_text_atomic
 from .spec import InputError, RunSpec, load_spec
 
@@ -64,12 +64,12 @@ def replica_seed(spec: RunSpec, index: int) -> np.random.SeedSequence:
 
 
 def state_row(geometry: Geometry, velocities: np.ndarray, masses=None) -> dict[str, float]:
-    """The observables of one state: `observables.summary`, and `far_shares` on a `HalfPlane`."""
+    """The observables of one state: `observables.summary`, and `far_shares` on a geometry with a boundary."""
     from . import observables as obs
 
     row = obs.summary(velocities, geometry, masses)
-    if isinstance(geometry, HalfPlane):
-        row.update(obs.far_shares(geometry.boundary_distance(), velocities, masses))
+    if geometry.boundary is not None:
+        row.update(obs.far_shares(geometry.boundary.distance, velocities, masses))
     return row
 
 
