@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from pathlib import Path
 
 import networkx as nx
 import numpy as np
@@ -411,3 +412,51 @@ def test_summary_uses_the_boundary_capability():
     v[h.ring == 2] = [1.0, 0.0]  # every boundary ball moving radially outward
     row = state_row(h, v)
     assert row["boundary_share"] == 1.0 and row["boundary_outward_fraction"] == 1.0 and row["far_row_share"] == 0.0
+
+
+# ---------------------------------------------------------------- recorded runs
+
+
+@pytest.mark.parametrize("geometry", [
+    {"kind": "sphere", "points": "points.npy"},
+    {"kind": "hyperbolic_plane", "q": 7, "layers": 2},
+    {"kind": "hcp", "nx": 3, "ny": 3, "nz": 2, "periodic": [True, True, False]},
+], ids=["sphere_points", "hyperbolic", "hcp"])
+def test_results_rebuild_the_geometry_and_plot_says_what_it_wrote(tmp_path, capsys, geometry):
+    import json
+
+    from pinnedballs import cli
+
+    np.save(tmp_path / "points.npy", _random_sphere(40))
+    dim = 3 if geometry["kind"] == "hcp" else 2
+    spec = {"geometry": geometry, "initial": {"kind": "gaussian", "energy": 10.0}, "stop": {"steps": 5_000},
+            "seed": 4}
+    (tmp_path / "spec.json").write_text(json.dumps(spec))
+    assert cli.main(["run", str(tmp_path / "spec.json"), "--out", str(tmp_path / "run"), "--quiet",
+                     "--no-figures"]) == 0
+    (tmp_path / "points.npy").unlink()  # a recorded run needs no input file to be redrawn
+    res = pb.load(tmp_path / "run")
+    g = res.geometry
+    assert g.dim == dim and len(g.contacts) == len(res.pairs)
+    assert np.array_equal(g.contacts.pairs, res.pairs)
+    capsys.readouterr()
+    assert cli.main(["plot", str(tmp_path / "run")]) == 0
+    printed = capsys.readouterr().out.split()
+    assert printed and all(Path(p).is_file() for p in printed)
+    assert "state_final.png" in {Path(p).name for p in printed}
+
+
+def test_plot_says_so_when_no_figure_fits(tmp_path, capsys):
+    import json
+
+    from pinnedballs import cli
+
+    np.save(tmp_path / "chain.npy", np.arange(5.0)[:, None] * 2)
+    spec = {"geometry": {"kind": "graph_positions", "positions": "chain.npy"},
+            "initial": {"kind": "single_ball", "ball": 0, "velocity": [1.0]}, "stop": {"steps": 10}}
+    (tmp_path / "spec.json").write_text(json.dumps(spec))
+    assert cli.main(["run", str(tmp_path / "spec.json"), "--out", str(tmp_path / "run"), "--quiet",
+                     "--no-figures"]) == 0
+    capsys.readouterr()
+    assert cli.main(["plot", str(tmp_path / "run")]) == 0
+    assert capsys.readouterr().out.strip().endswith("no figures fit this geometry; none written")
