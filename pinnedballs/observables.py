@@ -132,7 +132,7 @@ def energy_profile(distances, velocities, masses=None, bin_width: float | None =
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Share of the energy at each distance from the boundary (the paper's Figures 3 and 4).
 
-    distances: ``(n_balls,)`` from the boundary (``HalfPlane.boundary_distance()``).
+    distances: ``(n_balls,)`` from the boundary (a geometry's ``boundary.distance``).
     Default: one bin per lattice row (see `boundary_rows`), centre = the row's
     distance, so ``centres[0]`` is the boundary row. With ``bin_width``: bins
     ``[k w, (k+1) w)`` from 0 up to the largest distance, centres at their middles,

@@ -56,9 +56,9 @@ class _Packing(Geometry):
     def _build_contacts(self) -> Contacts:
         shape, b = np.asarray(self.shape), len(self.BASIS)
         cells = np.indices(self.shape).reshape(3, -1).T
-        pairs, ends = [], []
         units = np.array([u for _, _, _, u in self._stencil])
-        for k, (a, shift, c, _) in enumerate(self._stencil):
+        parts = []
+        for a, shift, c, _ in self._stencil:
             target = cells + shift
             valid = np.ones(len(cells), dtype=bool)
             for axis in range(3):
@@ -66,11 +66,17 @@ class _Packing(Geometry):
                     target[:, axis] %= shape[axis]
                 else:
                     valid &= (target[:, axis] >= 0) & (target[:, axis] < shape[axis])
-            i = _cell_index(cells[valid], shape) * b + a
-            j = _cell_index(target[valid], shape) * b + c
-            pairs.append(np.column_stack([i, j]))
-            ends.append(np.broadcast_to(np.array([k, k + len(units)]), (len(i), 2)))
-        return Contacts.build(np.concatenate(pairs), np.concatenate(ends), np.concatenate([units, -units]))
+            parts.append((_cell_index(cells[valid], shape) * b + a, _cell_index(target[valid], shape) * b + c))
+        e = sum(len(i) for i, _ in parts)
+        pairs = np.empty((e, 2), dtype=np.uint32)
+        ends = np.empty((e, 2), dtype=np.uint8)
+        start = 0
+        for k, (i, j) in enumerate(parts):
+            stop = start + len(i)
+            pairs[start:stop, 0], pairs[start:stop, 1] = i, j
+            ends[start:stop] = (k, k + len(units))
+            start = stop
+        return Contacts(pairs=pairs, ends=ends, units=np.concatenate([units, -units]))
 
 
 class FCC(_Packing):
