@@ -331,7 +331,7 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
     """The scalars above for one state on ``geometry``, for tables.
 
     Keys: ``energy``, ``momentum_x``, ``momentum_y``, ... (one per component;
-    meaningful in flat space), ``approaching_fraction``,
+    flat space only: left out when ``geometry.curved``), ``approaching_fraction``,
     ``line_of_centres_correlation``, ``xy_correlation`` (dim >= 2) and, on a
     geometry with a ``boundary``, ``boundary_share`` and ``boundary_outward_fraction``
     (share of the boundary row's energy moving along ``boundary.outward``).
@@ -347,7 +347,8 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
     contacts = (c.pairs, c.t_i, c.t_j)
     out = {"energy": total_energy(v, m)}
     axes = "xyz" if v.shape[1] <= 3 else [str(k) for k in range(v.shape[1])]
-    out.update({f"momentum_{a}": float(p) for a, p in zip(axes, total_momentum(v, m))})
+    if not geometry.curved:  # on a curved surface velocities live in different tangent planes
+        out.update({f"momentum_{a}": float(p) for a, p in zip(axes, total_momentum(v, m))})
     out["approaching_fraction"] = approaching_fraction(v, *contacts)
     out["line_of_centres_correlation"] = line_of_centres_correlation(v, *contacts)
     if v.shape[1] >= 2:

@@ -406,7 +406,9 @@ def test_bad_geometry_specs_exit_2_with_one_line(tmp_path, capsys, geometry, mes
 
 def test_summary_uses_the_boundary_capability():
     sphere = pb.Sphere.geodesic(2)
-    assert "boundary_share" not in obs.summary(gaussian(sphere), sphere)
+    keys = obs.summary(gaussian(sphere), sphere)
+    assert "boundary_share" not in keys and not any(k.startswith("momentum") for k in keys)  # no global momentum
+    assert {"momentum_x", "momentum_y", "momentum_z"} <= set(obs.summary(gaussian(pb.FCC(2, 2, 2)), pb.FCC(2, 2, 2)))
     h = pb.HyperbolicPlane(q=7, layers=2)
     v = np.zeros((h.n_balls, 2))
     v[h.ring == 2] = [1.0, 0.0]  # every boundary ball moving radially outward
