@@ -130,7 +130,8 @@ def sphere_views(positions, velocities, title: str | None = None, path=None) -> 
     positions: ``(n_balls, 3)`` on the unit sphere; velocities: ``(n_balls, 3)`` in embedding
     coordinates (``einsum("nd,ndk->nk", v, geom.frames())``). Left: the northern hemisphere seen
     from above (+z); right: the southern seen from below (x mirrored, so both are seen from outside).
-    Arrows show each velocity's part in the picture plane, on the common scale of `arrow_scale`.
+    Balls are foreshortened towards the rim (at least to a fifth, to stay visible); arrows show
+    each velocity's part in the picture plane, on the common scale of `arrow_scale`.
     """
     x = np.asarray(positions, dtype=np.float64)
     V = np.asarray(velocities, dtype=np.float64)
@@ -145,9 +146,11 @@ def sphere_views(positions, velocities, title: str | None = None, path=None) -> 
         flip = np.array([sign, 1.0])
         p, v = x[on, :2] * flip, V[on, :2] * flip
         ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
-        ax.add_collection(EllipseCollection(BALL_SIZE * spacing, BALL_SIZE * spacing, 0.0, units="xy", offsets=p,
-                                            offset_transform=ax.transData, facecolors=BALL_COLOUR,
-                                            edgecolors="none"))
+        # a ball seen at a slant: its width along the rim kept, its depth towards the centre foreshortened by |z|
+        size = np.full(len(p), BALL_SIZE * spacing)
+        ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90,
+                                            units="xy", offsets=p, offset_transform=ax.transData,
+                                            facecolors=BALL_COLOUR, edgecolors="none"))
         _tangent_arrows(ax, p, v, k, spacing)
         ax.set_xlim(-1.25, 1.25)
         ax.set_ylim(-1.25, 1.25)
