@@ -136,10 +136,11 @@ def _tiling(q: int, layers: int):
         if len(r) + len(new) > MAX_BALLS:
             raise ValueError(f"layers: {layers} rings of the {{3,{q}}} tiling exceed {MAX_BALLS:,} balls")
         # merge the new candidates among themselves, first appearance first
+        # (a ball of the next ring touches at most two of this ring, so one level of merging suffices)
         first = np.arange(len(new))
-        for a, b in cKDTree(_hyperboloid(cr[new], cphi[new]).astype(np.float64)).query_pairs(
-                0.5, output_type="ndarray"):
-            first[max(a, b)] = min(first[max(a, b)], min(a, b))
+        same = np.sort(cKDTree(_hyperboloid(cr[new], cphi[new]).astype(np.float64)).query_pairs(
+            0.5, output_type="ndarray"), axis=1)
+        np.minimum.at(first, same[:, 1], same[:, 0])
         first = first[first]
         keep = np.unique(first)
         renumber = np.full(len(new), -1, dtype=np.int64)
