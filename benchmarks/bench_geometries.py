@@ -35,7 +35,8 @@ def hyperbolic(max_layers: int = 9) -> None:
         seconds = time.perf_counter() - t0
         r, phi = (a.astype(np.longdouble) for a in h.polar())
         i, j = h.contacts.pairs.astype(np.int64).T
-        polar = np.arccosh(np.cosh(r[i] - r[j]) + 2 * np.sinh(r[i]) * np.sinh(r[j]) * np.sin((phi[i] - phi[j]) / 2) ** 2)
+        half_angle = np.sin((phi[i] - phi[j]) / 2)
+        polar = np.arccosh(np.cosh(r[i] - r[j]) + 2 * np.sinh(r[i]) * np.sinh(r[j]) * half_angle**2)
         x = h.positions.astype(np.longdouble)
         flat = np.arccosh(x[i, 0] * x[j, 0] - x[i, 1] * x[j, 1] - x[i, 2] * x[j, 2])
         print(f"HyperbolicPlane(7, {layers}): {h.n_balls:,} balls in {seconds:.2f} s; contact length error "

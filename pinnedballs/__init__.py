@@ -4,7 +4,8 @@ Balls sit at fixed centres; their pseudo-velocities change when two touching
 balls approach and collide. See ``docs/`` and the README for a tour.
 """
 
-from .geometry import FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
+from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane,
+                       Sphere)
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation

@@ -148,9 +148,10 @@ def sphere_views(positions, velocities, title: str | None = None, path=None) -> 
         ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
         # a ball seen at a slant: its width along the rim kept, its depth towards the centre foreshortened by |z|
         size = np.full(len(p), BALL_SIZE * spacing)
-        ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90,
-                                            units="xy", offsets=p, offset_transform=ax.transData,
-                                            facecolors=BALL_COLOUR, edgecolors="none"))
+        along_rim = np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90
+        ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), along_rim, units="xy",
+                                            offsets=p, offset_transform=ax.transData, facecolors=BALL_COLOUR,
+                                            edgecolors="none"))
         _tangent_arrows(ax, p, v, k, spacing)
         ax.set_xlim(-1.25, 1.25)
         ax.set_ylim(-1.25, 1.25)

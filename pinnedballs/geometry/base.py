@@ -159,9 +159,9 @@ class Geometry(ABC):
 
         Each edge carries ``"units" = {i: t_i, j: t_j}``, its index ``"contact"`` and its
         orientation ``"pair" = (i, j)``; on a curved surface each node also carries its
-        ``"frame"`` (``dim x k``) and the graph its ``"dim"``, so that ``GraphGeometry(geom.contact_graph())``
-        rebuilds exactly these contacts in the same order (the same seed then gives the same
-        run), periodic or curved ones included.
+        ``"frame"`` (``dim x k``). So ``GraphGeometry(geom.contact_graph())`` rebuilds exactly
+        these contacts in the same order (the same seed then gives the same run), periodic or
+        curved ones included.
         """
         g = nx.Graph(dim=self.dim)
         frames = self.frames() if self.curved else None
@@ -215,7 +215,6 @@ def _check_radius(radius) -> float:
     if not np.isfinite(radius) or radius <= 0:
         raise ValueError(f"radius: must be finite and > 0, got {radius}")
     return float(radius)
-
 
 
 # ---------------------------------------------------------------- arbitrary graphs

@@ -32,7 +32,8 @@ class _Packing(Geometry):
         self.radius = _check_radius(radius)
         n = int(np.prod(self.shape)) * len(self.BASIS)
         if n > _INT32_MAX // 6:
-            raise ValueError(f"nx*ny*nz: at most {_INT32_MAX // 6 // len(self.BASIS)} cells, got {n // len(self.BASIS)}")
+            cells = n // len(self.BASIS)
+            raise ValueError(f"nx*ny*nz: at most {_INT32_MAX // 6 // len(self.BASIS)} cells, got {cells}")
         self._stencil = _stencil(self.CELL, self.BASIS)
         _check_wrap(self._stencil, self.shape, self.periodic)
         cells = np.indices(self.shape).reshape(3, -1).T

@@ -88,7 +88,8 @@ class Sphere(Geometry):
         return cls(p, np.unique(edges, axis=0), radius)
 
     def frames(self) -> np.ndarray:
-        """``(n_balls, 2, 3)`` orthonormal tangent basis: ``e1`` towards the pole (x-axis near the poles), ``e2 = x x e1``."""
+        """``(n_balls, 2, 3)`` orthonormal tangent bases: ``e1`` towards the z-axis (the x-axis within 0.9 of a
+        pole), ``e2 = x x e1``."""
         x = self.positions
         axis = np.zeros_like(x)
         near_pole = np.abs(x[:, 2]) > 0.9
