@@ -109,6 +109,19 @@ def test_from_points_contacts_are_the_delaunay_edges():
     assert ico.n_contacts == 30 and set(ico.degrees()) == {5}
 
 
+def test_from_points_in_a_cap_triangulate_the_cap_only():
+    """Points within 60 degrees of the north pole: a triangulated disc, E = 3n - 3 - h (h on its rim)."""
+    from scipy.spatial import ConvexHull
+
+    rng = np.random.default_rng(8)
+    z = rng.uniform(0.5, 1.0, 150)
+    angle = rng.uniform(0, 2 * np.pi, 150)
+    p = np.column_stack([np.sqrt(1 - z**2) * np.cos(angle), np.sqrt(1 - z**2) * np.sin(angle), z])
+    s = pb.Sphere.from_points(p)
+    rim = len(ConvexHull(p[:, :2] / p[:, 2:]).vertices)  # great circles are straight lines in the gnomonic chart
+    assert s.n_contacts == 3 * s.n_balls - 3 - rim
+
+
 @pytest.mark.parametrize("points, match", [
     (np.vstack([_random_sphere(10), [[0, 0, 2.6]]]), "points: ball 10 is off the sphere"),
     (np.vstack([_random_sphere(10), _random_sphere(10)[3:4]]), "points: balls 3 and 10 are at the same place"),

@@ -74,8 +74,8 @@ class Sphere(Geometry):
     @classmethod
     def from_points(cls, points, radius: float = 1.0) -> "Sphere":
         """Balls at ``points (n, 3)``, all at the same distance from the origin (n >= 4, not all on one
-        plane); contacts are the edges of their convex hull, i.e. of their spherical Delaunay
-        triangulation. Positions are scaled onto the unit sphere."""
+        plane); contacts are the edges of their spherical Delaunay triangulation: of the faces of
+        their convex hull that face away from the origin. Positions are scaled onto the unit sphere."""
         from scipy.spatial import ConvexHull, QhullError
 
         p = _points_on_a_sphere(points)
@@ -83,7 +83,9 @@ class Sphere(Geometry):
             hull = ConvexHull(p)
         except QhullError as exc:
             raise ValueError(f"points: no convex hull (all on one plane?): {str(exc).splitlines()[0]}") from None
-        s = hull.simplices
+        # a face is Delaunay when the origin is inside its plane; points within one hemisphere also
+        # have hull faces on the far side of the origin, which are not
+        s = hull.simplices[hull.equations[:, -1] < -1e-12]
         edges = np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1)
         return cls(p, np.unique(edges, axis=0), radius)
 
