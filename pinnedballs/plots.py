@@ -328,16 +328,23 @@ def figure_files(out_dir) -> list[Path]:
 def _state_picture(geometry, positions: np.ndarray):
     """``draw(velocities (n, dim), title) -> Figure`` for this geometry's states, or None if none fits.
 
-    Asked of the geometry's capabilities: flat 2-D (quiver), a curved surface in 3-D (the
-    hyperboloid when it offers ``poincare``, else the unit sphere), flat 3-D (the bottom layer's
-    ``(v_x, v_y)`` as a quiver of a slice).
+    Asked of the geometry's capabilities and positions: flat 2-D (quiver), a curved surface
+    whose centres lie on the unit sphere (`sphere_views`) or the hyperboloid (`poincare_disk`),
+    flat 3-D (the bottom layer's ``(v_x, v_y)`` as a quiver of a slice).
     """
     n, k = positions.shape
     if geometry.dim == 2 and k == 2 and not geometry.curved:
         return lambda v, title: quiver(positions, v, title=title)
     if geometry.curved and k == 3:
+        square = positions**2
+        scale = 1e-9 * max(1.0, float(square.sum(axis=1).max()))
+        if np.all(np.abs(square.sum(axis=1) - 1) <= scale):
+            draw = sphere_views
+        elif np.all(np.abs(square[:, 1:].sum(axis=1) - square[:, 0] + 1) <= scale) and np.all(positions[:, 0] > 0):
+            draw = poincare_disk
+        else:
+            return None
         frames = geometry.frames()
-        draw = poincare_disk if hasattr(geometry, "poincare") else sphere_views
         return lambda v, title: draw(positions, np.einsum("nd,ndk->nk", v, frames), title=title)
     if geometry.dim == 3 and k == 3:
         layer = np.flatnonzero(positions[:, 2] <= positions[:, 2].min() + 1e-9)

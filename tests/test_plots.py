@@ -216,6 +216,11 @@ def test_write_figures_for_the_hyperbolic_plane_uses_the_poincare_disk_and_the_b
     v = normal_state(h.n_balls, seed=3)
     paths = plots.write_figures(results(h, v, []), tmp_path)
     assert [p.name for p in paths] == ["state_final.png", "energy_by_distance.png", "velocity_histograms.png"]
+    # the same surface as a plain GraphGeometry (no boundary) is still drawn in the disk, from its positions
+    twin = pb.GraphGeometry(h.contact_graph())
+    drawn = plots.write_figures(results(twin, v, []), tmp_path / "twin")
+    assert [p.name for p in drawn] == ["state_final.png", "velocity_histograms.png"]
+    assert np.array_equal(matplotlib.image.imread(drawn[0]), matplotlib.image.imread(paths[0]))
     fig = plots.poincare_disk(h.positions, np.einsum("nd,ndk->nk", v, h.frames()))
     offsets = fig.axes[0].collections[0].get_offsets()
     np.testing.assert_allclose(offsets, h.poincare(), atol=1e-12)
