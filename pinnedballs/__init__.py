@@ -4,7 +4,8 @@ Balls sit at fixed centres; their pseudo-velocities change when two touching
 balls approach and collide. See ``docs/`` and the README for a tour.
 """
 
-from .geometry import Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane
+from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane,
+                       Sphere)
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation
@@ -15,7 +16,8 @@ from .ensemble import run_ensemble
 __version__ = "0.1.0"
 
 __all__ = [
-    "Contacts", "Geometry", "FlatTorus", "HalfPlane", "GraphGeometry",
+    "Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",
+    "Sphere", "HyperbolicPlane", "FCC", "HCP",
     "CollisionRule", "Elastic", "Restitution",
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
     "Simulation", "__version__",

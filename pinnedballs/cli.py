@@ -163,8 +163,8 @@ def plot(args: argparse.Namespace) -> int:
     from .runner import write_figures
 
     run_dir = load(args.dir).path.parent  # checks the file before drawing
-    for path in write_figures(run_dir):
-        print(path)
+    paths = write_figures(run_dir)
+    print("\n".join(map(str, paths)) if paths else f"{run_dir}: no figures fit this geometry; none written")
     return EXIT_OK
 
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from .cli import arg, subcommand
 from .daskprobe import check_scheduler
-from .geometry import Geometry, HalfPlane
+from .geometry import Geometry
 from .io import check_out_dir, write_text_atomic
 from .limits import check_memory
 from .spec import InputError, RunSpec, load_spec
@@ -68,12 +68,12 @@ def replica_seed(spec: RunSpec, index: int) -> np.random.SeedSequence:
 
 
 def state_row(geometry: Geometry, velocities: np.ndarray, masses=None) -> dict[str, float]:
-    """The observables of one state: `observables.summary`, and `far_shares` on a `HalfPlane`."""
+    """The observables of one state: `observables.summary`, and `far_shares` on a geometry with a boundary."""
     from . import observables as obs
 
     row = obs.summary(velocities, geometry, masses)
-    if isinstance(geometry, HalfPlane):
-        row.update(obs.far_shares(geometry.boundary_distance(), velocities, masses))
+    if geometry.boundary is not None:
+        row.update(obs.far_shares(geometry.boundary.distance, velocities, masses))
     return row
 
 

@@ -292,9 +292,9 @@ class Results:
 
     @functools.cached_property
     def geometry(self) -> Geometry:
-        """The run's geometry, rebuilt from the spec (from the stored positions for ``graph_positions``)."""
+        """The run's geometry, rebuilt from the spec (from the stored positions when the spec reads a file)."""
         g = self.spec.geometry
-        return g.build_from(self.positions) if g.kind == "graph_positions" else g.build()
+        return g.build_from(self.positions) if hasattr(g, "build_from") else g.build()
 
     def state(self) -> dict:
         """The latest state in the form of `Simulation.get_state`."""

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from .geometry import Geometry, HalfPlane
+from .geometry import Geometry
 from .simulation import mass_array
 
 __all__ = [
@@ -132,7 +132,7 @@ def energy_profile(distances, velocities, masses=None, bin_width: float | None =
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Share of the energy at each distance from the boundary (the paper's Figures 3 and 4).
 
-    distances: ``(n_balls,)`` from the boundary (``HalfPlane.boundary_distance()``).
+    distances: ``(n_balls,)`` from the boundary (a geometry's ``boundary.distance``).
     Default: one bin per lattice row (see `boundary_rows`), centre = the row's
     distance, so ``centres[0]`` is the boundary row. With ``bin_width``: bins
     ``[k w, (k+1) w)`` from 0 up to the largest distance, centres at their middles,
@@ -183,14 +183,15 @@ def outward_energy_fraction(velocities, outward=HALF_PLANE_OUTWARD, masses=None)
     """Share of these balls' energy held by balls moving outward (``v . outward > 0``).
 
     velocities: ``(n, dim)``, typically the boundary row's; outward: ``(dim,)``
-    direction out of the system (default ``(0, -1)``, `HalfPlane`'s).
+    direction out of the system (default ``(0, -1)``, `HalfPlane`'s), or ``(n, dim)``
+    one per ball (a geometry's ``boundary.outward``).
     """
     v = _velocities(velocities)
     n = np.asarray(outward, dtype=np.float64)
-    if n.shape != (v.shape[1],) or not np.linalg.norm(n) > 0:
-        raise ValueError(f"outward: must be a nonzero vector of shape ({v.shape[1]},), got {n.tolist()}")
+    if n.shape not in ((v.shape[1],), v.shape) or not (np.linalg.norm(n, axis=-1) > 0).all():
+        raise ValueError(f"outward: must be nonzero, of shape ({v.shape[1]},) or {v.shape}, got shape {n.shape}")
     e = energy_per_ball(v, masses)
-    return _fraction(e[v @ n > 0].sum(), e.sum())
+    return _fraction(e[np.einsum("nd,nd->n", v, np.broadcast_to(n, v.shape)) > 0].sum(), e.sum())
 
 
 # ---------------------------------------------------------------- velocity components
@@ -330,10 +331,10 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
     """The scalars above for one state on ``geometry``, for tables.
 
     Keys: ``energy``, ``momentum_x``, ``momentum_y``, ... (one per component;
-    meaningful in flat space), ``approaching_fraction``,
+    flat space only: left out when ``geometry.curved``), ``approaching_fraction``,
     ``line_of_centres_correlation``, ``xy_correlation`` (dim >= 2) and, on a
-    `HalfPlane`, ``boundary_share`` and ``boundary_outward_fraction`` (share of
-    the boundary row's energy moving outward, towards y < 0).
+    geometry with a ``boundary``, ``boundary_share`` and ``boundary_outward_fraction``
+    (share of the boundary row's energy moving along ``boundary.outward``).
     """
     if not isinstance(geometry, Geometry):
         raise TypeError(f"geometry: must be a pinnedballs Geometry, got {type(geometry).__name__}")
@@ -346,14 +347,16 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
     contacts = (c.pairs, c.t_i, c.t_j)
     out = {"energy": total_energy(v, m)}
     axes = "xyz" if v.shape[1] <= 3 else [str(k) for k in range(v.shape[1])]
-    out.update({f"momentum_{a}": float(p) for a, p in zip(axes, total_momentum(v, m))})
+    if not geometry.curved:  # on a curved surface velocities live in different tangent planes
+        out.update({f"momentum_{a}": float(p) for a, p in zip(axes, total_momentum(v, m))})
     out["approaching_fraction"] = approaching_fraction(v, *contacts)
     out["line_of_centres_correlation"] = line_of_centres_correlation(v, *contacts)
     if v.shape[1] >= 2:
         out["xy_correlation"] = xy_correlation(v)
-    if isinstance(geometry, HalfPlane):
-        distances = geometry.boundary_distance()
-        row, _ = boundary_rows(distances)
-        out["boundary_share"] = boundary_share(distances, v, m)
-        out["boundary_outward_fraction"] = outward_energy_fraction(v[row == 0], HALF_PLANE_OUTWARD, m[row == 0])
+    boundary = geometry.boundary
+    if boundary is not None:
+        row, _ = boundary_rows(boundary.distance)
+        out["boundary_share"] = boundary_share(boundary.distance, v, m)
+        out["boundary_outward_fraction"] = outward_energy_fraction(v[row == 0], boundary.outward[row == 0],
+                                                                   m[row == 0])
     return out

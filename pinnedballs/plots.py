@@ -14,15 +14,15 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection
+from matplotlib.patches import Circle
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 from scipy import stats
 
 from . import observables as obs
-from .geometry import HalfPlane
 
-__all__ = ["quiver", "arrow_scale", "energy_by_distance", "energy_profiles", "component_histograms",
-           "correlation_histogram", "write_figures"]
+__all__ = ["quiver", "arrow_scale", "sphere_views", "poincare_disk", "energy_by_distance", "energy_profiles",
+           "component_histograms", "correlation_histogram", "write_figures"]
 
 DPI = 100
 BALL_COLOUR = "0.75"
@@ -127,6 +127,95 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
     ax.set_aspect("equal")
     ax.set_xlabel("x")
     ax.set_ylabel("y")
+    return save(fig, path)
+
+
+def _tangent_arrows(ax, p: np.ndarray, v: np.ndarray, k: float, spacing: float) -> None:
+    moving = np.linalg.norm(v, axis=1) > 0
+    if moving.any():
+        ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR, angles="xy",
+                  scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing, headwidth=3.5, headlength=4.0,
+                  headaxislength=3.5, minlength=0.0)
+
+
+def sphere_views(positions, velocities, title: str | None = None, path=None) -> Figure:
+    """Orthographic views of both hemispheres of the unit sphere, velocities as tangent arrows.
+
+    positions: ``(n_balls, 3)`` on the unit sphere; velocities: ``(n_balls, 3)`` in embedding
+    coordinates (``einsum("nd,ndk->nk", v, geom.frames())``). Left: the northern hemisphere seen
+    from above (+z); right: the southern seen from below (x mirrored, so both are seen from outside).
+    Balls are foreshortened towards the rim (at least to a fifth, to stay visible); arrows show
+    each velocity's part in the picture plane, on the common scale of `arrow_scale`.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    V = np.asarray(velocities, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or V.shape != x.shape:
+        raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
+    fig = new_figure((11.0, 5.8))
+    spacing = _spacing(x)
+    k = arrow_scale(np.linalg.norm(V, axis=1), spacing)
+    for ax, sign, name in zip(fig.subplots(1, 2), (1.0, -1.0), ("northern hemisphere (from +z)",
+                                                                  "southern hemisphere (from -z)")):
+        on = sign * x[:, 2] >= 0
+        flip = np.array([sign, 1.0])
+        p, v = x[on, :2] * flip, V[on, :2] * flip
+        ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
+        # a ball seen at a slant: its width along the rim kept, its depth towards the centre foreshortened by |z|
+        size = np.full(len(p), BALL_SIZE * spacing)
+        along_rim = np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90
+        ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), along_rim, units="xy",
+                                            offsets=p, offset_transform=ax.transData, facecolors=BALL_COLOUR,
+                                            edgecolors="none"))
+        _tangent_arrows(ax, p, v, k, spacing)
+        ax.set_xlim(-1.25, 1.25)
+        ax.set_ylim(-1.25, 1.25)
+        ax.set_aspect("equal")
+        ax.set_title(name)
+        ax.set_xlabel("x" if sign > 0 else "-x")
+        ax.set_ylabel("y")
+    if title:
+        fig.suptitle(title)
+    return save(fig, path)
+
+
+def poincare_disk(positions, velocities, title: str | None = None, path=None) -> Figure:
+    """A state of the hyperbolic plane drawn in the Poincare disk.
+
+    positions: ``(n_balls, 3)`` on the hyperboloid; velocities: ``(n_balls, 3)`` in embedding
+    coordinates. Balls sit at ``p = (x1, x2) / (1 + x0)``; balls and arrows are drawn at their
+    hyperbolic sizes carried to the disk by the same map (conformal: directions are true,
+    lengths shrink by ``(1 - |p|^2) / 2`` towards the rim). Arrow lengths follow `arrow_scale`
+    in hyperbolic units, with the spacing of the ball nearest the centre.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    V = np.asarray(velocities, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or V.shape != x.shape:
+        raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
+    one = 1.0 + x[:, :1]
+    p = x[:, 1:] / one
+    dp = (V[:, 1:] * one - x[:, 1:] * V[:, :1]) / one**2
+    shrink = (1.0 - np.einsum("nk,nk->n", p, p)) / 2.0
+    speeds = np.sqrt(np.maximum(np.einsum("nk,nk->n", V[:, 1:], V[:, 1:]) - V[:, 0] ** 2, 0.0))
+    centre = int(np.argmin(x[:, 0]))
+    cosh = x[centre, 0] * x[:, 0] - x[:, 1:] @ x[centre, 1:]
+    cosh[centre] = np.inf
+    spacing = float(np.arccosh(cosh.min())) if len(x) > 1 else 1.0
+    k = arrow_scale(speeds, spacing)
+    fig, ax = _new_axes(None, (8.0, 8.0), title)
+    ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
+    size = BALL_SIZE * spacing * shrink
+    ax.add_collection(EllipseCollection(size, size, np.zeros(len(p)), units="xy", offsets=p,
+                                        offset_transform=ax.transData, facecolors=BALL_COLOUR, edgecolors="none"))
+    moving = speeds > 0
+    if moving.any():
+        ax.quiver(p[moving, 0], p[moving, 1], dp[moving, 0], dp[moving, 1], color=ARROW_COLOUR, angles="xy",
+                  scale_units="xy", scale=1.0 / k, units="dots", width=2.0, headwidth=3.5, headlength=4.0,
+                  headaxislength=3.5, minlength=0.0)
+    ax.set_xlim(-1.05, 1.05)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_aspect("equal")
+    ax.set_xlabel("Poincare disk x")
+    ax.set_ylabel("Poincare disk y")
     return save(fig, path)
 
 
@@ -273,7 +362,7 @@ def correlation_histogram(values, bin_width: float = 0.02, span=(-1.0, 1.0), ax=
 
 #: the names `write_figures` gives its files
 FIGURE_PATTERNS = ("state_initial.png", "state_step_*.png", "state_final.png", "energy_by_distance.png",
-                   "velocity_histograms.png")
+                   "energy_by_height.png", "velocity_histograms.png")
 
 
 def figure_files(out_dir) -> list[Path]:
@@ -282,23 +371,53 @@ def figure_files(out_dir) -> list[Path]:
     return sorted({p for pattern in FIGURE_PATTERNS for p in out.glob(pattern)})
 
 
+def _state_picture(geometry, positions: np.ndarray):
+    """``draw(velocities (n, dim), title) -> Figure`` for this geometry's states, or None if none fits.
+
+    Asked of the geometry's capabilities and positions: flat 2-D (quiver), a curved surface
+    whose centres lie on the unit sphere (`sphere_views`) or the hyperboloid (`poincare_disk`),
+    flat 3-D (the bottom layer's ``(v_x, v_y)`` as a quiver of a slice).
+    """
+    n, k = positions.shape
+    if geometry.dim == 2 and k == 2 and not geometry.curved:
+        return lambda v, title: quiver(positions, v, title=title)
+    if geometry.curved and k == 3:
+        square = positions**2
+        scale = 1e-9 * max(1.0, float(square.sum(axis=1).max()))
+        if np.all(np.abs(square.sum(axis=1) - 1) <= scale):
+            draw = sphere_views
+        elif np.all(np.abs(square[:, 1:].sum(axis=1) - square[:, 0] + 1) <= scale) and np.all(positions[:, 0] > 0):
+            draw = poincare_disk
+        else:
+            return None
+        frames = geometry.frames()
+        return lambda v, title: draw(positions, np.einsum("nd,ndk->nk", v, frames), title=title)
+    if geometry.dim == 3 and k == 3:
+        layer = np.flatnonzero(positions[:, 2] <= positions[:, 2].min() + 1e-9)
+        return lambda v, title: quiver(positions[layer, :2], v[layer, :2],
+                                       title=f"{title}: the bottom layer (z = {positions[layer[0], 2]:g}), "
+                                             f"arrows (v_x, v_y)")
+    return None
+
+
 def write_figures(res, out_dir) -> list[Path]:
     """Write the figures of one run's results into ``out_dir``; return their paths.
 
-    res: what `pinnedballs.load` returns (``positions (n, 2)``, final
+    res: what `pinnedballs.load` returns (``positions (n, k)``, final
     ``velocities (n, dim)``, ``snapshots`` with ``.step``, ``.collisions``,
     ``.velocities``, ``geometry``, ``masses`` or None, and ``initial_velocities`` if it
-    has them). Writes, for a 2-D state: ``state_initial.png`` (the initial velocities,
-    or a snapshot at step 0), ``state_step_<N>.png`` (every other snapshot),
-    ``state_final.png``, ``velocity_histograms.png``; on a
-    `HalfPlane` also ``energy_by_distance.png``. Pictures of states need 2-D
-    positions and velocities; histograms need 2-D velocities.
+    has them). Writes ``state_initial.png`` (the initial velocities, or a snapshot at
+    step 0), ``state_step_<N>.png`` (every other snapshot) and ``state_final.png`` as the
+    geometry allows (see `_state_picture`: the plane, both hemispheres of a sphere, the
+    Poincare disk, a slice of a 3-D packing); ``energy_by_distance.png`` on any geometry with
+    a ``boundary``; ``energy_by_height.png`` in flat 3-D; ``velocity_histograms.png`` for 2- and
+    3-component velocities.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     positions = np.asarray(res.positions, dtype=np.float64)
     final = np.asarray(res.velocities, dtype=np.float64)
-    planar = final.ndim == 2 and final.shape[1] == 2
+    geometry = res.geometry
     written: list[Path] = []
 
     def emit(name: str, fig: Figure) -> None:
@@ -306,20 +425,28 @@ def write_figures(res, out_dir) -> list[Path]:
         save(fig, path)
         written.append(path)
 
-    if planar and positions.ndim == 2 and positions.shape[1] == 2:
+    draw = _state_picture(geometry, positions) if positions.ndim == 2 else None
+    if draw is not None:
         snapshots = list(() if res.snapshots is None else res.snapshots)
         initial = getattr(res, "initial_velocities", None)
         if initial is not None and not any(int(snap.step) == 0 for snap in snapshots):
-            emit("state_initial.png", quiver(positions, initial, title="initial state"))
+            emit("state_initial.png", draw(np.asarray(initial, dtype=np.float64), "initial state"))
         for snap in snapshots:
             step = int(snap.step)
             name = "state_initial.png" if step == 0 else f"state_step_{step}.png"
             title = "initial state" if step == 0 else f"after {step:,} steps ({int(snap.collisions):,} collisions)"
-            emit(name, quiver(positions, snap.velocities, title=title))
-        emit("state_final.png", quiver(positions, final, title="final state"))
-    if isinstance(res.geometry, HalfPlane):
-        emit("energy_by_distance.png", energy_by_distance(res.geometry.boundary_distance(), final, res.masses,
+            emit(name, draw(np.asarray(snap.velocities, dtype=np.float64), title))
+        emit("state_final.png", draw(final, "final state"))
+    if geometry.boundary is not None:
+        emit("energy_by_distance.png", energy_by_distance(geometry.boundary.distance, final, res.masses,
                                                           title="energy by distance from the boundary, final state"))
-    if planar:
+    if geometry.dim == 3 and positions.shape[1] == 3 and not geometry.curved:
+        fig = energy_by_distance(positions[:, 2] - positions[:, 2].min(), final, res.masses,
+                                 title="energy by height (z), final state")
+        fig.axes[0].set_xlabel("height z above the lowest layer")
+        for text in fig.axes[0].texts:
+            text.set_text(text.get_text().replace("boundary row", "lowest layer"))
+        emit("energy_by_height.png", fig)
+    if final.ndim == 2 and final.shape[1] in (2, 3):
         emit("velocity_histograms.png", component_histograms(final, title="velocity components, final state"))
     return written

@@ -5,7 +5,7 @@ The paper's set-ups (``docs/reproduce.md`` explains them and our choices):
 * half-plane: ``HalfPlane.from_size(L, D)`` for the paper's seven rectangles, one
   boundary ball (``boundary_center``) sent into the bulk (direction ``(0, 1)``) with
   energy 100, unit masses, run until frozen. As a cross-check, the 100 x 50 rectangle
-  also in the orientation the paper's ball count implies (`paper_lattice_positions`);
+  also in the orientation the paper's ball count implies (``HalfPlane`` ``orientation="across"``);
 * flat torus: ``FlatTorus(38, 38)`` (1,444 balls; the paper gives no size), ball 0
   moving with energy 100, snapshots at 211,417 and 422,834 steps.
 
@@ -35,7 +35,7 @@ from .io import check_out_dir
 from .spec import InputError, RunSpec, parse_spec
 
 __all__ = ["Plan", "FULL", "QUICK", "PAPER_SIZES", "Check", "reproduce", "expected_figures",
-           "half_plane_spec", "torus_spec", "paper_lattice_positions", "paper_lattice_row", "torus_row"]
+           "half_plane_spec", "torus_spec", "paper_lattice_spec", "paper_lattice_row", "torus_row"]
 
 PAPER_SIZES = ((10, 5), (60, 30), (100, 50), (200, 100), (300, 150), (400, 200), (500, 250))
 #: the paper's numbers
@@ -115,48 +115,25 @@ def torus_spec(plan: Plan, stop: int | None = None) -> RunSpec:
         "seed": plan.seed})
 
 
-def paper_lattice_positions(length: float, depth: float) -> np.ndarray:
-    """``(n, 2)`` centres of the rectangle in the orientation the paper's 1,425 balls imply.
-
-    Lattice rows run *perpendicular* to the boundary: row ``r < floor(length / sqrt 3)``
-    at ``x = r sqrt 3``, its balls ``c < floor(depth / 2)`` at distance ``y = 2c + r % 2``
-    from the boundary ``y = 0``, which is a zig-zag of balls at distances 0 and 1.
-    ``(100, 50)`` gives 57 rows of 25 = 1,425 balls.
-    """
-    rows, cols = int(np.floor(length / np.sqrt(3) + 1e-9)), int(np.floor(depth / 2 + 1e-9))
-    r, c = np.divmod(np.arange(rows * cols), cols)
-    return np.column_stack([np.sqrt(3) * r, 2.0 * c + (r % 2)])
-
-
-def _paper_lattice_start(positions: np.ndarray) -> int:
-    """The ball at distance 0 nearest the middle of the boundary."""
-    boundary = np.flatnonzero(positions[:, 1] == 0)
-    middle = 0.5 * (positions[:, 0].min() + positions[:, 0].max())
-    return int(boundary[np.argmin(np.abs(positions[boundary, 0] - middle))])
-
-
-def paper_lattice_spec(path: Path, plan: Plan) -> RunSpec:
-    """The paper-orientation rectangle whose centres are in the ``.npy`` file at ``path``."""
+def paper_lattice_spec(plan: Plan) -> RunSpec:
+    """The paper's orientation of the ``plan.detail`` rectangle: ``HalfPlane.from_size(..., orientation="across")``,
+    lattice rows perpendicular to the boundary (``(100, 50)``: 57 rows of 25 = 1,425 balls)."""
+    length, depth = plan.detail
     return parse_spec({
         "description": "the paper's orientation: lattice rows perpendicular to the boundary y = 0",
-        "geometry": {"kind": "graph_positions", "positions": str(path)},
-        "initial": {"kind": "single_ball", "ball": _paper_lattice_start(np.load(path)), "direction": [0.0, 1.0],
+        "geometry": {"kind": "half_plane", "length": float(length), "depth": float(depth), "orientation": "across"},
+        "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0.0, 1.0],
                     "energy": float(plan.energy)},
         "stop": {"frozen": True, "max_steps": plan.max_steps}, "seed": plan.seed})
 
 
 def paper_lattice_row(geometry, velocities, masses=None) -> dict[str, float]:
-    """`observables.summary`, with distances from the boundary ``y = 0`` (the second coordinate):
-    ``boundary_share`` (distance 0), ``next_share`` (distance 1), ``boundary_outward_fraction``, `far_shares`."""
+    """`ensemble.state_row` (``boundary_share`` is the share at distance 0) and ``next_share`` (distance 1)."""
     from . import observables as obs
 
-    row = obs.summary(velocities, geometry, masses)
-    d = geometry.positions[:, 1]
-    _, fraction = obs.energy_profile(d, velocities, masses)
-    row["boundary_share"], row["next_share"] = float(fraction[0]), float(fraction[1])
-    row["boundary_outward_fraction"] = obs.outward_energy_fraction(velocities[d == 0], masses=None if masses is None
-                                                                    else np.asarray(masses)[d == 0])
-    row.update(obs.far_shares(d, velocities, masses))
+    row = ens.state_row(geometry, velocities, masses)
+    _, fraction = obs.energy_profile(geometry.boundary.distance, velocities, masses)
+    row["next_share"] = float(fraction[1])
     return row
 
 
@@ -317,9 +294,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     out.mkdir(parents=True, exist_ok=True)
     for sub in ("specs", "data", "ensembles"):
         (out / sub).mkdir(exist_ok=True)
-    lattice_path = out / "data" / f"paper_lattice_{_label(plan.detail)}.npy"
-    np.save(lattice_path, paper_lattice_positions(*plan.detail))
-    lattice = paper_lattice_spec(lattice_path, plan)
+    lattice = paper_lattice_spec(plan)
     specs = {"half_plane_detail_steps": detail_steps, "half_plane_detail_collisions": detail_collisions,
              "torus": torus, "torus_ensemble": torus_long, "paper_lattice": lattice,
              **{f"half_plane_{_label(s)}": spec for s, spec in size_specs.items()}}
@@ -703,8 +678,8 @@ def _report(plan: Plan, quick: bool, checks: list[Check], results: dict, geom, t
         f"{geom.n_balls:,} balls.",
         f"* Paper orientation (cross-check): the paper's 100x50 holds 1,425 = 57 x 25 balls, which fits lattice rows "
         f"*perpendicular* to the boundary (a zig-zag boundary of balls at distances 0 and 1); our `HalfPlane` has rows "
-        f"parallel to it. We also ran that lattice ({lattice.n_balls:,} balls, `GraphGeometry.from_positions`, "
-        f"`data/`), same initial condition.",
+        f"parallel to it. We also ran that lattice ({lattice.n_balls:,} balls, "
+        f"`HalfPlane.from_size(L, D, orientation=\"across\")`), same initial condition.",
         f"* Flat torus: the paper gives no size; we use `FlatTorus({torus.rows}, {torus.cols})` = {torus.n_balls:,} "
         f"balls, about the {_label(plan.detail)} half-plane's count. Ball 0 moves along (1, 0) with energy "
         f"{plan.energy:g}; snapshots at {', '.join(f'{s:,}' for s in plan.steps)} steps (a step is one pick of a "

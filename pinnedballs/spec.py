@@ -29,7 +29,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, ValidationEr
                       field_validator, model_validator)
 
 from .errors import FieldError, InputError
-from .geometry import FlatTorus, Geometry, GraphGeometry, HalfPlane
+from .geometry import FCC, HCP, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 from .limits import check_memory, check_speeds, format_bytes
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
@@ -37,7 +37,8 @@ from .simulation import Simulation, mass_array
 
 __all__ = [
     "InputError", "SpecError", "RunSpec", "load_spec", "parse_spec", "describe",
-    "FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "GeometrySpec",
+    "FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "SphereSpec", "HyperbolicPlaneSpec", "FCCSpec",
+    "HCPSpec", "GeometrySpec",
     "SingleBallSpec", "GaussianSpec", "FromFileSpec", "InitialSpec",
     "ElasticSpec", "RestitutionSpec", "RuleSpec",
     "UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "SchedulerSpec",
@@ -187,6 +188,7 @@ class HalfPlaneSpec(_Spec):
     length: float | None = None
     depth: float | None = None
     radius: Positive = 1.0
+    orientation: Literal["along", "across"] = "along"
 
     @model_validator(mode="after")
     def _one_size(self) -> "HalfPlaneSpec":
@@ -198,10 +200,10 @@ class HalfPlaneSpec(_Spec):
         return self
 
     def build(self) -> HalfPlane:
-        with engine_errors("geometry", _fields("geometry", "rows", "cols", "length", "depth", "radius")):
+        with engine_errors("geometry", _fields("geometry", "rows", "cols", "length", "depth", "radius", "orientation")):
             if self.rows is not None:
-                return HalfPlane(self.rows, self.cols, self.radius)
-            return HalfPlane.from_size(self.length, self.depth, self.radius)
+                return HalfPlane(self.rows, self.cols, self.radius, orientation=self.orientation)
+            return HalfPlane.from_size(self.length, self.depth, self.radius, orientation=self.orientation)
 
 
 class GraphPositionsSpec(_Spec):
@@ -224,7 +226,87 @@ class GraphPositionsSpec(_Spec):
             return GraphGeometry.from_positions(positions, radius=self.radius, rtol=self.rtol)
 
 
-GeometrySpec = Annotated[Union[FlatTorusSpec, HalfPlaneSpec, GraphPositionsSpec], Field(discriminator="kind")]
+class SphereSpec(_Spec):
+    """Balls on the unit sphere: the geodesic grid of ``frequency``, or the ``points`` in a ``.npy`` file ``(n, 3)``."""
+
+    kind: Literal["sphere"] = "sphere"
+    frequency: int | None = None
+    points: FilePath | None = None
+    radius: Positive = 1.0
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "SphereSpec":
+        if (self.frequency is None) == (self.points is None):
+            raise ValueError(": give exactly one of frequency or points")
+        return self
+
+    def build(self) -> Sphere:
+        if self.points is None:
+            with engine_errors("geometry", _fields("geometry", "frequency", "radius")):
+                return Sphere.geodesic(self.frequency, self.radius)
+        try:
+            return self.build_from(_load_npy(self.points, "geometry.points"))
+        except SpecError as exc:
+            raise _in_file(exc, self.points) from None
+
+    def build_from(self, positions: np.ndarray) -> Sphere:
+        """The geometry at ``positions (n, 3)`` (already loaded; the stored ones for a recorded run)."""
+        if self.points is None:
+            return self.build()
+        with engine_errors("geometry", {"points": "geometry.points", "radius": "geometry.radius"}):
+            return Sphere.from_points(positions, self.radius)
+
+
+class HyperbolicPlaneSpec(_Spec):
+    """The {3,q} tiling of the hyperbolic plane out to ``layers`` rings (`HyperbolicPlane`)."""
+
+    kind: Literal["hyperbolic_plane"] = "hyperbolic_plane"
+    q: int = 7
+    layers: int
+    radius: Positive = 1.0
+
+    def build(self) -> HyperbolicPlane:
+        with engine_errors("geometry", _fields("geometry", "q", "layers", "radius")):
+            return HyperbolicPlane(self.q, self.layers, self.radius)
+
+
+class _PackingSpec(_Spec):
+    nx: int
+    ny: int
+    nz: int
+    periodic: bool | list[bool] = True
+    radius: Positive = 1.0
+
+    @field_validator("periodic", mode="before")
+    @classmethod
+    def _periodic(cls, value: Any) -> Any:
+        if not (isinstance(value, bool) or (isinstance(value, list) and len(value) == 3
+                                            and all(isinstance(v, bool) for v in value))):
+            raise ValueError(f"must be true, false or a list of 3 of them for [x, y, z], got {value!r}")
+        return value
+
+    def build(self) -> Geometry:
+        periodic = self.periodic if isinstance(self.periodic, bool) else tuple(self.periodic)
+        with engine_errors("geometry", _fields("geometry", "nx", "ny", "nz", "periodic", "radius")):
+            return self._geometry(self.nx, self.ny, self.nz, periodic=periodic, radius=self.radius)
+
+
+class FCCSpec(_PackingSpec):
+    """Face-centred cubic packing of ``nx x ny x nz`` cells (`FCC`); ``periodic`` a bool or [x, y, z]."""
+
+    kind: Literal["fcc"] = "fcc"
+    _geometry = FCC
+
+
+class HCPSpec(_PackingSpec):
+    """Hexagonal close packing of ``nx x ny x nz`` cells (`HCP`); ``periodic`` a bool or [x, y, z]."""
+
+    kind: Literal["hcp"] = "hcp"
+    _geometry = HCP
+
+
+GeometrySpec = Annotated[Union[FlatTorusSpec, HalfPlaneSpec, GraphPositionsSpec, SphereSpec, HyperbolicPlaneSpec,
+                               FCCSpec, HCPSpec], Field(discriminator="kind")]
 
 
 def _fields(path: str, *names: str) -> dict[str, str]:
@@ -282,9 +364,9 @@ class SingleBallSpec(_Spec):
 
     def _index(self, geometry: Geometry) -> int:
         if self.ball == "boundary_center":
-            if not hasattr(geometry, "boundary_center"):
+            if geometry.boundary is None:
                 raise SpecError("initial.ball",
-                                f'"boundary_center" needs a half_plane geometry, got {type(geometry).__name__}')
+                                f'"boundary_center" needs a geometry with a boundary, got {type(geometry).__name__}')
             return int(geometry.boundary_center())
         if self.ball >= geometry.n_balls:
             raise SpecError("initial.ball", f"must be < n_balls = {geometry.n_balls}, got {self.ball}")
@@ -753,9 +835,7 @@ def _short(value: Any) -> str:
 def describe(spec: RunSpec, sim: Simulation) -> str:
     """One line saying what ``spec`` runs: geometry, sizes, rule, scheduler, stop, snapshots, seed."""
     g = spec.geometry
-    shape = {"flat_torus": lambda: f"{g.rows}x{g.cols}",
-             "half_plane": lambda: f"{getattr(sim.geometry, 'rows', '?')}x{getattr(sim.geometry, 'cols', '?')}",
-             "graph_positions": lambda: Path(g.positions).name}[g.kind]()
+    shape = _shape(g, sim.geometry)
     stop = spec.stop
     until = {"steps": lambda: f"{stop.steps:,} steps", "collisions": lambda: f"{stop.collisions:,} collisions",
              "frozen": lambda: f"frozen (max {stop.max_steps:,} steps)"}[stop.kind]()
@@ -764,6 +844,16 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {spec.initial.kind}, energy {sim.energy():.6g}; {rule}, {spec.scheduler.kind}; "
             f"stop at {until}; {n_snap} snapshot(s); seed {spec.seed}")
+
+
+def _shape(g: BaseModel, geometry: Geometry) -> str:
+    """``rows x cols`` or ``nx x ny x nz`` when the geometry has them, else the spec's own arguments."""
+    if hasattr(geometry, "rows") and hasattr(geometry, "cols"):
+        return f"{geometry.rows}x{geometry.cols}"
+    if isinstance(getattr(geometry, "shape", None), tuple):
+        return "x".join(str(n) for n in geometry.shape)
+    fields = g.model_dump(exclude={"kind", "radius", "rtol"}, exclude_none=True)
+    return " ".join(Path(v).name if isinstance(v, str) else f"{k}={v}" for k, v in fields.items())
 
 
 def _count_snapshots(spec: RunSpec) -> str:

@@ -86,7 +86,7 @@ BAD_SPECS = {
     "snapshot after stop": (lambda d: spec(snapshots__at_steps=[2000]),
                             ["snapshots.at_steps: 2000 is beyond the stop at 1000"]),
     "boundary_center on a torus": (lambda d: spec(initial__ball="boundary_center"),
-                                   ['initial.ball: "boundary_center" needs a half_plane geometry']),
+                                   ['initial.ball: "boundary_center" needs a geometry with a boundary']),
     "frozen without max_steps": (lambda d: spec(HALF_PLANE, stop={"frozen": True}),
                                  ["stop.max_steps: required with frozen"]),
     "negative mass": (lambda d: spec(masses=0), ["masses: input should be greater than 0, got 0"]),

@@ -212,11 +212,56 @@ def test_write_figures_for_a_torus_run_has_no_energy_bars(tmp_path):
     assert [p.name for p in paths] == ["state_step_10.png", "state_final.png", "velocity_histograms.png"]
 
 
-def test_write_figures_skips_pictures_of_states_that_are_not_planar(tmp_path):
-    geom = pb.GraphGeometry.from_positions(np.array([[0.0, 0, 0], [2.0, 0, 0], [4.0, 0, 0]]))
-    v = np.ones((3, 3))
+def test_write_figures_writes_nothing_for_a_one_dimensional_chain(tmp_path):
+    """Changed by issue 8: a 3-D geometry now gets figures (below); a 1-D chain still gets none."""
+    geom = pb.GraphGeometry.from_positions(np.array([0.0, 2.0, 4.0]))
+    v = np.ones((3, 1))
     assert plots.write_figures(results(geom, v, [snapshot(0, 0, v)]), tmp_path) == []
     assert list(tmp_path.iterdir()) == []
+
+
+def test_write_figures_for_a_sphere_shows_both_hemispheres(tmp_path):
+    sphere = pb.Sphere.geodesic(3)
+    v = normal_state(sphere.n_balls, seed=2)
+    paths = plots.write_figures(results(sphere, v, [snapshot(0, 0, v)]), tmp_path)
+    assert [p.name for p in paths] == ["state_initial.png", "state_final.png", "velocity_histograms.png"]
+    fig = plots.sphere_views(sphere.positions, np.einsum("nd,ndk->nk", v, sphere.frames()))
+    north, south = fig.axes
+    # every ball is drawn once, on the hemisphere facing the viewer (the equator on both), one arrow per ball
+    on_equator = int((sphere.positions[:, 2] == 0).sum())
+    drawn = [len(ax.collections[0].get_offsets()) for ax in (north, south)]
+    assert sum(drawn) == sphere.n_balls + on_equator
+    assert [len(ax.collections[1].get_offsets()) for ax in (north, south)] == drawn
+
+
+def test_write_figures_for_the_hyperbolic_plane_uses_the_poincare_disk_and_the_boundary(tmp_path):
+    h = pb.HyperbolicPlane(q=7, layers=3)
+    v = normal_state(h.n_balls, seed=3)
+    paths = plots.write_figures(results(h, v, []), tmp_path)
+    assert [p.name for p in paths] == ["state_final.png", "energy_by_distance.png", "velocity_histograms.png"]
+    # the same surface as a plain GraphGeometry (no boundary) is still drawn in the disk, from its positions
+    twin = pb.GraphGeometry(h.contact_graph())
+    drawn = plots.write_figures(results(twin, v, []), tmp_path / "twin")
+    assert [p.name for p in drawn] == ["state_final.png", "velocity_histograms.png"]
+    assert np.array_equal(matplotlib.image.imread(drawn[0]), matplotlib.image.imread(paths[0]))
+    fig = plots.poincare_disk(h.positions, np.einsum("nd,ndk->nk", v, h.frames()))
+    offsets = fig.axes[0].collections[0].get_offsets()
+    np.testing.assert_allclose(offsets, h.poincare(), atol=1e-12)
+    assert np.hypot(*np.asarray(offsets).T).max() < 1
+
+
+def test_write_figures_for_a_3d_half_space(tmp_path):
+    g = pb.FCC(3, 3, 2, periodic=(True, True, False))
+    v = normal_state(g.n_balls, seed=6)
+    v = np.column_stack([v, v[::-1, 0]])
+    paths = plots.write_figures(results(g, v, []), tmp_path)
+    assert [p.name for p in paths] == ["state_final.png", "energy_by_distance.png", "energy_by_height.png",
+                                       "velocity_histograms.png"]
+    slice_fig = plots.quiver(g.positions[g.positions[:, 2] == 0, :2], v[g.positions[:, 2] == 0, :2])
+    assert len(slice_fig.axes[0].collections[0].get_offsets()) == 2 * 3 * 3  # the bottom layer
+    heights = plots.energy_by_distance(g.positions[:, 2], v)
+    _, fraction = obs.energy_profile(g.positions[:, 2], v)
+    np.testing.assert_allclose([b.get_height() for b in heights.axes[0].patches], fraction, rtol=1e-15)
 
 
 def test_write_figures_draws_the_initial_state_from_the_results_without_a_step_0_snapshot(tmp_path, monkeypatch):

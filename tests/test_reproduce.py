@@ -128,12 +128,13 @@ def test_paper_set_ups():
 
 
 def test_paper_lattice_has_the_papers_ball_count_and_a_zigzag_boundary():
-    p = rp.paper_lattice_positions(100, 50)
-    assert p.shape == (1425, 2)
-    g = pb.GraphGeometry.from_positions(p)
+    sim = rp.paper_lattice_spec(rp.FULL).build()
+    g = sim.geometry
+    p = g.positions
+    assert p.shape == (1425, 2) and (g.rows, g.cols) == (57, 25)
     lengths = np.linalg.norm(p[g.contacts.pairs[:, 1]] - p[g.contacts.pairs[:, 0]], axis=1)
     assert np.allclose(lengths, 2.0)
     assert g.degrees().max() == 6
     assert (p[:, 1] == 0).sum() == 29 and (p[:, 1] == 1).sum() == 28  # boundary: distances 0 and 1 alternate
-    start = rp._paper_lattice_start(p)
+    start = int(np.flatnonzero(np.any(sim.velocities != 0, axis=1))[0])
     assert p[start, 1] == 0 and abs(p[start, 0] - p[:, 0].max() / 2) <= math.sqrt(3)

@@ -195,7 +195,7 @@ BAD = [
     (spec(seeds=1), "seeds", "unknown key; did you mean 'seed'?"),
     (spec(initial__ball="centre"), "initial.ball", 'must be a ball index (an integer >= 0) or "boundary_center"'),
     (spec(initial__ball=16), "initial.ball", "must be < n_balls = 16, got 16"),
-    (spec(initial__ball="boundary_center"), "initial.ball", '"boundary_center" needs a half_plane geometry'),
+    (spec(initial__ball="boundary_center"), "initial.ball", '"boundary_center" needs a geometry with a boundary'),
     (spec(initial__direction=[1, 0, 0]), "initial.direction", "must have dim = 2 components, got 3"),
     (spec(initial__direction=[0, 0]), "initial.direction", "must not be the zero vector"),
     (spec(initial__energy=...), "initial.energy", "required (give velocity, or direction and energy)"),

@@ -1,4 +1,4 @@
-"""Geometries: where the balls sit and which of them touch.
+"""The base of every geometry: `Contacts`, `Geometry`, the `Boundary` capability, `GraphGeometry`.
 
 A geometry produces plain data that the compiled loop consumes (`Contacts`):
 for each contact the two balls ``i, j`` and the unit vector at each end pointing
@@ -16,10 +16,9 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
-from .errors import FieldError, FieldTypeError
-from .limits import check_memory, format_count, run_bytes
+from ..errors import FieldError, FieldTypeError
 
-__all__ = ["Contacts", "Geometry", "FlatTorus", "HalfPlane", "GraphGeometry"]
+__all__ = ["Contacts", "Geometry", "Boundary", "GraphGeometry", "tangent_contacts"]
 
 SQRT3 = float(np.sqrt(3.0))
 _INT32_MAX = np.iinfo(np.int32).max
@@ -79,15 +78,57 @@ class Contacts:
         return len(self.pairs)
 
 
+@dataclass(frozen=True, eq=False)
+class Boundary:
+    """A geometry's boundary as each ball sees it.
+
+    distance: ``(n_balls,) float64`` distance of each centre from the boundary (0 on it).
+    outward: ``(n_balls, dim) float64`` unit vectors in each ball's frame, pointing out of the system.
+    """
+
+    distance: np.ndarray
+    outward: np.ndarray
+
+
 class Geometry(ABC):
     """Balls at fixed centres and the contacts between them.
 
     Subclasses set ``positions`` and implement `_build_contacts`. Ball radius is
-    ``radius`` (contact distance ``2 * radius``).
+    ``radius`` (contact distance ``2 * radius``). Capabilities that code above the
+    engine asks for instead of a type: `boundary` (None, or a `Boundary`) and
+    `frames` (each ball's tangent basis; identity in flat space).
     """
 
     positions: np.ndarray  #: ``(n_balls, k) float64`` ball centres
     radius: float = 1.0
+    #: True when velocities live in tangent planes of a curved surface (`frames` is not the identity)
+    curved: bool = False
+
+    @property
+    def boundary(self) -> "Boundary | None":
+        """The boundary seen from each ball, or None when the geometry has none (torus, sphere)."""
+        return None
+
+    def frames(self) -> np.ndarray:
+        """``(n_balls, dim, k)`` orthonormal tangent basis of each ball in embedding coordinates.
+
+        A velocity ``v (n_balls, dim)`` in embedding coordinates is
+        ``einsum("nd,ndk->nk", v, frames)``. Flat space: the identity (read-only view).
+        """
+        k = self.positions.shape[1]
+        if self.dim != k:
+            raise FieldError("frames", f"{type(self).__name__} has dim {self.dim} but {k}-D positions and no frames")
+        return np.broadcast_to(np.eye(k), (self.n_balls, k, k))
+
+    def boundary_center(self) -> int:
+        """Index of the boundary ball (least ``boundary.distance``) nearest the middle of the boundary balls."""
+        b = self.boundary
+        if b is None:
+            raise FieldError("boundary_center", f"{type(self).__name__} has no boundary")
+        d = b.distance
+        on = np.flatnonzero(d <= d.min() + 1e-9 * max(1.0, float(np.abs(d).max())))
+        p = self.positions[on]
+        return int(on[np.argmin(np.linalg.norm(p - p.mean(axis=0), axis=1))])
 
     @abstractmethod
     def _build_contacts(self) -> Contacts:
@@ -119,13 +160,17 @@ class Geometry(ABC):
         """A networkx graph: nodes ``0..n_balls-1`` with ``"pos"``, one edge per contact.
 
         Each edge carries ``"units" = {i: t_i, j: t_j}``, its index ``"contact"`` and its
-        orientation ``"pair" = (i, j)``, so that ``GraphGeometry(geom.contact_graph())``
-        rebuilds exactly these contacts in the same order (the same seed then gives the same
-        run), periodic or curved ones included.
+        orientation ``"pair" = (i, j)``; on a curved surface each node also carries its
+        ``"frame"`` (``dim x k``). So ``GraphGeometry(geom.contact_graph())`` rebuilds exactly
+        these contacts in the same order (the same seed then gives the same run), periodic or
+        curved ones included.
         """
         g = nx.Graph(dim=self.dim)
+        frames = self.frames() if self.curved else None
         for n, p in enumerate(self.positions):
             g.add_node(n, pos=tuple(float(x) for x in p))
+            if frames is not None:
+                g.nodes[n]["frame"] = frames[n].tolist()
         c = self.contacts
         t_i, t_j = c.t_i, c.t_j
         for e, (i, j) in enumerate(c.pairs.tolist()):
@@ -136,12 +181,27 @@ class Geometry(ABC):
         return f"{type(self).__name__}(n_balls={self.n_balls}, n_contacts={self.n_contacts}, dim={self.dim})"
 
 
-# ---------------------------------------------------------------- triangular lattices
+# ---------------------------------------------------------------- curved surfaces
 
-#: unit vectors of the triangular lattice: row d + 3 is exactly minus row d (signed zeros too)
-_LATTICE_UNITS = np.array([[1.0, 0.0], [0.5, SQRT3 / 2], [-0.5, SQRT3 / 2]])
-_LATTICE_UNITS = np.concatenate([_LATTICE_UNITS, -_LATTICE_UNITS])
 
+def tangent_contacts(pairs: np.ndarray, T_i: np.ndarray, T_j: np.ndarray, frames: np.ndarray,
+                     metric: np.ndarray) -> Contacts:
+    """Contacts from embedding tangents ``T_i, T_j (E, k)`` at each end, in the balls' ``frames (n, dim, k)``.
+
+    ``metric (k,)`` is the diagonal of the embedding's inner product (all 1, or ``(-1, 1, 1)`` on the
+    hyperboloid); components are ``<e_a, T>`` for the frame vectors ``e_a``, then normalised.
+    """
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    t_i = np.einsum("edk,ek->ed", frames[pairs[:, 0]], T_i * metric)
+    t_j = np.einsum("edk,ek->ed", frames[pairs[:, 1]], T_j * metric)
+    e = len(pairs)
+    units = np.empty((2 * e, frames.shape[1]))
+    units[0::2] = t_i / np.linalg.norm(t_i, axis=1, keepdims=True)
+    units[1::2] = t_j / np.linalg.norm(t_j, axis=1, keepdims=True)
+    return Contacts.build(pairs, np.arange(2 * e).reshape(e, 2), units)
+
+
+# ---------------------------------------------------------------- argument checks
 
 def _check_int(name: str, value, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
@@ -157,118 +217,6 @@ def _check_radius(radius) -> float:
     if not np.isfinite(radius) or radius <= 0:
         raise FieldError("radius", f"must be finite and > 0, got {radius}")
     return float(radius)
-
-
-def _lattice_positions(rows: int, cols: int, radius: float) -> np.ndarray:
-    """``(rows*cols, 2)`` centres: ball ``r*cols + c`` at ``(2c + r%2, r*sqrt(3))`` radii."""
-    r, c = np.divmod(np.arange(rows * cols), cols)
-    return radius * np.column_stack([2.0 * c + (r % 2), SQRT3 * r])
-
-
-def _lattice_contacts(rows: int, cols: int, periodic: bool) -> Contacts:
-    """Contacts of the triangular lattice, ball by ball: right, then the two above.
-
-    Odd rows are shifted right by one radius. Built with array operations only.
-    """
-    n = rows * cols
-    r, c = np.divmod(np.arange(n, dtype=np.int64), cols)
-    odd = r % 2
-    up = r + 1
-    # candidate neighbours (n, 3): right, upper-left-ish, upper-right-ish
-    nr = np.stack([r, up, up], axis=1)
-    nc = np.stack([c + 1, c - 1 + odd, c + odd], axis=1)
-    direction = np.broadcast_to(np.array([0, 2, 1], dtype=np.int32), (n, 3))
-    if periodic:
-        valid = np.ones((n, 3), dtype=bool)
-        nr %= rows
-        nc %= cols
-    else:
-        valid = (nr < rows) & (nc >= 0) & (nc < cols)
-    e = int(valid.sum())
-    pairs = np.empty((e, 2), dtype=np.uint32)
-    pairs[:, 0] = np.broadcast_to(np.arange(n, dtype=np.uint32)[:, None], (n, 3))[valid]
-    pairs[:, 1] = (nr * cols + nc)[valid]
-    ends = np.empty((e, 2), dtype=np.uint8)
-    ends[:, 0] = direction[valid]
-    ends[:, 1] = ends[:, 0] + 3
-    return Contacts(pairs=pairs, ends=ends, units=_LATTICE_UNITS.copy())
-
-
-class FlatTorus(Geometry):
-    """Triangular lattice with periodic boundaries: ``rows * cols`` balls, each touching 6.
-
-    Ball ``r * cols + c`` sits at ``(2c + r % 2, r * sqrt(3))`` radii; the box is
-    ``2 * cols`` by ``rows * sqrt(3)`` radii. ``rows`` must be even (so the
-    shifted rows close up) and at least 4, ``cols`` at least 3 (so that no two
-    balls touch twice).
-    """
-
-    def __init__(self, rows: int, cols: int, radius: float = 1.0):
-        rows = _check_int("rows", rows, 4)
-        cols = _check_int("cols", cols, 3)
-        if rows % 2:
-            raise FieldError("rows", f"must be even for a flat torus, got {rows}")
-        check_memory(run_bytes(rows * cols, 3 * rows * cols), "rows*cols",
-                     f"a {format_count(rows)} x {format_count(cols)} flat torus")
-        if rows * cols > _INT32_MAX // 3:
-            raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {rows * cols}")
-        self.rows, self.cols, self.radius = rows, cols, _check_radius(radius)
-        self.positions = _lattice_positions(rows, cols, self.radius)
-
-    @property
-    def period(self) -> np.ndarray:
-        """``(2,)`` side lengths of the periodic box."""
-        return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
-
-    def _build_contacts(self) -> Contacts:
-        return _lattice_contacts(self.rows, self.cols, periodic=True)
-
-
-class HalfPlane(Geometry):
-    """Triangular lattice in a rectangle; row 0 is the boundary of the half-plane.
-
-    ``rows`` rows of ``cols`` balls; odd rows are shifted right by one radius.
-    The boundary line passes through the centres of row 0, so row ``r`` is at
-    distance ``r * sqrt(3)`` radii from it. Interior balls touch 6 others.
-    """
-
-    def __init__(self, rows: int, cols: int, radius: float = 1.0):
-        self.rows = _check_int("rows", rows, 1)
-        self.cols = _check_int("cols", cols, 1)
-        check_memory(run_bytes(self.rows * self.cols, 3 * self.rows * self.cols), "rows*cols",
-                     f"a {format_count(self.rows)} x {format_count(self.cols)} half-plane lattice")
-        if self.rows * self.cols > _INT32_MAX // 3:
-            raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
-        self.radius = _check_radius(radius)
-        self.positions = _lattice_positions(self.rows, self.cols, self.radius)
-
-    @classmethod
-    def from_size(cls, length: float, depth: float, radius: float = 1.0) -> "HalfPlane":
-        """The paper's ``length x depth`` rectangle (in radii), long side on the boundary.
-
-        ``cols = floor(length / 2)`` balls side by side; ``rows = floor((depth - 1) / sqrt(3)) + 1``
-        rows, the last one's balls still inside the depth. ``from_size(100, 50)`` gives
-        29 rows of 50 balls.
-        """
-        for name, value in (("length", length), ("depth", depth)):
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
-                raise FieldTypeError(name, f"must be a finite number, got {value!r}")
-            if value < 2:
-                raise FieldError(name, f"must be >= 2 (one ball is 2 radii wide), got {value}")
-        cols = int(np.floor(length / 2 + 1e-9))
-        rows = int(np.floor((depth - 1) / SQRT3 + 1e-9)) + 1
-        return cls(rows=rows, cols=cols, radius=radius)
-
-    def boundary_distance(self) -> np.ndarray:
-        """``(n_balls,)`` distance of each centre from the boundary line."""
-        return self.positions[:, 1].copy()
-
-    def boundary_center(self) -> int:
-        """Index of the boundary ball nearest the middle of row 0."""
-        return (self.cols - 1) // 2
-
-    def _build_contacts(self) -> Contacts:
-        return _lattice_contacts(self.rows, self.cols, periodic=False)
 
 
 # ---------------------------------------------------------------- arbitrary graphs
@@ -306,6 +254,8 @@ class GraphGeometry(Geometry):
     sequence). Ball ``n`` is the ``n``-th node of ``graph.nodes``. An edge may
     carry ``"units" = {u: t_u, v: t_v}`` (needed for periodic or curved spaces);
     otherwise ``t_u`` points from ``u`` to ``v`` in a straight line and ``t_v = -t_u``.
+    Nodes may carry ``"frame"`` ``(dim, d)``, their tangent basis on a curved surface
+    (as `Geometry.contact_graph` writes it); then every edge needs ``"units"`` of length ``dim``.
     """
 
     def __init__(self, graph: nx.Graph, radius: float = 1.0):
@@ -327,13 +277,41 @@ class GraphGeometry(Geometry):
             raise FieldError("graph", f"self-loop at node {loops[0][0]!r}; a ball cannot touch itself")
         edges = self._ordered_edges(graph)
         pairs = np.array([(index[u], index[v]) for u, v, _ in edges], dtype=np.int64).reshape(-1, 2)
-        t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, positions.shape[1]))
+        self._frames = self._node_frames(graph, nodes, positions.shape[1])
+        self.curved = self._frames is not None
+        dim = positions.shape[1] if self._frames is None else self._frames.shape[1]
+        if self.curved:
+            t_i = np.zeros((len(pairs), dim))
+        else:
+            t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, dim))
         t_j = -t_i
         for e, (u, v, data) in enumerate(edges):
             if data.get("units") is not None:
-                t_i[e], t_j[e] = self._given_units(u, v, data["units"], positions.shape[1])
+                t_i[e], t_j[e] = self._given_units(u, v, data["units"], dim)
+            elif self.curved:
+                raise FieldError("graph", f"edge ({u!r}, {v!r}) needs 'units' on a curved surface (nodes carry 'frame')")
         self._init(positions, pairs, t_i, t_j, radius)
         self.nodes = nodes
+
+    @staticmethod
+    def _node_frames(graph: nx.Graph, nodes: list, k: int) -> np.ndarray | None:
+        """``(n_balls, dim, k)`` from the nodes' ``"frame"`` attributes, or None if no node has one."""
+        has = ["frame" in graph.nodes[node] for node in nodes]
+        if not any(has):
+            return None
+        if not all(has):
+            raise FieldError("graph", f"node {nodes[has.index(False)]!r} has no 'frame' (other nodes have one)")
+        try:
+            frames = np.array([graph.nodes[node]["frame"] for node in nodes], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise FieldError("graph", "node 'frame' attributes must be equal-shape (dim, k) arrays of numbers") from None
+        if frames.ndim != 3 or frames.shape[2] != k or not np.isfinite(frames).all():
+            raise FieldError("graph", f"node 'frame' attributes must be finite (dim, {k}) arrays, got {frames.shape[1:]}")
+        return frames
+
+    def frames(self) -> np.ndarray:
+        """``(n_balls, dim, k)``: the nodes' ``"frame"`` attributes if given, else the identity."""
+        return super().frames() if self._frames is None else self._frames
 
     @staticmethod
     def _ordered_edges(graph: nx.Graph) -> list[tuple]:
@@ -371,7 +349,7 @@ class GraphGeometry(Geometry):
         self.positions = positions
         self.radius = _check_radius(radius)
         e = len(pairs)
-        units = np.empty((2 * e, positions.shape[1]))
+        units = np.empty((2 * e, t_i.shape[1]))
         units[0::2], units[1::2] = t_i, t_j
         ends = np.arange(2 * e).reshape(e, 2)
         self._contacts = Contacts.build(pairs, ends, units)
@@ -405,6 +383,7 @@ class GraphGeometry(Geometry):
                 f"contact distance {contact:.6g}); {len(overlap)} overlapping pair(s) in all"
             )
         self = cls.__new__(cls)
+        self._frames = None
         t_i = _flat_units(p, pairs) if len(pairs) else np.zeros((0, p.shape[1]))
         self._init(p, pairs, t_i, -t_i, radius)
         self.nodes = list(range(len(p)))

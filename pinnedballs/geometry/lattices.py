@@ -1,0 +1,154 @@
+"""Flat triangular lattices: the torus and the half-plane (in both orientations)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import FieldError, FieldTypeError
+from ..limits import check_memory, format_count, run_bytes
+
+from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry, _check_int, _check_radius
+
+__all__ = ["FlatTorus", "HalfPlane"]
+
+#: how `HalfPlane` lays its lattice rows against the boundary
+ORIENTATIONS = ("along", "across")
+
+#: unit vectors of the triangular lattice: row d + 3 is exactly minus row d (signed zeros too)
+_LATTICE_UNITS = np.array([[1.0, 0.0], [0.5, SQRT3 / 2], [-0.5, SQRT3 / 2]])
+_LATTICE_UNITS = np.concatenate([_LATTICE_UNITS, -_LATTICE_UNITS])
+
+
+def _lattice_positions(rows: int, cols: int, radius: float) -> np.ndarray:
+    """``(rows*cols, 2)`` centres: ball ``r*cols + c`` at ``(2c + r%2, r*sqrt(3))`` radii."""
+    r, c = np.divmod(np.arange(rows * cols), cols)
+    return radius * np.column_stack([2.0 * c + (r % 2), SQRT3 * r])
+
+
+def _lattice_contacts(rows: int, cols: int, periodic: bool) -> Contacts:
+    """Contacts of the triangular lattice, ball by ball: right, then the two above.
+
+    Odd rows are shifted right by one radius. Built with array operations only.
+    """
+    n = rows * cols
+    r, c = np.divmod(np.arange(n, dtype=np.int64), cols)
+    odd = r % 2
+    up = r + 1
+    # candidate neighbours (n, 3): right, upper-left-ish, upper-right-ish
+    nr = np.stack([r, up, up], axis=1)
+    nc = np.stack([c + 1, c - 1 + odd, c + odd], axis=1)
+    direction = np.broadcast_to(np.array([0, 2, 1], dtype=np.int32), (n, 3))
+    if periodic:
+        valid = np.ones((n, 3), dtype=bool)
+        nr %= rows
+        nc %= cols
+    else:
+        valid = (nr < rows) & (nc >= 0) & (nc < cols)
+    e = int(valid.sum())
+    pairs = np.empty((e, 2), dtype=np.uint32)
+    pairs[:, 0] = np.broadcast_to(np.arange(n, dtype=np.uint32)[:, None], (n, 3))[valid]
+    pairs[:, 1] = (nr * cols + nc)[valid]
+    ends = np.empty((e, 2), dtype=np.uint8)
+    ends[:, 0] = direction[valid]
+    ends[:, 1] = ends[:, 0] + 3
+    return Contacts(pairs=pairs, ends=ends, units=_LATTICE_UNITS.copy())
+
+
+class FlatTorus(Geometry):
+    """Triangular lattice with periodic boundaries: ``rows * cols`` balls, each touching 6.
+
+    Ball ``r * cols + c`` sits at ``(2c + r % 2, r * sqrt(3))`` radii; the box is
+    ``2 * cols`` by ``rows * sqrt(3)`` radii. ``rows`` must be even (so the
+    shifted rows close up) and at least 4, ``cols`` at least 3 (so that no two
+    balls touch twice).
+    """
+
+    def __init__(self, rows: int, cols: int, radius: float = 1.0):
+        rows = _check_int("rows", rows, 4)
+        cols = _check_int("cols", cols, 3)
+        if rows % 2:
+            raise FieldError("rows", f"must be even for a flat torus, got {rows}")
+        check_memory(run_bytes(rows * cols, 3 * rows * cols), "rows*cols",
+                     f"a {format_count(rows)} x {format_count(cols)} flat torus")
+        if rows * cols > _INT32_MAX // 3:
+            raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {rows * cols}")
+        self.rows, self.cols, self.radius = rows, cols, _check_radius(radius)
+        self.positions = _lattice_positions(rows, cols, self.radius)
+
+    @property
+    def period(self) -> np.ndarray:
+        """``(2,)`` side lengths of the periodic box."""
+        return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
+
+    def _build_contacts(self) -> Contacts:
+        return _lattice_contacts(self.rows, self.cols, periodic=True)
+
+
+class HalfPlane(Geometry):
+    """Triangular lattice in a rectangle whose bottom side ``y = 0`` is the boundary of the half-plane.
+
+    ``orientation="along"``: ``rows`` lattice rows of ``cols`` balls parallel to the
+    boundary; ball ``r * cols + c`` at ``(2c + r % 2, r * sqrt(3))`` radii, so row 0 lies on
+    the boundary and row ``r`` is at distance ``r * sqrt(3)``.
+    ``orientation="across"`` (the paper's): the same lattice turned a quarter, its ``rows``
+    rows perpendicular to the boundary; ball ``r * cols + c`` at ``(r * sqrt(3), 2c + r % 2)``
+    radii, so the boundary is a zig-zag of balls at distances 0 and 1.
+    Interior balls touch 6 others; ``boundary.outward`` is ``(0, -1)``.
+    """
+
+    def __init__(self, rows: int, cols: int, radius: float = 1.0, orientation: str = "along"):
+        self.rows = _check_int("rows", rows, 1)
+        self.cols = _check_int("cols", cols, 1)
+        check_memory(run_bytes(self.rows * self.cols, 3 * self.rows * self.cols), "rows*cols",
+                     f"a {format_count(self.rows)} x {format_count(self.cols)} half-plane lattice")
+        if self.rows * self.cols > _INT32_MAX // 3:
+            raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
+        self.radius = _check_radius(radius)
+        self.orientation = _check_orientation(orientation)
+        p = _lattice_positions(self.rows, self.cols, self.radius)
+        self.positions = p if self.orientation == "along" else np.ascontiguousarray(p[:, ::-1])
+
+    @classmethod
+    def from_size(cls, length: float, depth: float, radius: float = 1.0, orientation: str = "along") -> "HalfPlane":
+        """The paper's ``length x depth`` rectangle (in radii), long side on the boundary.
+
+        ``"along"``: ``cols = floor(length / 2)`` balls side by side and ``rows =
+        floor((depth - 1) / sqrt(3)) + 1`` rows, the last one's balls still inside the depth;
+        ``from_size(100, 50)`` gives 29 rows of 50 balls. ``"across"``: ``rows = floor(length /
+        sqrt(3))`` rows of ``cols = floor(depth / 2)`` balls; ``from_size(100, 50, orientation="across")``
+        gives 57 rows of 25, the paper's 1,425 balls.
+        """
+        for name, value in (("length", length), ("depth", depth)):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
+                raise FieldTypeError(name, f"must be a finite number, got {value!r}")
+            if value < 2:
+                raise FieldError(name, f"must be >= 2 (one ball is 2 radii wide), got {value}")
+        if _check_orientation(orientation) == "across":
+            rows, cols = int(np.floor(length / SQRT3 + 1e-9)), int(np.floor(depth / 2 + 1e-9))
+            return cls(rows=max(rows, 1), cols=cols, radius=radius, orientation=orientation)
+        cols = int(np.floor(length / 2 + 1e-9))
+        rows = int(np.floor((depth - 1) / SQRT3 + 1e-9)) + 1
+        return cls(rows=rows, cols=cols, radius=radius)
+
+    def boundary_distance(self) -> np.ndarray:
+        """``(n_balls,)`` distance of each centre from the boundary line ``y = 0``."""
+        return self.positions[:, 1].copy()
+
+    @property
+    def boundary(self) -> Boundary:
+        """Distances from the line ``y = 0``; outward is ``(0, -1)`` for every ball."""
+        outward = np.zeros((self.n_balls, 2))
+        outward[:, 1] = -1.0
+        return Boundary(self.boundary_distance(), outward)
+
+    def _build_contacts(self) -> Contacts:
+        c = _lattice_contacts(self.rows, self.cols, periodic=False)
+        if self.orientation == "along":
+            return c
+        return Contacts(pairs=c.pairs, ends=c.ends, units=np.ascontiguousarray(c.units[:, ::-1]))
+
+
+def _check_orientation(orientation) -> str:
+    if not isinstance(orientation, str) or orientation not in ORIENTATIONS:
+        raise FieldError("orientation", f"must be 'along' or 'across', got {orientation!r}")
+    return orientation

@@ -1,0 +1,145 @@
+"""Balls on the unit sphere: the icosahedral geodesic grid, or any points and their Delaunay edges.
+
+Equal balls cannot all touch on a sphere beyond small cases, so contacts come from a
+graph; at each end of a contact ``t_i`` is the unit tangent at ``x_i`` of the great
+circle to ``x_j``: ``(x_j - cos(th) x_i) / sin(th)`` with ``cos(th) = x_i . x_j``.
+Velocities have 2 components, in each ball's tangent frame (`Sphere.frames`).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from ..errors import FieldError, FieldTypeError
+
+from .base import Contacts, Geometry, _check_int, _check_radius, tangent_contacts
+
+__all__ = ["Sphere"]
+
+_PHI = (1.0 + np.sqrt(5.0)) / 2.0
+#: the icosahedron's 12 vertices (before normalising) and 20 faces, counter-clockwise seen from outside
+_ICO_VERTICES = np.array([[-1, _PHI, 0], [1, _PHI, 0], [-1, -_PHI, 0], [1, -_PHI, 0],
+                          [0, -1, _PHI], [0, 1, _PHI], [0, -1, -_PHI], [0, 1, -_PHI],
+                          [_PHI, 0, -1], [_PHI, 0, 1], [-_PHI, 0, -1], [-_PHI, 0, 1]])
+_ICO_FACES = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+              (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
+              (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+
+
+class Sphere(Geometry):
+    """Balls at ``positions (n, 3)`` on the unit sphere; contacts are the edges ``pairs (E, 2)``.
+
+    Build with `geodesic` or `from_points`. ``dim`` is 2: a velocity is a tangent vector
+    in the ball's frame. No boundary.
+    """
+
+    curved = True
+
+    def __init__(self, positions: np.ndarray, pairs: np.ndarray, radius: float = 1.0):
+        self.positions = np.ascontiguousarray(positions, dtype=np.float64)
+        self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+        self.radius = _check_radius(radius)
+
+    @classmethod
+    def geodesic(cls, frequency: int, radius: float = 1.0) -> "Sphere":
+        """The icosahedral geodesic grid: each face cut into ``frequency^2`` triangles, projected.
+
+        ``10 f^2 + 2`` balls (12 of degree 5, the rest 6) and ``30 f^2`` contacts. Points
+        shared by faces are merged by exact integer barycentric keys, never by rounding.
+        """
+        f = _check_int("frequency", frequency, 1)
+        keys, points, index = [], [], {}
+        edges = set()
+        for face in _ICO_FACES:
+            local = {}
+            for a, b in itertools.product(range(f + 1), repeat=2):
+                if a + b > f:
+                    continue
+                weights = ((face[0], f - a - b), (face[1], a), (face[2], b))
+                key = tuple(sorted((v, w) for v, w in weights if w))
+                if key not in index:
+                    index[key] = len(keys)
+                    keys.append(key)
+                    points.append(sum(w * _ICO_VERTICES[v] for v, w in key))
+                local[a, b] = index[key]
+            for (a, b), n in local.items():
+                for da, db in ((1, 0), (0, 1), (-1, 1)):
+                    m = local.get((a + da, b + db))
+                    if m is not None:
+                        edges.add((min(n, m), max(n, m)))
+        p = np.array(points, dtype=np.float64)
+        p /= np.linalg.norm(p, axis=1, keepdims=True)
+        return cls(p, np.array(sorted(edges), dtype=np.int64), radius)
+
+    @classmethod
+    def from_points(cls, points, radius: float = 1.0) -> "Sphere":
+        """Balls at ``points (n, 3)``, all at the same distance from the origin (n >= 4, not all on one
+        plane); contacts are the edges of their spherical Delaunay triangulation: of the faces of
+        their convex hull that face away from the origin. Positions are scaled onto the unit sphere."""
+        from scipy.spatial import ConvexHull, QhullError
+
+        p = _points_on_a_sphere(points)
+        try:
+            hull = ConvexHull(p)
+        except QhullError as exc:
+            raise FieldError("points", f"no convex hull (all on one plane?): {str(exc).splitlines()[0]}") from None
+        # a face is Delaunay when the origin is inside its plane; points within one hemisphere also
+        # have hull faces on the far side of the origin, which are not
+        s = hull.simplices[hull.equations[:, -1] < -1e-12]
+        edges = np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1)
+        return cls(p, np.unique(edges, axis=0), radius)
+
+    def frames(self) -> np.ndarray:
+        """``(n_balls, 2, 3)`` orthonormal tangent bases: ``e1`` towards the z-axis (the x-axis within 0.9 of a
+        pole), ``e2 = x x e1``."""
+        x = self.positions
+        axis = np.zeros_like(x)
+        near_pole = np.abs(x[:, 2]) > 0.9
+        axis[~near_pole, 2] = 1.0
+        axis[near_pole, 0] = 1.0
+        e1 = axis - np.einsum("nk,nk->n", axis, x)[:, None] * x
+        e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+        return np.stack([e1, np.cross(x, e1)], axis=1)
+
+    def great_circle_tangents(self) -> tuple[np.ndarray, np.ndarray]:
+        """``T_i, T_j (n_contacts, 3)``: unit tangents of the great circle at each end, towards the other."""
+        xi, xj = self.positions[self.pairs[:, 0]], self.positions[self.pairs[:, 1]]
+        return _unit(xj - np.einsum("ek,ek->e", xi, xj)[:, None] * xi), \
+            _unit(xi - np.einsum("ek,ek->e", xi, xj)[:, None] * xj)
+
+    def _build_contacts(self) -> Contacts:
+        T_i, T_j = self.great_circle_tangents()
+        return tangent_contacts(self.pairs, T_i, T_j, self.frames(), np.ones(3))
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    return a / np.linalg.norm(a, axis=1, keepdims=True)
+
+
+def _points_on_a_sphere(points) -> np.ndarray:
+    """``points (n, 3)`` scaled to the unit sphere; errors name balls off the sphere or repeated."""
+    try:
+        p = np.array(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise FieldTypeError("points", f"must be an array of numbers ({exc})") from None
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) < 4:
+        raise FieldError("points", f"must have shape (n, 3) with n >= 4, got {p.shape}")
+    if not np.isfinite(p).all():
+        raise FieldError("points", "contain NaN or inf")
+    norm = np.linalg.norm(p, axis=1)
+    if not norm[0] > 0:
+        raise FieldError("points", "ball 0 is at the origin, not on a sphere around it")
+    off = np.flatnonzero(np.abs(norm / norm[0] - 1) > 1e-9)
+    if len(off):
+        raise FieldError("points", f"ball {off[0]} is off the sphere (|x| = {norm[off[0]]:.12g}, ball 0 has "
+                         f"{norm[0]:.12g}); {len(off)} ball(s) off in all")
+    p /= norm[:, None]
+    from scipy.spatial import cKDTree
+
+    close = cKDTree(p).query_pairs(1e-9, output_type="ndarray")
+    if len(close):
+        i, j = sorted(close[0].tolist())
+        raise FieldError("points", f"balls {i} and {j} are at the same place")
+    return p
