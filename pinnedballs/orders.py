@@ -20,6 +20,7 @@ smallest closing speed first) and seeded random orders.
 from __future__ import annotations
 
 import functools
+import hashlib
 from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
@@ -98,8 +99,9 @@ class Replay(Scheduler):
 class OrderKernels(NamedTuple):
     """Compiled helpers of the search, for one rule's ``collide``, ``dim`` and ``flat``.
 
-    live(v, pairs, ends, units, masses, params) -> (contacts (L,) int64, closing speeds (L,))
-        the live contacts (colliding would change a bit of a velocity), in contact order;
+    live(v, pairs, ends, units, masses, params, min_w) -> (contacts (L,) int64, closing speeds (L,))
+        the live contacts (colliding would change a bit of a velocity) closing faster than
+        ``min_w`` (0: every live contact), in contact order;
     child(v, pairs, ends, units, masses, params, k) -> (n_balls, dim)
         a copy of ``v`` after colliding contact ``k``;
     collide_at(v, pairs, ends, units, masses, params, k) -> bool
@@ -123,15 +125,16 @@ def order_kernels(collide: Callable, dim: int, flat: bool) -> OrderKernels:
         return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT, write)
 
     @jit_cached_if_possible
-    def live(v, pairs, ends, units, masses, params):
+    def live(v, pairs, ends, units, masses, params, min_w):
         ks = np.empty(pairs.shape[0], dtype=np.int64)
         ws = np.empty(pairs.shape[0], dtype=np.float64)
         n = 0
         for k in range(pairs.shape[0]):
             if attempt(v, pairs, ends, units, masses, params, k, False):
-                ks[n] = k
-                ws[n] = closing_speed(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], D, FLAT)
-                n += 1
+                w = closing_speed(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], D, FLAT)
+                if w > min_w:
+                    ks[n], ws[n] = k, w
+                    n += 1
         return ks[:n], ws[:n]
 
     @jit_cached_if_possible
@@ -150,22 +153,31 @@ def order_kernels(collide: Callable, dim: int, flat: bool) -> OrderKernels:
 class _System:
     """A geometry's tables, masses and rule bound to the search kernels."""
 
-    def __init__(self, geometry: Geometry, masses: np.ndarray, rule):
+    def __init__(self, geometry: Geometry, masses: np.ndarray, rule, min_closing_speed: float = 0.0):
         c = geometry.contacts
+        self.min_w = float(min_closing_speed)
         collide, params = rule.kernel(bool(np.all(masses == masses[0])))
         self.tables = (c.pairs, c.ends, c.units, masses, params)
         self.kernels = order_kernels(collide, geometry.dim, c.flat)
 
     def live(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.kernels.live(v, *self.tables)
+        return self.kernels.live(v, *self.tables, self.min_w)
 
     def child(self, v: np.ndarray, k: int) -> np.ndarray:
         return self.kernels.child(v, *self.tables, k)
 
 
+#: states up to this many bytes are keyed by their bits; larger ones by a 128-bit digest of them
+_EXACT_KEY_BYTES = 64
+
+
 def _key(v: np.ndarray) -> bytes:
-    """A state's identity: the exact bits of its velocities."""
-    return v.tobytes()
+    """A state's identity: the bits of its velocities, or above `_EXACT_KEY_BYTES` their
+    BLAKE2b-128 digest (two of a million states share one with probability below 1e-26),
+    so that a million states of a thousand balls take 16 MB of keys, not 16 GB."""
+    if v.nbytes <= _EXACT_KEY_BYTES:
+        return v.tobytes()
+    return hashlib.blake2b(v, digest_size=16).digest()
 
 
 # ---------------------------------------------------------------- the result
@@ -345,7 +357,7 @@ def _check_count(name: str, value, minimum: int) -> int:
 
 
 def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_states: int = 10**6,
-                   *, restarts: int = 100, seed=0) -> OrdersResult:
+                   *, restarts: int = 100, seed=0, min_closing_speed: float = 0.0) -> OrdersResult:
     """Fewest and most collisions until frozen over every order of collisions.
 
     geometry, velocities ``(n_balls, dim)``, masses ``(n_balls,)`` or None, rule (default
@@ -354,6 +366,11 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     part searched, two greedy orders (largest, then smallest closing speed first) and
     ``restarts`` orders choosing a live contact uniformly at random (``seed``: int or
     ``numpy.random.SeedSequence``). Same inputs give the same result.
+
+    ``min_closing_speed`` > 0 leaves out contacts closing at or below it, in velocity units:
+    rounding remnants (closing speeds of 1e-17 and less that can halve at each of dozens of
+    collisions) then count neither as collisions nor against the freeze. The orders still
+    replay collision for collision, but end with only such slow contacts live, not frozen.
     """
     sim = Simulation(geometry, velocities, rule=rule, masses=masses)  # checks every argument as the engine does
     max_states = _check_count("max_states", max_states, 1)
@@ -362,7 +379,11 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
         raise TypeError(f"seed: must be a non-negative int or numpy SeedSequence, got {type(seed).__name__}")
     if not isinstance(seed, np.random.SeedSequence) and seed < 0:
         raise ValueError(f"seed: must be a non-negative integer, got {seed}")
-    system = _System(geometry, mass_array(masses, geometry.n_balls), sim.rule)
+    if isinstance(min_closing_speed, bool) or not isinstance(min_closing_speed, (int, float, np.number)):
+        raise TypeError(f"min_closing_speed: must be a number, got {min_closing_speed!r}")
+    if not (np.isfinite(min_closing_speed) and min_closing_speed >= 0):
+        raise ValueError(f"min_closing_speed: must be finite and >= 0, got {min_closing_speed}")
+    system = _System(geometry, mass_array(masses, geometry.n_balls), sim.rule, min_closing_speed)
     v0 = np.ascontiguousarray(sim.velocities)
     memo, path, states = _search(system, v0, max_states)
     if not path:
