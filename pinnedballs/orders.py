@@ -353,6 +353,20 @@ def _check_count(name: str, value, minimum: int) -> int:
     return int(value)
 
 
+def _check_seed(seed) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
+        raise TypeError(f"seed: must be a non-negative int or numpy SeedSequence, got {type(seed).__name__}")
+    if not isinstance(seed, np.random.SeedSequence) and seed < 0:
+        raise ValueError(f"seed: must be a non-negative integer, got {seed}")
+
+
+def _check_speed(speed) -> None:
+    if isinstance(speed, bool) or not isinstance(speed, (int, float, np.number)):
+        raise TypeError(f"min_closing_speed: must be a number, got {speed!r}")
+    if not (np.isfinite(speed) and speed >= 0):
+        raise ValueError(f"min_closing_speed: must be finite and >= 0, got {speed}")
+
+
 # ---------------------------------------------------------------- the public function
 
 
@@ -372,17 +386,11 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     collisions) then count neither as collisions nor against the freeze. The orders still
     replay collision for collision, but end with only such slow contacts live, not frozen.
     """
-    sim = Simulation(geometry, velocities, rule=rule, masses=masses)  # checks every argument as the engine does
+    sim = Simulation(geometry, velocities, rule=rule, masses=masses)  # checks these as the engine does
     max_states = _check_count("max_states", max_states, 1)
     restarts = _check_count("restarts", restarts, 0)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
-        raise TypeError(f"seed: must be a non-negative int or numpy SeedSequence, got {type(seed).__name__}")
-    if not isinstance(seed, np.random.SeedSequence) and seed < 0:
-        raise ValueError(f"seed: must be a non-negative integer, got {seed}")
-    if isinstance(min_closing_speed, bool) or not isinstance(min_closing_speed, (int, float, np.number)):
-        raise TypeError(f"min_closing_speed: must be a number, got {min_closing_speed!r}")
-    if not (np.isfinite(min_closing_speed) and min_closing_speed >= 0):
-        raise ValueError(f"min_closing_speed: must be finite and >= 0, got {min_closing_speed}")
+    _check_seed(seed)
+    _check_speed(min_closing_speed)
     system = _System(geometry, mass_array(masses, geometry.n_balls), sim.rule, min_closing_speed)
     v0 = np.ascontiguousarray(sim.velocities)
     memo, path, states = _search(system, v0, max_states)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -350,3 +352,14 @@ def test_explore_orders_bad_arguments_name_the_argument(kwargs, error, message):
     args = {"geometry": rhombus(), "velocities": RHOMBUS_V, **kwargs}
     with pytest.raises(error, match="^" + message):
         pb.explore_orders(**args)
+
+
+def test_docs_example_runs_and_says_what_the_page_says():
+    """The python block of docs/orders.md: the rhombus, 2 to 6, replayed to 6 collisions, frozen."""
+    page = Path(__file__).resolve().parents[1] / "docs" / "orders.md"
+    ns: dict = {}
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    assert str(ns["r"]) in page.read_text()
+    assert (ns["r"].min_collisions, ns["r"].max_collisions) == (2, 6)
+    assert ns["sim"].collisions == 6 and ns["sim"].is_frozen()
