@@ -170,6 +170,9 @@ class _System:
 #: states up to this many bytes are keyed by their bits; larger ones by a 128-bit digest of them
 _EXACT_KEY_BYTES = 64
 
+#: the search path keeps each open state's velocities: it stops before they take more than this
+PATH_BYTES = 512 << 20
+
 
 def _key(v: np.ndarray) -> bytes:
     """A state's identity: the bits of its velocities, or above `_EXACT_KEY_BYTES` their
@@ -189,7 +192,8 @@ class OrdersResult:
 
     min_order, max_order: contact indices reaching ``min_collisions`` and ``max_collisions``
     (every pick a collision; replay them with `Replay`). ``states``: distinct states the
-    depth-first search visited. When not ``exhaustive`` (``max_states`` stopped it) the
+    depth-first search visited. When not ``exhaustive`` (``max_states`` stopped it, or the
+    search path's velocities reached `PATH_BYTES`) the
     figures are bounds reached by real orders: the fewest is *at most* ``min_collisions``,
     the most *at least* ``max_collisions``; ``sampled`` orders (greedy, random) helped find them.
     """
@@ -212,8 +216,8 @@ class OrdersResult:
         if self.exhaustive:
             how = f"every order ({self.states:,} distinct states)"
         else:
-            how = (f"a partial search, stopped at max_states = {self.states:,} states, "
-                   f"and {self.sampled} sampled orders (bounds, not exact)")
+            how = (f"a partial search ({self.states:,} states) and {self.sampled} sampled orders "
+                   "(bounds, not exact)")
         return f"Collisions until frozen over {how}: fewest {fewest}, most {most}."
 
     def __repr__(self) -> str:
@@ -247,7 +251,8 @@ class _Frame:
 
 
 def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, list[_Frame], int]:
-    """Depth-first search from ``v0`` over at most ``max_states`` distinct states.
+    """Depth-first search from ``v0`` over at most ``max_states`` distinct states (and a path
+    of at most `PATH_BYTES` of velocities).
 
     Returns ``(memo, path, states)``: ``memo[key] = (fewest, most, k_fewest, k_most)`` for
     every state fully explored, and the path of frames still open (empty when exhaustive).
@@ -276,9 +281,9 @@ def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, lis
             f.take(k, known[0], known[1])
             f.next += 1
         elif key in on_path:
-            raise RuntimeError(f"explore_orders: contact {k} leads back to a state on the current order: "
-                               "rounding lets this system collide forever")
-        elif states >= max_states:
+            raise ValueError(f"velocities: an order returns to a state it passed (by contact {k}), so this "
+                             "system can collide forever (a torus or a sphere can): nothing freezes it")
+        elif states >= max_states or (len(path) + 1) * v.nbytes > PATH_BYTES:
             return memo, path, states
         else:
             states += 1
@@ -326,11 +331,12 @@ def _from_path(system: _System, memo: dict, path: list[_Frame], best: _Best) -> 
             prefix = prefix + [f.ks[f.next]]
 
 
-def _walk(system: _System, v: np.ndarray, memo: dict, choose: Callable, best: _Best) -> None:
+def _walk(system: _System, v: np.ndarray, memo: dict, choose: Callable, best: _Best, limit: int) -> None:
     """One order from ``v`` to frozen, each contact chosen by ``choose(contacts, closing speeds)``;
-    it ends early at a fully explored state, whose fewest and most complete it both ways."""
+    it ends early at a fully explored state, whose fewest and most complete it both ways.
+    Raises ValueError after ``limit`` collisions without freezing."""
     order: list[int] = []
-    while True:
+    while len(order) < limit:
         known = memo.get(_key(v))
         if known is not None:
             best.offer(len(order) + known[0], order + _follow(system, v, memo, 2),
@@ -343,6 +349,8 @@ def _walk(system: _System, v: np.ndarray, memo: dict, choose: Callable, best: _B
         k = int(ks[choose(ks, ws)])
         order.append(k)
         v = system.child(v, k)
+    raise ValueError(f"max_collisions: an order of {limit:,} collisions has not frozen; raise max_collisions, "
+                     "unless this system can collide forever (a torus or a sphere can)")
 
 
 def _check_count(name: str, value, minimum: int) -> int:
@@ -371,7 +379,8 @@ def _check_speed(speed) -> None:
 
 
 def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_states: int = 10**6,
-                   *, restarts: int = 100, seed=0, min_closing_speed: float = 0.0) -> OrdersResult:
+                   *, restarts: int = 100, seed=0, min_closing_speed: float = 0.0,
+                   max_collisions: int = 10**6) -> OrdersResult:
     """Fewest and most collisions until frozen over every order of collisions.
 
     geometry, velocities ``(n_balls, dim)``, masses ``(n_balls,)`` or None, rule (default
@@ -385,10 +394,14 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     rounding remnants (closing speeds of 1e-17 and less that can halve at each of dozens of
     collisions) then count neither as collisions nor against the freeze. The orders still
     replay collision for collision, but end with only such slow contacts live, not frozen.
+
+    Raises ValueError when an order returns to a state it passed, or when a sampled order of
+    ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever.
     """
     sim = Simulation(geometry, velocities, rule=rule, masses=masses)  # checks these as the engine does
     max_states = _check_count("max_states", max_states, 1)
     restarts = _check_count("restarts", restarts, 0)
+    max_collisions = _check_count("max_collisions", max_collisions, 1)
     _check_seed(seed)
     _check_speed(min_closing_speed)
     system = _System(geometry, mass_array(masses, geometry.n_balls), sim.rule, min_closing_speed)
@@ -398,11 +411,11 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
         return OrdersResult(*_root_result(system, v0, memo), states=states, exhaustive=True)
     best = _Best()
     _from_path(system, memo, path, best)
-    _walk(system, v0, memo, lambda ks, ws: int(np.argmax(ws)), best)
-    _walk(system, v0, memo, lambda ks, ws: int(np.argmin(ws)), best)
+    _walk(system, v0, memo, lambda ks, ws: int(np.argmax(ws)), best, max_collisions)
+    _walk(system, v0, memo, lambda ks, ws: int(np.argmin(ws)), best, max_collisions)
     rng = np.random.default_rng(seed)
     for _ in range(restarts):
-        _walk(system, v0, memo, lambda ks, ws: int(rng.integers(len(ks))), best)
+        _walk(system, v0, memo, lambda ks, ws: int(rng.integers(len(ks))), best, max_collisions)
     return OrdersResult(best.lo[0], best.hi[0], tuple(best.lo[1]), tuple(best.hi[1]),
                         states=states, exhaustive=False, sampled=restarts + 2)
 

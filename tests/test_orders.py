@@ -18,7 +18,7 @@ import pytest
 from scipy import stats
 
 import pinnedballs as pb
-from cases import chain, closing_speeds, energy, momentum
+from cases import chain, closing_speeds, energy, icosahedron_sphere, momentum, tangent_velocities
 from pinnedballs.orders import order_kernels, orders_against_random
 from reference import OrderTree, ReferenceSimulation, ReplayPicker, collide
 
@@ -226,6 +226,17 @@ def test_rounding_remnants_inflate_the_most_and_min_closing_speed_leaves_them_ou
         assert closing_speeds(geom, sim.velocities).max() <= 1e-3
 
 
+@pytest.mark.parametrize("geometry", ["torus", "sphere"])
+def test_a_system_that_never_freezes_is_refused(geometry):
+    """On the torus and the sphere (no boundary) one moving ball keeps the balls colliding
+    forever: no order freezes, and the search says so instead of running on."""
+    geom = pb.FlatTorus(rows=4, cols=3) if geometry == "torus" else icosahedron_sphere()
+    v = np.zeros((geom.n_balls, geom.dim))
+    v[0] = [1.0, 0.5] if geometry == "torus" else tangent_velocities(geom, 1)[0]
+    with pytest.raises(ValueError, match=r"^(velocities|max_collisions): .* can collide forever"):
+        pb.explore_orders(geom, v, max_states=300, max_collisions=300)
+
+
 def test_max_states_equal_to_the_count_is_still_exhaustive():
     geom = rhombus()
     n = pb.explore_orders(geom, RHOMBUS_V).states
@@ -342,6 +353,7 @@ def test_replay_bad_order_names_the_argument(order, error, message):
     ({"max_states": 0}, ValueError, "max_states: must be >= 1, got 0"),
     ({"max_states": 1e6}, TypeError, "max_states: must be an integer"),
     ({"restarts": -1}, ValueError, "restarts: must be >= 0, got -1"),
+    ({"max_collisions": 0}, ValueError, "max_collisions: must be >= 1, got 0"),
     ({"seed": -2}, ValueError, "seed: must be a non-negative integer"),
     ({"seed": "x"}, TypeError, "seed: must be a non-negative int or numpy SeedSequence"),
     ({"min_closing_speed": -1e-9}, ValueError, "min_closing_speed: must be finite and >= 0"),
