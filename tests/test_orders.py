@@ -226,14 +226,17 @@ def test_rounding_remnants_inflate_the_most_and_min_closing_speed_leaves_them_ou
         assert closing_speeds(geom, sim.velocities).max() <= 1e-3
 
 
-@pytest.mark.parametrize("geometry", ["torus", "sphere"])
-def test_a_system_that_never_freezes_is_refused(geometry):
+@pytest.mark.parametrize("geometry, message", [
+    ("torus", r"^velocities: an order returns to a state it passed \(by contact \d+\), so this system can collide forever"),
+    ("sphere", r"^max_collisions: an order of 300 collisions has not frozen; raise max_collisions"),
+])
+def test_a_system_that_never_freezes_is_refused(geometry, message):
     """On the torus and the sphere (no boundary) one moving ball keeps the balls colliding
-    forever: no order freezes, and the search says so instead of running on."""
+    forever: on the torus an order comes back to a state exactly, on the sphere orders run on."""
     geom = pb.FlatTorus(rows=4, cols=3) if geometry == "torus" else icosahedron_sphere()
     v = np.zeros((geom.n_balls, geom.dim))
     v[0] = [1.0, 0.5] if geometry == "torus" else tangent_velocities(geom, 1)[0]
-    with pytest.raises(ValueError, match=r"^(velocities|max_collisions): .* can collide forever"):
+    with pytest.raises(ValueError, match=message):
         pb.explore_orders(geom, v, max_states=300, max_collisions=300)
 
 
@@ -261,9 +264,10 @@ def test_random_order_distribution_matches_exact_law_on_rhombus():
         sim.run_until_frozen(max_steps=10**6)
         counts[sim.collisions] += 1
     expected = np.array([law.get(n, 0.0) for n in range(7)]) * 400
-    keep = expected > 0
-    assert counts[~keep].sum() == 0
-    assert stats.chisquare(counts[keep], expected[keep]).pvalue > P_MIN
+    assert counts[:2].sum() == 0 and expected[:2].sum() == 0
+    # bins 2, 3, 4 and "5 or 6" (6 alone expects 4.2 runs: too few for the chi-square)
+    observed = np.append(counts[2:5], counts[5:].sum())
+    assert stats.chisquare(observed, np.append(expected[2:5], expected[5:].sum())).pvalue > P_MIN
     mean = sum(n * p for n, p in law.items())
     assert math.isclose(out["random_mean"], counts @ np.arange(7) / 400)
     assert abs(out["random_mean"] - mean) < 4 * out["random_sd"] / math.sqrt(400)
