@@ -227,7 +227,7 @@ def test_rounding_remnants_inflate_the_most_and_min_closing_speed_leaves_them_ou
 
 
 @pytest.mark.parametrize("geometry, message", [
-    ("torus", r"^velocities: an order returns to a state it passed \(by contact \d+\), so this system can collide forever"),
+    ("torus", r"^velocities: an order returns to a state it passed \(by contact \d+\), so this system can"),
     ("sphere", r"^max_collisions: an order of 300 collisions has not frozen; raise max_collisions"),
 ])
 def test_a_system_that_never_freezes_is_refused(geometry, message):
