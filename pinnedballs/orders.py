@@ -437,7 +437,8 @@ def orders_against_random(geometry: Geometry, velocities, replicas: int = 200, s
     Returns a dict: ``balls``, ``contacts``, ``min_collisions``, ``max_collisions``,
     ``exhaustive``, ``states``, ``replicas``, ``random_mean``, ``random_sd`` (sample),
     ``random_min``, ``random_max``, ``random_at_min`` and ``random_at_max`` (fractions of
-    replicas reaching the fewest and the most).
+    replicas reaching the fewest and the most) and ``random_histogram``, ``[[collisions, replicas], ...]``
+    in increasing collisions.
     """
     replicas = _check_count("replicas", replicas, 1)
     _check_count("seed", seed, 0)
@@ -457,4 +458,5 @@ def orders_against_random(geometry: Geometry, velocities, replicas: int = 200, s
         "random_min": int(counts.min()), "random_max": int(counts.max()),
         "random_at_min": float(np.mean(counts == orders.min_collisions)),
         "random_at_max": float(np.mean(counts == orders.max_collisions)),
+        "random_histogram": [[int(n), int(runs)] for n, runs in zip(*np.unique(counts, return_counts=True))],
     }

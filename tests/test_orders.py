@@ -268,6 +268,7 @@ def test_random_order_distribution_matches_exact_law_on_rhombus():
     # bins 2, 3, 4 and "5 or 6" (6 alone expects 4.2 runs: too few for the chi-square)
     observed = np.append(counts[2:5], counts[5:].sum())
     assert stats.chisquare(observed, np.append(expected[2:5], expected[5:].sum())).pvalue > P_MIN
+    assert out["random_histogram"] == [[n, int(counts[n])] for n in range(7) if counts[n]]
     mean = sum(n * p for n, p in law.items())
     assert math.isclose(out["random_mean"], counts @ np.arange(7) / 400)
     assert abs(out["random_mean"] - mean) < 4 * out["random_sd"] / math.sqrt(400)
