@@ -12,6 +12,7 @@ from .simulation import Simulation
 from .io import load
 from .spec import RunSpec
 from .ensemble import run_ensemble
+from .orders import OrdersResult, Replay, explore_orders
 
 __version__ = "0.1.0"
 
@@ -22,4 +23,5 @@ __all__ = [
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
     "Simulation", "__version__",
     "load", "RunSpec", "run_ensemble",
+    "explore_orders", "OrdersResult", "Replay",
 ]

@@ -260,3 +260,91 @@ class ReferenceSimulation:
     @property
     def rng_state(self) -> list[int]:
         return self.rng.state
+
+
+# ---------------------------------------------------------------- every order (pinnedballs.orders)
+
+
+class ReplayPicker:
+    """The contacts of a given order in turn; refuses to go past its end (`orders.Replay`)."""
+
+    def __init__(self, order):
+        self.order = [int(k) for k in order]
+        self.position = 0
+
+    def pick(self, rng: Xoshiro) -> int:
+        if self.position >= len(self.order):
+            raise ValueError("Replay: every contact of its order has been picked")
+        self.position += 1
+        return self.order[self.position - 1]
+
+
+class OrderTree:
+    """Every order of collisions of a small system, by plain recursion over sequences.
+
+    No state is merged with another and nothing is memoised: each sequence of live contacts
+    is followed to the freeze on its own copy of the velocities (Python floats, `collide`).
+    Arguments as for `ReferenceSimulation` (without scheduler and seed).
+    """
+
+    def __init__(self, pairs, t_i, t_j, velocities, r=1.0, masses=None):
+        self.sim = ReferenceSimulation(pairs, t_i, t_j, velocities, r=r, masses=masses)
+        self.v0 = [list(row) for row in self.sim.v]
+
+    @classmethod
+    def from_geometry(cls, geom, velocities, **kwargs) -> "OrderTree":
+        c = geom.contacts
+        return cls(c.pairs, c.t_i, c.t_j, velocities, **kwargs)
+
+    def live(self, v) -> list[int]:
+        """Contacts whose collision would change some velocity component, in contact order."""
+        s = self.sim
+        return [k for k in range(len(s.pairs)) if collide(v, *s.pairs[k], *s.units(k), s.r, s.masses, write=False)]
+
+    def after(self, v, k: int):
+        """A copy of ``v`` after colliding contact ``k``."""
+        s = self.sim
+        w = [list(row) for row in v]
+        collide(w, *s.pairs[k], *s.units(k), s.r, s.masses)
+        return w
+
+    def sequences(self) -> list[tuple[int, ...]]:
+        """Every order: each sequence of live contacts that ends frozen."""
+        out = []
+
+        def descend(v, prefix):
+            ks = self.live(v)
+            if not ks:
+                out.append(tuple(prefix))
+            for k in ks:
+                descend(self.after(v, k), prefix + [k])
+
+        descend(self.v0, [])
+        return out
+
+    def states(self) -> set[bytes]:
+        """The distinct states (bits of the velocities) some order passes through, the start included."""
+        seen = set()
+
+        def descend(v):
+            seen.add(np.array(v, dtype=np.float64).tobytes())
+            for k in self.live(v):
+                descend(self.after(v, k))
+
+        descend(self.v0)
+        return seen
+
+    def random_order_law(self) -> dict[int, float]:
+        """``{collisions: probability}`` under the paper's scheduler, whose next collision is
+        uniform among the live contacts (rejected picks change nothing)."""
+        law: dict[int, float] = {}
+
+        def descend(v, n, p):
+            ks = self.live(v)
+            if not ks:
+                law[n] = law.get(n, 0.0) + p
+            for k in ks:
+                descend(self.after(v, k), n + 1, p / len(ks))
+
+        descend(self.v0, 0, 1.0)
+        return law
