@@ -94,7 +94,7 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
 
     positions: ``(n_balls, 2)`` centres; velocities: ``(n_balls, 2)``. Balls are
     grey dots (``BALL_SIZE`` of the typical spacing across); see `arrow_scale`
-    for arrow lengths, and the key below the bottom right corner for the scale. Balls at rest
+    for arrow lengths, and the key below the bottom left corner for the scale. Balls at rest
     get no arrow; the axes reach every arrow's tip.
     """
     p = np.asarray(positions, dtype=np.float64)
@@ -120,7 +120,7 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
                            angles="xy", scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing,
                            headwidth=3.5, headlength=4.0, headaxislength=3.5, minlength=0.0)
         key = key_speed(spacing / k)
-        ax.quiverkey(arrows, X=0.95, Y=-0.07, U=key, label=f"speed {key:g}", labelpos="W",
+        ax.quiverkey(arrows, X=0.02, Y=-0.07, U=key, label=f"speed {key:g}", labelpos="E",
                      coordinates="axes", fontproperties={"size": "small"})
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
