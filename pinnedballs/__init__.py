@@ -7,6 +7,8 @@ balls approach and collide. See ``docs/`` and the README for a tour.
 from .geometry import Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
+from .rejection_free import RejectionFree
+from .colored_sweep import ColoredSweep
 from .simulation import Simulation
 from .io import load
 from .spec import RunSpec
@@ -17,7 +19,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Contacts", "Geometry", "FlatTorus", "HalfPlane", "GraphGeometry",
     "CollisionRule", "Elastic", "Restitution",
-    "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
+    "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep",
     "Simulation", "__version__",
     "load", "RunSpec", "run_ensemble",
 ]

@@ -12,7 +12,7 @@ A scheduler that owns its loop (`pinnedballs.rejection_free`,
 with `needs_live` whether it wants the live-contact set (`kernels.LiveSet`),
 which the `Simulation` owns and refreshes for it. Either way everything that
 changes lives in ``state`` and ``rng``, so a checkpoint of the two resumes it
-exactly; `check_state` (and `check_live`) refuse a state it cannot resume from.
+exactly; `check_state` (and `check_resume`) refuse a state it cannot resume from.
 """
 
 from __future__ import annotations
@@ -94,9 +94,10 @@ class Scheduler(ABC):
         ptr, inc, flags = live if track else (_EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS)
         return loops.limited(*chain, state, rng, counters, max_steps, max_collisions, track, ptr, inc, flags)
 
-    def check_live(self, state: np.ndarray, flags: np.ndarray) -> None:
-        """Raise ValueError unless ``state`` agrees with the live contacts ``flags (E,)`` of the
-        velocities it is restored with (for schedulers that keep the live set in their state)."""
+    def check_resume(self, state: np.ndarray, loops, flags: np.ndarray | None) -> None:
+        """Raise ValueError unless ``state`` (already through `check_state`) fits the tables of
+        ``loops`` and, when `needs_live`, the live contacts ``flags (E,)`` of the velocities it is
+        restored with. Nothing to check for a ``pick`` scheduler."""
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         """The ``int64`` state array ``pick`` starts from."""

@@ -199,10 +199,11 @@ class Simulation:
         if sched.dtype != np.int64:
             raise ValueError(f"scheduler_state: must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
+        flags = None
         if self.scheduler.needs_live(False):
             flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
             self._live_flags(*self._chain()._replace(v=velocities), flags)
-            self.scheduler.check_live(sched, flags)
+        self.scheduler.check_resume(sched, self._loops, flags)
         steps, collisions = _count("steps", state["steps"]), _count("collisions", state["collisions"])
         if collisions > steps:
             raise ValueError(f"collisions: {collisions} is more than the {steps} steps taken")
