@@ -11,7 +11,7 @@ the freeze gives the same bits.
 its balls) over the contacts ordered by direction (their ``t_i`` row), then by
 ball: on a lattice each direction's lines alternate two colours, which gives the
 lower bound, the maximum degree, on the triangular lattice (6) and FCC (12).
-The contact order is tried too and the fewer classes kept. Greedy never needs
+Short of that, the contact order is tried too and the fewer classes kept. Greedy never needs
 more than ``2 * degree - 1``. Each class is sorted by its smaller ball, for
 memory locality.
 
@@ -64,9 +64,10 @@ def colour_classes(pairs: np.ndarray, ends: np.ndarray, n_balls: int) -> list[np
         return []
     low = pairs.min(axis=1)
     degree = int(np.bincount(pairs.ravel(), minlength=n_balls).max())
-    colours = [_greedy_colours(pairs, order, n_balls, 2 * degree)
-               for order in (np.lexsort((pairs.max(axis=1), low, np.asarray(ends)[:, 0])), np.arange(len(pairs)))]
-    colour = min(colours, key=lambda c: c.max())
+    colour = _greedy_colours(pairs, np.lexsort((pairs.max(axis=1), low, np.asarray(ends)[:, 0])), n_balls, 2 * degree)
+    if colour.max() + 1 > degree:  # not yet the fewest possible: try the contact order too
+        other = _greedy_colours(pairs, np.arange(len(pairs)), n_balls, 2 * degree)
+        colour = other if other.max() < colour.max() else colour
     by_class = np.lexsort((np.arange(len(pairs)), low, colour))
     bounds = np.searchsorted(colour[by_class], np.arange(colour.max() + 2))
     return [by_class[bounds[c]:bounds[c + 1]] for c in range(colour.max() + 1)]
