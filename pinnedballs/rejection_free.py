@@ -60,8 +60,14 @@ def picks_until_live(rng, n_live, n_contacts):
     (an integer >= 1); geometric with ``p = n_live / n_contacts``, ``1 <= n_live <= n_contacts``."""
     if n_live == n_contacts:
         return 1.0, rng
+    return _picks(rng, np.log1p(-(n_live / n_contacts)))
+
+
+@njit(cache=True, inline="always")
+def _picks(rng, log_q):
+    """``(G, rng)``: ``1 + floor(ln(1 - u) / log_q)``, with ``log_q = ln(1 - p) < 0``."""
     u, rng = random_float(rng)
-    return 1.0 + np.floor(np.log(1.0 - u) / np.log1p(-(n_live / n_contacts))), rng
+    return 1.0 + np.floor(np.log(1.0 - u) / log_q), rng
 
 
 @functools.cache
@@ -78,10 +84,13 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
     attempt, _ = contact_kernels(collide, dim, flat)
 
     @njit(inline="always")
-    def update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, ball):
-        """Re-test the contacts of ``ball``; add or remove them from ``live[:n_live]``; new count."""
+    def update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, ball, skip):
+        """Re-test the contacts of ``ball`` but ``skip``; add or remove them from ``live[:n_live]``;
+        the new count."""
         for m in range(ptr[ball], ptr[ball + 1]):
             c = inc[m]
+            if c == skip:
+                continue
             now = attempt(v, pairs, ends, units, masses, params, c, False)
             at = pos[c]
             if now and at < 0:
@@ -129,6 +138,7 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
         live = state[2:]
         n_live = positions(state, counters, flags, pos)
         rest = state[1]
+        log_q = np.zeros(n + 1)  # log1p(-L / n), computed once per L seen (0.0: not yet)
         steps, collisions, rng = 0, counters[COLLISIONS], load(rng_words)
         while steps < max_steps and collisions < max_collisions and not (track and n_live == 0):
             left = max_steps - steps
@@ -138,7 +148,12 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
             if rest > 0:  # picks left over from the last call
                 g, rest = rest, 0
             else:
-                x, rng = picks_until_live(rng, n_live, n)
+                if n_live == n:
+                    x = 1.0
+                else:
+                    if log_q[n_live] == 0.0:
+                        log_q[n_live] = np.log1p(-(n_live / n))
+                    x, rng = _picks(rng, log_q[n_live])  # as picks_until_live, bit for bit
                 g = np.int64(min(x, _CAP))
             if g > left:  # the next live pick lies beyond the run
                 rest = g - left
@@ -149,8 +164,9 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
             k = live[np.int64(r)]
             if attempt(v, pairs, ends, units, masses, params, k, True):  # live: always true
                 collisions += 1
-            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, pairs[k, 0])
-            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, pairs[k, 1])
+            # contact k is re-tested once, with ball i's: ball j's pass would find the same
+            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, pairs[k, 0], -1)
+            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, pairs[k, 1], k)
         store(rng_words, rng)
         state[0], state[1] = n_live, rest
         counters[STEPS] += steps
