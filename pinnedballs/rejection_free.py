@@ -22,7 +22,7 @@ geometric with the same ``p`` (the law is memoryless) and the live set has not
 changed, so keeping it gives the same law as drawing afresh, and it makes a run
 split into calls (chunks, checkpoints, resume) bit-identical to one call.
 
-**The live set** is an array ``live[:L]`` plus a position map ``pos (M,)``
+**The live set** is an array ``live[:L]`` plus a position map ``pos (M,) int32``
 (``-1``: not live). After a collision only the contacts of its two balls are
 re-tested: O(degree), a swap with the last entry to remove.
 
@@ -78,26 +78,31 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
         max_steps, max_collisions, track, ptr, inc, flags) -> steps taken
 
     ``state (M + 2,) int64`` as in the module docstring; ``flags (M,) uint8`` the live
-    flags of ``v`` and ``counters[LIVE]`` their count (from the `Simulation`), used when
-    ``state`` does not hold exactly that set (a fresh run, or velocities replaced).
+    flags of ``v`` and ``counters[LIVE]`` their count (from the `Simulation`): the array is
+    built from them when ``state`` does not hold exactly that set (a fresh run, or
+    velocities replaced), and the loop keeps them up to date.
     """
     attempt, _ = contact_kernels(collide, dim, flat)
 
     @njit(inline="always")
-    def update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, ball, skip):
-        """Re-test the contacts of ``ball`` but ``skip``; add or remove them from ``live[:n_live]``;
-        the new count."""
+    def update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, ball, skip):
+        """Re-test the contacts of ``ball`` but ``skip``; add or remove them from ``live[:n_live]``
+        (``flags``, small enough to stay in cache, says which are in; ``pos`` is read only on a
+        change); the new count."""
         for m in range(ptr[ball], ptr[ball + 1]):
             c = inc[m]
             if c == skip:
                 continue
-            now = attempt(v, pairs, ends, units, masses, params, c, False)
-            at = pos[c]
-            if now and at < 0:
+            now = 1 if attempt(v, pairs, ends, units, masses, params, c, False) else 0
+            if now == flags[c]:  # no change: the common case
+                continue
+            flags[c] = now
+            if now:
                 live[n_live] = c
                 pos[c] = n_live
                 n_live += 1
-            elif not now and at >= 0:
+            else:
+                at = pos[c]
                 n_live -= 1
                 last = live[n_live]
                 live[at] = last
@@ -134,7 +139,7 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
     def run(v, pairs, ends, units, masses, params, state, rng_words, counters,
             max_steps, max_collisions, track, ptr, inc, flags):
         n = pairs.shape[0]
-        pos = np.full(n, -1, dtype=np.int64)
+        pos = np.full(n, -1, dtype=np.int32)
         live = state[2:]
         n_live = positions(state, counters, flags, pos)
         rest = state[1]
@@ -165,8 +170,8 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
             if attempt(v, pairs, ends, units, masses, params, k, True):  # live: always true
                 collisions += 1
             # contact k is re-tested once, with ball i's: ball j's pass would find the same
-            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, pairs[k, 0], -1)
-            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, live, pos, n_live, pairs[k, 1], k)
+            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, pairs[k, 0], -1)
+            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, pairs[k, 1], k)
         store(rng_words, rng)
         state[0], state[1] = n_live, rest
         counters[STEPS] += steps

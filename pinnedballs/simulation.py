@@ -63,6 +63,11 @@ class Simulation:
     collides them. ``steps`` counts picks, ``collisions`` the picks that changed
     velocities. Same inputs and seed give bit-identical velocities and counters,
     however the run is split into calls.
+
+    The scheduler runs its own compiled loops (`Scheduler.advance`) on plain data the
+    simulation owns: the velocities, the counters, the random stream, the scheduler's
+    state and the live-contact set (`kernels.LiveSet`), which it refreshes for the
+    loops that want it.
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
