@@ -8,6 +8,8 @@ from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphG
                        Sphere)
 from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
+from .rejection_free import RejectionFree
+from .colored_sweep import ColoredSweep
 from .simulation import Simulation
 from .io import load
 from .spec import RunSpec
@@ -20,7 +22,7 @@ __all__ = [
     "Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",
     "Sphere", "HyperbolicPlane", "FCC", "HCP",
     "CollisionRule", "Elastic", "Restitution",
-    "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
+    "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep",
     "Simulation", "__version__",
     "load", "RunSpec", "run_ensemble",
     "explore_orders", "OrdersResult", "Replay",

@@ -88,10 +88,15 @@ def _source_digest(path: str) -> bytes:
     return h.hexdigest().encode()
 
 
-def jit_cached_if_possible(py_func: Callable) -> Callable:
+def jit_cached_if_possible(py_func: Callable | None = None, *, parallel: bool = False) -> Callable:
     """``njit`` with `_ClosureCache` on disk, or no disk cache when a captured
-    function has no source file to key it by (it is then compiled once per process)."""
-    dispatcher = njit(py_func)
+    function has no source file to key it by (it is then compiled once per process).
+
+    ``parallel=True`` compiles ``prange`` loops for all numba threads; the cached code
+    does not depend on the number of threads, which is chosen at run time."""
+    if py_func is None:
+        return functools.partial(jit_cached_if_possible, parallel=parallel)
+    dispatcher = njit(py_func, parallel=parallel)
     if all(_source_file(f) for f in reachable_functions(py_func)):
         dispatcher._cache = _ClosureCache(py_func)
     return dispatcher

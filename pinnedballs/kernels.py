@@ -19,7 +19,7 @@ from .jitcache import jit_cached_if_possible
 from .prefetch import prefetch
 from .random import load, store
 
-__all__ = ["chain_kernel", "Loops", "incidence", "STEPS", "COLLISIONS", "LIVE", "NO_LIMIT"]
+__all__ = ["chain_kernel", "contact_kernels", "live_kernel", "Loops", "Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "NO_LIMIT"]
 
 #: indices into the ``counters`` array shared by Python and the loops
 STEPS, COLLISIONS, LIVE = 0, 1, 2
@@ -41,6 +41,29 @@ def incidence(pairs: np.ndarray, n_balls: int) -> tuple[np.ndarray, np.ndarray]:
     ptr = np.zeros(n_balls + 1, dtype=np.int64)
     np.cumsum(np.bincount(balls.astype(np.intp), minlength=n_balls), out=ptr[1:])
     return ptr, contacts
+
+
+class Chain(NamedTuple):
+    """The plain data every loop reads: velocities ``v (n_balls, dim)`` (written in place),
+    ``pairs, ends (E, 2)``, ``units (K, dim)``, ``masses (n_balls,)`` and the rule's ``params``."""
+
+    v: np.ndarray
+    pairs: np.ndarray
+    ends: np.ndarray
+    units: np.ndarray
+    masses: np.ndarray
+    params: np.ndarray
+
+
+class LiveSet(NamedTuple):
+    """The live contacts as plain data, owned by the `Simulation`: ``flags (E,) uint8``
+    (1 where picking the contact would change velocities) and the incidence ``ptr, inc``
+    (see `incidence`) that says which contacts to re-test after a collision. Their number
+    is ``counters[LIVE]``."""
+
+    ptr: np.ndarray
+    inc: np.ndarray
+    flags: np.ndarray
 
 
 class Loops(NamedTuple):
@@ -72,9 +95,14 @@ class Loops(NamedTuple):
 
 
 @functools.cache
-def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loops:
-    """The compiled loops for one rule's ``collide``, one scheduler's ``pick``, ``dim`` and
-    ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
+def contact_kernels(collide: Callable, dim: int, flat: bool) -> tuple[Callable, Callable]:
+    """``(attempt, refresh)``: the inlined building blocks of every loop for one rule.
+
+    attempt(v, pairs, ends, units, masses, params, k, write) -> bool
+        try contact ``k`` (`pinnedballs.rules`); writes only if ``write``;
+    refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball) -> int
+        re-test the contacts of ``ball``, update ``flags``, return the change in live ones.
+    """
     D, FLAT = dim, flat  # constants of the compiled loops: component loops unroll
 
     @njit(inline="always")
@@ -88,17 +116,36 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
         for m in range(ptr[ball], ptr[ball + 1]):
             c = inc[m]
             live = 1 if attempt(v, pairs, ends, units, masses, params, c, False) else 0
-            delta += live - flags[c]
+            delta += live - np.int64(flags[c])  # int64: uint8 would wrap without the JIT
             flags[c] = live
         return delta
+
+    return attempt, refresh
+
+
+@functools.cache
+def live_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
+    """``live_flags(v, pairs, ends, units, masses, params, flags) -> count`` for one rule (see `Loops`)."""
+    attempt, _ = contact_kernels(collide, dim, flat)
 
     @jit_cached_if_possible
     def live_flags(v, pairs, ends, units, masses, params, flags):
         count = 0
         for k in range(pairs.shape[0]):
-            flags[k] = 1 if attempt(v, pairs, ends, units, masses, params, k, False) else 0
-            count += flags[k]
+            live = 1 if attempt(v, pairs, ends, units, masses, params, k, False) else 0
+            flags[k] = live
+            count += live
         return count
+
+    return live_flags
+
+
+@functools.cache
+def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loops:
+    """The compiled loops for one rule's ``collide``, one scheduler's ``pick``, ``dim`` and
+    ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
+    attempt, refresh = contact_kernels(collide, dim, flat)
+    live_flags = live_kernel(collide, dim, flat)
 
     @jit_cached_if_possible
     def steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):

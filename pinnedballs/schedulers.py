@@ -1,22 +1,30 @@
-"""Schedulers: which contact to try next.
+"""Schedulers: which contacts are tried, in which order.
 
-A scheduler is a Python object whose `kernel` hands the compiled loop a jitted
-function ``pick(state, rng, n_contacts) -> (k, rng)`` and whose `initial_state`
-gives its ``int64`` state array. ``rng`` is the simulation's one random stream,
-a 4-tuple of uint64 words (`pinnedballs.random`); ``pick`` returns the advanced
-tuple. A scheduler never owns randomness of its own, so a checkpoint of
-``state`` and ``rng`` resumes it exactly.
+The simple kind answers "which contact next": its `kernel` hands the compiled
+loop a jitted function ``pick(state, rng, n_contacts) -> (k, rng)`` and its
+`initial_state` gives its ``int64`` state array. ``rng`` is the simulation's one
+random stream, a 4-tuple of uint64 words (`pinnedballs.random`); ``pick``
+returns the advanced tuple. The default `Scheduler.loops` and
+`Scheduler.advance` compile that ``pick`` into `kernels.chain_kernel`'s loops.
+
+A scheduler that owns its loop (`pinnedballs.rejection_free`,
+`pinnedballs.colored_sweep`) overrides `loops` and `advance` instead, and says
+with `needs_live` whether it wants the live-contact set (`kernels.LiveSet`),
+which the `Simulation` owns and refreshes for it. Either way everything that
+changes lives in ``state`` and ``rng``, so a checkpoint of the two resumes it
+exactly; `check_state` (and `check_resume`) refuse a state it cannot resume from.
 """
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
+from abc import ABC
 from typing import Callable
 
 import numpy as np
 from numba import njit
 
-from .errors import FieldError
+from .errors import FieldError, FieldTypeError
+from .kernels import COLLISIONS, LIVE, LOOKAHEAD_BYTES, NO_LIMIT, Chain, LiveSet, chain_kernel
 from .random import bounded
 
 __all__ = ["Scheduler", "UniformRandomPair", "Sweep", "RandomSweep"]
@@ -54,11 +62,43 @@ def pick_random_sweep(state, rng, n_contacts):
 
 
 class Scheduler(ABC):
-    """Chooses which contact the loop tries next."""
+    """Chooses which contact the loop tries next (`kernel`), or runs its own loops
+    (`loops` and `advance`)."""
 
-    @abstractmethod
     def kernel(self) -> Callable:
         """The jitted ``pick(state, rng, n_contacts) -> (k, rng)``."""
+        raise FieldTypeError("scheduler", f"{type(self).__name__} must define kernel() (a pick function) "
+                        f"or loops() and advance()")
+
+    def loops(self, collide: Callable, geometry) -> object:
+        """The compiled loops for a rule's ``collide`` on ``geometry``; built once per `Simulation`
+        and handed back to `advance`. Default: `kernels.chain_kernel` around `kernel`'s ``pick``."""
+        return chain_kernel(collide, self.kernel(), geometry.dim, geometry.contacts.flat)
+
+    def needs_live(self, track: bool) -> bool:
+        """Whether `advance` wants the live set, freshly computed, for a call with this ``track``."""
+        return track
+
+    def advance(self, loops, chain: Chain, live: LiveSet | None, state: np.ndarray, rng: np.ndarray,
+                counters: np.ndarray, max_steps: int, max_collisions: int, track: bool) -> int:
+        """Run the loops: at most ``max_steps`` steps, until ``max_collisions`` collisions in total
+        (`kernels.NO_LIMIT`: none) and, when ``track``, until no contact is live.
+
+        ``chain`` is read and its velocities written in place; ``state`` (this scheduler's),
+        ``rng`` ``(4,) uint64`` and ``counters`` ``(3,) int64`` (steps, collisions, live) are
+        advanced in place; ``live`` is given when `needs_live` says so, with ``counters[LIVE]``
+        exact. Returns the number of steps taken.
+        """
+        if not track and max_collisions == NO_LIMIT:
+            large = chain.pairs.nbytes + chain.ends.nbytes + chain.v.nbytes > LOOKAHEAD_BYTES
+            return (loops.steps_prefetched if large else loops.steps)(*chain, state, rng, counters, max_steps)
+        ptr, inc, flags = live if track else (_EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS)
+        return loops.limited(*chain, state, rng, counters, max_steps, max_collisions, track, ptr, inc, flags)
+
+    def check_resume(self, state: np.ndarray, loops, flags: np.ndarray | None) -> None:
+        """Raise ValueError unless ``state`` (already through `check_state`) fits the tables of
+        ``loops`` and, when `needs_live`, the live contacts ``flags (E,)`` of the velocities it is
+        restored with. Nothing to check for a ``pick`` scheduler."""
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         """The ``int64`` state array ``pick`` starts from."""
@@ -124,3 +164,8 @@ class RandomSweep(Scheduler):
         state[0] = n_contacts  # shuffle before the first pick
         state[1:] = np.arange(n_contacts)
         return state
+
+
+_EMPTY_PTR = np.zeros(1, dtype=np.int64)
+_EMPTY_INC = np.zeros(0, dtype=np.uint32)
+_EMPTY_FLAGS = np.zeros(0, dtype=np.uint8)

@@ -7,7 +7,7 @@ import numpy as np
 from .errors import FieldError, FieldTypeError
 from .geometry import Geometry
 from .limits import check_speeds
-from .kernels import COLLISIONS, LIVE, LOOKAHEAD_BYTES, NO_LIMIT, STEPS, chain_kernel, incidence
+from .kernels import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence, live_kernel
 from .random import seed_state
 from .rules import CollisionRule, Elastic
 from .schedulers import Scheduler, UniformRandomPair
@@ -65,6 +65,11 @@ class Simulation:
     collides them. ``steps`` counts picks, ``collisions`` the picks that changed
     velocities. Same inputs and seed give bit-identical velocities and counters,
     however the run is split into calls.
+
+    The scheduler runs its own compiled loops (`Scheduler.advance`) on plain data the
+    simulation owns: the velocities, the counters, the random stream, the scheduler's
+    state and the live-contact set (`kernels.LiveSet`), which it refreshes for the
+    loops that want it.
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
@@ -85,12 +90,12 @@ class Simulation:
         self.masses = None if masses is None else self._mass_array
         self.velocities = self._check_velocities(velocities)
         self._collide, self._params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
-        self._pick = scheduler.kernel()
-        self._loops = chain_kernel(self._collide, self._pick, geometry.dim, geometry.contacts.flat)
+        self._loops = scheduler.loops(self._collide, geometry)
+        self._live_flags = live_kernel(self._collide, geometry.dim, geometry.contacts.flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
         self._rng = seed_state(seed)
         self._counters = np.zeros(3, dtype=np.int64)
-        self._incidence = None
+        self._live = None  # the LiveSet, built when a run first needs it
 
     # ------------------------------------------------------------ input checks
     def _check_velocities(self, velocities) -> np.ndarray:
@@ -142,33 +147,32 @@ class Simulation:
         return bool(self._counters[LIVE] == 0)
 
     def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
+        """The scheduler runs its loops on the chain's data (see `Scheduler.advance`)."""
         max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
+        live = self._refresh_live() if self.scheduler.needs_live(track) else None
+        return self.scheduler.advance(self._loops, self._chain(), live, self._sched_state, self._rng,
+                                      self._counters, max_steps, max_collisions, track)
+
+    def _chain(self) -> Chain:
         c = self.geometry.contacts
-        common = (self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params,
-                  self._sched_state, self._rng, self._counters, max_steps)
-        if not track and max_collisions == NO_LIMIT:
-            large = c.pairs.nbytes + c.ends.nbytes + self.velocities.nbytes > LOOKAHEAD_BYTES
-            return (self._loops.steps_prefetched if large else self._loops.steps)(*common)
-        if track:
-            if self._incidence is None:
-                self._incidence = incidence(c.pairs, self.geometry.n_balls)
-            ptr, inc = self._incidence
-            flags = np.empty(len(c), dtype=np.uint8)
-            self._counters[LIVE] = self._loops.live_flags(self.velocities, c.pairs, c.ends, c.units,
-                                                          self._mass_array, self._params, flags)
-        else:
-            ptr, inc, flags = _EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS
-        return self._loops.limited(*common, max_collisions, track, ptr, inc, flags)
+        return Chain(self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params)
+
+    def _refresh_live(self) -> LiveSet:
+        """The live set of the current velocities (flags and ``counters[LIVE]`` recomputed)."""
+        if self._live is None:
+            c = self.geometry.contacts
+            ptr, inc = incidence(c.pairs, self.geometry.n_balls)
+            self._live = LiveSet(ptr, inc, np.empty(len(c), dtype=np.uint8))
+        self._counters[LIVE] = self._live_flags(*self._chain(), self._live.flags)
+        return self._live
 
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
         """Number of live contacts: those whose balls approach, so that picking one would
         change velocities (0 means frozen). A closing speed so small that the collision
         would change no bit of any velocity, a remnant of rounding, does not count."""
-        c = self.geometry.contacts
-        flags = np.empty(len(c), dtype=np.uint8)
-        return int(self._loops.live_flags(self.velocities, c.pairs, c.ends, c.units, self._mass_array,
-                                          self._params, flags))
+        flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
+        return int(self._live_flags(*self._chain(), flags))
 
     def is_frozen(self) -> bool:
         """True when no contact is live, so no collision can ever happen again."""
@@ -204,6 +208,11 @@ class Simulation:
         if sched.dtype != np.int64:
             raise FieldError("scheduler_state", f"must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
+        flags = None
+        if self.scheduler.needs_live(False):
+            flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
+            self._live_flags(*self._chain()._replace(v=velocities), flags)
+        self.scheduler.check_resume(sched, self._loops, flags)
         steps, collisions = _count("steps", state["steps"]), _count("collisions", state["collisions"])
         if collisions > steps:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
@@ -216,7 +225,3 @@ class Simulation:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
                 f"steps={self.steps}, collisions={self.collisions})")
 
-
-_EMPTY_PTR = np.zeros(1, dtype=np.int64)
-_EMPTY_INC = np.zeros(0, dtype=np.uint32)
-_EMPTY_FLAGS = np.zeros(0, dtype=np.uint8)

@@ -32,6 +32,8 @@ from .errors import FieldError, InputError
 from .geometry import FCC, HCP, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 from .limits import check_memory, check_speeds, format_bytes
 from .rules import CollisionRule, Elastic, Restitution
+from .colored_sweep import ColoredSweep
+from .rejection_free import RejectionFree
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation, mass_array
 
@@ -41,7 +43,7 @@ __all__ = [
     "HCPSpec", "GeometrySpec",
     "SingleBallSpec", "GaussianSpec", "FromFileSpec", "InitialSpec",
     "ElasticSpec", "RestitutionSpec", "RuleSpec",
-    "UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "SchedulerSpec",
+    "UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "RejectionFreeSpec", "ColoredSweepSpec", "SchedulerSpec",
     "StopSpec", "SnapshotsSpec", "CheckpointSpec",
 ]
 
@@ -485,7 +487,27 @@ class RandomSweepSpec(_Spec):
         return RandomSweep()
 
 
-SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec], Field(discriminator="kind")]
+class RejectionFreeSpec(_Spec):
+    """The paper's chain without its rejected picks (`RejectionFree`): same law, far fewer loop turns."""
+
+    kind: Literal["rejection_free"] = "rejection_free"
+
+    def build(self) -> Scheduler:
+        return RejectionFree()
+
+
+class ColoredSweepSpec(_Spec):
+    """Colour classes of contacts sharing no ball in turn, each in parallel (`ColoredSweep`)."""
+
+    kind: Literal["colored_sweep"] = "colored_sweep"
+    shuffle: bool = False
+
+    def build(self) -> Scheduler:
+        return ColoredSweep(shuffle=self.shuffle)
+
+
+SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec, RejectionFreeSpec, ColoredSweepSpec],
+                          Field(discriminator="kind")]
 
 
 # ---------------------------------------------------------------- running and output

@@ -10,11 +10,18 @@ Semantics (see the docstrings of `Xoshiro`, the schedulers and `collide`):
 - random stream: xoshiro256** seeded by ``SeedSequence(seed).generate_state(4, uint64)``;
 - ``bounded(n)``: Lemire's multiply-and-reject on the top 32 bits;
 - schedulers: ``uniform`` (``bounded(n)`` each step), ``sweep`` (0, 1, ..., n-1, 0, ...),
-  ``random_sweep`` (Fisher-Yates shuffle of a kept order at the start of every sweep);
+  ``random_sweep`` (Fisher-Yates shuffle of a kept order at the start of every sweep),
+  ``colored_sweep`` / ``colored_sweep_shuffle`` (the given colour classes in turn, contact by
+  contact: a class's contacts share no ball, so this equals the engine's parallel class; with
+  shuffle, a Fisher-Yates shuffle of ``0..C-1`` at the start of every sweep);
+- `ReferenceRejectionFree`: the n-fold way with a live array, a position map, and a geometric
+  number of picks ``1 + floor(log(1 - u) / log1p(-L/M))``;
 - a step is one pick; a collision is a pick whose closing speed ``w`` is positive.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -22,7 +29,7 @@ MASK64 = (1 << 64) - 1
 MASK32 = (1 << 32) - 1
 GOLDEN = 0x9E3779B97F4A7C15
 
-SCHEDULERS = ("uniform", "sweep", "random_sweep")
+SCHEDULERS = ("uniform", "sweep", "random_sweep", "colored_sweep", "colored_sweep_shuffle")
 
 
 # ---------------------------------------------------------------- random stream
@@ -76,6 +83,10 @@ class Xoshiro:
                 low = m & MASK32
         return m >> 32
 
+    def uniform(self) -> float:
+        """A float in ``[0, 1)`` from the top 53 bits of one draw."""
+        return (self.next() >> 11) * (1.0 / 9007199254740992.0)
+
     @property
     def state(self) -> list[int]:
         return list(self.s)
@@ -127,7 +138,36 @@ class RandomSweepPicker:
         return k
 
 
-def make_picker(kind: str, n: int):
+class ColoredSweepPicker:
+    """The colour classes in turn, each contact by contact; with ``shuffle`` the classes' order is
+    ``0..C-1`` shuffled (Fisher-Yates) at the start of every sweep."""
+
+    def __init__(self, classes, shuffle: bool):
+        self.classes = [[int(k) for k in c] for c in classes]
+        self.shuffle = shuffle
+        self.order: list[int] = []
+        self.slot, self.offset = -1, 0  # -1: start a sweep before the next pick
+
+    def pick(self, rng: Xoshiro) -> int:
+        if self.slot < 0:
+            self.order = list(range(len(self.classes)))
+            if self.shuffle:
+                for m in range(len(self.order) - 1, 0, -1):
+                    r = rng.bounded(m + 1)
+                    self.order[m], self.order[r] = self.order[r], self.order[m]
+            self.slot, self.offset = 0, 0
+        members = self.classes[self.order[self.slot]]
+        k = members[self.offset]
+        self.offset += 1
+        if self.offset == len(members):
+            self.slot = self.slot + 1 if self.slot + 1 < len(self.classes) else -1
+            self.offset = 0
+        return k
+
+
+def make_picker(kind: str, n: int, classes=None):
+    if kind.startswith("colored_sweep"):
+        return ColoredSweepPicker(classes, shuffle=kind.endswith("shuffle"))
     return {"uniform": UniformPicker, "sweep": SweepPicker, "random_sweep": RandomSweepPicker}[kind](n)
 
 
@@ -173,10 +213,11 @@ class ReferenceSimulation:
     pairs: ``(E, 2)`` ball indices; t_i, t_j: ``(E, dim)`` unit vectors (as from
     ``geom.contacts``); velocities ``(n_balls, dim)``; r: restitution (1 = elastic);
     masses: None or ``(n_balls,)`` (all equal is treated as None, as the engine does);
-    scheduler: one of `SCHEDULERS`.
+    scheduler: one of `SCHEDULERS`; classes: the colour classes (lists of contact indices) for
+    the colored sweeps.
     """
 
-    def __init__(self, pairs, t_i, t_j, velocities, r=1.0, masses=None, scheduler="uniform", seed=0):
+    def __init__(self, pairs, t_i, t_j, velocities, r=1.0, masses=None, scheduler="uniform", seed=0, classes=None):
         self.pairs = np.asarray(pairs).astype(np.int64).tolist()
         self._t_i = np.asarray(t_i, dtype=np.float64)  # rows become lists of Python floats on use
         self._t_j = np.asarray(t_j, dtype=np.float64)
@@ -186,7 +227,7 @@ class ReferenceSimulation:
             m = [float(x) for x in np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(self.v),))]
             masses = None if all(x == m[0] for x in m) else m
         self.masses = masses
-        self.picker = make_picker(scheduler, len(self.pairs))
+        self.picker = make_picker(scheduler, len(self.pairs), classes)
         self.rng = Xoshiro(seed_state(seed))
         self.steps = 0
         self.collisions = 0
@@ -195,7 +236,13 @@ class ReferenceSimulation:
 
     @classmethod
     def from_geometry(cls, geom, velocities, **kwargs) -> "ReferenceSimulation":
+        """The twin of a simulation on ``geom``; the colored sweeps take the engine's classes
+        (the colouring itself is checked separately)."""
         c = geom.contacts
+        if kwargs.get("scheduler", "").startswith("colored_sweep"):
+            import pinnedballs as pb
+
+            kwargs["classes"] = pb.ColoredSweep.classes(geom)
         return cls(c.pairs, c.t_i, c.t_j, velocities, **kwargs)
 
     # ---------------------------------------------------------- one step
@@ -348,3 +395,76 @@ class OrderTree:
 
         descend(self.v0, 0, 1.0)
         return law
+# ---------------------------------------------------------------- the n-fold way
+
+
+def picks_until_live(rng: Xoshiro, n_live: int, n_contacts: int) -> int:
+    """Geometric with ``p = n_live / n_contacts``: ``1 + floor(log(1 - u) / log1p(-p))``, capped
+    at 2**62; ``p = 1`` gives 1 without a draw."""
+    if n_live == n_contacts:
+        return 1
+    u = rng.uniform()
+    x = 1.0 + math.floor(math.log(1.0 - u) / math.log1p(-(n_live / n_contacts)))
+    return int(min(x, float(2**62)))
+
+
+class ReferenceRejectionFree(ReferenceSimulation):
+    """`pinnedballs.RejectionFree` in plain Python: the same inputs and seed give the same bits.
+
+    The live contacts are a list (initially in contact order) with a position map; after a
+    collision the contacts of ball i, then of ball j, each in contact order, are re-tested:
+    a newly live one is appended, one no longer live is replaced by the last entry. ``rest``
+    keeps the picks still to come when a run ends at its step limit.
+    """
+
+    def __init__(self, *args, **kwargs):
+        kwargs["scheduler"] = "uniform"  # unused: this class has its own loop
+        super().__init__(*args, **kwargs)
+        n_balls = len(self.v)
+        self.incident = [[] for _ in range(n_balls)]
+        for k, (i, j) in enumerate(self.pairs):
+            self.incident[i].append(k)
+            self.incident[j].append(k)
+        self.live_list = [k for k in range(len(self.pairs)) if self.live(k)]
+        self.pos = {k: m for m, k in enumerate(self.live_list)}
+        self.rest = 0
+
+    def _update(self, ball: int) -> None:
+        for c in self.incident[ball]:
+            now = self.live(c)
+            if now and c not in self.pos:
+                self.pos[c] = len(self.live_list)
+                self.live_list.append(c)
+            elif not now and c in self.pos:
+                at = self.pos.pop(c)
+                last = self.live_list.pop()
+                if last != c:
+                    self.live_list[at] = last
+                    self.pos[last] = at
+
+    def _run(self, max_steps, max_collisions, track) -> int:
+        taken, n = 0, len(self.pairs)
+        while taken < max_steps and self.collisions < max_collisions and not (track and not self.live_list):
+            left = max_steps - taken
+            if not self.live_list:
+                taken = max_steps
+                break
+            if self.rest > 0:
+                g, self.rest = self.rest, 0
+            else:
+                g = picks_until_live(self.rng, len(self.live_list), n)
+            if g > left:
+                self.rest = g - left
+                taken = max_steps
+                break
+            taken += g
+            k = self.live_list[self.rng.bounded(len(self.live_list))]
+            self.picks.append(k)
+            i, j = self.pairs[k]
+            assert collide(self.v, i, j, *self.units(k), self.r, self.masses)
+            self.collisions += 1
+            self.collision_steps.append(self.steps + taken)
+            self._update(i)
+            self._update(j)
+        self.steps += taken
+        return taken

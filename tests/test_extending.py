@@ -86,3 +86,25 @@ def test_schedulers_and_rules_compare_by_parameters_and_hash(doc):
     table = {pb.Elastic(): "e", pb.Restitution(0.5): "r", pb.Sweep(): "s", among([1, 2]): "a"}
     assert table[pb.Elastic()] == "e" and table[pb.Restitution(0.5)] == "r"
     assert table[pb.Sweep()] == "s" and table[among([1, 2])] == "a"
+
+
+def test_backwards_owns_its_loop_and_sweeps_last_to_first(doc):
+    """On separate approaching pairs the loop collides the last pair first; on a chain it freezes
+    after exactly the inversions, and run_until_frozen stops right after the last collision."""
+    from cases import chain, matching
+
+    geom = matching(6, dim=1)
+    v = np.zeros((12, 1))
+    v[0::2, 0], v[1::2, 0] = 1.0, -1.0
+    sim = pb.Simulation(geom, v, scheduler=doc["Backwards"](), seed=0)
+    sim.run(steps=2)
+    moved = np.flatnonzero(sim.velocities[:, 0] != v[:, 0])
+    np.testing.assert_array_equal(moved, [8, 9, 10, 11])
+    line = chain(30)
+    v = np.random.default_rng(1).normal(size=(30, 1))
+    inversions = sum(int(a > b) for k, a in enumerate(v[:, 0]) for b in v[k + 1:, 0])
+    sim = pb.Simulation(line, v, scheduler=doc["Backwards"](), seed=0)
+    assert sim.run_until_frozen(max_steps=10**6)
+    assert sim.collisions == inversions
+    with pytest.raises(ValueError, match=r"scheduler_state: the position must be in \[0, 29\), got 29"):
+        sim.set_state(dict(sim.get_state(), scheduler_state=np.array([29])))

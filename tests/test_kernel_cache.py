@@ -108,3 +108,24 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
     assert key1 != key2 and key2 == key3
     assert v1.strip() == "0.0, 1.0]"          # elastic exchange with scale 1
     assert v2.strip() == v3.strip() == "0.5, 0.5]"  # half the exchange: they share the momentum
+
+
+def test_parallel_colored_sweep_loop_is_loaded_from_disk_in_a_fresh_process(tmp_path):
+    """The prange loop of ColoredSweep (parallel=True) is cached like the others: a second
+    process with the same cache directory loads it instead of compiling, and gets the same bits."""
+    code = textwrap.dedent("""
+        import numpy as np
+        import pinnedballs as pb
+        geom = pb.FlatTorus(6, 6)
+        sim = pb.Simulation(geom, np.random.default_rng(1).normal(size=(36, 2)), scheduler=pb.ColoredSweep(), seed=1)
+        sim.run(steps=1000)
+        stats = sim._loops.steps.stats
+        print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), sim.velocities.sum().hex())
+    """)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": root}
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+            .stdout.split() for _ in range(2)]
+    assert runs[0][:2] == ["0", "1"]  # compiled
+    assert runs[1][:2] == ["1", "0"]  # loaded
+    assert runs[0][2] == runs[1][2]

@@ -78,8 +78,11 @@ def wait_for_checkpoint(child: subprocess.Popen, out: Path, steps: int, timeout:
     pytest.fail("no checkpoint in time")
 
 
-def test_sigkill_then_resume_is_bit_identical(tmp_path):
-    spec_path = write(tmp_path / "long.json", LONG)
+@pytest.mark.parametrize("scheduler", [None, {"kind": "rejection_free"}, {"kind": "colored_sweep", "shuffle": True}],
+                         ids=["uniform", "rejection_free", "colored_sweep"])
+def test_sigkill_then_resume_is_bit_identical(tmp_path, scheduler):
+    data = LONG if scheduler is None else spec(LONG, scheduler=scheduler)
+    spec_path = write(tmp_path / "long.json", data)
     out = tmp_path / "killed"
     child = start_child(spec_path, out)
     wait_for_checkpoint(child, out, 45_000)
@@ -87,7 +90,7 @@ def test_sigkill_then_resume_is_bit_identical(tmp_path):
     child.wait(timeout=30)
     assert child.returncode == -signal.SIGKILL
 
-    ref = reference(tmp_path, LONG)
+    ref = reference(tmp_path, data)
     killed = load(out)  # readable after the kill
     assert killed.status == "running" and not killed.complete
     assert 45_000 <= killed.steps < 200_000 and killed.steps % 500 == 0  # a checkpoint lies between chunks
@@ -125,6 +128,9 @@ CRASHES = {
     "half-plane frozen": spec(HALF_PLANE, snapshots={"every_steps": 300}, checkpoint={"every_seconds": 0}),
     "half-plane collisions unreachable": spec(HALF_PLANE, stop={"collisions": 10**6}, checkpoint={"every_seconds": 0},
                                               snapshots={"every_collisions": 50}),
+    "half-plane frozen, rejection free": spec(HALF_PLANE, scheduler={"kind": "rejection_free"},
+                                              snapshots={"every_steps": 300}, checkpoint={"every_seconds": 0}),
+    "torus steps, colored sweep": spec(LONG, scheduler={"kind": "colored_sweep", "shuffle": True}),
 }
 
 

@@ -191,3 +191,24 @@ def test_engine_uniform_pair_does_not_sweep():
     sim = pb.Simulation(geom, v, scheduler=pb.UniformRandomPair(), seed=5)
     sim.run(steps=n)
     assert 0 < sim.collisions < n
+
+
+# ---------------------------------------------------------------- every scheduler
+
+
+@pytest.mark.parametrize("scheduler", [pb.UniformRandomPair(), pb.Sweep(), pb.RandomSweep(), pb.RejectionFree(),
+                                       pb.ColoredSweep(), pb.ColoredSweep(shuffle=True)], ids=repr)
+def test_a_chain_makes_exactly_its_inversions_in_collisions(scheduler):
+    """Equal masses on a line: a collision swaps two adjacent velocities that are out of order,
+    so every order of collisions ends sorted after exactly the number of inversions."""
+    from cases import chain
+
+    geom = chain(40)
+    for seed in range(5):
+        v = np.random.default_rng(seed).normal(size=(40, 1))
+        inversions = sum(int(a > b) for a, b in itertools.combinations(v[:, 0], 2))
+        sim = pb.Simulation(geom, v, scheduler=scheduler, seed=seed)
+        assert sim.run_until_frozen(max_steps=10**8)
+        assert sim.collisions == inversions > 100
+        # sorted, to rounding: v_i - (v_i - v_j) is v_j only to within an ulp of the larger
+        np.testing.assert_allclose(sim.velocities[:, 0], np.sort(v[:, 0]), rtol=0, atol=1e-14)
