@@ -9,7 +9,7 @@ from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation
 from .io import load
-from .spec import RunSpec
+from .specs import RunSpec
 from .ensemble import run_ensemble
 
 __version__ = "0.1.0"

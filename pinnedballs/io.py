@@ -38,7 +38,8 @@ import numpy as np
 
 from .geometry import Geometry
 from .simulation import Simulation
-from .spec import InputError, RunSpec
+from .errors import InputError
+from .specs import RunSpec
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "ResultsError", "Snapshot", "Record", "Results",
            "results_path", "create", "checkpoint", "load"]

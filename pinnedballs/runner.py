@@ -27,7 +27,8 @@ from typing import Callable, Iterator
 
 from .io import RESULTS_NAME, Record, Results, check_out_dir, checkpoint, create, load, write_text_atomic
 from .simulation import Simulation
-from .spec import InputError, RunSpec
+from .errors import InputError
+from .specs import RunSpec
 
 __all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Interrupted", "advance", "run_to_stop", "execute", "write_figures"]
 

@@ -1,0 +1,17 @@
+"""Errors that name what the user got wrong: a field of a spec, an argument, a file."""
+
+from __future__ import annotations
+
+__all__ = ["InputError", "SpecError"]
+
+
+class InputError(ValueError):
+    """Bad input from the user: a spec, a data file or an output directory."""
+
+
+class SpecError(InputError):
+    """A spec field is wrong. ``path`` is the dotted field path (``"geometry.rows"``)."""
+
+    def __init__(self, path: str, problem: str):
+        self.path, self.problem = path, problem
+        super().__init__(f"{path}: {problem}" if path else problem)

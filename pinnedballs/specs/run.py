@@ -1,0 +1,176 @@
+"""`RunSpec`: a whole run as data; reading it from JSON (`parse_spec`, `load_spec`); `describe`."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Union
+
+import numpy as np
+from pydantic import ValidationError, field_validator, model_validator
+
+from ..errors import SpecError
+from ..simulation import Simulation, mass_array
+from .base import Count, FilePath, Positive, _in_file, _load_npy, _Spec, engine_errors
+from .geometry import GeometrySpec
+from .initial import FromFileSpec, InitialSpec
+from .pydantic_errors import first_error
+from .rule import ElasticSpec, RuleSpec
+from .scheduler import SchedulerSpec, UniformRandomPairSpec
+from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
+
+__all__ = ["RunSpec", "parse_spec", "load_spec", "describe"]
+
+
+MassesField = Union[Positive, FilePath]
+
+
+class RunSpec(_Spec):
+    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots."""
+
+    geometry: GeometrySpec
+    initial: InitialSpec
+    rule: RuleSpec = ElasticSpec()
+    scheduler: SchedulerSpec = UniformRandomPairSpec()
+    masses: MassesField | None = None
+    seed: Count = 0
+    stop: StopSpec
+    snapshots: SnapshotsSpec | None = None
+    checkpoint: CheckpointSpec = CheckpointSpec()
+    description: str = ""
+
+    @field_validator("masses", mode="before")
+    @classmethod
+    def _masses(cls, value: Any) -> Any:
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, str))):
+            raise ValueError(f"must be a number > 0 or the path of a .npy file, got {value!r}")
+        return value
+
+    @model_validator(mode="after")
+    def _snapshots_before_stop(self) -> "RunSpec":
+        s = self.snapshots
+        if s is None:
+            return self
+        for name, listed, limit in (("at_steps", s.at_steps, self.stop.steps),
+                                    ("at_collisions", s.at_collisions, self.stop.collisions),
+                                    ("at_steps", s.at_steps, self.stop.max_steps)):
+            if listed and limit is not None and listed[-1] > limit:
+                raise ValueError(f"snapshots.{name}: {listed[-1]} is beyond the stop at {limit}")
+        return self
+
+    # ------------------------------------------------------------ building
+    def build_masses(self, n_balls: int) -> float | np.ndarray | None:
+        """The masses: None (all 1), a number, or ``(n_balls,)`` from the file."""
+        if self.masses is None or isinstance(self.masses, float):
+            return self.masses
+        m = _load_npy(self.masses, "masses")
+        if m.shape != (n_balls,):
+            raise SpecError("masses", f"{self.masses} must have shape (n_balls,) = ({n_balls},), got {m.shape}")
+        if not (np.isfinite(m).all() and (m > 0).all()):
+            raise SpecError("masses", f"{self.masses}: must all be finite and > 0")
+        return m
+
+    def build(self, seed: int | np.random.SeedSequence | None = None) -> Simulation:
+        """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``."""
+        seq = seed if isinstance(seed, np.random.SeedSequence) else \
+            np.random.SeedSequence(self.seed if seed is None else seed)
+        geometry = self.geometry.build()
+        masses = self.build_masses(geometry.n_balls)
+        with engine_errors("", {"masses": "masses"}):
+            masses_all = mass_array(masses, geometry.n_balls)
+        velocities = self.initial.build(geometry, masses_all, seq)
+        initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
+        try:
+            with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
+                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed"}):
+                return Simulation(geometry, velocities, rule=self.rule.build(), scheduler=self.scheduler.build(),
+                                  masses=masses, seed=seq)
+        except SpecError as exc:
+            files = {"geometry": getattr(self.geometry, "positions", None),
+                     "initial.path": getattr(self.initial, "path", None),
+                     "masses": self.masses if isinstance(self.masses, str) else None}
+            raise _in_file(exc, files[exc.path]) if files.get(exc.path) else exc from None
+
+    def to_json(self) -> str:
+        """The spec as indented JSON, defaults filled in and paths absolute."""
+        return self.model_dump_json(indent=2)
+
+
+# ---------------------------------------------------------------- reading specs
+
+
+def parse_spec(data: str | bytes | dict, base_dir: str | os.PathLike | None = None, source: str = "") -> RunSpec:
+    """Validate a spec given as JSON text or a dict; relative paths resolve against ``base_dir``.
+
+    Raises `SpecError` naming the first wrong field (``source`` prefixes the message).
+    """
+    context = {"base_dir": os.fspath(base_dir) if base_dir is not None else None}
+    try:
+        if isinstance(data, dict):
+            return RunSpec.model_validate(data, context=context)
+        if isinstance(data, bytes):
+            data = data.decode("utf-8")
+        try:
+            parsed = json.loads(data)
+        except json.JSONDecodeError as exc:
+            raise SpecError(source, f"not valid JSON: {exc}") from None
+        if not isinstance(parsed, dict):
+            raise SpecError(source, f"a spec must be a JSON object, got {type(parsed).__name__}")
+        return RunSpec.model_validate(parsed, context=context)
+    except ValidationError as exc:
+        error = first_error(exc, RunSpec)
+        raise SpecError(_join(source, error.path) if source else error.path, error.problem) from None
+
+
+def load_spec(path: str | os.PathLike) -> RunSpec:
+    """Read and validate the JSON spec at ``path``; relative paths in it resolve against its directory."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError(str(path), "no such spec file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SpecError(str(path), f"cannot read the spec file ({exc})") from None
+    try:
+        return parse_spec(text, base_dir=path.resolve().parent)
+    except SpecError as exc:
+        if exc.path:
+            raise
+        raise SpecError(str(path), exc.problem) from None
+
+
+def _join(a: str, b: str) -> str:
+    return f"{a}: {b}" if a and b else a or b
+
+
+
+# ---------------------------------------------------------------- summaries
+
+
+def describe(spec: RunSpec, sim: Simulation) -> str:
+    """One line saying what ``spec`` runs: geometry, sizes, rule, scheduler, stop, snapshots, seed."""
+    g = spec.geometry
+    shape = {"flat_torus": lambda: f"{g.rows}x{g.cols}",
+             "half_plane": lambda: f"{getattr(sim.geometry, 'rows', '?')}x{getattr(sim.geometry, 'cols', '?')}",
+             "graph_positions": lambda: Path(g.positions).name}[g.kind]()
+    stop = spec.stop
+    until = {"steps": lambda: f"{stop.steps:,} steps", "collisions": lambda: f"{stop.collisions:,} collisions",
+             "frozen": lambda: f"frozen (max {stop.max_steps:,} steps)"}[stop.kind]()
+    n_snap = _count_snapshots(spec)
+    rule = spec.rule.kind + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
+    return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
+            f"{sim.geometry.dim}; {spec.initial.kind}, energy {sim.energy():.6g}; {rule}, {spec.scheduler.kind}; "
+            f"stop at {until}; {n_snap} snapshot(s); seed {spec.seed}")
+
+
+def _count_snapshots(spec: RunSpec) -> str:
+    s = spec.snapshots
+    if s is None:
+        return "no"
+    listed = s.at_steps if s.at_steps is not None else s.at_collisions
+    if listed is not None:
+        return str(len(listed))
+    every = s.every_steps or s.every_collisions
+    limit = spec.stop.steps if s.every_steps else spec.stop.collisions
+    return str(limit // every) if limit is not None else f"every {every:,} {s.counter}"
