@@ -11,7 +11,7 @@ from ..errors import SpecError
 from ..geometry import FlatTorus, GraphGeometry, HalfPlane
 from .base import FilePath, Positive, _fields, _in_file, _load_npy, _Spec, engine_errors
 
-__all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "GeometrySpec"]
+__all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "GeometrySpec", "geometry_from_stored"]
 
 
 
@@ -75,3 +75,9 @@ class GraphPositionsSpec(_Spec):
 
 
 GeometrySpec = Annotated[Union[FlatTorusSpec, HalfPlaneSpec, GraphPositionsSpec], Field(discriminator="kind")]
+
+
+def geometry_from_stored(spec, positions: np.ndarray):
+    """The geometry of ``spec`` for a results file that stores ``positions (n, k)``: a spec that reads
+    its positions from a file takes the stored ones instead (the file may be gone)."""
+    return spec.build_from(positions) if hasattr(spec, "build_from") else spec.build()

@@ -10,6 +10,7 @@ from typing import Any, Union
 import numpy as np
 from pydantic import ValidationError, field_validator, model_validator
 
+from .. import observe
 from ..errors import SpecError
 from ..simulation import Simulation, mass_array
 from .base import Count, FilePath, Positive, _in_file, _load_npy, _Spec, engine_errors
@@ -38,6 +39,7 @@ class RunSpec(_Spec):
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
+    observables: list[str] = list(observe.DEFAULT[2:])
     description: str = ""
 
     @field_validator("masses", mode="before")
@@ -46,6 +48,14 @@ class RunSpec(_Spec):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, str))):
             raise ValueError(f"must be a number > 0 or the path of a .npy file, got {value!r}")
         return value
+
+    @field_validator("observables")
+    @classmethod
+    def _observables(cls, names: list[str]) -> list[str]:
+        for k, name in enumerate(names):
+            if name not in observe.OBSERVABLES:
+                raise ValueError(f"[{k}]: unknown observable {name!r} (known: {', '.join(observe.OBSERVABLES)})")
+        return names
 
     @model_validator(mode="after")
     def _snapshots_before_stop(self) -> "RunSpec":
@@ -80,6 +90,12 @@ class RunSpec(_Spec):
         with engine_errors("", {"masses": "masses"}):
             masses_all = mass_array(masses, geometry.n_balls)
         velocities = self.initial.build(geometry, masses_all, seq)
+        return self.build_with(geometry, velocities, masses, seq)
+
+    def build_with(self, geometry, velocities, masses, seed: np.random.SeedSequence | None = None) -> Simulation:
+        """A `Simulation` of this spec's rule, scheduler and seed on a ``geometry``, ``velocities`` and
+        ``masses`` already built (or read back from a results file)."""
+        seq = seed if seed is not None else np.random.SeedSequence(self.seed)
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",

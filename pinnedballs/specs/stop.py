@@ -6,6 +6,8 @@ from typing import Annotated
 
 from pydantic import AfterValidator, Field, model_validator
 
+from ..driver import Stop
+from ..triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .base import Count, _only_one, _Spec
 
 __all__ = ["StopSpec", "SnapshotsSpec", "CheckpointSpec"]
@@ -37,6 +39,14 @@ class StopSpec(_Spec):
         """``"steps"``, ``"collisions"`` or ``"frozen"``."""
         return "steps" if self.steps is not None else "collisions" if self.collisions is not None else "frozen"
 
+    def build(self) -> Stop:
+        """The driver's `Stop` (counts from the start of the run)."""
+        if self.kind == "steps":
+            return Stop(steps=self.steps)
+        if self.kind == "collisions":
+            return Stop(collisions=self.collisions, until_frozen=True)
+        return Stop(steps=self.max_steps, until_frozen=True, steps_reason="max_steps")
+
 
 def _sorted_unique(values: list[int] | None) -> list[int] | None:
     return None if values is None else sorted(set(values))
@@ -67,6 +77,14 @@ class SnapshotsSpec(_Spec):
         if listed is not None:
             return listed[n] if n < len(listed) else None
         return (n + 1) * (self.every_steps or self.every_collisions)
+
+    def build(self) -> Trigger:
+        """The `Trigger` that fires at these counts."""
+        if self.at_steps is not None:
+            return AtSteps(self.at_steps)
+        if self.at_collisions is not None:
+            return AtCollisions(self.at_collisions)
+        return EverySteps(self.every_steps) if self.every_steps is not None else EveryCollisions(self.every_collisions)
 
 
 class CheckpointSpec(_Spec):
