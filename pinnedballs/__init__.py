@@ -9,6 +9,8 @@ from .rules import CollisionRule, Elastic, Restitution
 from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .simulation import Simulation
 from .io import load
+from .triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from .writers import ResultsWriter
 from .specs import RunSpec
 from .ensemble import run_ensemble
 
@@ -20,4 +22,5 @@ __all__ = [
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep",
     "Simulation", "__version__",
     "load", "RunSpec", "run_ensemble",
+    "ResultsWriter", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
 ]

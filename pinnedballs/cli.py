@@ -174,12 +174,14 @@ def info(args: argparse.Namespace) -> int:
     from .io import load
 
     res = load(args.dir)
-    g = res.spec.geometry
+    kinds = res.kinds
+    made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
     lines = [
         f"results:     {res.path}",
         f"status:      {res.status}" + (f" ({res.stop_reason})" if res.stop_reason else " (last checkpoint)"),
-        f"geometry:    {g.kind}: {len(res.positions)} balls, {len(res.pairs)} contacts, dim {res.velocities.shape[1]}",
-        f"run:         {res.spec.initial.kind}, {res.spec.rule.kind}, {res.spec.scheduler.kind}, seed {res.spec.seed}",
+        f"geometry:    {kinds['geometry']}: {len(res.positions)} balls, {len(res.pairs)} contacts, "
+        f"dim {res.velocities.shape[1]}",
+        f"run:         {kinds.get('initial', 'given velocities')}, {kinds['rule']}, {kinds['scheduler']}, {made}",
         f"steps:       {res.steps:,}",
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",

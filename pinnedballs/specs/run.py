@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Union
+from typing import Annotated, Any, Union
 
 import numpy as np
-from pydantic import ValidationError, field_validator, model_validator
+from pydantic import AfterValidator, ValidationError, field_validator, model_validator
 
 from .. import observe
 from ..errors import SpecError
@@ -27,6 +27,12 @@ __all__ = ["RunSpec", "parse_spec", "load_spec", "describe"]
 MassesField = Union[Positive, FilePath]
 
 
+def _known_observable(name: str) -> str:
+    if name not in observe.OBSERVABLES:
+        raise ValueError(f"unknown observable {name!r} (known: {', '.join(observe.OBSERVABLES)})")
+    return name
+
+
 class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots."""
 
@@ -39,7 +45,7 @@ class RunSpec(_Spec):
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
-    observables: list[str] = list(observe.DEFAULT[2:])
+    observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(observe.DEFAULT[2:])
     description: str = ""
 
     @field_validator("masses", mode="before")
@@ -48,14 +54,6 @@ class RunSpec(_Spec):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, str))):
             raise ValueError(f"must be a number > 0 or the path of a .npy file, got {value!r}")
         return value
-
-    @field_validator("observables")
-    @classmethod
-    def _observables(cls, names: list[str]) -> list[str]:
-        for k, name in enumerate(names):
-            if name not in observe.OBSERVABLES:
-                raise ValueError(f"[{k}]: unknown observable {name!r} (known: {', '.join(observe.OBSERVABLES)})")
-        return names
 
     @model_validator(mode="after")
     def _snapshots_before_stop(self) -> "RunSpec":
