@@ -3,11 +3,14 @@
 `drive` is what ``Simulation.run(..., writers=...)``, ``pinnedballs run``, ensembles and
 the paper's reproduction all use. Each pass of its loop, in this order:
 
-1. every writer whose trigger fires at the current counts records a snapshot (`Writer.write`);
-2. if the `Stop` is reached, every writer closes the run (`Writer.finish`) and the loop ends;
-3. the simulation runs one chunk: at most ``max(CHUNK_STEPS, CHUNK_PER_CONTACT * n_contacts)``
+0. (once, at the start) every writer whose trigger fires at the current counts records a
+   snapshot (`Writer.write`);
+1. if the `Stop` is reached, every writer closes the run (`Writer.finish`) and the loop ends;
+2. the simulation runs one chunk: at most ``max(CHUNK_STEPS, CHUNK_PER_CONTACT * n_contacts)``
    steps, cut short at the stop and at the next count any trigger names;
+3. every writer whose trigger fires at the new counts records a snapshot;
 4. every writer may checkpoint (`Writer.after_chunk`), then ``after_chunk(sim)`` is called.
+   A checkpoint is thus always of a state whose snapshots are recorded.
 
 The engine carries all state, so the result is bit-identical however the run is split:
 a driven run ends on exactly the state of the plain ``sim.run(steps=, collisions=)`` or
@@ -115,16 +118,8 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *,
     checked = [w.attach(sim) for w in writers]
     triggers = [w.trigger for w in writers if w.trigger is not None]
     frozen = False
+    _fire(sim, writers, checked)
     while True:
-        now = _counts(sim)
-        for k, w in enumerate(writers):
-            prev = checked[k]
-            if w.trigger is not None and prev != now:
-                if prev is not None:
-                    _check_missed(w.trigger, prev, now)
-                if w.trigger.fires(prev, now):
-                    w.write(sim)
-            checked[k] = now
         reason = stop.reason(sim, frozen)
         if reason:
             for w in writers:
@@ -132,10 +127,25 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *,
             return reason
         steps, collisions = _next_chunk(sim, stop, chunk, triggers)
         frozen = advance(sim, steps, collisions, stop.until_frozen)
+        _fire(sim, writers, checked)  # before any checkpoint of this state
         for w in writers:
             w.after_chunk(sim)
         if after_chunk is not None:
             after_chunk(sim)
+
+
+def _fire(sim, writers: Sequence[Writer], checked: list[Counts | None]) -> None:
+    """Call `Writer.write` of each writer whose trigger fires at the current counts; ``checked``
+    holds, per writer, the counts of its previous check and is updated."""
+    now = _counts(sim)
+    for k, w in enumerate(writers):
+        prev = checked[k]
+        if w.trigger is not None and prev != now:
+            if prev is not None:
+                _check_missed(w.trigger, prev, now)
+            if w.trigger.fires(prev, now):
+                w.write(sim)
+        checked[k] = now
 
 
 def drive_run(sim, steps: int | None, collisions: int | None, until_frozen: bool, writers: Sequence[Writer]) -> int:
