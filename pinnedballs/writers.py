@@ -80,6 +80,7 @@ class ResultsWriter(Writer):
         self.store: ResultsStore | None = None
         self.pending: list[Record] = []
         self._checked: Counts | None = None
+        self._saved: Counts | None = None  #: the counts of the state last checkpointed
         self._elapsed0, self._start, self._last, self._cost = 0.0, time.monotonic(), time.monotonic(), 0.0
 
     @property
@@ -102,7 +103,7 @@ class ResultsWriter(Writer):
             self._checkpoint(record)
 
     def after_chunk(self, sim) -> None:
-        if time.monotonic() - self._last >= self.every:
+        if time.monotonic() - self._last >= self.every and self._saved != (sim.steps, sim.collisions):
             self.checkpoint(sim)
 
     def finish(self, sim, reason: str) -> None:
@@ -124,6 +125,7 @@ class ResultsWriter(Writer):
         t = time.monotonic()
         self.store.checkpoint(self.pending, state, done=done, stop_reason=reason, elapsed_seconds=self.elapsed())
         self.pending = []
+        self._saved = (state.state["steps"], state.state["collisions"])
         self._last = time.monotonic()
         self._cost = self._last - t
 
