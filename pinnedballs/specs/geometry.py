@@ -10,6 +10,7 @@ from pydantic import Field, model_validator
 from ..errors import SpecError
 from ..geometry import FlatTorus, GraphGeometry, HalfPlane
 from .base import FilePath, Positive, _fields, _in_file, _load_npy, _Spec, engine_errors
+from .python import PythonGeometrySpec
 
 __all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "GeometrySpec", "geometry_from_stored"]
 
@@ -74,7 +75,8 @@ class GraphPositionsSpec(_Spec):
             return GraphGeometry.from_positions(positions, radius=self.radius, rtol=self.rtol)
 
 
-GeometrySpec = Annotated[Union[FlatTorusSpec, HalfPlaneSpec, GraphPositionsSpec], Field(discriminator="kind")]
+GeometrySpec = Annotated[Union[FlatTorusSpec, HalfPlaneSpec, GraphPositionsSpec, PythonGeometrySpec],
+                         Field(discriminator="kind")]
 
 
 def geometry_from_stored(spec, positions: np.ndarray):

@@ -10,6 +10,7 @@ from pydantic import Field, field_validator, model_validator
 from ..errors import SpecError
 from ..geometry import Geometry
 from .base import FilePath, _load_npy, _Spec
+from .python import PythonInitialSpec
 
 __all__ = ["SingleBallSpec", "GaussianSpec", "FromFileSpec", "InitialSpec", "INIT_STREAM_KEY"]
 
@@ -126,4 +127,4 @@ class FromFileSpec(_Spec):
         return v
 
 
-InitialSpec = Annotated[Union[SingleBallSpec, GaussianSpec, FromFileSpec], Field(discriminator="kind")]
+InitialSpec = Annotated[Union[SingleBallSpec, GaussianSpec, FromFileSpec, PythonInitialSpec], Field(discriminator="kind")]

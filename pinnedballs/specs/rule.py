@@ -8,6 +8,7 @@ from pydantic import Field
 
 from ..rules import CollisionRule, Elastic, Restitution
 from .base import _Spec, engine_errors
+from .python import PythonRuleSpec
 
 __all__ = ["ElasticSpec", "RestitutionSpec", "RuleSpec"]
 
@@ -33,4 +34,4 @@ class RestitutionSpec(_Spec):
             return Restitution(self.r)
 
 
-RuleSpec = Annotated[Union[ElasticSpec, RestitutionSpec], Field(discriminator="kind")]
+RuleSpec = Annotated[Union[ElasticSpec, RestitutionSpec, PythonRuleSpec], Field(discriminator="kind")]

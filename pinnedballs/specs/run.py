@@ -16,7 +16,8 @@ from ..simulation import Simulation, mass_array
 from .base import Count, FilePath, Positive, _in_file, _load_npy, _Spec, engine_errors
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
-from .pydantic_errors import first_error
+from .pydantic_errors import _models_of, first_error
+from .python import ENTRY_POINT_GROUPS, expand_entry_points
 from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
@@ -47,6 +48,12 @@ class RunSpec(_Spec):
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(observe.DEFAULT[2:])
     description: str = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _entry_points(cls, data: Any) -> Any:
+        builtin = {slot: set(_models_of(cls.model_fields[slot].annotation)[1]) for slot in ENTRY_POINT_GROUPS}
+        return expand_entry_points(data, builtin)
 
     @field_validator("masses", mode="before")
     @classmethod
@@ -167,7 +174,8 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     g = spec.geometry
     shape = {"flat_torus": lambda: f"{g.rows}x{g.cols}",
              "half_plane": lambda: f"{getattr(sim.geometry, 'rows', '?')}x{getattr(sim.geometry, 'cols', '?')}",
-             "graph_positions": lambda: Path(g.positions).name}[g.kind]()
+             "graph_positions": lambda: Path(g.positions).name,
+             "python": lambda: getattr(g, "factory", "")}[g.kind]()
     stop = spec.stop
     until = {"steps": lambda: f"{stop.steps:,} steps", "collisions": lambda: f"{stop.collisions:,} collisions",
              "frozen": lambda: f"frozen (max {stop.max_steps:,} steps)"}[stop.kind]()

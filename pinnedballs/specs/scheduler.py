@@ -8,6 +8,7 @@ from pydantic import Field
 
 from ..schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .base import _Spec
+from .python import PythonSchedulerSpec
 
 __all__ = ["UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "SchedulerSpec"]
 
@@ -39,4 +40,5 @@ class RandomSweepSpec(_Spec):
         return RandomSweep()
 
 
-SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec], Field(discriminator="kind")]
+SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec, PythonSchedulerSpec],
+                          Field(discriminator="kind")]
