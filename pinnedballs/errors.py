@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["InputError", "SpecError"]
+__all__ = ["InputError", "SpecError", "FieldValueError", "FieldTypeError"]
 
 
 class InputError(ValueError):
@@ -15,3 +15,19 @@ class SpecError(InputError):
     def __init__(self, path: str, problem: str):
         self.path, self.problem = path, problem
         super().__init__(f"{path}: {problem}" if path else problem)
+
+
+class _FieldError:
+    """Mixin: an engine error about one argument, carried as data (``field``, ``problem``)."""
+
+    def __init__(self, field: str, problem: str):
+        self.field, self.problem = field, problem
+        super().__init__(f"{field}: {problem}")
+
+
+class FieldValueError(_FieldError, ValueError):
+    """A ValueError about the argument ``field`` (the message is ``"field: problem"``)."""
+
+
+class FieldTypeError(_FieldError, TypeError):
+    """A TypeError about the argument ``field`` (the message is ``"field: problem"``)."""

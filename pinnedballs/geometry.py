@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
+from .errors import FieldTypeError, FieldValueError
+
 __all__ = ["Contacts", "Geometry", "FlatTorus", "HalfPlane", "GraphGeometry"]
 
 SQRT3 = float(np.sqrt(3.0))
@@ -27,7 +29,7 @@ def _index_dtype(n: int) -> np.dtype:
     for dtype in (np.uint8, np.uint16, np.uint32):
         if n <= np.iinfo(dtype).max + 1:
             return np.dtype(dtype)
-    raise ValueError(f"contacts: {n} rows is too many for 32-bit tables")
+    raise FieldValueError("contacts", f"{n} rows is too many for 32-bit tables")
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,17 +144,17 @@ _LATTICE_UNITS = np.concatenate([_LATTICE_UNITS, -_LATTICE_UNITS])
 
 def _check_int(name: str, value, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: must be an integer, got {value!r}")
+        raise FieldTypeError(name, f"must be an integer, got {value!r}")
     if value < minimum:
-        raise ValueError(f"{name}: must be >= {minimum}, got {value}")
+        raise FieldValueError(name, f"must be >= {minimum}, got {value}")
     return int(value)
 
 
 def _check_radius(radius) -> float:
     if isinstance(radius, bool) or not isinstance(radius, (int, float, np.number)):
-        raise TypeError(f"radius: must be a number, got {radius!r}")
+        raise FieldTypeError("radius", f"must be a number, got {radius!r}")
     if not np.isfinite(radius) or radius <= 0:
-        raise ValueError(f"radius: must be finite and > 0, got {radius}")
+        raise FieldValueError("radius", f"must be finite and > 0, got {radius}")
     return float(radius)
 
 
@@ -204,9 +206,9 @@ class FlatTorus(Geometry):
         rows = _check_int("rows", rows, 4)
         cols = _check_int("cols", cols, 3)
         if rows % 2:
-            raise ValueError(f"rows: must be even for a flat torus, got {rows}")
+            raise FieldValueError("rows", f"must be even for a flat torus, got {rows}")
         if rows * cols > _INT32_MAX // 3:
-            raise ValueError(f"rows*cols: at most {_INT32_MAX // 3} balls, got {rows * cols}")
+            raise FieldValueError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {rows * cols}")
         self.rows, self.cols, self.radius = rows, cols, _check_radius(radius)
         self.positions = _lattice_positions(rows, cols, self.radius)
 
@@ -231,7 +233,7 @@ class HalfPlane(Geometry):
         self.rows = _check_int("rows", rows, 1)
         self.cols = _check_int("cols", cols, 1)
         if self.rows * self.cols > _INT32_MAX // 3:
-            raise ValueError(f"rows*cols: at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
+            raise FieldValueError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
         self.radius = _check_radius(radius)
         self.positions = _lattice_positions(self.rows, self.cols, self.radius)
 
@@ -245,9 +247,9 @@ class HalfPlane(Geometry):
         """
         for name, value in (("length", length), ("depth", depth)):
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
-                raise TypeError(f"{name}: must be a finite number, got {value!r}")
+                raise FieldTypeError(name, f"must be a finite number, got {value!r}")
             if value < 2:
-                raise ValueError(f"{name}: must be >= 2 (one ball is 2 radii wide), got {value}")
+                raise FieldValueError(name, f"must be >= 2 (one ball is 2 radii wide), got {value}")
         cols = int(np.floor(length / 2 + 1e-9))
         rows = int(np.floor((depth - 1) / SQRT3 + 1e-9)) + 1
         return cls(rows=rows, cols=cols, radius=radius)
@@ -271,13 +273,13 @@ def _as_positions(positions) -> np.ndarray:
     try:
         p = np.asarray(positions, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"positions: must be an array of numbers ({exc})") from None
+        raise FieldTypeError("positions", f"must be an array of numbers ({exc})") from None
     if p.ndim == 1:
         p = p[:, None]
     if p.ndim != 2 or p.shape[1] < 1:
-        raise ValueError(f"positions: must have shape (n_balls, d), got {p.shape}")
+        raise FieldValueError("positions", f"must have shape (n_balls, d), got {p.shape}")
     if not np.isfinite(p).all():
-        raise ValueError("positions: contain NaN or inf")
+        raise FieldValueError("positions", "contain NaN or inf")
     return p
 
 
@@ -288,7 +290,7 @@ def _flat_units(positions: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     bad = np.flatnonzero(norm == 0)
     if len(bad):
         i, j = pairs[bad[0]]
-        raise ValueError(f"contacts: balls {i} and {j} have the same centre, so no line of centres")
+        raise FieldValueError("contacts", f"balls {i} and {j} have the same centre, so no line of centres")
     return delta / norm[:, None]
 
 
@@ -303,21 +305,21 @@ class GraphGeometry(Geometry):
 
     def __init__(self, graph: nx.Graph, radius: float = 1.0):
         if not isinstance(graph, nx.Graph) or graph.is_directed() or graph.is_multigraph():
-            raise TypeError(f"graph: must be an undirected networkx.Graph, got {type(graph).__name__}")
+            raise FieldTypeError("graph", f"must be an undirected networkx.Graph, got {type(graph).__name__}")
         if graph.number_of_nodes() == 0:
-            raise ValueError("graph: has no nodes")
+            raise FieldValueError("graph", "has no nodes")
         nodes = list(graph.nodes)
         index = {node: n for n, node in enumerate(nodes)}
         missing = [node for node in nodes if "pos" not in graph.nodes[node]]
         if missing:
-            raise ValueError(f"graph: node {missing[0]!r} has no 'pos' attribute")
+            raise FieldValueError("graph", f"node {missing[0]!r} has no 'pos' attribute")
         try:
             positions = _as_positions([graph.nodes[node]["pos"] for node in nodes])
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"graph: node 'pos' attributes must be equal-length finite sequences ({exc})") from None
+            raise FieldValueError("graph", f"node 'pos' attributes must be equal-length finite sequences ({exc})") from None
         loops = list(nx.selfloop_edges(graph))
         if loops:
-            raise ValueError(f"graph: self-loop at node {loops[0][0]!r}; a ball cannot touch itself")
+            raise FieldValueError("graph", f"self-loop at node {loops[0][0]!r}; a ball cannot touch itself")
         edges = self._ordered_edges(graph)
         pairs = np.array([(index[u], index[v]) for u, v, _ in edges], dtype=np.int64).reshape(-1, 2)
         t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, positions.shape[1]))
@@ -338,11 +340,11 @@ class GraphGeometry(Geometry):
             return edges
         ordered = sorted(edges, key=lambda edge: edge[2]["contact"])
         if [d["contact"] for _, _, d in ordered] != list(range(len(edges))):
-            raise ValueError("graph: edge 'contact' attributes must number the edges 0, 1, ..., n_contacts - 1")
+            raise FieldValueError("graph", "edge 'contact' attributes must number the edges 0, 1, ..., n_contacts - 1")
         out = []
         for u, v, d in ordered:
             if {*d["pair"]} != {u, v} or len(d["pair"]) != 2:
-                raise ValueError(f"graph: edge ({u!r}, {v!r}) has 'pair' {d['pair']!r}, not its two ends")
+                raise FieldValueError("graph", f"edge ({u!r}, {v!r}) has 'pair' {d['pair']!r}, not its two ends")
             out.append((*d["pair"], d))
         return out
 
@@ -351,16 +353,16 @@ class GraphGeometry(Geometry):
         try:
             tu, tv = np.asarray(units[u], dtype=float), np.asarray(units[v], dtype=float)
         except (KeyError, TypeError, ValueError):
-            raise ValueError(f"graph: edge ({u!r}, {v!r}) 'units' must map both ends to a vector") from None
+            raise FieldValueError("graph", f"edge ({u!r}, {v!r}) 'units' must map both ends to a vector") from None
         for t in (tu, tv):
             if t.shape != (dim,) or not np.isfinite(t).all() or abs(np.linalg.norm(t) - 1) > 1e-9:
-                raise ValueError(f"graph: edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim}")
+                raise FieldValueError("graph", f"edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim}")
         return tu, tv
 
     def _init(self, positions, pairs, t_i, t_j, radius) -> None:
         n = len(positions)
         if n > _INT32_MAX or 2 * len(pairs) > _INT32_MAX:
-            raise ValueError("graph: too large for 32-bit contact tables")
+            raise FieldValueError("graph", "too large for 32-bit contact tables")
         self.positions = positions
         self.radius = _check_radius(radius)
         e = len(pairs)
@@ -385,7 +387,7 @@ class GraphGeometry(Geometry):
         p = _as_positions(positions)
         radius = _check_radius(radius)
         if not (0 <= rtol < 0.5):
-            raise ValueError(f"rtol: must be in [0, 0.5), got {rtol}")
+            raise FieldValueError("rtol", f"must be in [0, 0.5), got {rtol}")
         contact = 2.0 * radius
         pairs = cKDTree(p).query_pairs(contact * (1 + rtol), output_type="ndarray").astype(np.int64)
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else pairs.reshape(0, 2)
@@ -393,8 +395,8 @@ class GraphGeometry(Geometry):
         overlap = np.flatnonzero(dist < contact * (1 - rtol))
         if len(overlap):
             i, j = pairs[overlap[0]]
-            raise ValueError(
-                f"positions: balls {i} and {j} overlap (centres {dist[overlap[0]]:.6g} apart, "
+            raise FieldValueError(
+                "positions", f"balls {i} and {j} overlap (centres {dist[overlap[0]]:.6g} apart, "
                 f"contact distance {contact:.6g}); {len(overlap)} overlapping pair(s) in all"
             )
         self = cls.__new__(cls)

@@ -32,6 +32,8 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
+from .errors import FieldTypeError, FieldValueError
+
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "collide_equal", "collide_masses"]
 
 
@@ -101,9 +103,9 @@ class Restitution(CollisionRule):
 
     def __init__(self, r: float):
         if isinstance(r, bool) or not isinstance(r, (int, float, np.number)):
-            raise TypeError(f"r: coefficient of restitution must be a number, got {r!r}")
+            raise FieldTypeError("r", f"coefficient of restitution must be a number, got {r!r}")
         if not 0.0 <= r <= 1.0:  # also rejects NaN
-            raise ValueError(f"r: coefficient of restitution must be in [0, 1], got {r}")
+            raise FieldValueError("r", f"coefficient of restitution must be in [0, 1], got {r}")
         self.r = float(r)
 
     def kernel(self, equal_masses: bool) -> tuple[Callable, np.ndarray]:

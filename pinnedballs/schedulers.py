@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
+from .errors import FieldValueError
 from .random import bounded
 
 __all__ = ["Scheduler", "UniformRandomPair", "Sweep", "RandomSweep"]
@@ -70,7 +71,7 @@ class Scheduler(ABC):
         """
         expected = self.initial_state(n_contacts).shape
         if state.shape != expected:
-            raise ValueError(f"scheduler_state: must have shape {expected} for {self!r}, got {state.shape}")
+            raise FieldValueError("scheduler_state", f"must have shape {expected} for {self!r}, got {state.shape}")
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
@@ -101,7 +102,7 @@ class Sweep(Scheduler):
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
         super().check_state(state, n_contacts)
         if not 0 <= state[0] < n_contacts:
-            raise ValueError(f"scheduler_state: the next contact must be in [0, {n_contacts}), got {state[0]}")
+            raise FieldValueError("scheduler_state", f"the next contact must be in [0, {n_contacts}), got {state[0]}")
 
 
 class RandomSweep(Scheduler):
@@ -113,9 +114,9 @@ class RandomSweep(Scheduler):
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
         super().check_state(state, n_contacts)
         if not 0 <= state[0] <= n_contacts:
-            raise ValueError(f"scheduler_state: the position in the sweep must be in [0, {n_contacts}], got {state[0]}")
+            raise FieldValueError("scheduler_state", f"the position in the sweep must be in [0, {n_contacts}], got {state[0]}")
         if not np.array_equal(np.sort(state[1:]), np.arange(n_contacts)):
-            raise ValueError(f"scheduler_state: the sweep order must be a permutation of 0..{n_contacts - 1}")
+            raise FieldValueError("scheduler_state", f"the sweep order must be a permutation of 0..{n_contacts - 1}")
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         state = np.empty(n_contacts + 1, dtype=np.int64)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import FieldTypeError, FieldValueError
 from .geometry import Geometry
 from .kernels import COLLISIONS, LIVE, LOOKAHEAD_BYTES, NO_LIMIT, STEPS, chain_kernel, incidence
 from .random import seed_state
@@ -20,22 +21,22 @@ def mass_array(masses, n_balls: int) -> np.ndarray:
     try:
         m = np.array(masses, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"masses: must be an array of numbers ({exc})") from None
+        raise FieldTypeError("masses", f"must be an array of numbers ({exc})") from None
     if m.ndim == 0:
         m = np.full(n_balls, float(m))
     if m.shape != (n_balls,):
-        raise ValueError(f"masses: must have shape (n_balls,) = ({n_balls},), got {m.shape}")
+        raise FieldValueError("masses", f"must have shape (n_balls,) = ({n_balls},), got {m.shape}")
     if not (np.isfinite(m).all() and (m > 0).all()):
-        raise ValueError("masses: must all be finite and > 0")
+        raise FieldValueError("masses", "must all be finite and > 0")
     return m
 
 
 def _count(name: str, value) -> int:
     """A count in ``[0, 2**63 - 1]`` (the loop's counters are int64)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: must be an integer, got {value!r}")
+        raise FieldTypeError(name, f"must be an integer, got {value!r}")
     if not 0 <= value <= NO_LIMIT:
-        raise ValueError(f"{name}: must be >= 0 and < 2**63, got {value}")
+        raise FieldValueError(name, f"must be >= 0 and < 2**63, got {value}")
     return int(value)
 
 
@@ -68,15 +69,15 @@ class Simulation:
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
                  scheduler: Scheduler | None = None, masses=None, seed=0):
         if not isinstance(geometry, Geometry):
-            raise TypeError(f"geometry: must be a pinnedballs Geometry, got {type(geometry).__name__}")
+            raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
         scheduler = UniformRandomPair() if scheduler is None else scheduler
         if not isinstance(rule, CollisionRule):
-            raise TypeError(f"rule: must be a CollisionRule such as Elastic(), got {type(rule).__name__}")
+            raise FieldTypeError("rule", f"must be a CollisionRule such as Elastic(), got {type(rule).__name__}")
         if not isinstance(scheduler, Scheduler):
-            raise TypeError(f"scheduler: must be a Scheduler such as UniformRandomPair(), got {type(scheduler).__name__}")
+            raise FieldTypeError("scheduler", f"must be a Scheduler such as UniformRandomPair(), got {type(scheduler).__name__}")
         if geometry.n_contacts == 0:
-            raise ValueError("geometry: has no contacts, so nothing can ever collide")
+            raise FieldValueError("geometry", "has no contacts, so nothing can ever collide")
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
         self.velocities = self._check_velocities(velocities)
         self._mass_array = mass_array(masses, geometry.n_balls)
@@ -95,12 +96,12 @@ class Simulation:
         try:
             v = np.array(velocities, dtype=np.float64, order="C")
         except (TypeError, ValueError) as exc:
-            raise TypeError(f"velocities: must be an array of numbers ({exc})") from None
+            raise FieldTypeError("velocities", f"must be an array of numbers ({exc})") from None
         if v.shape != (g.n_balls, g.dim):
-            raise ValueError(f"velocities: must have shape (n_balls, dim) = {(g.n_balls, g.dim)}, got {v.shape}")
+            raise FieldValueError("velocities", f"must have shape (n_balls, dim) = {(g.n_balls, g.dim)}, got {v.shape}")
         bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
         if len(bad):
-            raise ValueError(f"velocities: ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
+            raise FieldValueError("velocities", f"ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
         return _sparse_copy(v)
 
     # ------------------------------------------------------------ counters
@@ -125,7 +126,7 @@ class Simulation:
         ``writers`` (e.g. `ResultsWriter`) record the run, in chunks, to the same final state.
         """
         if steps is None and collisions is None:
-            raise ValueError("run: give steps= or collisions= (or use run_until_frozen)")
+            raise FieldValueError("run", "give steps= or collisions= (or use run_until_frozen)")
         max_steps = NO_LIMIT if steps is None else _count("steps", steps)
         max_collisions = NO_LIMIT if collisions is None else _count("collisions", collisions)
         if writers is not None:
@@ -204,14 +205,14 @@ class Simulation:
         velocities = self._check_velocities(state["velocities"])
         rng = np.asarray(state["rng_state"])
         if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
-            raise ValueError(f"rng_state: must be 4 uint64 words, not all zero, got {rng.dtype} {rng.shape}")
+            raise FieldValueError("rng_state", f"must be 4 uint64 words, not all zero, got {rng.dtype} {rng.shape}")
         sched = np.asarray(state["scheduler_state"])
         if sched.dtype != np.int64:
-            raise ValueError(f"scheduler_state: must be int64, got {sched.dtype}")
+            raise FieldValueError("scheduler_state", f"must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
         steps, collisions = _count("steps", state["steps"]), _count("collisions", state["collisions"])
         if collisions > steps:
-            raise ValueError(f"collisions: {collisions} is more than the {steps} steps taken")
+            raise FieldValueError("collisions", f"{collisions} is more than the {steps} steps taken")
         self.velocities = velocities
         self._rng = rng.copy()
         self._sched_state = sched.copy()

@@ -48,21 +48,20 @@ def _load_npy(path: str, field: str) -> np.ndarray:
 
 @contextlib.contextmanager
 def engine_errors(path: str, fields: dict[str, str] | None = None) -> Iterator[None]:
-    """Turn a ``ValueError/TypeError("name: problem")`` from the engine into a `SpecError`.
+    """Turn a `FieldValueError`/`FieldTypeError` from the engine into a `SpecError`.
 
-    ``fields`` maps the engine's argument names to spec field paths; other names
-    are reported under ``path``.
+    ``fields`` maps the engine's argument names (the error's ``field``) to spec field
+    paths; other errors are reported under ``path``.
     """
     try:
         yield
     except SpecError:
         raise
     except (ValueError, TypeError) as exc:
-        name, sep, problem = str(exc).partition(": ")
-        if sep and fields and name in fields:
-            raise SpecError(fields[name], problem) from None
+        field = getattr(exc, "field", None)
+        if field is not None and fields and field in fields:
+            raise SpecError(fields[field], exc.problem) from None
         raise SpecError(path, str(exc)) from None
-
 
 
 def _fields(path: str, *names: str) -> dict[str, str]:
