@@ -86,3 +86,21 @@ def test_schedulers_and_rules_compare_by_parameters_and_hash(doc):
     table = {pb.Elastic(): "e", pb.Restitution(0.5): "r", pb.Sweep(): "s", among([1, 2]): "a"}
     assert table[pb.Elastic()] == "e" and table[pb.Restitution(0.5)] == "r"
     assert table[pb.Sweep()] == "s" and table[among([1, 2])] == "a"
+
+
+def test_recorded_chain_run(doc):
+    """Collisions along a chain come one at a time; the snapshots land on the counts asked for."""
+    res = doc["res"]
+    assert [s.collisions for s in res.snapshots] == [0, 2, 4, 6] and res.frozen and res.collisions == 7
+    assert res.spec is None and res.run["geometry"]["class"].endswith("Chain")
+    resumed = doc["resumed"]
+    np.testing.assert_array_equal(resumed.velocities, doc["sim"].velocities)
+    assert resumed.steps == doc["sim"].steps and type(resumed.scheduler) is pb.Sweep
+
+
+def test_registered_observable_is_recorded(doc):
+    sim = pb.Simulation(doc["Chain"](3), np.array([[1.0, 0], [0, 0], [0, 0]]), scheduler=pb.Sweep())
+    sim.run(steps=14, writers=[doc["measured"]])
+    res = pb.load(doc["measured"].out_dir)
+    assert res.observables["steps"].tolist() == [7, 14]
+    assert res.observables["speed_of_last_ball"].tolist() == [1.0, 1.0]  # the cradle passed it on
