@@ -143,8 +143,11 @@ class ResultsWriter(Writer):
             self._checked = (sim.steps, sim.collisions) if store.attrs.get("checked") else None
             return store
         # what a run killed at birth leaves may be resumed over
+        cli = self.spec is not None
         take_run_dir(self.out_dir, force=self.force, may_hold=_BIRTH if self.resume else frozenset(),
-                     option="out_dir" if self.spec is None else "--out")
+                     option="--out" if cli else "out_dir",
+                     hint="use --force to overwrite or --resume to continue" if cli else
+                     "pass force=True to overwrite or resume=True to continue")
         initial = Record.of(sim, self.names)
         spec = self.spec.model_dump_json() if self.spec is not None else ""
         run = "" if self.spec is not None else json.dumps(describe_run(sim))

@@ -153,7 +153,8 @@ def test_writer_refuses_a_full_directory_and_bad_arguments(tmp_path):
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "x").write_text("x")
     sim = pb.Simulation(pb.FlatTorus(4, 4), np.ones((16, 2)))
-    with pytest.raises(ValueError, match=r"^out_dir .*full: directory is not empty \(x\)"):
+    with pytest.raises(ValueError, match=r"^out_dir .*full: directory is not empty \(x\); pass force=True to "
+                                         r"overwrite or resume=True to continue$"):
         sim.run(steps=1, writers=[pb.ResultsWriter(tmp_path / "full")])
     with pytest.raises(ValueError, match=r"^checkpoint_seconds: must be a number >= 0, got -1"):
         pb.ResultsWriter(tmp_path / "a", checkpoint_seconds=-1)
