@@ -3,6 +3,7 @@ as a plain ``sim.run``, triggers that land on exact counts, and resuming in Pyth
 
 from __future__ import annotations
 
+import pickle
 import shutil
 from pathlib import Path
 
@@ -182,6 +183,7 @@ def test_triggers_name_exact_counts():
     assert at.fires((40, 6), (41, 7)) and not at.fires((41, 7), (90, 7))
     assert every.fires((99, 7), (100, 7)) and both.fires((99, 7), (100, 7))
     assert repr(both) == "EverySteps(100) | AtCollisions([0, 7])"
+    assert pickle.loads(pickle.dumps(both)) == both and pickle.loads(pickle.dumps(at)) != every
     with pytest.raises(ValueError, match=r"^period: must be an integer >= 1, got 0"):
         pb.EverySteps(0)
     with pytest.raises(ValueError, match=r"^counts: must be integers >= 0, got -1"):

@@ -13,13 +13,15 @@ or the working directory for a spec given as a dict.
 
 One module per idea: `base` (the model base, field types, engine errors), `geometry`,
 `initial`, `rule`, `scheduler` (the components by kind), `stop` (stop, snapshot and
-checkpoint specs), `run` (`RunSpec`, reading specs) and `pydantic_errors` (their messages).
+checkpoint specs), `python` (a user's components and entry-point kinds), `run` (`RunSpec`,
+reading specs) and `pydantic_errors` (their messages).
 """
 
 from ..errors import InputError, SpecError
 from .base import Count, FilePath, Positive, engine_errors
 from .geometry import FlatTorusSpec, GeometrySpec, GraphPositionsSpec, HalfPlaneSpec
 from .initial import INIT_STREAM_KEY, FromFileSpec, GaussianSpec, InitialSpec, SingleBallSpec
+from .python import PythonGeometrySpec, PythonInitialSpec, PythonRuleSpec, PythonSchedulerSpec
 from .rule import ElasticSpec, RestitutionSpec, RuleSpec
 from .run import RunSpec, describe, load_spec, parse_spec
 from .scheduler import RandomSweepSpec, SchedulerSpec, SweepSpec, UniformRandomPairSpec
@@ -32,4 +34,5 @@ __all__ = [
     "ElasticSpec", "RestitutionSpec", "RuleSpec",
     "UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "SchedulerSpec",
     "StopSpec", "SnapshotsSpec", "CheckpointSpec",
+    "PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",
 ]
