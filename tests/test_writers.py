@@ -15,7 +15,7 @@ import pinnedballs as pb
 from pinnedballs import cli, driver, observe, runner
 from pinnedballs.io import ResultsStore, load
 from pinnedballs.spec import parse_spec
-from runspecs import HALF_PLANE, TORUS, spec
+from runspecs import HALF_PLANE, TORUS, spec, write
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -269,3 +269,22 @@ def test_half_plane_python_run_draws_the_energy_profile(tmp_path):
     assert isinstance(load(tmp_path / "h").geometry, pb.HalfPlane)
     assert cli.main(["plot", str(tmp_path / "h")]) == 0
     assert (tmp_path / "h" / "energy_by_distance.png").exists()
+
+
+def test_resume_of_a_format_1_run_converts_it_and_is_bit_identical(tmp_path):
+    """tests/data/results_v1_running.h5: the same run killed by the format-1 code at step 250."""
+    data = spec(TORUS, checkpoint={"every_seconds": 0})
+    out = tmp_path / "old"
+    out.mkdir()
+    shutil.copy(DATA / "results_v1_running.h5", out / "results.h5")
+    old = load(out)
+    assert (old.format_version, old.status, old.steps, len(old.snapshots)) == (1, "running", 250, 2)
+    spec_path = write(tmp_path / "s.json", data)
+    assert cli.main(["run", str(spec_path), "--out", str(out), "--resume", "--quiet", "--no-figures"]) == 0
+    runner.execute(parse_spec(data), tmp_path / "ref", figures=False, progress=False)
+    a, b = load(out), load(tmp_path / "ref")
+    assert a.format_version == 2 and a.complete
+    assert [s[:2] for s in a.snapshots] == [s[:2] for s in b.snapshots] and len(a.snapshots) == 3
+    assert all(np.array_equal(x.velocities, y.velocities) for x, y in zip(a.snapshots, b.snapshots))
+    assert np.array_equal(a.velocities, b.velocities) and np.array_equal(a.rng_state, b.rng_state)
+    assert all(np.array_equal(a.observables[k], b.observables[k]) for k in b.observables)
