@@ -24,10 +24,9 @@ from .errors import InputError
 from .io import RESULTS_NAME, Record, Results, load, write_text_atomic
 from .simulation import Simulation
 from .specs import RunSpec
-from .writers import ResultsWriter
+from .writers import OnSnapshot, ResultsWriter
 
-__all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Interrupted", "advance", "run_to_stop", "execute", "write_figures",
-           "Snapshots"]
+__all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Interrupted", "advance", "run_to_stop", "execute", "write_figures"]
 
 
 class Interrupted(RuntimeError):
@@ -38,23 +37,13 @@ def _counter(sim: Simulation, name: str) -> int:
     return sim.steps if name == "steps" else sim.collisions
 
 
-class Snapshots(Writer):
-    """A writer that hands a `Record` of each snapshot to ``on_snapshot`` (kept in memory by the caller)."""
-
-    def __init__(self, trigger, on_snapshot: Callable[[Record], None], names=("energy", "momentum", "approaching")):
-        self.trigger, self.on_snapshot, self.names = trigger, on_snapshot, names
-
-    def write(self, sim) -> None:
-        self.on_snapshot(Record.of(sim, self.names))
-
-
 def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record], None] | None = None,
                 writers: Sequence[Writer] = (), after_chunk: Callable[[Simulation], None] | None = None) -> str:
     """Run ``sim`` (built from ``spec``) to ``spec.stop`` with ``writers``, calling ``on_snapshot``
     at each of the spec's snapshots; returns the stop reason."""
     writers = list(writers)
     if on_snapshot is not None and spec.snapshots is not None:
-        writers.append(Snapshots(spec.snapshots.build(), on_snapshot))
+        writers.append(OnSnapshot(spec.snapshots.build(), on_snapshot))
     return drive(sim, spec.stop.build(), writers, after_chunk=after_chunk)
 
 

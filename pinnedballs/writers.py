@@ -27,7 +27,7 @@ from .driver import Writer
 from .io import DATA_DIR, RESULTS_NAME, Record, ResultsStore, take_run_dir
 from .triggers import Counts, Trigger
 
-__all__ = ["ResultsWriter", "describe_run"]
+__all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]
 
 #: a snapshot's checkpoint is skipped (kept for the next one) if the last write was
 #: more recent than this many times its own duration: checkpoints stay under ~10 % of the time
@@ -156,6 +156,17 @@ class ResultsWriter(Writer):
 
 
 _BIRTH = frozenset({"spec.json", DATA_DIR, RESULTS_NAME + ".tmp"})
+
+
+class OnSnapshot(Writer):
+    """Hands a `Record` of each snapshot ``trigger`` fires on to ``on_snapshot`` (ensembles, the
+    reproduction: snapshots kept in memory)."""
+
+    def __init__(self, trigger: Trigger, on_snapshot, names=observe.DEFAULT):
+        self.trigger, self.on_snapshot, self.names = trigger, on_snapshot, tuple(names)
+
+    def write(self, sim) -> None:
+        self.on_snapshot(Record.of(sim, self.names))
 
 
 def _check_continues(store: ResultsStore, sim, path: Path) -> None:
