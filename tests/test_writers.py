@@ -83,7 +83,7 @@ def test_frozen_with_writers(tmp_path, chunk):
 # ---------------------------------------------------------------- the directory pinnedballs run writes
 
 
-def test_python_run_records_what_the_command_line_records(tmp_path):
+def test_python_run_records_what_the_command_line_records(tmp_path, capsys):
     s = parse_spec(TORUS_RUN)
     runner.execute(s, tmp_path / "cli", figures=False, progress=False)
     sim = s.build()
@@ -102,6 +102,10 @@ def test_python_run_records_what_the_command_line_records(tmp_path):
     assert isinstance(b.geometry, pb.FlatTorus)
     # info and plot read it
     assert cli.main(["info", str(tmp_path / "py")]) == 0
+    info = capsys.readouterr().out
+    assert "geometry:    flat_torus: 64 balls, 192 contacts, dim 2\n" in info
+    assert "run:         given velocities, elastic, uniform_random_pair, built in Python\n" in info
+    assert "snapshots:   7 at steps 4,000, 8,000, 12,000, 16,000, 20,000, ... (7 in all)\n" in info
     assert cli.main(["plot", str(tmp_path / "py")]) == 0
     assert (tmp_path / "py" / "state_final.png").exists()
 
