@@ -12,7 +12,9 @@ from .rejection_free import RejectionFree
 from .colored_sweep import ColoredSweep
 from .simulation import Simulation
 from .io import load
-from .spec import RunSpec
+from .triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from .writers import ResultsWriter
+from .specs import RunSpec
 from .ensemble import run_ensemble
 from .orders import OrdersResult, Replay, explore_orders
 
@@ -26,4 +28,5 @@ __all__ = [
     "Simulation", "__version__",
     "load", "RunSpec", "run_ensemble",
     "explore_orders", "OrdersResult", "Replay",
+    "ResultsWriter", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
 ]

@@ -74,7 +74,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
-    from .spec import InputError
+    from .errors import InputError
 
     try:
         args = _parser().parse_args(argv)
@@ -121,7 +121,7 @@ def _one_line(exc: BaseException) -> str:
             arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"))
 def run(args: argparse.Namespace) -> int:
     from .runner import execute
-    from .spec import load_spec
+    from .specs import load_spec
 
     if args.force and args.resume:
         raise UsageError("run: give --force or --resume, not both")
@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
 @subcommand("validate", "check a spec, and that it builds; print a one-line summary",
             arg("spec", metavar="SPEC.json", help="the run spec"))
 def validate(args: argparse.Namespace) -> int:
-    from .spec import describe, load_spec
+    from .specs import describe, load_spec
 
     spec = load_spec(args.spec)
     print(f"ok: {describe(spec, spec.build())}")
@@ -150,7 +150,7 @@ def validate(args: argparse.Namespace) -> int:
 
 @subcommand("schema", "print the JSON Schema of run specs")
 def schema(args: argparse.Namespace) -> int:
-    from .spec import RunSpec
+    from .specs import RunSpec
 
     print(json.dumps(RunSpec.model_json_schema(), indent=2))
     return EXIT_OK
@@ -174,12 +174,14 @@ def info(args: argparse.Namespace) -> int:
     from .io import load
 
     res = load(args.dir)
-    g = res.spec.geometry
+    kinds = res.kinds
+    made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
     lines = [
         f"results:     {res.path}",
         f"status:      {res.status}" + (f" ({res.stop_reason})" if res.stop_reason else " (last checkpoint)"),
-        f"geometry:    {g.kind}: {len(res.positions)} balls, {len(res.pairs)} contacts, dim {res.velocities.shape[1]}",
-        f"run:         {res.spec.initial.kind}, {res.spec.rule.kind}, {res.spec.scheduler.kind}, seed {res.spec.seed}",
+        f"geometry:    {kinds['geometry']}: {len(res.positions)} balls, {len(res.pairs)} contacts, "
+        f"dim {res.velocities.shape[1]}",
+        f"run:         {kinds.get('initial', 'given velocities')}, {kinds['rule']}, {kinds['scheduler']}, {made}",
         f"steps:       {res.steps:,}",
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
@@ -204,5 +206,71 @@ def _plots_available() -> bool:
     return importlib.util.find_spec("pinnedballs.plots") is not None
 
 
-# subcommands that live in their own modules register themselves on import
-from . import ensemble as _ensemble, reproduce as _reproduce  # noqa: E402,F401
+@subcommand("ensemble", "run N independent replicas of a spec: replicas.csv, summary.json, correlation histograms",
+            arg("spec", metavar="SPEC.json", help="the run spec (its seed seeds the replicas)"),
+            arg("--replicas", type=int, required=True, metavar="N", help="number of replicas (>= 1)"),
+            arg("--workers", type=int, metavar="K", help="local processes (default: all cores; 1 runs in-process)"),
+            arg("--dask", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)"),
+            arg("--out", required=True, metavar="DIR", help="output directory (created)"),
+            arg("--force", action="store_true", help="write into a non-empty directory"),
+            arg("--quiet", action="store_true", help="no progress bar, no summary line"))
+def ensemble_command(args) -> int:
+    """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
+    from .ensemble import ERROR_COLUMN, _check_count, _check_replicas_memory, _client, _remove_old_outputs, \
+        replica_seed, run_ensemble, write_outputs
+    from .errors import InputError
+    from .io import check_out_dir
+    from .specs import load_spec
+
+    replicas = _check_count("--replicas", args.replicas)
+    _check_replicas_memory(replicas, "--replicas")
+    if args.workers is not None:
+        _check_count("--workers", args.workers)
+        if args.dask is not None:
+            raise InputError("--workers, --dask: give one of them, not both")
+    spec = load_spec(args.spec)
+    out = check_out_dir(args.out, args.force)
+    spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
+    client = None
+    if args.dask is not None:
+        client, _ = _client(args.dask, None, "--dask")
+    try:
+        result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
+                              progress=False if args.quiet else None)
+    finally:
+        if client is not None:
+            client.close()
+    if args.force and out.is_dir():
+        _remove_old_outputs(out)
+    write_outputs(result, out)
+    for row in result.failures:
+        print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
+              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)
+    if not args.quiet:
+        print(f"{replicas - len(result.failures)} of {replicas} replicas done in {result.wall_seconds:.1f} s "
+              f"({result.where}); wrote {out}")
+    return 1 if result.failures else 0
+
+
+@subcommand("reproduce", "every figure of the paper as PNG, and report.md comparing its numbers with ours",
+            arg("--out", required=True, metavar="DIR", help="output directory (created)"),
+            arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about a minute)"),
+            arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
+            arg("--force", action="store_true", help="write into a non-empty directory"),
+            arg("--quiet", action="store_true", help="no progress messages"))
+def reproduce_command(args) -> int:
+    """``pinnedballs reproduce``: exit 0, 1 if a replica failed (the report is still written), 2 on bad input."""
+    from .ensemble import _check_count
+    from .io import check_out_dir
+    from .reproduction import reproduce
+
+    if args.workers is not None:
+        _check_count("--workers", args.workers)
+    check_out_dir(args.out, args.force)
+    log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
+    report = reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
+                       progress=False if args.quiet else None, log=log)
+    results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
+    if not args.quiet:
+        print(f"wrote {report} in {results['wall_seconds']:.1f} s")
+    return 1 if results["failures"] else 0

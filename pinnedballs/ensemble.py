@@ -29,12 +29,12 @@ from typing import Callable
 
 import numpy as np
 
-from .cli import arg, subcommand
 from .daskprobe import check_scheduler
+from .errors import InputError
 from .geometry import Geometry
-from .io import check_out_dir, write_text_atomic
+from .io import write_text_atomic
 from .limits import check_memory
-from .spec import InputError, RunSpec, load_spec
+from .specs import RunSpec
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
            "write_outputs", "read_table", "KEY_COLUMNS", "ERROR_COLUMN", "FINAL", "CORRELATIONS",
@@ -415,46 +415,3 @@ def _remove_old_outputs(out: Path) -> None:
     for name in CORRELATIONS:
         for png in (out / FIGURES_DIR).glob(f"{name}_*.png"):
             png.unlink()
-
-
-# ---------------------------------------------------------------- command line
-
-
-@subcommand("ensemble", "run N independent replicas of a spec: replicas.csv, summary.json, correlation histograms",
-            arg("spec", metavar="SPEC.json", help="the run spec (its seed seeds the replicas)"),
-            arg("--replicas", type=int, required=True, metavar="N", help="number of replicas (>= 1)"),
-            arg("--workers", type=int, metavar="K", help="local processes (default: all cores; 1 runs in-process)"),
-            arg("--dask", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)"),
-            arg("--out", required=True, metavar="DIR", help="output directory (created)"),
-            arg("--force", action="store_true", help="write into a non-empty directory"),
-            arg("--quiet", action="store_true", help="no progress bar, no summary line"))
-def ensemble_command(args) -> int:
-    """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
-    replicas = _check_count("--replicas", args.replicas)
-    _check_replicas_memory(replicas, "--replicas")
-    if args.workers is not None:
-        _check_count("--workers", args.workers)
-        if args.dask is not None:
-            raise InputError("--workers, --dask: give one of them, not both")
-    spec = load_spec(args.spec)
-    out = check_out_dir(args.out, args.force)
-    spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
-    client = None
-    if args.dask is not None:
-        client, _ = _client(args.dask, None, "--dask")
-    try:
-        result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
-                              progress=False if args.quiet else None)
-    finally:
-        if client is not None:
-            client.close()
-    if args.force and out.is_dir():
-        _remove_old_outputs(out)
-    write_outputs(result, out)
-    for row in result.failures:
-        print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
-              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)
-    if not args.quiet:
-        print(f"{replicas - len(result.failures)} of {replicas} replicas done in {result.wall_seconds:.1f} s "
-              f"({result.where}); wrote {out}")
-    return 1 if result.failures else 0

@@ -1,13 +1,13 @@
-"""The package's input errors: bad input from the user, and the field or argument it concerns.
+"""Errors that name what the user got wrong: a field of a spec, an argument, a file.
 
 The engine raises `FieldError` (a ``ValueError``) or `FieldTypeError` (also a
-``TypeError``) with the argument's name in ``field``; a spec maps that name to
-its own field path without reading the message (`pinnedballs.spec.engine_errors`).
+``TypeError``) with the argument's name in ``field``; a spec maps that name to its
+own field path without reading the message (`pinnedballs.specs.base.engine_errors`).
 """
 
 from __future__ import annotations
 
-__all__ = ["InputError", "FieldError", "FieldTypeError"]
+__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "SpecError"]
 
 
 class InputError(ValueError):
@@ -26,5 +26,20 @@ class FieldError(InputError):
         return type(self), (self.field, self.problem)
 
 
+#: the same class under the name the run driver's modules use
+FieldValueError = FieldError
+
+
 class FieldTypeError(FieldError, TypeError):
     """A `FieldError` for a value of the wrong type (also a ``TypeError``)."""
+
+
+class SpecError(FieldError):
+    """A spec field is wrong. ``path`` (also ``field``) is the dotted field path (``"geometry.rows"``)."""
+
+    def __init__(self, path: str, problem: str):
+        super().__init__(path, problem)
+
+    @property
+    def path(self) -> str:
+        return self.field

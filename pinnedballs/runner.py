@@ -1,17 +1,12 @@
-"""Carry out a run spec: simulate in chunks, take snapshots, checkpoint, resume, draw figures.
+"""Carry out a run spec: the driver with a `ResultsWriter`, progress, signals, resuming, figures.
 
-The loop (`run_to_stop`) runs the simulation in chunks of at most
-``max(CHUNK_STEPS, CHUNK_PER_CONTACT * n_contacts)`` steps, each chunk also cut
-short at the next snapshot or stop, so snapshots land on *exactly* the requested
-step or collision count. The engine carries all state, so the result is
-bit-identical however the run is split; wall time only decides when a
-checkpoint is written (between chunks). The final state equals that of the
-plain calls ``sim.run(steps=S)``, ``sim.run(collisions=C)`` (which also stops
-at a freeze) or ``sim.run_until_frozen(max_steps=M)``.
-
-`execute` adds the run directory: ``spec.json``, ``results.h5`` (see
-`pinnedballs.io`) and the figures (``*.png``, `pinnedballs.plots`), with
-checkpoints, a progress bar and resuming.
+`execute` runs a spec into a run directory (``spec.json``, ``results.h5`` (see
+`pinnedballs.io`) and the figures (``*.png``, `pinnedballs.plots`)) through the one
+driver (`pinnedballs.driver.drive`) and the same `ResultsWriter` a Python run uses,
+adding a progress bar, SIGINT/SIGTERM handling and resuming. `run_to_stop` runs a
+spec's simulation to its stop with any writers (ensembles, the reproduction).
+The final state equals that of the plain calls ``sim.run(steps=S)``,
+``sim.run(collisions=C)`` (which also stops at a freeze) or ``sim.run_until_frozen(max_steps=M)``.
 """
 
 from __future__ import annotations
@@ -21,100 +16,35 @@ import os
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Sequence
 
-from .io import RESULTS_NAME, Record, Results, check_out_dir, checkpoint, create, load, write_text_atomic
+from .driver import CHUNK_PER_CONTACT, CHUNK_STEPS, Writer, advance, drive
+from .errors import InputError
+from .io import RESULTS_NAME, Record, Results, load, write_text_atomic
 from .simulation import Simulation
-from .spec import InputError, RunSpec
+from .specs import RunSpec
+from .writers import OnSnapshot, ResultsWriter
 
 __all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Interrupted", "advance", "run_to_stop", "execute", "write_figures"]
-
-#: a chunk is at least this many steps ...
-CHUNK_STEPS = 1 << 20
-#: ... and at least this many per contact (so per-chunk O(contacts) work stays small)
-CHUNK_PER_CONTACT = 2
-#: a snapshot's checkpoint is skipped (kept for the next one) if the last write was
-#: more recent than this many times its own duration: checkpoints stay under ~10 % of the time
-_WRITE_COST_RATIO = 10.0
 
 
 class Interrupted(RuntimeError):
     """The run was stopped by SIGINT/SIGTERM after writing a complete checkpoint."""
 
 
-# ---------------------------------------------------------------- the loop
-
-
-def advance(sim: Simulation, steps: int, collisions: int | None = None, until_frozen: bool = False) -> bool:
-    """Run at most ``steps`` more steps, stopping at ``collisions`` in total if given, and
-    at the exact freeze if ``until_frozen``. Returns True if it stopped because the system froze.
-    """
-    sim.run(steps=steps, collisions=collisions, until_frozen=until_frozen)
-    return until_frozen and sim.is_frozen()
-
-
 def _counter(sim: Simulation, name: str) -> int:
     return sim.steps if name == "steps" else sim.collisions
 
 
-def _stop_reason(spec: RunSpec, sim: Simulation, frozen: bool) -> str:
-    """Why the run is over (``"steps"``, ``"collisions"``, ``"frozen"``, ``"max_steps"``), or ``""``."""
-    stop = spec.stop
-    if stop.kind == "steps":
-        return "steps" if sim.steps >= stop.steps else ""
-    if stop.kind == "collisions" and sim.collisions >= stop.collisions:
-        return "collisions"
-    if frozen:
-        return "frozen"
-    if stop.kind == "frozen" and sim.steps >= stop.max_steps:
-        return "max_steps"
-    return ""
-
-
-def _next_chunk(spec: RunSpec, sim: Simulation, chunk: int, target: int | None) -> tuple[int, int | None]:
-    """``(steps, collisions)`` limits of the next chunk: never past the stop or the next snapshot."""
-    stop, counter = spec.stop, spec.snapshots.counter if spec.snapshots else None
-    steps, collisions = chunk, stop.collisions
-    limit = stop.steps if stop.kind == "steps" else stop.max_steps
-    if limit is not None:
-        steps = min(steps, limit - sim.steps)
-    if target is not None and counter == "steps":
-        steps = min(steps, target - sim.steps)
-    if target is not None and counter == "collisions":
-        collisions = target if collisions is None else min(collisions, target)
-    return steps, collisions
-
-
-def run_to_stop(spec: RunSpec, sim: Simulation, *, snapshots_taken: int = 0,
-                on_snapshot: Callable[[Record], None] | None = None,
-                after_chunk: Callable[[Simulation], None] | None = None) -> str:
-    """Run ``sim`` (built from ``spec``) to ``spec.stop``, calling ``on_snapshot`` at each snapshot.
-
-    ``snapshots_taken`` skips the first snapshots (when resuming). ``after_chunk`` is
-    called between chunks (progress, checkpoints). Returns the stop reason.
-    """
-    snaps = spec.snapshots
-    chunk = max(CHUNK_STEPS, CHUNK_PER_CONTACT * sim.geometry.n_contacts)
-    until_frozen = spec.stop.kind != "steps"
-    n, frozen = snapshots_taken, False
-    while True:
-        target = snaps.target(n) if snaps else None
-        if target is not None and _counter(sim, snaps.counter) == target:
-            if on_snapshot is not None:
-                on_snapshot(Record.of(sim))
-            n += 1
-            continue
-        if target is not None and _counter(sim, snaps.counter) > target:
-            raise RuntimeError(f"snapshot {n} at {snaps.counter} = {target} was missed")
-        reason = _stop_reason(spec, sim, frozen)
-        if reason:
-            return reason
-        steps, collisions = _next_chunk(spec, sim, chunk, target)
-        frozen = advance(sim, steps, collisions, until_frozen)
-        if after_chunk is not None:
-            after_chunk(sim)
+def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record], None] | None = None,
+                writers: Sequence[Writer] = (), after_chunk: Callable[[Simulation], None] | None = None) -> str:
+    """Run ``sim`` (built from ``spec``) to ``spec.stop`` with ``writers``, calling ``on_snapshot``
+    at each of the spec's snapshots; returns the stop reason."""
+    writers = list(writers)
+    if on_snapshot is not None and spec.snapshots is not None:
+        writers.append(OnSnapshot(spec.snapshots.build(), on_snapshot))
+    return drive(sim, spec.stop.build(), writers, after_chunk=after_chunk)
 
 
 # ---------------------------------------------------------------- run directories
@@ -133,6 +63,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
+    writer = ResultsWriter(out, snapshots=spec.snapshots.build() if spec.snapshots else None,
+                           checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
+                           force=force, resume=resume and path.exists())
     if resume and path.exists():
         res = load(path)
         _check_same_run(res, spec)
@@ -142,31 +75,33 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             if figures:
                 write_figures(out)
             return path
-        _remove(out / _TMP_NAME)
-        sim, taken, elapsed = res.simulation(), len(res.snapshots), res.elapsed_seconds
+        sim = res.simulation()
     else:
         sim = spec.build()
-        # what a run killed at birth leaves may be resumed over
-        check_out_dir(out, force, may_hold=frozenset({"spec.json", _TMP_NAME}) if resume else frozenset(),
-                      hint="use --force to overwrite or --resume to continue")
-        out.mkdir(parents=True, exist_ok=True)
-        _remove(out / _TMP_NAME)
-        _remove_figures(out)  # a replaced run's pictures would pass for this one's
-        from . import __version__
-        create(path, spec, sim.geometry, sim.masses, Record.of(sim), __version__)
+        writer.resume = resume  # a directory a run killed at birth left may be taken over
+        writer.attach(sim)      # takes the directory and writes the static data
+        _remove_figures(out)    # a replaced run's pictures would pass for this one's
         write_text_atomic(out / "spec.json", spec.to_json() + "\n")
-        taken, elapsed = 0, 0.0
-    _run_with_checkpoints(spec, sim, path, taken, elapsed, progress)
+    with _progress_bar(spec, sim, progress) as bar, _deferred_signals() as stop_requested:
+        def after_chunk(s: Simulation) -> None:
+            bar(s)
+            if stop_requested():
+                writer.checkpoint(s)
+                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {path.parent} is complete: "
+                                  f"continue with --resume")
+
+        run_to_stop(spec, sim, writers=[writer], after_chunk=after_chunk)
+        bar(sim)
     if figures:
         write_figures(out)
     return path
 
 
-_TMP_NAME = RESULTS_NAME + ".tmp"
-
-
 def _check_same_run(res: Results, spec: RunSpec) -> None:
     """Refuse to resume ``res`` with a different spec (checkpoint settings and description may differ)."""
+    if res.spec is None:
+        raise InputError(f"--resume: the run in {res.path.parent} was built in Python, not from a spec; "
+                         f"continue it in Python (pb.load(...).simulation())")
     ignore = {"checkpoint", "description"}
     old, new = res.spec.model_dump(exclude=ignore), spec.model_dump(exclude=ignore)
     where = _first_difference(old, new)
@@ -184,58 +119,6 @@ def _first_difference(a, b, path: str = "") -> tuple[str, object, object] | None
                 return found
         return None
     return None if a == b else (path, a, b)
-
-
-def _remove(path: Path) -> None:
-    with contextlib.suppress(FileNotFoundError):
-        path.unlink()
-
-
-class _Checkpointer:
-    """Writes checkpoints: every ``every_seconds`` between chunks, and after snapshots."""
-
-    def __init__(self, path: Path, every_seconds: float, elapsed: float):
-        self.path, self.every = path, every_seconds
-        self.pending: list[Record] = []
-        self.start, self.elapsed0 = time.monotonic(), elapsed
-        self.last, self.cost = self.start, 0.0
-
-    def elapsed(self) -> float:
-        return self.elapsed0 + time.monotonic() - self.start
-
-    def snapshot(self, record: Record, sim: Simulation) -> None:
-        self.pending.append(record)
-        if time.monotonic() - self.last >= min(self.every, _WRITE_COST_RATIO * self.cost):
-            self.write(record)
-
-    def maybe(self, sim: Simulation) -> None:
-        if time.monotonic() - self.last >= self.every:
-            self.write(Record.of(sim))
-
-    def write(self, state: Record, done: bool = False, reason: str = "") -> None:
-        t = time.monotonic()
-        checkpoint(self.path, self.pending, state, done=done, stop_reason=reason, elapsed_seconds=self.elapsed())
-        self.pending = []
-        self.last = time.monotonic()
-        self.cost = self.last - t
-
-
-def _run_with_checkpoints(spec: RunSpec, sim: Simulation, path: Path, taken: int, elapsed: float,
-                          progress: bool | None) -> None:
-    saver = _Checkpointer(path, spec.checkpoint.every_seconds, elapsed)
-    with _progress_bar(spec, sim, progress) as bar, _deferred_signals() as stop_requested:
-        def after_chunk(s: Simulation) -> None:
-            bar(s)
-            if stop_requested():
-                saver.write(Record.of(s))
-                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {path.parent} is complete: "
-                                  f"continue with --resume")
-            saver.maybe(s)
-
-        reason = run_to_stop(spec, sim, snapshots_taken=taken, after_chunk=after_chunk,
-                             on_snapshot=lambda record: saver.snapshot(record, sim))
-        saver.write(Record.of(sim), done=True, reason=reason)
-        bar(sim)
 
 
 @contextlib.contextmanager

@@ -124,25 +124,34 @@ class Simulation:
         return int(self._counters[COLLISIONS])
 
     # ------------------------------------------------------------ running
-    def run(self, steps: int | None = None, collisions: int | None = None, *, until_frozen: bool = False) -> int:
+    def run(self, steps: int | None = None, collisions: int | None = None, *, until_frozen: bool = False,
+            writers=None) -> int:
         """Pick ``steps`` more contacts, or run until ``collisions`` in total, whichever comes first.
 
         With ``until_frozen`` (implied when only ``collisions`` is given, which a frozen
         system could never reach) the run also stops right after the collision that
         leaves no live contact (see `approaching`). Returns the number of steps taken.
+        ``writers`` (e.g. `ResultsWriter`) record the run, in chunks, to the same final state.
         """
         if steps is None and collisions is None:
             raise FieldError("run", "give steps= or collisions= (or use run_until_frozen)")
         max_steps = NO_LIMIT if steps is None else _count("steps", steps)
         max_collisions = NO_LIMIT if collisions is None else _count("collisions", collisions)
+        if writers is not None:
+            from .driver import drive_run
+            return drive_run(self, steps, collisions, until_frozen, writers)
         return self._run(max_steps, max_collisions, track=until_frozen or steps is None)
 
-    def run_until_frozen(self, max_steps: int) -> bool:
+    def run_until_frozen(self, max_steps: int, *, writers=None) -> bool:
         """Run until no contact approaches, for at most ``max_steps`` more steps.
 
         Stops right after the collision that freezes the system, so ``steps`` is the
         exact step of the last collision. Returns True if frozen.
         """
+        if writers is not None:
+            from .driver import drive_run
+            drive_run(self, _count("max_steps", max_steps), None, True, writers)
+            return self.is_frozen()
         self._run(_count("max_steps", max_steps), NO_LIMIT, track=True)
         return bool(self._counters[LIVE] == 0)
 

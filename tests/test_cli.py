@@ -277,7 +277,7 @@ def test_help_and_version_exit_0():
 def test_process_run_is_quiet_off_a_terminal(tmp_path):
     done = _python("run", write(tmp_path / "s.json", TORUS), "--out", tmp_path / "out", "--no-figures")
     assert done.returncode == 0 and done.stderr == ""  # stderr is a pipe: no progress bar
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["results.h5", "spec.json"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["results.data", "results.h5", "spec.json"]
     assert done.stdout.startswith("steps: 1,000 steps")
 
 

@@ -108,3 +108,19 @@ def test_backwards_owns_its_loop_and_sweeps_last_to_first(doc):
     assert sim.collisions == inversions
     with pytest.raises(ValueError, match=r"scheduler_state: the position must be in \[0, 29\), got 29"):
         sim.set_state(dict(sim.get_state(), scheduler_state=np.array([29])))
+def test_recorded_chain_run(doc):
+    """Collisions along a chain come one at a time; the snapshots land on the counts asked for."""
+    res = doc["res"]
+    assert [s.collisions for s in res.snapshots] == [0, 2, 4, 6] and res.frozen and res.collisions == 7
+    assert res.spec is None and res.run["geometry"]["class"].endswith("Chain")
+    resumed = doc["resumed"]
+    np.testing.assert_array_equal(resumed.velocities, doc["sim"].velocities)
+    assert resumed.steps == doc["sim"].steps and type(resumed.scheduler) is pb.Sweep
+
+
+def test_registered_observable_is_recorded(doc):
+    sim = pb.Simulation(doc["Chain"](3), np.array([[1.0, 0], [0, 0], [0, 0]]), scheduler=pb.Sweep())
+    sim.run(steps=14, writers=[doc["measured"]])
+    res = pb.load(doc["measured"].out_dir)
+    assert res.observables["steps"].tolist() == [7, 14]
+    assert res.observables["speed_of_last_ball"].tolist() == [1.0, 1.0]  # the cradle passed it on

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs import runner
+from pinnedballs import driver, runner
 from pinnedballs.io import ResultsError, load
 from pinnedballs.spec import parse_spec
 from runspecs import HALF_PLANE, TORUS, spec
@@ -69,8 +69,8 @@ STOPS = {
 @pytest.mark.parametrize("data", STOPS.values(), ids=STOPS.keys())
 @pytest.mark.parametrize("chunk", [1 << 20, 37])
 def test_final_state_is_the_python_api(tmp_path, monkeypatch, data, chunk):
-    monkeypatch.setattr(runner, "CHUNK_STEPS", chunk)
-    monkeypatch.setattr(runner, "CHUNK_PER_CONTACT", 0 if chunk < 100 else 2)
+    monkeypatch.setattr(driver, "CHUNK_STEPS", chunk)
+    monkeypatch.setattr(driver, "CHUNK_PER_CONTACT", 0 if chunk < 100 else 2)
     s, res = run(tmp_path, data)
     assert res.complete
     assert_same_state(res, direct(data))
@@ -137,10 +137,10 @@ def test_file_layout_and_physics(tmp_path):
     with h5py.File(res.path) as f:
         assert f.attrs["format"] == "pinnedballs-results"
         assert f["snapshots/velocities"].shape == (4, 64, 2)
-        assert f["snapshots/velocities"].maxshape == (None, 64, 2)
+        assert f.attrs["format_version"] == 2 and f["snapshots/velocities"].is_virtual  # over the segments
         assert f["state/rng_state"].dtype == np.uint64 and f["state/scheduler_state"].dtype == np.int64
         assert set(f) == {"geometry", "initial", "snapshots", "observables", "state"}
-    assert sorted(p.name for p in res.path.parent.iterdir()) == ["results.h5", "spec.json"]
+    assert sorted(p.name for p in res.path.parent.iterdir()) == ["results.data", "results.h5", "spec.json"]
     assert parse_spec((res.path.parent / "spec.json").read_text()) == s
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinnedballs import cli, runner
+from pinnedballs import cli, driver, runner
 from pinnedballs.io import load
 from pinnedballs.spec import parse_spec
 from runspecs import HALF_PLANE, TORUS, spec, write
@@ -50,8 +50,8 @@ def resume(spec_path: Path, out: Path) -> int:
 
 CHILD = """
 import sys
-from pinnedballs import cli, runner
-runner.CHUNK_STEPS, runner.CHUNK_PER_CONTACT = 500, 0   # many small chunks, a checkpoint after each
+from pinnedballs import cli, driver, runner
+driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0  # many small chunks, a checkpoint after each
 sys.exit(cli.main(sys.argv[1:]))
 """
 
@@ -142,10 +142,10 @@ class Crash(Exception):
 @pytest.mark.parametrize("data", CRASHES.values(), ids=CRASHES.keys())
 def test_crash_then_resume_is_bit_identical(tmp_path, monkeypatch, data, crash_after):
     ref = reference(tmp_path, data)
-    monkeypatch.setattr(runner, "CHUNK_STEPS", 211)
-    monkeypatch.setattr(runner, "CHUNK_PER_CONTACT", 0)
+    monkeypatch.setattr(driver, "CHUNK_STEPS", 211)
+    monkeypatch.setattr(driver, "CHUNK_PER_CONTACT", 0)
     calls = []
-    advance = runner.advance
+    advance = driver.advance
 
     def crashing(*args, **kwargs):
         calls.append(1)
@@ -155,7 +155,7 @@ def test_crash_then_resume_is_bit_identical(tmp_path, monkeypatch, data, crash_a
 
     spec_path = write(tmp_path / "s.json", data)
     out = tmp_path / "crashed"
-    monkeypatch.setattr(runner, "advance", crashing)
+    monkeypatch.setattr(driver, "advance", crashing)
     with pytest.raises(Crash):
         runner.execute(parse_spec(data), out, figures=False, progress=False)
     monkeypatch.undo()  # resume with the default chunks
@@ -170,19 +170,19 @@ def test_resume_after_a_kill_mid_write(tmp_path, monkeypatch):
     data = CRASHES["half-plane frozen"]
     spec_path = write(tmp_path / "s.json", data)
     out = tmp_path / "out"
-    monkeypatch.setattr(runner, "CHUNK_STEPS", 100)
-    monkeypatch.setattr(runner, "CHUNK_PER_CONTACT", 0)
+    monkeypatch.setattr(driver, "CHUNK_STEPS", 100)
+    monkeypatch.setattr(driver, "CHUNK_PER_CONTACT", 0)
 
     def crash(*args, **kwargs):
         raise Crash
 
-    monkeypatch.setattr(runner, "advance", crash)
+    monkeypatch.setattr(driver, "advance", crash)
     with pytest.raises(Crash):
         runner.execute(parse_spec(data), out, figures=False, progress=False)
     (out / "results.h5.tmp").write_bytes((out / "results.h5").read_bytes()[:1000])
     monkeypatch.undo()
     assert resume(spec_path, out) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["results.h5", "spec.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["results.data", "results.h5", "spec.json"]
     assert_identical(load(out), reference(tmp_path, data))
 
 
@@ -195,7 +195,7 @@ def test_resume_without_a_run_starts_one(tmp_path):
 def test_resume_may_change_checkpoint_and_description(tmp_path, monkeypatch):
     data = CRASHES["half-plane frozen"]
     out = tmp_path / "out"
-    monkeypatch.setattr(runner, "advance", lambda *a, **k: (_ for _ in ()).throw(Crash()))
+    monkeypatch.setattr(driver, "advance", lambda *a, **k: (_ for _ in ()).throw(Crash()))
     with pytest.raises(Crash):
         runner.execute(parse_spec(data), out, figures=False, progress=False)
     monkeypatch.undo()

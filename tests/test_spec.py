@@ -267,3 +267,20 @@ def test_bad_spec_file(tmp_path, text, words):
 def test_missing_spec_file(tmp_path):
     with pytest.raises(SpecError, match=r"nope\.json: no such spec file"):
         load_spec(tmp_path / "nope.json")
+
+
+def test_engine_errors_carry_their_field():
+    """The engine names the argument as data; a spec maps it to its field without reading the message."""
+    from pinnedballs.errors import FieldValueError
+
+    with pytest.raises(FieldValueError) as info:
+        pb.FlatTorus(5, 4)
+    assert (info.value.field, info.value.problem) == ("rows", "must be even for a flat torus, got 5")
+    assert str(info.value) == "rows: must be even for a flat torus, got 5" and isinstance(info.value, ValueError)
+    with pytest.raises(FieldValueError) as info:
+        pb.Simulation(pb.FlatTorus(4, 4), np.zeros((3, 2)))
+    assert info.value.field == "velocities"
+    with pytest.raises(SpecError) as spec_error:
+        parse_spec({"geometry": {"kind": "flat_torus", "rows": 5, "cols": 4},
+                    "initial": {"kind": "single_ball", "velocity": [1, 0]}, "stop": {"steps": 1}}).build()
+    assert (spec_error.value.path, spec_error.value.problem) == ("geometry.rows", "must be even for a flat torus, got 5")

@@ -36,6 +36,7 @@ class Sphere(Geometry):
     """
 
     curved = True
+    frequency: int | None = None  #: of the geodesic grid; None for a sphere from points
 
     def __init__(self, positions: np.ndarray, pairs: np.ndarray, radius: float = 1.0):
         self.positions = np.ascontiguousarray(positions, dtype=np.float64)
@@ -71,7 +72,9 @@ class Sphere(Geometry):
                         edges.add((min(n, m), max(n, m)))
         p = np.array(points, dtype=np.float64)
         p /= np.linalg.norm(p, axis=1, keepdims=True)
-        return cls(p, np.array(sorted(edges), dtype=np.int64), radius)
+        sphere = cls(p, np.array(sorted(edges), dtype=np.int64), radius)
+        sphere.frequency = f
+        return sphere
 
     @classmethod
     def from_points(cls, points, radius: float = 1.0) -> "Sphere":

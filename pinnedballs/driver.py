@@ -1,0 +1,161 @@
+"""The one run driver: a simulation run in chunks to a `Stop`, its writers fired on their triggers.
+
+`drive` is what ``Simulation.run(..., writers=...)``, ``pinnedballs run``, ensembles and
+the paper's reproduction all use. Each pass of its loop, in this order:
+
+0. (once, at the start) every writer whose trigger fires at the current counts records a
+   snapshot (`Writer.write`);
+1. if the `Stop` is reached, every writer closes the run (`Writer.finish`) and the loop ends;
+2. the simulation runs one chunk: at most ``max(CHUNK_STEPS, CHUNK_PER_CONTACT * n_contacts)``
+   steps, cut short at the stop and at the next count any trigger names;
+3. every writer whose trigger fires at the new counts records a snapshot;
+4. every writer may checkpoint (`Writer.after_chunk`), then ``after_chunk(sim)`` is called.
+   A checkpoint is thus always of a state whose snapshots are recorded.
+
+The engine carries all state, so the result is bit-identical however the run is split:
+a driven run ends on exactly the state of the plain ``sim.run(steps=, collisions=)`` or
+``sim.run_until_frozen(max_steps=)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+from .triggers import Counts, Trigger
+
+__all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Stop", "Writer", "advance", "drive", "drive_run"]
+
+#: a chunk is at least this many steps ...
+CHUNK_STEPS = 1 << 20
+#: ... and at least this many per contact (so per-chunk O(contacts) work stays small)
+CHUNK_PER_CONTACT = 2
+
+
+@dataclass(frozen=True)
+class Stop:
+    """When a run ends, in absolute counts: ``steps`` in total (the reason is ``steps_reason``),
+    ``collisions`` in total, or, with ``until_frozen``, right after the collision that freezes it.
+
+    Reasons are checked in the order collisions, frozen, steps.
+    """
+
+    steps: int | None = None
+    collisions: int | None = None
+    until_frozen: bool = False
+    steps_reason: str = "steps"
+
+    def reason(self, sim, frozen: bool) -> str:
+        """Why the run is over (``"collisions"``, ``"frozen"``, ``steps_reason``), or ``""``."""
+        if self.collisions is not None and sim.collisions >= self.collisions:
+            return "collisions"
+        if frozen:
+            return "frozen"
+        if self.steps is not None and sim.steps >= self.steps:
+            return self.steps_reason
+        return ""
+
+
+class Writer:
+    """Something a run records into. Subclasses override what they need.
+
+    ``trigger``: when `write` is called (None: never).
+    """
+
+    trigger: Trigger | None = None
+
+    def attach(self, sim) -> Counts | None:
+        """The run starts (take the output, write what is static). Returns the counts at which
+        the trigger was already checked (a resumed or continued run), else None."""
+        return None
+
+    def write(self, sim) -> None:
+        """The trigger fired at the current state."""
+
+    def after_chunk(self, sim) -> None:
+        """Between chunks (e.g. checkpoint when due)."""
+
+    def finish(self, sim, reason: str) -> None:
+        """The run reached its stop for ``reason``."""
+
+
+def advance(sim, steps: int, collisions: int | None = None, until_frozen: bool = False) -> bool:
+    """Run at most ``steps`` more steps, stopping at ``collisions`` in total if given, and
+    at the exact freeze if ``until_frozen``. Returns True if it stopped because the system froze.
+    """
+    sim.run(steps=steps, collisions=collisions, until_frozen=until_frozen)
+    return until_frozen and sim.is_frozen()
+
+
+def _counts(sim) -> Counts:
+    return sim.steps, sim.collisions
+
+
+def _least(*values: int | None) -> int | None:
+    given = [v for v in values if v is not None]
+    return min(given) if given else None
+
+
+def _next_chunk(sim, stop: Stop, chunk: int, triggers: list[Trigger]) -> tuple[int, int | None]:
+    """``(steps, collisions)`` limits of the next chunk: never past the stop or a trigger's next count."""
+    s, c = _counts(sim)
+    step_target = _least(stop.steps, *(t.next_steps(s) for t in triggers))
+    steps = chunk if step_target is None else min(chunk, step_target - s)
+    return steps, _least(stop.collisions, *(t.next_collisions(c) for t in triggers))
+
+
+def _check_missed(trigger: Trigger, prev: Counts, now: Counts) -> None:
+    for k, (name, nxt) in enumerate((("steps", trigger.next_steps), ("collisions", trigger.next_collisions))):
+        target = nxt(prev[k])
+        if target is not None and target < now[k]:
+            raise RuntimeError(f"a snapshot at {name} = {target} was missed (now at {now[k]})")
+
+
+def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *,
+          after_chunk: Callable[[object], None] | None = None) -> str:
+    """Run ``sim`` to ``stop``, firing ``writers``; returns the stop reason (see the module's docstring)."""
+    chunk = max(CHUNK_STEPS, CHUNK_PER_CONTACT * sim.geometry.n_contacts)
+    checked = [w.attach(sim) for w in writers]
+    triggers = [w.trigger for w in writers if w.trigger is not None]
+    frozen = False
+    _fire(sim, writers, checked)
+    while True:
+        reason = stop.reason(sim, frozen)
+        if reason:
+            for w in writers:
+                w.finish(sim, reason)
+            return reason
+        steps, collisions = _next_chunk(sim, stop, chunk, triggers)
+        frozen = advance(sim, steps, collisions, stop.until_frozen)
+        _fire(sim, writers, checked)  # before any checkpoint of this state
+        for w in writers:
+            w.after_chunk(sim)
+        if after_chunk is not None:
+            after_chunk(sim)
+
+
+def _fire(sim, writers: Sequence[Writer], checked: list[Counts | None]) -> None:
+    """Call `Writer.write` of each writer whose trigger fires at the current counts; ``checked``
+    holds, per writer, the counts of its previous check and is updated."""
+    now = _counts(sim)
+    for k, w in enumerate(writers):
+        prev = checked[k]
+        if w.trigger is not None and prev != now:
+            if prev is not None:
+                _check_missed(w.trigger, prev, now)
+            if w.trigger.fires(prev, now):
+                w.write(sim)
+        checked[k] = now
+
+
+def drive_run(sim, steps: int | None, collisions: int | None, until_frozen: bool, writers: Sequence[Writer]) -> int:
+    """``sim.run(steps=, collisions=, until_frozen=)`` through `drive` with ``writers``; the steps taken."""
+    writers = list(writers)
+    for w in writers:
+        if not isinstance(w, Writer):
+            raise TypeError(f"writers: must be Writer objects such as ResultsWriter, got {type(w).__name__}")
+    start = sim.steps
+    stop = Stop(steps=None if steps is None else start + steps, collisions=collisions,
+                until_frozen=until_frozen or steps is None)
+    drive(sim, stop, writers)
+    return sim.steps - start

@@ -1,0 +1,37 @@
+"""Collision-rule specs: ``build()`` returns the `CollisionRule`."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field
+
+from ..rules import CollisionRule, Elastic, Restitution
+from .base import _Spec, engine_errors
+from .python import PythonRuleSpec
+
+__all__ = ["ElasticSpec", "RestitutionSpec", "RuleSpec"]
+
+
+
+class ElasticSpec(_Spec):
+    """Totally elastic collisions (`Elastic`)."""
+
+    kind: Literal["elastic"] = "elastic"
+
+    def build(self) -> CollisionRule:
+        return Elastic()
+
+
+class RestitutionSpec(_Spec):
+    """Inelastic collisions with coefficient of restitution ``r`` (`Restitution`)."""
+
+    kind: Literal["restitution"] = "restitution"
+    r: float
+
+    def build(self) -> CollisionRule:
+        with engine_errors("rule", {"r": "rule.r"}):
+            return Restitution(self.r)
+
+
+RuleSpec = Annotated[Union[ElasticSpec, RestitutionSpec, PythonRuleSpec], Field(discriminator="kind")]

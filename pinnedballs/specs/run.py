@@ -1,0 +1,267 @@
+"""`RunSpec`: a whole run as data; reading it from JSON (`parse_spec`, `load_spec`); `describe`."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Annotated, Any, Union
+
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ValidationError, field_validator, model_validator
+
+from .. import observe
+from ..errors import FieldError, SpecError
+from ..geometry import Geometry
+from ..limits import check_memory
+from ..simulation import Simulation, mass_array
+from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
+from .geometry import GeometrySpec
+from .initial import FromFileSpec, InitialSpec
+from .pydantic_errors import _dot, _models_of, _short, first_error
+from .python import ENTRY_POINT_GROUPS, expand_entry_points
+from .rule import ElasticSpec, RuleSpec
+from .scheduler import SchedulerSpec, UniformRandomPairSpec
+from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
+
+__all__ = ["RunSpec", "parse_spec", "load_spec", "describe"]
+
+
+MassesField = Union[Positive, FilePath]
+
+
+def _known_observable(name: str) -> str:
+    if name not in observe.OBSERVABLES:
+        raise ValueError(f"unknown observable {name!r} (known: {', '.join(observe.OBSERVABLES)})")
+    return name
+
+
+class RunSpec(_Spec):
+    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots."""
+
+    geometry: GeometrySpec
+    initial: InitialSpec
+    rule: RuleSpec = ElasticSpec()
+    scheduler: SchedulerSpec = UniformRandomPairSpec()
+    masses: MassesField | None = None
+    seed: Count = 0
+    stop: StopSpec
+    snapshots: SnapshotsSpec | None = None
+    checkpoint: CheckpointSpec = CheckpointSpec()
+    observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(observe.DEFAULT[2:])
+    description: str = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _entry_points(cls, data: Any) -> Any:
+        builtin = {slot: set(_models_of(cls.model_fields[slot].annotation)[1]) for slot in ENTRY_POINT_GROUPS}
+        return expand_entry_points(data, builtin)
+
+    @field_validator("masses", mode="before")
+    @classmethod
+    def _masses(cls, value: Any) -> Any:
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, str))):
+            raise ValueError(f"must be a number > 0 or the path of a .npy file, got {value!r}")
+        return value
+
+    @model_validator(mode="after")
+    def _snapshots_before_stop(self) -> "RunSpec":
+        s = self.snapshots
+        if s is None:
+            return self
+        for name, listed, limit in (("at_steps", s.at_steps, self.stop.steps),
+                                    ("at_collisions", s.at_collisions, self.stop.collisions),
+                                    ("at_steps", s.at_steps, self.stop.max_steps)):
+            if listed and limit is not None and listed[-1] > limit:
+                raise ValueError(f"snapshots.{name}: {listed[-1]} is beyond the stop at {limit}")
+        return self
+
+    # ------------------------------------------------------------ building
+    def build_masses(self, n_balls: int) -> float | np.ndarray | None:
+        """The masses: None (all 1), a number, or ``(n_balls,)`` from the file."""
+        if self.masses is None or isinstance(self.masses, float):
+            return self.masses
+        m = _load_npy(self.masses, "masses")
+        if m.shape != (n_balls,):
+            raise SpecError("masses", f"{self.masses} must have shape (n_balls,) = ({n_balls},), got {m.shape}")
+        if not (np.isfinite(m).all() and (m > 0).all()):
+            raise SpecError("masses", f"{self.masses}: must all be finite and > 0")
+        return m
+
+    def build(self, seed: int | np.random.SeedSequence | None = None) -> Simulation:
+        """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``."""
+        if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
+                isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
+            raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
+                                    f"got {_short(seed)}")
+        seq = seed if isinstance(seed, np.random.SeedSequence) else \
+            np.random.SeedSequence(self.seed if seed is None else seed)
+        geometry = self.geometry.build()
+        masses = self.build_masses(geometry.n_balls)
+        with engine_errors("", {"masses": "masses"}):
+            masses_all = mass_array(masses, geometry.n_balls)
+        velocities = self.initial.build(geometry, masses_all, seq)
+        return self.build_with(geometry, velocities, masses, seq)
+
+    def build_with(self, geometry, velocities, masses, seed: np.random.SeedSequence | None = None) -> Simulation:
+        """A `Simulation` of this spec's rule, scheduler and seed on a ``geometry``, ``velocities`` and
+        ``masses`` already built (or read back from a results file)."""
+        seq = seed if seed is not None else np.random.SeedSequence(self.seed)
+        initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
+        try:
+            with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
+                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed"}):
+                return Simulation(geometry, velocities, rule=self.rule.build(), scheduler=self.scheduler.build(),
+                                  masses=masses, seed=seq)
+        except SpecError as exc:
+            files = {"geometry": getattr(self.geometry, "positions", None),
+                     "initial.path": getattr(self.initial, "path", None),
+                     "masses": self.masses if isinstance(self.masses, str) else None}
+            raise _in_file(exc, files[exc.path]) if files.get(exc.path) else exc from None
+
+    def to_json(self) -> str:
+        """The spec as indented JSON, defaults filled in and paths absolute."""
+        return self.model_dump_json(indent=2)
+
+
+# ---------------------------------------------------------------- reading specs
+
+
+def parse_spec(data: str | bytes | dict, base_dir: str | os.PathLike | None = None, source: str = "") -> RunSpec:
+    """Validate a spec given as JSON text or a dict; relative paths resolve against ``base_dir``.
+
+    Raises `SpecError` naming the first wrong field (``source`` prefixes the message).
+    """
+    context = {"base_dir": os.fspath(base_dir) if base_dir is not None else None}
+    try:
+        if isinstance(data, dict):
+            _check_tree(data, source)
+            return RunSpec.model_validate(data, context=context)
+        if isinstance(data, bytes):
+            try:
+                data = data.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise SpecError(source, f"not UTF-8 text ({exc})") from None
+        try:
+            parsed = json.loads(data, parse_int=_parse_int)
+        except json.JSONDecodeError as exc:
+            raise SpecError(source, f"not valid JSON: {exc}") from None
+        except RecursionError:
+            raise SpecError(source, f"not a spec: JSON nested more than {_MAX_DEPTH} levels deep") from None
+        if not isinstance(parsed, dict):
+            raise SpecError(source, f"a spec must be a JSON object, got {type(parsed).__name__}")
+        _check_tree(parsed, source)
+        return RunSpec.model_validate(parsed, context=context)
+    except ValidationError as exc:
+        error = first_error(exc, RunSpec)
+        raise SpecError(_join(source, error.path) if source else error.path, error.problem) from None
+
+
+#: bytes of Python objects per character of JSON, from above (``[1,2,...]``: 36 bytes per 2 characters)
+_JSON_BYTES_PER_CHAR = 32
+#: deepest nesting of objects and arrays a spec may have (a spec needs 3 or 4)
+_MAX_DEPTH = 32
+
+
+class _LongInt(str):
+    """The digits of a JSON integer too long for any spec field (kept as text, never converted)."""
+
+
+def _parse_int(digits: str) -> int | _LongInt:
+    return int(digits) if len(digits.lstrip("-")) <= 19 else _LongInt(digits)
+
+
+def _check_tree(data: Any, source: str) -> None:
+    """Refuse, naming the field, what no spec field can hold: nesting deeper than `_MAX_DEPTH`,
+    integers outside int64, and strings that are not UTF-8 text (lone surrogates).
+
+    Walks ``data`` (parsed JSON or a dict) without recursion, fields in document order.
+    """
+    stack = [(data, "", 0)]
+    while stack:
+        value, path, depth = stack.pop()
+        where = path or source
+        if depth > _MAX_DEPTH:
+            raise SpecError(where, f"nested more than {_MAX_DEPTH} levels deep")
+        if isinstance(value, dict):
+            items = []
+            for key, item in value.items():
+                if isinstance(key, str) and not _is_text(key):
+                    raise SpecError(where, f"a key is {_NOT_TEXT}: {_short_text(key)}")
+                items.append((item, _dot(path, str(key)), depth + 1))
+            stack.extend(reversed(items))
+        elif isinstance(value, (list, tuple)):
+            stack.extend(reversed([(item, f"{path}[{i}]", depth + 1) for i, item in enumerate(value)]))
+        elif isinstance(value, _LongInt) or (
+                isinstance(value, int) and not isinstance(value, bool) and not -2**63 <= value < 2**63):
+            digits = len(str(value).lstrip("-")) if isinstance(value, str) or value.bit_length() < 10**4 else "many"
+            raise SpecError(where, f"an integer of {digits} digits is out of range "
+                                   f"(a spec field holds at most 2**63 - 1)")
+        elif isinstance(value, str) and not _is_text(value):
+            raise SpecError(where, f"{_NOT_TEXT}: {_short_text(value)}")
+
+
+def load_spec(path: str | os.PathLike) -> RunSpec:
+    """Read and validate the JSON spec at ``path``; relative paths in it resolve against its directory."""
+    path = Path(path)
+    try:
+        check_memory(_JSON_BYTES_PER_CHAR * path.stat().st_size, str(path), "reading this spec file")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError(str(path), "no such spec file") from None
+    except FieldError as exc:
+        raise SpecError(str(path), exc.problem) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SpecError(str(path), f"cannot read the spec file ({exc})") from None
+    try:
+        return parse_spec(text, base_dir=path.resolve().parent)
+    except SpecError as exc:
+        if exc.path:
+            raise
+        raise SpecError(str(path), exc.problem) from None
+
+
+def _join(a: str, b: str) -> str:
+    return f"{a}: {b}" if a and b else a or b
+
+
+
+# ---------------------------------------------------------------- summaries
+
+
+def describe(spec: RunSpec, sim: Simulation) -> str:
+    """One line saying what ``spec`` runs: geometry, sizes, rule, scheduler, stop, snapshots, seed."""
+    g = spec.geometry
+    shape = _shape(g, sim.geometry)
+    stop = spec.stop
+    until = {"steps": lambda: f"{stop.steps:,} steps", "collisions": lambda: f"{stop.collisions:,} collisions",
+             "frozen": lambda: f"frozen (max {stop.max_steps:,} steps)"}[stop.kind]()
+    n_snap = _count_snapshots(spec)
+    rule = spec.rule.kind + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
+    return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
+            f"{sim.geometry.dim}; {spec.initial.kind}, energy {sim.energy():.6g}; {rule}, {spec.scheduler.kind}; "
+            f"stop at {until}; {n_snap} snapshot(s); seed {spec.seed}")
+
+
+def _shape(g: BaseModel, geometry: Geometry) -> str:
+    """``rows x cols`` or ``nx x ny x nz`` when the geometry has them, else the spec's own arguments."""
+    if hasattr(geometry, "rows") and hasattr(geometry, "cols"):
+        return f"{geometry.rows}x{geometry.cols}"
+    if isinstance(getattr(geometry, "shape", None), tuple):
+        return "x".join(str(n) for n in geometry.shape)
+    fields = g.model_dump(exclude={"kind", "radius", "rtol", "args"}, exclude_none=True)
+    if "factory" in fields:  # a user's component
+        return fields["factory"]
+    return " ".join(Path(v).name if isinstance(v, str) and os.sep in v else f"{k}={v}" for k, v in fields.items())
+
+
+def _count_snapshots(spec: RunSpec) -> str:
+    s = spec.snapshots
+    if s is None:
+        return "no"
+    listed = s.at_steps if s.at_steps is not None else s.at_collisions
+    if listed is not None:
+        return str(len(listed))
+    every = s.every_steps or s.every_collisions
+    limit = spec.stop.steps if s.every_steps else spec.stop.collisions
+    return str(limit // every) if limit is not None else f"every {every:,} {s.counter}"

@@ -1,0 +1,66 @@
+"""Scheduler specs: ``build()`` returns the `Scheduler`."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field
+
+from ..colored_sweep import ColoredSweep
+from ..rejection_free import RejectionFree
+from ..schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
+from .base import _Spec
+from .python import PythonSchedulerSpec
+
+__all__ = ["UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "RejectionFreeSpec", "ColoredSweepSpec",
+           "SchedulerSpec"]
+
+
+class UniformRandomPairSpec(_Spec):
+    """The paper's scheduler: one contact uniformly at random per step."""
+
+    kind: Literal["uniform_random_pair"] = "uniform_random_pair"
+
+    def build(self) -> Scheduler:
+        return UniformRandomPair()
+
+
+class SweepSpec(_Spec):
+    """Every contact once per sweep, in a fixed order."""
+
+    kind: Literal["sweep"] = "sweep"
+
+    def build(self) -> Scheduler:
+        return Sweep()
+
+
+class RandomSweepSpec(_Spec):
+    """Every contact once per sweep, in a fresh random order."""
+
+    kind: Literal["random_sweep"] = "random_sweep"
+
+    def build(self) -> Scheduler:
+        return RandomSweep()
+
+
+class RejectionFreeSpec(_Spec):
+    """The paper's chain without its rejected picks (`RejectionFree`): same law, far fewer loop turns."""
+
+    kind: Literal["rejection_free"] = "rejection_free"
+
+    def build(self) -> Scheduler:
+        return RejectionFree()
+
+
+class ColoredSweepSpec(_Spec):
+    """Colour classes of contacts sharing no ball in turn, each in parallel (`ColoredSweep`)."""
+
+    kind: Literal["colored_sweep"] = "colored_sweep"
+    shuffle: bool = False
+
+    def build(self) -> Scheduler:
+        return ColoredSweep(shuffle=self.shuffle)
+
+
+SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec, RejectionFreeSpec, ColoredSweepSpec,
+                                PythonSchedulerSpec], Field(discriminator="kind")]

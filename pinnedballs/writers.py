@@ -1,0 +1,227 @@
+"""`ResultsWriter`: record a run into a results directory, from Python or the command line.
+
+::
+
+    w = pb.ResultsWriter("DIR", snapshots={"every_steps": 100_000}, checkpoint_seconds=60)
+    sim.run(steps=10**7, writers=[w])
+
+writes the directory ``pinnedballs run`` writes (``results.h5``, see `pinnedballs.io`):
+the spec (or, for a run built in Python, a description of its components), the geometry,
+the snapshots with their observables, and the latest state, checkpointed every
+``checkpoint_seconds`` and after snapshots. ``pinnedballs info`` and ``plot`` and `pb.load`
+read it; ``pb.load("DIR").simulation()`` continues the run bit for bit, and
+``ResultsWriter("DIR", resume=True, ...)`` goes on recording into the same directory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import observe
+from .driver import Writer
+from .io import DATA_DIR, RESULTS_NAME, Record, ResultsStore, take_run_dir
+from .triggers import Counts, Trigger
+
+__all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]
+
+#: a snapshot's checkpoint is skipped (kept for the next one) if the last write was
+#: more recent than this many times its own duration: checkpoints stay under ~10 % of the time
+WRITE_COST_RATIO = 10.0
+
+
+def _trigger(snapshots) -> Trigger | None:
+    """A `Trigger` from a trigger, None, or a dict of `SnapshotsSpec` fields."""
+    if snapshots is None or isinstance(snapshots, Trigger):
+        return snapshots
+    if isinstance(snapshots, dict):
+        from .specs import SnapshotsSpec, SpecError
+        from .specs.pydantic_errors import first_error
+        from pydantic import ValidationError
+
+        try:
+            return SnapshotsSpec.model_validate(snapshots).build()
+        except ValidationError as exc:
+            error = first_error(exc, SnapshotsSpec)
+            raise SpecError(f"snapshots.{error.path}" if error.path else "snapshots", error.problem) from None
+    raise TypeError(f"snapshots: must be a Trigger, a dict such as {{'every_steps': 1000}}, or None, "
+                    f"got {type(snapshots).__name__}")
+
+
+class ResultsWriter(Writer):
+    """Record a run into the directory ``out_dir`` (see the module's docstring).
+
+    snapshots: a `Trigger`, a dict like a spec's ``"snapshots"`` (``{"at_steps": [...]}``,
+    ``{"every_collisions": 100}``, ...), or None for no snapshots.
+    checkpoint_seconds: wall time between checkpoints (0: after every chunk).
+    observables: names from `pinnedballs.observe` recorded with each snapshot (default: all built-ins).
+    force: replace a run already in ``out_dir``; resume: append to it (the simulation must be at
+    its latest state, as ``pb.load(out_dir).simulation()`` gives it).
+    """
+
+    def __init__(self, out_dir: str | os.PathLike, snapshots=None, checkpoint_seconds: float = 60.0,
+                 observables=None, *, force: bool = False, resume: bool = False, spec=None):
+        if isinstance(checkpoint_seconds, bool) or not isinstance(checkpoint_seconds, (int, float)) \
+                or not checkpoint_seconds >= 0:
+            raise ValueError(f"checkpoint_seconds: must be a number >= 0, got {checkpoint_seconds!r}")
+        if force and resume:
+            raise ValueError("force, resume: give one of them, not both")
+        self.out_dir = Path(out_dir)
+        self.trigger = _trigger(snapshots)
+        self.every = float(checkpoint_seconds)
+        if observables is None:
+            observables = spec.observables if spec is not None else observe.DEFAULT
+        self.names = observe.check_names(observables)
+        self.force, self.resume, self.spec = force, resume, spec
+        self.store: ResultsStore | None = None
+        self.pending: list[Record] = []
+        self._checked: Counts | None = None
+        self._saved: Counts | None = None  #: the counts of the state last checkpointed
+        self._elapsed0, self._start, self._last, self._cost = 0.0, time.monotonic(), time.monotonic(), 0.0
+
+    @property
+    def path(self) -> Path:
+        return self.out_dir / RESULTS_NAME
+
+    # ------------------------------------------------------------ the driver's calls
+    def attach(self, sim) -> Counts | None:
+        if self.store is None:
+            self.store = self._open(sim)
+        elif (sim.steps, sim.collisions) != self._checked:
+            self._checked = None  # the simulation moved on without us: check its state afresh
+        self._start = self._last = time.monotonic()
+        return self._checked
+
+    def write(self, sim) -> None:
+        record = Record.of(sim, self.names)
+        self.pending.append(record)
+        if time.monotonic() - self._last >= min(self.every, WRITE_COST_RATIO * self._cost):
+            self._checkpoint(record)
+
+    def after_chunk(self, sim) -> None:
+        if time.monotonic() - self._last >= self.every and self._saved != (sim.steps, sim.collisions):
+            self.checkpoint(sim)
+
+    def finish(self, sim, reason: str) -> None:
+        self._checked = (sim.steps, sim.collisions)
+        self._checkpoint(Record.of(sim, self.names), done=True, reason=reason)
+        self._elapsed0 = self.elapsed()
+
+    # ------------------------------------------------------------ checkpoints
+    def elapsed(self) -> float:
+        """Wall seconds spent in runs recorded here, over every session."""
+        return self._elapsed0 + time.monotonic() - self._start
+
+    def checkpoint(self, sim) -> None:
+        """Write the pending snapshots and ``sim``'s state now."""
+        self._checked = (sim.steps, sim.collisions)
+        self._checkpoint(Record.of(sim, self.names))
+
+    def _checkpoint(self, state: Record, done: bool = False, reason: str = "") -> None:
+        t = time.monotonic()
+        self.store.checkpoint(self.pending, state, done=done, stop_reason=reason, elapsed_seconds=self.elapsed())
+        self.pending = []
+        self._saved = (state.state["steps"], state.state["collisions"])
+        self._last = time.monotonic()
+        self._cost = self._last - t
+
+    def _open(self, sim) -> ResultsStore:
+        from . import __version__
+
+        if self.resume and self.path.exists():
+            store = ResultsStore.reopen(self.path)
+            _check_continues(store, sim, self.path)
+            self._elapsed0 = float(store.attrs["elapsed_seconds"])
+            stored = tuple(json.loads(store.attrs["observables"]))
+            if stored != self.names:
+                raise ValueError(f"observables: {list(self.names)} differ from the {list(stored)} recorded in "
+                                 f"{self.path}")
+            self._checked = (sim.steps, sim.collisions) if store.attrs.get("checked") else None
+            return store
+        # what a run killed at birth leaves may be resumed over
+        cli = self.spec is not None
+        take_run_dir(self.out_dir, force=self.force, may_hold=_BIRTH if self.resume else frozenset(),
+                     option="--out" if cli else "out_dir",
+                     hint="use --force to overwrite or --resume to continue" if cli else
+                     "pass force=True to overwrite or resume=True to continue")
+        initial = Record.of(sim, self.names)
+        spec = self.spec.model_dump_json() if self.spec is not None else ""
+        run = "" if self.spec is not None else json.dumps(describe_run(sim))
+        return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
+                                   initial=initial, version=__version__)
+
+
+_BIRTH = frozenset({"spec.json", DATA_DIR, RESULTS_NAME + ".tmp"})
+
+
+class OnSnapshot(Writer):
+    """Hands a `Record` of each snapshot ``trigger`` fires on to ``on_snapshot`` (ensembles, the
+    reproduction: snapshots kept in memory)."""
+
+    def __init__(self, trigger: Trigger, on_snapshot, names=observe.DEFAULT):
+        self.trigger, self.on_snapshot, self.names = trigger, on_snapshot, tuple(names)
+
+    def write(self, sim) -> None:
+        self.on_snapshot(Record.of(sim, self.names))
+
+
+def _check_continues(store: ResultsStore, sim, path: Path) -> None:
+    """A ValueError unless ``sim`` is at the state stored in ``path`` (counters and velocities)."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        steps, collisions = int(f["state"].attrs["steps"]), int(f["state"].attrs["collisions"])
+        same = (sim.steps, sim.collisions) == (steps, collisions) and \
+            np.array_equal(f["state/velocities"][()], sim.velocities)
+    if not same:
+        raise ValueError(f"resume: the simulation is at step {sim.steps:,}, not at the state stored in {path} "
+                         f"(step {steps:,}); continue from pb.load(...).simulation()")
+
+
+def describe_run(sim) -> dict:
+    """What a run built in Python was made of: its geometry, rule and scheduler as spec dicts
+    where they have one (else ``{"class": "module.Name", "repr": ...}``), and whether it has masses."""
+    return {"geometry": _describe(sim.geometry, _GEOMETRY_SPECS), "rule": _describe(sim.rule, _RULE_SPECS),
+            "scheduler": _describe(sim.scheduler, _SCHEDULER_SPECS), "masses": sim.masses is not None}
+
+
+def _describe(obj, known: dict) -> dict:
+    to_spec = known.get(type(obj).__name__) if type(obj).__module__.startswith("pinnedballs.") else None
+    if to_spec is not None:
+        return to_spec(obj)
+    return {"class": f"{type(obj).__module__}.{type(obj).__qualname__}", "repr": repr(obj)}
+
+
+_GEOMETRY_SPECS = {
+    "FlatTorus": lambda g: {"kind": "flat_torus", "rows": g.rows, "cols": g.cols, "radius": g.radius},
+    "HalfPlane": lambda g: {"kind": "half_plane", "rows": g.rows, "cols": g.cols, "radius": g.radius,
+                            "orientation": g.orientation},
+    "HyperbolicPlane": lambda g: {"kind": "hyperbolic_plane", "q": g.q, "layers": g.layers, "radius": g.radius},
+    "FCC": lambda g: _packing("fcc", g),
+    "HCP": lambda g: _packing("hcp", g),
+    # a sphere from points is rebuilt from the stored positions (`geometry_from_stored`)
+    "Sphere": lambda g: ({"kind": "sphere", "frequency": g.frequency, "radius": g.radius} if g.frequency is not None
+                         else {"kind": "sphere", "points": "stored positions", "radius": g.radius}),
+}
+
+
+def _packing(kind: str, g) -> dict:
+    nx, ny, nz = g.shape
+    return {"kind": kind, "nx": nx, "ny": ny, "nz": nz, "periodic": list(g.periodic), "radius": g.radius}
+
+
+_RULE_SPECS = {
+    "Elastic": lambda r: {"kind": "elastic"},
+    "Restitution": lambda r: {"kind": "restitution", "r": r.r},
+}
+_SCHEDULER_SPECS = {
+    "UniformRandomPair": lambda s: {"kind": "uniform_random_pair"},
+    "Sweep": lambda s: {"kind": "sweep"},
+    "RandomSweep": lambda s: {"kind": "random_sweep"},
+    "RejectionFree": lambda s: {"kind": "rejection_free"},
+    "ColoredSweep": lambda s: {"kind": "colored_sweep", "shuffle": s.shuffle},
+}
