@@ -34,7 +34,7 @@ from .jitcache import jit_cached_if_possible
 from .errors import FieldError, FieldTypeError
 from .kernels import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, contact_kernels
 from .random import bounded, load, store
-from .schedulers import Scheduler
+from .schedulers import _EMPTY_FLAGS, _EMPTY_INC, _EMPTY_PTR, Scheduler
 
 __all__ = ["ColoredSweep", "colour_classes", "colored_sweep_kernel", "SweepLoops"]
 
@@ -213,7 +213,7 @@ class ColoredSweep(Scheduler):
         tables = (loops.classes, loops.starts, state, rng, counters, max_steps)
         if not track and max_collisions == NO_LIMIT:
             return loops.steps(*chain, *tables)
-        ptr, inc, flags = live if track else (np.zeros(1, np.int64), np.zeros(0, np.uint32), np.zeros(0, np.uint8))
+        ptr, inc, flags = live if track else (_EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS)
         return loops.limited(*chain, *tables, max_collisions, track, ptr, inc, flags)
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
