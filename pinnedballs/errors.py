@@ -7,7 +7,7 @@ own field path without reading the message (`pinnedballs.specs.base.engine_error
 
 from __future__ import annotations
 
-__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "SpecError"]
+__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "SpecError", "check_jitted"]
 
 
 class InputError(ValueError):
@@ -43,3 +43,18 @@ class SpecError(FieldError):
     @property
     def path(self) -> str:
         return self.field
+
+
+def check_jitted(function, field: str, what: str):
+    """``function`` if it is compiled by numba (``@njit``), else a `FieldTypeError` on ``field``.
+
+    The compiled loops call it inside numba: a plain Python function would fail there with a
+    TypingError from deep inside the engine. With ``NUMBA_DISABLE_JIT=1`` everything is plain.
+    """
+    from numba import config
+    from numba.core.dispatcher import Dispatcher
+
+    if config.DISABLE_JIT or isinstance(function, Dispatcher):
+        return function
+    raise FieldTypeError(field, f"{what} must be a numba-compiled function (decorate it with @numba.njit), "
+                                f"got {function!r}")

@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from .errors import FieldError, FieldTypeError
+from .errors import FieldError, FieldTypeError, check_jitted
 from .kernels import COLLISIONS, LIVE, LOOKAHEAD_BYTES, NO_LIMIT, Chain, LiveSet, chain_kernel
 from .random import bounded
 
@@ -73,7 +73,8 @@ class Scheduler(ABC):
     def loops(self, collide: Callable, geometry) -> object:
         """The compiled loops for a rule's ``collide`` on ``geometry``; built once per `Simulation`
         and handed back to `advance`. Default: `kernels.chain_kernel` around `kernel`'s ``pick``."""
-        return chain_kernel(collide, self.kernel(), geometry.dim, geometry.contacts.flat)
+        pick = check_jitted(self.kernel(), "scheduler", f"{type(self).__name__}.kernel()'s pick")
+        return chain_kernel(collide, pick, geometry.dim, geometry.contacts.flat)
 
     def needs_live(self, track: bool) -> bool:
         """Whether `advance` wants the live set, freshly computed, for a call with this ``track``."""

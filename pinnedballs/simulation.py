@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import FieldError, FieldTypeError
+from .errors import FieldError, FieldTypeError, check_jitted
 from .geometry import Geometry
 from .limits import check_speeds
 from .kernels import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence, live_kernel
@@ -90,6 +90,7 @@ class Simulation:
         self.masses = None if masses is None else self._mass_array
         self.velocities = self._check_velocities(velocities)
         self._collide, self._params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
+        check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
         self._loops = scheduler.loops(self._collide, geometry)
         self._live_flags = live_kernel(self._collide, geometry.dim, geometry.contacts.flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)

@@ -124,3 +124,37 @@ def test_registered_observable_is_recorded(doc):
     res = pb.load(doc["measured"].out_dir)
     assert res.observables["steps"].tolist() == [7, 14]
     assert res.observables["speed_of_last_ball"].tolist() == [1.0, 1.0]  # the cradle passed it on
+
+
+def test_a_plain_python_pick_or_collide_is_refused_naming_the_component():
+    """A pick or collide without @njit would fail inside the compiled loop with a numba TypingError;
+    it is refused up front with a TypeError naming the scheduler or the rule."""
+    from numba import config
+
+    from pinnedballs.rules import CollisionRule, collide_equal
+    from pinnedballs.schedulers import Scheduler
+
+    if config.DISABLE_JIT:
+        pytest.skip("with NUMBA_DISABLE_JIT every function is plain Python, so nothing to tell apart")
+
+    def plain_pick(state, rng, n_contacts):
+        return np.uint64(0), rng
+
+    def plain_collide(v, units, i, j, a, b, masses, params, dim, flat, write):
+        return collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write)
+
+    class Plain(Scheduler):
+        def kernel(self):
+            return plain_pick
+
+    class PlainRule(CollisionRule):
+        def kernel(self, equal_masses):
+            return plain_collide, np.array([1.0])
+
+    geom = pb.HalfPlane(2, 2)
+    v = np.zeros((4, 2))
+    with pytest.raises(TypeError, match=r"^scheduler: Plain.kernel\(\)'s pick must be a numba-compiled function "
+                                        r"\(decorate it with @numba.njit\), got <function"):
+        pb.Simulation(geom, v, scheduler=Plain())
+    with pytest.raises(TypeError, match=r"^rule: PlainRule.kernel\(\)'s collide must be a numba-compiled"):
+        pb.Simulation(geom, v, rule=PlainRule())
