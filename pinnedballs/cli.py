@@ -220,6 +220,7 @@ def ensemble_command(args) -> int:
         replica_seed, run_ensemble, write_outputs
     from .errors import InputError
     from .io import check_out_dir
+    from .rundir import DirLock
     from .specs import load_spec
 
     replicas = _check_count("--replicas", args.replicas)
@@ -234,15 +235,16 @@ def ensemble_command(args) -> int:
     client = None
     if args.dask is not None:
         client, _ = _client(args.dask, None, "--dask")
-    try:
-        result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
-                              progress=False if args.quiet else None)
-    finally:
-        if client is not None:
-            client.close()
-    if args.force and out.is_dir():
-        _remove_old_outputs(out)
-    write_outputs(result, out)
+    with DirLock(out, "--out"):  # one ensemble at a time writes into a directory
+        try:
+            result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
+                                  progress=False if args.quiet else None)
+        finally:
+            if client is not None:
+                client.close()
+        if args.force and out.is_dir():
+            _remove_old_outputs(out)
+        write_outputs(result, out)
     for row in result.failures:
         print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
               f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)

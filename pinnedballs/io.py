@@ -333,13 +333,13 @@ def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: froze
 
 def check_out_dir(out: str | os.PathLike, force: bool, *, may_hold: frozenset[str] = frozenset(),
                   hint: str = "use --force to write into it", option: str = "--out") -> Path:
-    """``out`` as a Path; an `InputError` naming ``option`` if it is a file, or a directory
-    holding anything beyond ``may_hold`` without ``force``."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{option} {out}: exists and is not a directory")
+    """``out`` as a Path; an `InputError` naming ``option`` if it cannot be written (`check_writable`),
+    or is a directory holding anything beyond ``may_hold`` (and a lock file) without ``force``."""
+    from .rundir import LOCK_NAME, check_writable
+
+    out = check_writable(out, option)
     if out.is_dir() and not force:
-        entries = sorted(p.name for p in out.iterdir())
+        entries = sorted(p.name for p in out.iterdir() if p.name != LOCK_NAME)
         if not set(entries) <= may_hold:
             shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
             raise InputError(f"{option} {out}: directory is not empty ({shown}); {hint}")
