@@ -50,6 +50,7 @@ import numpy as np
 
 from . import observe
 from .errors import InputError
+from .results_check import check_results
 from .geometry import Contacts, Geometry
 from .simulation import Simulation
 from .specs import RunSpec
@@ -549,8 +550,9 @@ def load(path: str | os.PathLike) -> Results:
 
 
 def _open_checked(p: Path) -> h5py.File:
-    """The results file ``p`` opened for reading, after checking it is one this version reads
-    and that every file it refers to is there (the one place results files are opened)."""
+    """The results file ``p`` opened for reading, after checking it is one this version reads,
+    that every file it refers to is there, and its structure (`check_results`): the one place
+    results files are opened."""
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
@@ -561,6 +563,9 @@ def _open_checked(p: Path) -> h5py.File:
         version = int(f.attrs.get("format_version", -1))
         if version > FORMAT_VERSION:
             raise ResultsError(f"{p}: written by a newer pinnedballs (format {f.attrs['format_version']}); upgrade")
+        if version < 1:
+            raise ResultsError(f"{p}: damaged results file: / (attribute format_version): must be 1 or 2, "
+                               f"got {f.attrs.get('format_version')!r}")
         if version >= 2:
             data = _data_dir(p)
             try:
@@ -570,6 +575,7 @@ def _open_checked(p: Path) -> h5py.File:
             missing = [name for name in needed if not (data / name).is_file()]
             if missing:
                 raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
+        check_results(p, f, _data_dir(p) if version >= 2 else None)
     except BaseException:
         f.close()
         raise
