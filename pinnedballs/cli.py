@@ -10,6 +10,7 @@ Exit status: 0 done; 2 bad input (one line on stderr naming the field or file);
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import os
 import sys
@@ -96,9 +97,16 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, Interrupted):
             _say(str(exc))
             return EXIT_INTERRUPTED
+        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:  # the last checkpoint is intact
+            _say(f"error: {_one_line(exc)}; free some space, then continue a run with --resume")
+            return EXIT_ERROR
         traceback.print_exc(file=sys.stderr)
         _say(f"error: {type(exc).__name__}: {_one_line(exc)}")
         return EXIT_ERROR
+
+
+#: errors of a full disk or quota: one line, not a traceback
+_DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
 
 
 def _say(message: str) -> None:
