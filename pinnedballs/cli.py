@@ -10,6 +10,7 @@ Exit status: 0 done; 2 bad input (one line on stderr naming the field or file);
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import os
 import sys
@@ -96,9 +97,16 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, Interrupted):
             _say(str(exc))
             return EXIT_INTERRUPTED
+        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:  # the last checkpoint is intact
+            _say(f"error: {_one_line(exc)}; free some space, then continue a run with --resume")
+            return EXIT_ERROR
         traceback.print_exc(file=sys.stderr)
         _say(f"error: {type(exc).__name__}: {_one_line(exc)}")
         return EXIT_ERROR
+
+
+#: errors of a full disk or quota: one line, not a traceback
+_DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
 
 
 def _say(message: str) -> None:
@@ -220,6 +228,7 @@ def ensemble_command(args) -> int:
         replica_seed, run_ensemble, write_outputs
     from .errors import InputError
     from .io import check_out_dir
+    from .rundir import DirLock
     from .specs import load_spec
 
     replicas = _check_count("--replicas", args.replicas)
@@ -234,15 +243,16 @@ def ensemble_command(args) -> int:
     client = None
     if args.dask is not None:
         client, _ = _client(args.dask, None, "--dask")
-    try:
-        result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
-                              progress=False if args.quiet else None)
-    finally:
-        if client is not None:
-            client.close()
-    if args.force and out.is_dir():
-        _remove_old_outputs(out)
-    write_outputs(result, out)
+    with DirLock(out, "--out"):  # one ensemble at a time writes into a directory
+        try:
+            result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
+                                  progress=False if args.quiet else None)
+        finally:
+            if client is not None:
+                client.close()
+        if args.force and out.is_dir():
+            _remove_old_outputs(out)
+        write_outputs(result, out)
     for row in result.failures:
         print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
               f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)

@@ -50,6 +50,7 @@ import numpy as np
 
 from . import observe
 from .errors import InputError
+from .results_check import check_results
 from .geometry import Contacts, Geometry
 from .simulation import Simulation
 from .specs import RunSpec
@@ -195,10 +196,9 @@ class ResultsStore:
         self._write_index(state)
 
     def _write_index(self, state: Record) -> None:
-        tmp = _tmp(self.path)
         n, d = self.shape
         rel = f"{self.data_dir.name}/"
-        with h5py.File(tmp, "w") as f:
+        with _h5_file(self.path) as f:
             f.attrs.update(self.attrs)
             f.attrs["segments"] = json.dumps(self.segments)
             f["geometry"] = h5py.ExternalLink(rel + STATIC_NAME, "/geometry")
@@ -210,7 +210,6 @@ class ResultsStore:
             for name in observe.ALWAYS:
                 f["snapshots"][name] = h5py.SoftLink(f"/observables/{name}")
             _write_state(f, state)
-        _commit(tmp, self.path)
 
     def _remove_strays(self) -> None:
         """Remove temporary files and segments the index does not list (left by a kill)."""
@@ -222,9 +221,8 @@ class ResultsStore:
 
 
 def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> None:
-    tmp = _tmp(path)
     n = geometry.n_balls
-    with h5py.File(tmp, "w") as f:
+    with _h5_file(path) as f:
         g = f.create_group("geometry")
         c = geometry.contacts
         g["positions"] = geometry.positions
@@ -237,16 +235,31 @@ def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> No
         i["velocities"] = initial.state["velocities"]
         i["momentum"] = initial.momentum
         i.attrs.update(energy=initial.energy, approaching=initial.approaching)
-    _commit(tmp, path)
 
 
 def _write_segment(path: Path, frames: list[Record], names: list[str]) -> None:
-    tmp = _tmp(path)
-    with h5py.File(tmp, "w") as f:
+    with _h5_file(path) as f:
         f["velocities"] = np.stack([r.state["velocities"] for r in frames])
         for name in names:
             f[f"observables/{name}"] = np.stack([np.asarray(r.values[name]) for r in frames])
-    _commit(tmp, path)
+
+
+@contextlib.contextmanager
+def _h5_file(path: Path):
+    """An HDF5 file built in memory, then written to ``path`` (`write_bytes_atomic`) if the block succeeds.
+
+    HDF5 never writes to disk itself: a full disk is a plain OSError from our own write,
+    never a file HDF5 cannot close (h5py issue 2160: a native crash on closing a file
+    whose write failed), and no partial file is left behind.
+    """
+    f = h5py.File(f"{path.name}.{id(path)}", "w", driver="core", backing_store=False)
+    try:
+        yield f
+        f.flush()
+        image = f.id.get_file_image()
+    finally:
+        f.close()
+    write_bytes_atomic(path, image)
 
 
 def _virtual(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: tuple, segments: list, rel: str) -> None:
@@ -333,13 +346,13 @@ def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: froze
 
 def check_out_dir(out: str | os.PathLike, force: bool, *, may_hold: frozenset[str] = frozenset(),
                   hint: str = "use --force to write into it", option: str = "--out") -> Path:
-    """``out`` as a Path; an `InputError` naming ``option`` if it is a file, or a directory
-    holding anything beyond ``may_hold`` without ``force``."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{option} {out}: exists and is not a directory")
+    """``out`` as a Path; an `InputError` naming ``option`` if it cannot be written (`check_writable`),
+    or is a directory holding anything beyond ``may_hold`` (and a lock file) without ``force``."""
+    from .rundir import LOCK_NAME, check_writable
+
+    out = check_writable(out, option)
     if out.is_dir() and not force:
-        entries = sorted(p.name for p in out.iterdir())
+        entries = sorted(p.name for p in out.iterdir() if p.name != LOCK_NAME)
         if not set(entries) <= may_hold:
             shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
             raise InputError(f"{option} {out}: directory is not empty ({shown}); {hint}")
@@ -349,10 +362,21 @@ def check_out_dir(out: str | os.PathLike, force: bool, *, may_hold: frozenset[st
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename: a kill leaves the
     old file or the new one, never half of one."""
+    write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename; if writing fails
+    (a full disk), the temporary file is removed and ``path`` is as it was."""
     path = Path(path)
     tmp = _tmp(path)
-    tmp.write_text(text, encoding="utf-8")
-    _commit(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        _commit(tmp, path)
+    except BaseException:
+        _remove(tmp)
+        raise
 
 
 def _commit(tmp: Path, path: Path) -> None:
@@ -549,8 +573,9 @@ def load(path: str | os.PathLike) -> Results:
 
 
 def _open_checked(p: Path) -> h5py.File:
-    """The results file ``p`` opened for reading, after checking it is one this version reads
-    and that every file it refers to is there (the one place results files are opened)."""
+    """The results file ``p`` opened for reading, after checking it is one this version reads,
+    that every file it refers to is there, and its structure (`check_results`): the one place
+    results files are opened."""
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
@@ -561,6 +586,9 @@ def _open_checked(p: Path) -> h5py.File:
         version = int(f.attrs.get("format_version", -1))
         if version > FORMAT_VERSION:
             raise ResultsError(f"{p}: written by a newer pinnedballs (format {f.attrs['format_version']}); upgrade")
+        if version < 1:
+            raise ResultsError(f"{p}: damaged results file: / (attribute format_version): must be 1 or 2, "
+                               f"got {f.attrs.get('format_version')!r}")
         if version >= 2:
             data = _data_dir(p)
             try:
@@ -570,6 +598,7 @@ def _open_checked(p: Path) -> h5py.File:
             missing = [name for name in needed if not (data / name).is_file()]
             if missing:
                 raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
+        check_results(p, f, _data_dir(p) if version >= 2 else None)
     except BaseException:
         f.close()
         raise

@@ -9,6 +9,7 @@ returns the `Figure`.
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -49,10 +50,16 @@ def _new_axes(ax, figsize, title):
 
 
 def save(fig: Figure, path) -> Figure:
-    """Write ``fig`` as a PNG at ``path`` (its folder created) unless ``path`` is None."""
+    """Write ``fig`` as a PNG at ``path`` (its folder created) unless ``path`` is None: drawn in
+    memory and written through a temporary file and a rename, so a failed write (a full disk)
+    leaves no partial PNG."""
     if path is not None:
+        from .io import write_bytes_atomic
+
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=DPI, format="png")
+        image = io.BytesIO()
+        fig.savefig(image, dpi=DPI, format="png")
+        write_bytes_atomic(path, image.getvalue())
     return fig
 
 

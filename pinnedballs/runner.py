@@ -22,6 +22,7 @@ from typing import Callable, Iterator, Sequence
 from .driver import CHUNK_PER_CONTACT, CHUNK_STEPS, Writer, advance, drive
 from .errors import InputError
 from .io import RESULTS_NAME, Record, Results, load, write_text_atomic
+from .rundir import DirLock
 from .simulation import Simulation
 from .specs import RunSpec
 from .writers import OnSnapshot, ResultsWriter
@@ -63,10 +64,19 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
+    sim = None if resume and path.exists() else spec.build()  # bad input fails before anything is written
+    with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
+        return _execute(spec, out, sim, lock, force=force, resume=resume, progress=progress, figures=figures)
+
+
+def _execute(spec: RunSpec, out: Path, sim: Simulation | None, lock: DirLock, *, force: bool, resume: bool,
+             progress: bool | None, figures: bool) -> Path:
+    """`execute` holding ``lock`` on ``out``; ``sim``: the new simulation, None to resume."""
+    path = out / RESULTS_NAME
     writer = ResultsWriter(out, snapshots=spec.snapshots.build() if spec.snapshots else None,
                            checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
-                           force=force, resume=resume and path.exists())
-    if resume and path.exists():
+                           force=force, resume=sim is None, lock=lock)
+    if sim is None:
         res = load(path)
         _check_same_run(res, spec)
         if not (out / "spec.json").exists():
@@ -77,7 +87,6 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             return path
         sim = res.simulation()
     else:
-        sim = spec.build()
         writer.resume = resume  # a directory a run killed at birth left may be taken over
         writer.attach(sim)      # takes the directory and writes the static data
         _remove_figures(out)    # a replaced run's pictures would pass for this one's

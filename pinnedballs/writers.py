@@ -25,6 +25,7 @@ import numpy as np
 from . import observe
 from .driver import Writer
 from .io import DATA_DIR, RESULTS_NAME, Record, ResultsStore, take_run_dir
+from .rundir import DirLock
 from .triggers import Counts, Trigger
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]
@@ -61,10 +62,12 @@ class ResultsWriter(Writer):
     observables: names from `pinnedballs.observe` recorded with each snapshot (default: all built-ins).
     force: replace a run already in ``out_dir``; resume: append to it (the simulation must be at
     its latest state, as ``pb.load(out_dir).simulation()`` gives it).
+    The writer holds an exclusive lock on ``out_dir`` (`pinnedballs.rundir.DirLock`) from the
+    start of a run to its stop (or `close`); lock: one the caller holds instead.
     """
 
     def __init__(self, out_dir: str | os.PathLike, snapshots=None, checkpoint_seconds: float = 60.0,
-                 observables=None, *, force: bool = False, resume: bool = False, spec=None):
+                 observables=None, *, force: bool = False, resume: bool = False, spec=None, lock=None):
         if isinstance(checkpoint_seconds, bool) or not isinstance(checkpoint_seconds, (int, float)) \
                 or not checkpoint_seconds >= 0:
             raise ValueError(f"checkpoint_seconds: must be a number >= 0, got {checkpoint_seconds!r}")
@@ -78,6 +81,7 @@ class ResultsWriter(Writer):
         self.names = observe.check_names(observables)
         self.force, self.resume, self.spec = force, resume, spec
         self.store: ResultsStore | None = None
+        self._lock, self._own_lock = lock, lock is None
         self.pending: list[Record] = []
         self._checked: Counts | None = None
         self._saved: Counts | None = None  #: the counts of the state last checkpointed
@@ -89,8 +93,14 @@ class ResultsWriter(Writer):
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
+        if self._own_lock and self._lock is None:
+            self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
         if self.store is None:
-            self.store = self._open(sim)
+            try:
+                self.store = self._open(sim)
+            except BaseException:
+                self.close()
+                raise
         elif (sim.steps, sim.collisions) != self._checked:
             self._checked = None  # the simulation moved on without us: check its state afresh
         self._start = self._last = time.monotonic()
@@ -110,6 +120,13 @@ class ResultsWriter(Writer):
         self._checked = (sim.steps, sim.collisions)
         self._checkpoint(Record.of(sim, self.names), done=True, reason=reason)
         self._elapsed0 = self.elapsed()
+        self.close()
+
+    def close(self) -> None:
+        """Release the lock on ``out_dir`` if this writer took it (the next run takes it again)."""
+        if self._own_lock and self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
     # ------------------------------------------------------------ checkpoints
     def elapsed(self) -> float:

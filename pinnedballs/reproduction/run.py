@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import ensemble as ens
 from ..io import check_out_dir
+from ..rundir import DirLock
 from ..specs import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
 from .figures import (_far_share_figure, _figure_paper_lattice, _figure_sizes, _figures_correlations,
@@ -64,88 +65,89 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     torus_long = torus_spec(plan, max(plan.long_steps, plan.steps[-1]))
     for spec in (detail_steps, *size_specs.values(), torus, torus_long):
         spec.build()
-    out.mkdir(parents=True, exist_ok=True)
-    for sub in ("specs", "data", "ensembles"):
-        (out / sub).mkdir(exist_ok=True)
-    lattice = paper_lattice_spec(plan)
-    specs = {"half_plane_detail_steps": detail_steps, "half_plane_detail_collisions": detail_collisions,
-             "torus": torus, "torus_ensemble": torus_long, "paper_lattice": lattice,
-             **{f"half_plane_{_label(s)}": spec for s, spec in size_specs.items()}}
-    for name, spec in specs.items():
-        (out / "specs" / f"{name}.json").write_text(spec.to_json() + "\n", encoding="utf-8")
+    with DirLock(out, "--out"):  # one reproduction at a time writes into a directory
+        out.mkdir(parents=True, exist_ok=True)
+        for sub in ("specs", "data", "ensembles"):
+            (out / sub).mkdir(exist_ok=True)
+        lattice = paper_lattice_spec(plan)
+        specs = {"half_plane_detail_steps": detail_steps, "half_plane_detail_collisions": detail_collisions,
+                 "torus": torus, "torus_ensemble": torus_long, "paper_lattice": lattice,
+                 **{f"half_plane_{_label(s)}": spec for s, spec in size_specs.items()}}
+        for name, spec in specs.items():
+            (out / "specs" / f"{name}.json").write_text(spec.to_json() + "\n", encoding="utf-8")
 
-    checks: list[Check] = []
-    results: dict = {"plan": dataclasses.asdict(plan)}
-    failures: list[dict] = []
-    run_ensemble = functools.partial(ens.run_ensemble, workers=workers, progress=progress)
+        checks: list[Check] = []
+        results: dict = {"plan": dataclasses.asdict(plan)}
+        failures: list[dict] = []
+        run_ensemble = functools.partial(ens.run_ensemble, workers=workers, progress=progress)
 
-    def ensemble(name: str, spec: RunSpec, replicas: int, **kwargs) -> ens.EnsembleResult:
-        say_t(f"ensemble {name}: {replicas} replicas")
-        result = run_ensemble(spec, replicas, **kwargs)
-        ens.write_outputs(result, out / "ensembles" / name, figures=False)
-        failures.extend({"ensemble": name, **row} for row in result.failures)
-        return result
+        def ensemble(name: str, spec: RunSpec, replicas: int, **kwargs) -> ens.EnsembleResult:
+            say_t(f"ensemble {name}: {replicas} replicas")
+            result = run_ensemble(spec, replicas, **kwargs)
+            ens.write_outputs(result, out / "ensembles" / name, figures=False)
+            failures.extend({"ensemble": name, **row} for row in result.failures)
+            return result
 
-    # ---------------------------------------------------------- half-plane: Figures 1-3
-    say_t(f"half-plane {_label(plan.detail)}: single runs (seed {plan.seed})")
-    by_steps, by_collisions = _single(detail_steps), _single(detail_collisions)
-    if not np.array_equal(by_steps.sim.velocities, by_collisions.sim.velocities):
-        raise RuntimeError("the same half-plane spec and seed gave two different final states")
-    sim = by_steps.sim
-    geom = sim.geometry
-    dist = geom.boundary_distance()
-    _figures_half_plane(out, plan, geom, by_steps, by_collisions)
-    final_row = ens.state_row(geom, sim.velocities)
-    at_c = by_collisions.snapshots.get(plan.collisions)
-    results["detail"] = {"rows": geom.rows, "cols": geom.cols, "balls": geom.n_balls, "steps": sim.steps,
-                         "collisions": sim.collisions, "frozen": sim.is_frozen(), "final": final_row,
-                         "boundary_share_at_collisions": (obs.boundary_share(dist, at_c.state["velocities"])
-                                                          if at_c is not None else None)}
+        # ---------------------------------------------------------- half-plane: Figures 1-3
+        say_t(f"half-plane {_label(plan.detail)}: single runs (seed {plan.seed})")
+        by_steps, by_collisions = _single(detail_steps), _single(detail_collisions)
+        if not np.array_equal(by_steps.sim.velocities, by_collisions.sim.velocities):
+            raise RuntimeError("the same half-plane spec and seed gave two different final states")
+        sim = by_steps.sim
+        geom = sim.geometry
+        dist = geom.boundary_distance()
+        _figures_half_plane(out, plan, geom, by_steps, by_collisions)
+        final_row = ens.state_row(geom, sim.velocities)
+        at_c = by_collisions.snapshots.get(plan.collisions)
+        results["detail"] = {"rows": geom.rows, "cols": geom.cols, "balls": geom.n_balls, "steps": sim.steps,
+                             "collisions": sim.collisions, "frozen": sim.is_frozen(), "final": final_row,
+                             "boundary_share_at_collisions": (obs.boundary_share(dist, at_c.state["velocities"])
+                                                              if at_c is not None else None)}
 
-    # ---------------------------------------------------------- half-plane: sizes (Figure 4) and ensembles
-    profiles, size_rows, size_results = {}, [], {}
-    for size, spec in size_specs.items():
-        say_t(f"half-plane {_label(size)}: single run")
-        run = by_steps if size == tuple(plan.detail) else _single(spec)
-        g = run.sim.geometry
-        profiles[f"{_label(size)} ({g.rows}x{g.cols}, {g.n_balls:,} balls)"] = obs.energy_profile(
-            g.boundary_distance(), run.sim.velocities)
-        replicas = plan.replicas if size == tuple(plan.detail) else plan.size_replicas
-        res = ensemble(f"half_plane_{_label(size)}", spec, replicas)
-        size_results[size] = (g, res)
-        size_rows.append((_label(size), g.n_balls, res.column("far_half_share"), res.column("far_row_share")))
-    _figure_sizes(out, profiles)
-    _far_share_figure(size_rows, out / "extra_far_share_by_size.png")
-    lattice_res = ensemble("paper_lattice", lattice, plan.replicas,
-                           task=functools.partial(ens.run_replica, observe=paper_lattice_row))
-    say_t("paper-orientation lattice: single run")
-    lattice_run = _single(lattice)
-    _figure_paper_lattice(out, lattice_run)
-    detail_geom, detail_res = size_results[tuple(plan.detail)]
-    _frozen_collisions_figure(detail_res.column("collisions"), lattice_res.column("collisions"),
-                              (f"HalfPlane {detail_geom.rows}x{detail_geom.cols}",
-                               f"paper orientation ({lattice_run.sim.geometry.n_balls:,} balls)"),
-                              out / "extra_collisions_until_frozen.png")
-    checks += _half_plane_checks(plan, results["detail"], size_results, lattice_res, lattice_run)
+        # ---------------------------------------------------------- half-plane: sizes (Figure 4) and ensembles
+        profiles, size_rows, size_results = {}, [], {}
+        for size, spec in size_specs.items():
+            say_t(f"half-plane {_label(size)}: single run")
+            run = by_steps if size == tuple(plan.detail) else _single(spec)
+            g = run.sim.geometry
+            profiles[f"{_label(size)} ({g.rows}x{g.cols}, {g.n_balls:,} balls)"] = obs.energy_profile(
+                g.boundary_distance(), run.sim.velocities)
+            replicas = plan.replicas if size == tuple(plan.detail) else plan.size_replicas
+            res = ensemble(f"half_plane_{_label(size)}", spec, replicas)
+            size_results[size] = (g, res)
+            size_rows.append((_label(size), g.n_balls, res.column("far_half_share"), res.column("far_row_share")))
+        _figure_sizes(out, profiles)
+        _far_share_figure(size_rows, out / "extra_far_share_by_size.png")
+        lattice_res = ensemble("paper_lattice", lattice, plan.replicas,
+                               task=functools.partial(ens.run_replica, observe=paper_lattice_row))
+        say_t("paper-orientation lattice: single run")
+        lattice_run = _single(lattice)
+        _figure_paper_lattice(out, lattice_run)
+        detail_geom, detail_res = size_results[tuple(plan.detail)]
+        _frozen_collisions_figure(detail_res.column("collisions"), lattice_res.column("collisions"),
+                                  (f"HalfPlane {detail_geom.rows}x{detail_geom.cols}",
+                                   f"paper orientation ({lattice_run.sim.geometry.n_balls:,} balls)"),
+                                  out / "extra_collisions_until_frozen.png")
+        checks += _half_plane_checks(plan, results["detail"], size_results, lattice_res, lattice_run)
 
-    # ---------------------------------------------------------- torus: Figures 5-8
-    say_t(f"torus {plan.torus[0]}x{plan.torus[1]}: single run (seed {plan.seed})")
-    trun = _single(torus)
-    _figures_torus(out, plan, trun)
-    tres = ensemble("torus", torus_long, plan.replicas, task=functools.partial(ens.run_replica, observe=torus_row))
-    _figures_correlations(out, plan, tres, _torus_stage(plan, plan.steps[-1]))
-    checks += _torus_checks(plan, trun, tres, results)
+        # ---------------------------------------------------------- torus: Figures 5-8
+        say_t(f"torus {plan.torus[0]}x{plan.torus[1]}: single run (seed {plan.seed})")
+        trun = _single(torus)
+        _figures_torus(out, plan, trun)
+        tres = ensemble("torus", torus_long, plan.replicas, task=functools.partial(ens.run_replica, observe=torus_row))
+        _figures_correlations(out, plan, tres, _torus_stage(plan, plan.steps[-1]))
+        checks += _torus_checks(plan, trun, tres, results)
 
-    wall = time.perf_counter() - t0
-    results["wall_seconds"] = wall
-    results["failures"] = failures
-    results["checks"] = [dataclasses.asdict(c) for c in checks]
-    (out / "results.json").write_text(json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n", encoding="utf-8")
-    report = out / REPORT_NAME
-    report.write_text(_report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry,
-                              failures, wall), encoding="utf-8")
-    say_t(f"wrote {report}")
-    return report
+        wall = time.perf_counter() - t0
+        results["wall_seconds"] = wall
+        results["failures"] = failures
+        results["checks"] = [dataclasses.asdict(c) for c in checks]
+        (out / "results.json").write_text(json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n", encoding="utf-8")
+        report = out / REPORT_NAME
+        report.write_text(_report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry,
+                                  failures, wall), encoding="utf-8")
+        say_t(f"wrote {report}")
+        return report
 
 
 
