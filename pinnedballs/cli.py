@@ -168,6 +168,24 @@ def plot(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@subcommand("animate", "a movie of a run's snapshots (GIF; MP4 with the 'movies' extra)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
+            arg("--out", metavar="MOVIE", help="movie.gif or movie.mp4 (default: DIR/movie.gif)"),
+            arg("--fps", type=float, default=4.0, metavar="N", help="frames per second (default 4)"))
+def animate(args: argparse.Namespace) -> int:
+    from .animation import animate as write_movie
+    from .errors import FieldError
+
+    try:
+        path = write_movie(args.dir, args.out, args.fps)
+    except FieldError as exc:  # name the flag, not the Python argument
+        if exc.field not in ("out", "fps"):
+            raise
+        raise UsageError(f"animate: --{exc.field}: {exc.problem}") from None
+    print(path)
+    return EXIT_OK
+
+
 @subcommand("info", "summarise a results file",
             arg("dir", metavar="DIR", help="a run directory (or its results.h5)"))
 def info(args: argparse.Namespace) -> int:
