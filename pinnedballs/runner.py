@@ -23,6 +23,7 @@ from .driver import CHUNK_PER_CONTACT, CHUNK_STEPS, Writer, advance, drive
 from .errors import InputError
 from .io import RESULTS_NAME, Record, Results, load, write_text_atomic
 from .simulation import Simulation
+from .status import SILENT, Status
 from .specs import RunSpec
 from .writers import OnSnapshot, ResultsWriter
 
@@ -51,15 +52,15 @@ def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record
 
 
 def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, resume: bool = False,
-            progress: bool | None = None, figures: bool = True) -> Path:
+            progress: bool | None = None, figures: bool = True, status: Status = SILENT) -> Path:
     """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
 
     Everything is validated and the simulation built before anything is written.
     A non-empty ``out_dir`` is refused (`InputError`) unless ``force`` (which
     replaces our files) or ``resume`` (which continues from the last checkpoint
     of the same spec; a finished run is left as it is). ``progress``: a tqdm bar
-    on stderr; None means only if stderr is a terminal. SIGINT/SIGTERM write a
-    checkpoint and raise `Interrupted`.
+    on stderr; None means only if stderr is a terminal. ``status``: a `Status` line told each
+    stage (building, compiling, drawing). SIGINT/SIGTERM write a checkpoint and raise `Interrupted`.
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
@@ -67,21 +68,27 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
                            checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
                            force=force, resume=resume and path.exists())
     if resume and path.exists():
+        status("reading the last checkpoint")
         res = load(path)
         _check_same_run(res, spec)
         if not (out / "spec.json").exists():
             write_text_atomic(out / "spec.json", res.spec.to_json() + "\n")
         if res.complete:
             if figures:
+                status("drawing figures")
                 write_figures(out)
             return path
         sim = res.simulation()
     else:
+        status("building the geometry")
         sim = spec.build()
         writer.resume = resume  # a directory a run killed at birth left may be taken over
         writer.attach(sim)      # takes the directory and writes the static data
         _remove_figures(out)    # a replaced run's pictures would pass for this one's
         write_text_atomic(out / "spec.json", spec.to_json() + "\n")
+    status("compiling the loop (once: numba caches it on disk)")
+    sim.run(steps=0, until_frozen=spec.stop.build().until_frozen)  # compiles; changes no bit of the state
+    status.clear()
     with _progress_bar(spec, sim, progress) as bar, _deferred_signals() as stop_requested:
         def after_chunk(s: Simulation) -> None:
             bar(s)
@@ -93,7 +100,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
         run_to_stop(spec, sim, writers=[writer], after_chunk=after_chunk)
         bar(sim)
     if figures:
+        status("drawing figures")
         write_figures(out)
+    status.clear()
     return path
 
 
@@ -160,7 +169,7 @@ def _progress_bar(spec: RunSpec, sim: Simulation, show: bool | None) -> Iterator
         ("steps", stop.steps if stop.kind == "steps" else stop.max_steps)
     other = "steps" if unit == "collisions" else "collisions"
     with tqdm(total=total, initial=_counter(sim, unit), unit=f" {unit}", unit_scale=True, file=sys.stderr,
-              dynamic_ncols=True, delay=0.5, smoothing=0.1) as bar:
+              dynamic_ncols=True, smoothing=0.1, desc="running") as bar:
         def update(s: Simulation) -> None:
             bar.update(_counter(s, unit) - bar.n)
             bar.set_postfix_str(f"{other}={_counter(s, other):,}", refresh=False)
