@@ -281,7 +281,7 @@ def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = 
         ax.set_ylim(-top, top)
         name = COMPONENT_NAMES[k] if v.shape[1] <= 3 else str(k)
         ax.set_ylabel(f"{name}-component of velocity" if v.shape[1] > 1 else "velocity")
-    axes[-1].set_xlabel(xlabel)
+    axes[-1].set_xlabel(xlabel if v.shape[1] <= 3 else f"{xlabel} (components 0-2 of {v.shape[1]} drawn)")
     if len(x) and np.all(np.diff(x) == 1):
         axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
     if title:

@@ -231,7 +231,8 @@ def test_a_user_graph_in_four_dimensions_gets_its_components_by_ball(tmp_path):
     paths = plots.write_figures(results(geom, v, []), tmp_path)
     assert [p.name for p in paths] == ["state_final.png"]   # no histograms of 4 components
     fig = plots.components_by_ball(np.arange(2.0), v)
-    assert len(fig.axes) == 3                                # the first three components
+    assert len(fig.axes) == 3                                # the first three components, and it says so
+    assert fig.axes[-1].get_xlabel() == "ball (components 0-2 of 4 drawn)"
 
 
 def test_snapshots_the_spec_placed_by_collisions_are_named_after_the_collisions(tmp_path):
