@@ -128,15 +128,19 @@ def _one_line(exc: BaseException) -> str:
             arg("--quiet", action="store_true", help="no progress bar, no summary"),
             arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"))
 def run(args: argparse.Namespace) -> int:
-    from .runner import execute
-    from .specs import load_spec
+    from .status import Status
 
     if args.force and args.resume:
         raise UsageError("run: give --force or --resume, not both")
-    spec = load_spec(args.spec)
-    path = execute(spec, args.out, force=args.force, resume=args.resume,
-                   progress=False if args.quiet else None,
-                   figures=not args.no_figures and _plots_available())
+    with Status(show=False if args.quiet else None) as status:
+        status("reading the spec")
+        from .runner import execute
+        from .specs import load_spec
+
+        spec = load_spec(args.spec)
+        path = execute(spec, args.out, force=args.force, resume=args.resume,
+                       progress=False if args.quiet else None,
+                       figures=not args.no_figures and _plots_available(), status=status)
     if not args.quiet:
         from .io import load
 
@@ -173,6 +177,24 @@ def plot(args: argparse.Namespace) -> int:
     run_dir = load(args.dir).path.parent  # checks the file before drawing
     paths = write_figures(run_dir)
     print("\n".join(map(str, paths)) if paths else f"{run_dir}: no figures fit this geometry; none written")
+    return EXIT_OK
+
+
+@subcommand("animate", "a movie of a run's snapshots (GIF; MP4 with the 'movies' extra)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
+            arg("--out", metavar="MOVIE", help="movie.gif or movie.mp4 (default: DIR/movie.gif)"),
+            arg("--fps", type=float, default=4.0, metavar="N", help="frames per second (default 4)"))
+def animate(args: argparse.Namespace) -> int:
+    from .animation import animate as write_movie
+    from .errors import FieldError
+
+    try:
+        path = write_movie(args.dir, args.out, args.fps)
+    except FieldError as exc:  # name the flag, not the Python argument
+        if exc.field not in ("out", "fps"):
+            raise
+        raise UsageError(f"animate: --{exc.field}: {exc.problem}") from None
+    print(path)
     return EXIT_OK
 
 
@@ -224,6 +246,14 @@ def _plots_available() -> bool:
             arg("--quiet", action="store_true", help="no progress bar, no summary line"))
 def ensemble_command(args) -> int:
     """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
+    from .status import Status
+
+    with Status(show=False if args.quiet else None) as status:
+        status("reading the spec")
+        return _ensemble(args, status)
+
+
+def _ensemble(args, status) -> int:
     from .ensemble import ERROR_COLUMN, _check_count, _check_replicas_memory, _client, _remove_old_outputs, \
         replica_seed, run_ensemble, write_outputs
     from .errors import InputError
@@ -239,7 +269,9 @@ def ensemble_command(args) -> int:
             raise InputError("--workers, --dask: give one of them, not both")
     spec = load_spec(args.spec)
     out = check_out_dir(args.out, args.force)
+    status("building the geometry")
     spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
+    status.clear()
     client = None
     if args.dask is not None:
         client, _ = _client(args.dask, None, "--dask")
@@ -250,9 +282,11 @@ def ensemble_command(args) -> int:
         finally:
             if client is not None:
                 client.close()
+        status("writing the tables and histograms")
         if args.force and out.is_dir():
             _remove_old_outputs(out)
         write_outputs(result, out)
+        status.clear()
     for row in result.failures:
         print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
               f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)
@@ -270,16 +304,21 @@ def ensemble_command(args) -> int:
             arg("--quiet", action="store_true", help="no progress messages"))
 def reproduce_command(args) -> int:
     """``pinnedballs reproduce``: exit 0, 1 if a replica failed (the report is still written), 2 on bad input."""
-    from .ensemble import _check_count
-    from .io import check_out_dir
-    from .reproduction import reproduce
+    from .status import Status
 
-    if args.workers is not None:
-        _check_count("--workers", args.workers)
-    check_out_dir(args.out, args.force)
-    log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
+    with Status(show=False if args.quiet else None) as status:
+        status("loading the reproduction")
+        from .ensemble import _check_count
+        from .io import check_out_dir
+        from .reproduction import reproduce
+
+        if args.workers is not None:
+            _check_count("--workers", args.workers)
+        check_out_dir(args.out, args.force)
+    shown = status.shown  # the stages and bars on a terminal only
+    log = (lambda message: print(message, file=sys.stderr, flush=True)) if shown else None
     report = reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
-                       progress=False if args.quiet else None, log=log)
+                       progress=shown, log=log)
     results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
     if not args.quiet:
         print(f"wrote {report} in {results['wall_seconds']:.1f} s")

@@ -311,7 +311,7 @@ class _progress:
             return lambda: None
         from tqdm import tqdm
 
-        self.bar = tqdm(total=self.total, unit=" replicas", file=sys.stderr, dynamic_ncols=True, delay=0.5)
+        self.bar = tqdm(total=self.total, unit=" replicas", file=sys.stderr, dynamic_ncols=True, desc="replicas")
         return lambda: self.bar.update(1)
 
     def __exit__(self, *exc) -> None:

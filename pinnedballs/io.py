@@ -532,6 +532,12 @@ class Results:
         sim.set_state(self.state())
         return sim
 
+    def animate(self, out=None, fps: float = 4) -> Path:
+        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.animation.animate`."""
+        from .animation import animate
+
+        return animate(self, out, fps)
+
     def __repr__(self) -> str:
         return (f"Results({str(self.path)!r}, {self.status}, steps={self.steps}, collisions={self.collisions}, "
                 f"snapshots={len(self.snapshots)}, frozen={self.frozen})")

@@ -22,8 +22,9 @@ from scipy import stats
 
 from . import observables as obs
 
-__all__ = ["quiver", "arrow_scale", "sphere_views", "poincare_disk", "energy_by_distance", "energy_profiles",
-           "component_histograms", "correlation_histogram", "write_figures"]
+__all__ = ["quiver", "arrow_scale", "sphere_views", "poincare_disk", "chain", "components_by_ball",
+           "energy_by_distance", "energy_profiles", "component_histograms", "correlation_histogram",
+           "write_figures", "state_picture"]
 
 DPI = 100
 BALL_COLOUR = "0.75"
@@ -76,16 +77,40 @@ def _spacing(p: np.ndarray) -> float:
     return float(np.median(d)) if len(d) else 1.0
 
 
-def arrow_scale(speeds: np.ndarray, spacing: float) -> float:
+def arrow_scale(speeds: np.ndarray, spacing: float, longest: float = 3.0) -> float:
     """Arrow length per unit speed, for ``speeds (n,)`` and ``spacing`` between centres.
 
     The 95th percentile of the speeds gets one spacing, but no arrow gets more
-    than three: a spread-out state shows typical arrows half a spacing long,
+    than ``longest`` spacings: a spread-out state shows typical arrows half a spacing long,
     and a state with all energy on one ball shows a single arrow three spacings long.
     """
     top = float(speeds.max()) if len(speeds) else 0.0
-    reference = max(float(np.quantile(speeds, 0.95)) if len(speeds) else 0.0, top / 3.0)
+    reference = max(float(np.quantile(speeds, 0.95)) if len(speeds) else 0.0, top / longest)
     return spacing / reference if reference > 0 else 1.0
+
+
+#: in a movie (`shared` velocities of every frame) the longest arrow, in spacings: the pooled
+#: 95th percentile still gets one spacing, so the spread-out frames stay readable
+MOVIE_LONGEST = 10.0
+
+
+def _shared_scale(speeds: np.ndarray, shared, spacing: float, norm) -> float:
+    """`arrow_scale` of this state's ``speeds``, or of every frame's when ``shared`` (a movie) is given;
+    ``norm(v) -> (n,)`` turns one frame's velocities into speeds."""
+    if shared is None:
+        return arrow_scale(speeds, spacing)
+    return arrow_scale(np.concatenate([norm(np.asarray(v, dtype=np.float64)) for v in shared]), spacing,
+                       longest=MOVIE_LONGEST)
+
+
+def _key(ax, arrows, k: float, spacing: float, width: float, y: float = -0.07, drawn: float = 1.0,
+         where: str = "") -> None:
+    """The arrow-scale key at the left of ``ax`` (``y`` in axes units): a round speed about one spacing
+    long, its tail at 2 % of the axes' ``width`` (in data units). ``drawn``: the picture's length of a
+    unit of length where the key applies (``where``)."""
+    key = key_speed(spacing / k)
+    ax.quiverkey(arrows, X=0.02 + key * drawn * k / width, Y=y, U=key * drawn, label=f"speed {key:g}{where}",
+                 labelpos="E", coordinates="axes", fontproperties={"size": "small"})
 
 
 def key_speed(speed: float) -> float:
@@ -96,13 +121,14 @@ def key_speed(speed: float) -> float:
     return float(candidates[np.argmin(np.abs(np.log(candidates / speed)))])
 
 
-def quiver(positions, velocities, ax=None, title: str | None = None, path=None) -> Figure:
+def quiver(positions, velocities, ax=None, title: str | None = None, path=None, shared=None) -> Figure:
     """The paper's state pictures: velocities as arrows over grey balls.
 
     positions: ``(n_balls, 2)`` centres; velocities: ``(n_balls, 2)``. Balls are
     grey dots (``BALL_SIZE`` of the typical spacing across); see `arrow_scale`
     for arrow lengths, and the key below the bottom left corner for the scale. Balls at rest
-    get no arrow; the axes reach every arrow's tip.
+    get no arrow; the axes reach every arrow's tip. ``shared``: the velocities ``[(n_balls, 2), ...]``
+    of every frame of a movie, which get one arrow scale and one extent (the same figure size).
     """
     p = np.asarray(positions, dtype=np.float64)
     v = np.asarray(velocities, dtype=np.float64)
@@ -112,8 +138,9 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
         raise ValueError(f"velocities: must have shape (n_balls, 2) = {p.shape}, got {v.shape}")
     spacing = _spacing(p)
     speeds = np.linalg.norm(v, axis=1)
-    k = arrow_scale(speeds, spacing)
-    reach = np.concatenate([p, p + k * v]) if len(p) else np.array([[0.0, 0.0], [1.0, 1.0]])
+    k = _shared_scale(speeds, shared, spacing, lambda u: np.linalg.norm(u, axis=1))
+    tips = [p + k * np.asarray(u, dtype=np.float64) for u in (shared if shared is not None else [v])]
+    reach = np.concatenate([p, *tips]) if len(p) else np.array([[0.0, 0.0], [1.0, 1.0]])
     lo, hi = reach.min(axis=0) - spacing, reach.max(axis=0) + spacing
     width, height = hi - lo
     lines = 1 + (title or "").count("\n")  # room for every line of the title, and the key below
@@ -126,9 +153,7 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
         arrows = ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR,
                            angles="xy", scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing,
                            headwidth=3.5, headlength=4.0, headaxislength=3.5, minlength=0.0)
-        key = key_speed(spacing / k)
-        ax.quiverkey(arrows, X=0.02, Y=-0.07, U=key, label=f"speed {key:g}", labelpos="E",
-                     coordinates="axes", fontproperties={"size": "small"})
+        _key(ax, arrows, k, spacing, width)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
@@ -137,22 +162,25 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None) 
     return save(fig, path)
 
 
-def _tangent_arrows(ax, p: np.ndarray, v: np.ndarray, k: float, spacing: float) -> None:
+def _tangent_arrows(ax, p: np.ndarray, v: np.ndarray, k: float, spacing: float):
+    """Arrows ``v (n, 2)`` at ``p (n, 2)``, ``k`` long per unit speed; the `Quiver`, or None if all rest."""
     moving = np.linalg.norm(v, axis=1) > 0
     if moving.any():
-        ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR, angles="xy",
+        return ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR, angles="xy",
                   scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing, headwidth=3.5, headlength=4.0,
                   headaxislength=3.5, minlength=0.0)
+    return None
 
 
-def sphere_views(positions, velocities, title: str | None = None, path=None) -> Figure:
+def sphere_views(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
     """Orthographic views of both hemispheres of the unit sphere, velocities as tangent arrows.
 
     positions: ``(n_balls, 3)`` on the unit sphere; velocities: ``(n_balls, 3)`` in embedding
     coordinates (``einsum("nd,ndk->nk", v, geom.frames())``). Left: the northern hemisphere seen
     from above (+z); right: the southern seen from below (x mirrored, so both are seen from outside).
     Balls are foreshortened towards the rim (at least to a fifth, to stay visible); arrows show
-    each velocity's part in the picture plane, on the common scale of `arrow_scale`.
+    each velocity's part in the picture plane, on the common scale of `arrow_scale` (of every
+    frame's velocities ``shared`` in a movie), with its key under each view.
     """
     x = np.asarray(positions, dtype=np.float64)
     V = np.asarray(velocities, dtype=np.float64)
@@ -160,7 +188,7 @@ def sphere_views(positions, velocities, title: str | None = None, path=None) -> 
         raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
     fig = new_figure((11.0, 5.8))
     spacing = _spacing(x)
-    k = arrow_scale(np.linalg.norm(V, axis=1), spacing)
+    k = _shared_scale(np.linalg.norm(V, axis=1), shared, spacing, lambda u: np.linalg.norm(u, axis=1))
     for ax, sign, name in zip(fig.subplots(1, 2), (1.0, -1.0), ("northern hemisphere (from +z)",
                                                                   "southern hemisphere (from -z)")):
         on = sign * x[:, 2] >= 0
@@ -173,7 +201,9 @@ def sphere_views(positions, velocities, title: str | None = None, path=None) -> 
         ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), along_rim, units="xy",
                                             offsets=p, offset_transform=ax.transData, facecolors=BALL_COLOUR,
                                             edgecolors="none"))
-        _tangent_arrows(ax, p, v, k, spacing)
+        arrows = _tangent_arrows(ax, p, v, k, spacing)
+        if arrows is not None:
+            _key(ax, arrows, k, spacing, 2.5, y=0.04)
         ax.set_xlim(-1.25, 1.25)
         ax.set_ylim(-1.25, 1.25)
         ax.set_aspect("equal")
@@ -185,14 +215,15 @@ def sphere_views(positions, velocities, title: str | None = None, path=None) -> 
     return save(fig, path)
 
 
-def poincare_disk(positions, velocities, title: str | None = None, path=None) -> Figure:
+def poincare_disk(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
     """A state of the hyperbolic plane drawn in the Poincare disk.
 
     positions: ``(n_balls, 3)`` on the hyperboloid; velocities: ``(n_balls, 3)`` in embedding
     coordinates. Balls sit at ``p = (x1, x2) / (1 + x0)``; balls and arrows are drawn at their
     hyperbolic sizes carried to the disk by the same map (conformal: directions are true,
     lengths shrink by ``(1 - |p|^2) / 2`` towards the rim). Arrow lengths follow `arrow_scale`
-    in hyperbolic units, with the spacing of the ball nearest the centre.
+    in hyperbolic units, with the spacing of the ball nearest the centre (one scale for every
+    frame's velocities ``shared`` in a movie); the key gives the speed of an arrow at the centre.
     """
     x = np.asarray(positions, dtype=np.float64)
     V = np.asarray(velocities, dtype=np.float64)
@@ -202,12 +233,15 @@ def poincare_disk(positions, velocities, title: str | None = None, path=None) ->
     p = x[:, 1:] / one
     dp = (V[:, 1:] * one - x[:, 1:] * V[:, :1]) / one**2
     shrink = (1.0 - np.einsum("nk,nk->n", p, p)) / 2.0
-    speeds = np.sqrt(np.maximum(np.einsum("nk,nk->n", V[:, 1:], V[:, 1:]) - V[:, 0] ** 2, 0.0))
+    def minkowski_speeds(u):
+        return np.sqrt(np.maximum(np.einsum("nk,nk->n", u[:, 1:], u[:, 1:]) - u[:, 0] ** 2, 0.0))
+
+    speeds = minkowski_speeds(V)
     centre = int(np.argmin(x[:, 0]))
     cosh = x[centre, 0] * x[:, 0] - x[:, 1:] @ x[centre, 1:]
     cosh[centre] = np.inf
     spacing = float(np.arccosh(cosh.min())) if len(x) > 1 else 1.0
-    k = arrow_scale(speeds, spacing)
+    k = _shared_scale(speeds, shared, spacing, minkowski_speeds)
     fig, ax = _new_axes(None, (8.0, 8.0), title)
     ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
     size = BALL_SIZE * spacing * shrink
@@ -215,15 +249,59 @@ def poincare_disk(positions, velocities, title: str | None = None, path=None) ->
                                         offset_transform=ax.transData, facecolors=BALL_COLOUR, edgecolors="none"))
     moving = speeds > 0
     if moving.any():
-        ax.quiver(p[moving, 0], p[moving, 1], dp[moving, 0], dp[moving, 1], color=ARROW_COLOUR, angles="xy",
-                  scale_units="xy", scale=1.0 / k, units="dots", width=2.0, headwidth=3.5, headlength=4.0,
-                  headaxislength=3.5, minlength=0.0)
+        arrows = ax.quiver(p[moving, 0], p[moving, 1], dp[moving, 0], dp[moving, 1], color=ARROW_COLOUR,
+                           angles="xy", scale_units="xy", scale=1.0 / k, units="dots", width=2.0, headwidth=3.5,
+                           headlength=4.0, headaxislength=3.5, minlength=0.0)
+        _key(ax, arrows, k, spacing, 2.1, y=0.03, drawn=0.5, where=" at the centre")  # the disk halves lengths there
     ax.set_xlim(-1.05, 1.05)
     ax.set_ylim(-1.05, 1.05)
     ax.set_aspect("equal")
     ax.set_xlabel("Poincare disk x")
     ax.set_ylabel("Poincare disk y")
     return save(fig, path)
+
+
+def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = None, path=None,
+                       shared=None) -> Figure:
+    """Each velocity component as a stem at its ball's ``x (n_balls,)``: the state picture of a 1-D
+    chain (``x`` its positions) and of any geometry no other picture fits (``x`` the ball index).
+
+    velocities: ``(n_balls, dim)``, one panel per component (at most three drawn); the vertical
+    axis is the same for all panels and, with ``shared`` (every frame of a movie), for all frames.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    v = np.asarray(velocities, dtype=np.float64)
+    if v.ndim != 2 or x.shape != (len(v),):
+        raise ValueError(f"x, velocities: must have shapes (n_balls,) and (n_balls, dim), got {x.shape} and {v.shape}")
+    panels = min(v.shape[1], 3)
+    top = max(float(np.abs(np.asarray(u)).max(initial=0.0)) for u in (shared if shared is not None else [v]))
+    top = 1.1 * top if top > 0 else 1.0
+    fig = new_figure((8.0, 1.2 + 2.2 * panels))
+    axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
+    for k, ax in enumerate(axes):
+        ax.axhline(0.0, color=BALL_COLOUR, linewidth=4, zorder=0)
+        ax.scatter(x, np.zeros_like(x), s=12, color="0.5", zorder=1)
+        moving = v[:, k] != 0
+        if moving.any():
+            ax.vlines(x[moving], 0.0, v[moving, k], color=ARROW_COLOUR, linewidth=2)
+            ax.scatter(x[moving], v[moving, k], s=10, color=ARROW_COLOUR)
+        ax.set_ylim(-top, top)
+        name = COMPONENT_NAMES[k] if v.shape[1] <= 3 else str(k)
+        ax.set_ylabel(f"{name}-component of velocity" if v.shape[1] > 1 else "velocity")
+    axes[-1].set_xlabel(xlabel if v.shape[1] <= 3 else f"{xlabel} (components 0-2 of {v.shape[1]} drawn)")
+    if len(x) and np.all(np.diff(x) == 1):
+        axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
+    if title:
+        fig.suptitle(title)
+    return save(fig, path)
+
+
+def chain(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+    """A state of a 1-D chain: ``positions (n_balls, 1)``, each velocity ``(n_balls, 1)`` a stem at its ball."""
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 1:
+        raise ValueError(f"positions: must have shape (n_balls, 1), got {p.shape}")
+    return components_by_ball(p[:, 0], velocities, xlabel="position x", title=title, path=path, shared=shared)
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary
@@ -368,7 +446,7 @@ def correlation_histogram(values, bin_width: float = 0.02, span=(-1.0, 1.0), ax=
 # ---------------------------------------------------------------- one run
 
 #: the names `write_figures` gives its files
-FIGURE_PATTERNS = ("state_initial.png", "state_step_*.png", "state_final.png", "energy_by_distance.png",
+FIGURE_PATTERNS = ("state_initial.png", "state_step_*.png", "state_collisions_*.png", "state_final.png", "energy_by_distance.png",
                    "energy_by_height.png", "velocity_histograms.png")
 
 
@@ -378,33 +456,62 @@ def figure_files(out_dir) -> list[Path]:
     return sorted({p for pattern in FIGURE_PATTERNS for p in out.glob(pattern)})
 
 
-def _state_picture(geometry, positions: np.ndarray):
-    """``draw(velocities (n, dim), title) -> Figure`` for this geometry's states, or None if none fits.
+def state_picture(geometry, positions: np.ndarray):
+    """``draw(velocities (n, dim), title, shared=None) -> Figure`` for this geometry's states.
 
     Asked of the geometry's capabilities and positions: flat 2-D (quiver), a curved surface
     whose centres lie on the unit sphere (`sphere_views`) or the hyperboloid (`poincare_disk`),
-    flat 3-D (the bottom layer's ``(v_x, v_y)`` as a quiver of a slice).
+    flat 3-D (the bottom layer's ``(v_x, v_y)`` as a quiver of a slice), a 1-D chain (`chain`),
+    and anything else the components against the ball index (`components_by_ball`).
+    ``shared``: every frame's velocities of a movie, drawn on one scale.
     """
     n, k = positions.shape
     if geometry.dim == 2 and k == 2 and not geometry.curved:
-        return lambda v, title: quiver(positions, v, title=title)
-    if geometry.curved and k == 3:
+        return lambda v, title, shared=None: quiver(positions, v, title=title, shared=shared)
+    if geometry.curved and k == 3 and geometry.dim == 2:
         square = positions**2
         scale = 1e-9 * max(1.0, float(square.sum(axis=1).max()))
+        draw = None
         if np.all(np.abs(square.sum(axis=1) - 1) <= scale):
             draw = sphere_views
         elif np.all(np.abs(square[:, 1:].sum(axis=1) - square[:, 0] + 1) <= scale) and np.all(positions[:, 0] > 0):
             draw = poincare_disk
-        else:
-            return None
-        frames = geometry.frames()
-        return lambda v, title: draw(positions, np.einsum("nd,ndk->nk", v, frames), title=title)
-    if geometry.dim == 3 and k == 3:
+        if draw is not None:
+            frames = geometry.frames()
+
+            def embed(v):
+                return np.einsum("nd,ndk->nk", np.asarray(v, dtype=np.float64), frames)
+
+            return lambda v, title, shared=None: draw(positions, embed(v), title=title,
+                                                      shared=None if shared is None else [embed(u) for u in shared])
+    if geometry.dim == 3 and k == 3 and not geometry.curved:
         layer = np.flatnonzero(positions[:, 2] <= positions[:, 2].min() + 1e-9)
-        return lambda v, title: quiver(positions[layer, :2], v[layer, :2],
-                                       title=f"{title}: the bottom layer (z = {positions[layer[0], 2]:g}), "
-                                             f"arrows (v_x, v_y)")
-    return None
+        if len(layer) >= 3:
+            where = f"the bottom layer (z = {positions[layer[0], 2]:g}), arrows (v_x, v_y)"
+            return lambda v, title, shared=None: quiver(
+                positions[layer, :2], np.asarray(v)[layer, :2], title=f"{title}: {where}",
+                shared=None if shared is None else [np.asarray(u)[layer, :2] for u in shared])
+    if geometry.dim == 1 and k == 1:
+        return lambda v, title, shared=None: chain(positions, v, title=title, shared=shared)
+    return lambda v, title, shared=None: components_by_ball(np.arange(n, dtype=np.float64), v, title=title,
+                                                            shared=shared)
+
+
+def snapshot_counter(res) -> str:
+    """``"collisions"`` if the run's spec placed its snapshots by collisions, else ``"steps"``."""
+    snapshots = getattr(getattr(res, "spec", None), "snapshots", None)
+    return getattr(snapshots, "counter", "steps")
+
+
+def snapshot_name(snap, counter: str) -> tuple[str, str]:
+    """``(file name, title)`` of the state picture of ``snap``, named after the count ``counter`` the
+    spec asked for: ``state_collisions_22579.png``, "after 22,579 collisions (89,335 steps)"."""
+    step, collisions = int(snap.step), int(snap.collisions)
+    if step == 0:
+        return "state_initial.png", "initial state"
+    if counter == "collisions":
+        return f"state_collisions_{collisions}.png", f"after {collisions:,} collisions ({step:,} steps)"
+    return f"state_step_{step}.png", f"after {step:,} steps ({collisions:,} collisions)"
 
 
 def write_figures(res, out_dir) -> list[Path]:
@@ -414,11 +521,11 @@ def write_figures(res, out_dir) -> list[Path]:
     ``velocities (n, dim)``, ``snapshots`` with ``.step``, ``.collisions``,
     ``.velocities``, ``geometry``, ``masses`` or None, and ``initial_velocities`` if it
     has them). Writes ``state_initial.png`` (the initial velocities, or a snapshot at
-    step 0), ``state_step_<N>.png`` (every other snapshot) and ``state_final.png`` as the
-    geometry allows (see `_state_picture`: the plane, both hemispheres of a sphere, the
-    Poincare disk, a slice of a 3-D packing); ``energy_by_distance.png`` on any geometry with
-    a ``boundary``; ``energy_by_height.png`` in flat 3-D; ``velocity_histograms.png`` for 2- and
-    3-component velocities.
+    step 0), ``state_step_<N>.png`` or ``state_collisions_<C>.png`` (every other snapshot, named
+    after the counter the spec placed them by) and ``state_final.png`` in the geometry's view
+    (see `state_picture`: the plane, both hemispheres of a sphere, the Poincare disk, a slice of
+    a 3-D packing, a 1-D chain); ``energy_by_distance.png`` on any geometry with a ``boundary``;
+    ``energy_by_height.png`` in flat 3-D; ``velocity_histograms.png`` (one panel per component, up to 3).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -432,16 +539,15 @@ def write_figures(res, out_dir) -> list[Path]:
         save(fig, path)
         written.append(path)
 
-    draw = _state_picture(geometry, positions) if positions.ndim == 2 else None
+    draw = state_picture(geometry, positions) if positions.ndim == 2 else None
     if draw is not None:
         snapshots = list(() if res.snapshots is None else res.snapshots)
         initial = getattr(res, "initial_velocities", None)
         if initial is not None and not any(int(snap.step) == 0 for snap in snapshots):
             emit("state_initial.png", draw(np.asarray(initial, dtype=np.float64), "initial state"))
+        counter = snapshot_counter(res)
         for snap in snapshots:
-            step = int(snap.step)
-            name = "state_initial.png" if step == 0 else f"state_step_{step}.png"
-            title = "initial state" if step == 0 else f"after {step:,} steps ({int(snap.collisions):,} collisions)"
+            name, title = snapshot_name(snap, counter)
             emit(name, draw(np.asarray(snap.velocities, dtype=np.float64), title))
         emit("state_final.png", draw(final, "final state"))
     if geometry.boundary is not None:
@@ -454,6 +560,6 @@ def write_figures(res, out_dir) -> list[Path]:
         for text in fig.axes[0].texts:
             text.set_text(text.get_text().replace("boundary row", "lowest layer"))
         emit("energy_by_height.png", fig)
-    if final.ndim == 2 and final.shape[1] in (2, 3):
+    if final.ndim == 2 and 1 <= final.shape[1] <= 3:
         emit("velocity_histograms.png", component_histograms(final, title="velocity components, final state"))
     return written

@@ -24,6 +24,7 @@ from .errors import InputError
 from .io import RESULTS_NAME, Record, Results, load, write_text_atomic
 from .rundir import DirLock
 from .simulation import Simulation
+from .status import SILENT, Status
 from .specs import RunSpec
 from .writers import OnSnapshot, ResultsWriter
 
@@ -52,37 +53,43 @@ def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record
 
 
 def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, resume: bool = False,
-            progress: bool | None = None, figures: bool = True) -> Path:
+            progress: bool | None = None, figures: bool = True, status: Status = SILENT) -> Path:
     """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
 
     Everything is validated and the simulation built before anything is written.
     A non-empty ``out_dir`` is refused (`InputError`) unless ``force`` (which
     replaces our files) or ``resume`` (which continues from the last checkpoint
     of the same spec; a finished run is left as it is). ``progress``: a tqdm bar
-    on stderr; None means only if stderr is a terminal. SIGINT/SIGTERM write a
-    checkpoint and raise `Interrupted`.
+    on stderr; None means only if stderr is a terminal. ``status``: a `Status` line told each
+    stage (building, compiling, drawing). SIGINT/SIGTERM write a checkpoint and raise `Interrupted`.
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
-    sim = None if resume and path.exists() else spec.build()  # bad input fails before anything is written
+    sim = None
+    if not (resume and path.exists()):
+        status("building the geometry")
+        sim = spec.build()  # bad input fails before anything is written
     with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
-        return _execute(spec, out, sim, lock, force=force, resume=resume, progress=progress, figures=figures)
+        return _execute(spec, out, sim, lock, force=force, resume=resume, progress=progress, figures=figures,
+                        status=status)
 
 
 def _execute(spec: RunSpec, out: Path, sim: Simulation | None, lock: DirLock, *, force: bool, resume: bool,
-             progress: bool | None, figures: bool) -> Path:
+             progress: bool | None, figures: bool, status: Status) -> Path:
     """`execute` holding ``lock`` on ``out``; ``sim``: the new simulation, None to resume."""
     path = out / RESULTS_NAME
     writer = ResultsWriter(out, snapshots=spec.snapshots.build() if spec.snapshots else None,
                            checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
                            force=force, resume=sim is None, lock=lock)
     if sim is None:
+        status("reading the last checkpoint")
         res = load(path)
         _check_same_run(res, spec)
         if not (out / "spec.json").exists():
             write_text_atomic(out / "spec.json", res.spec.to_json() + "\n")
         if res.complete:
             if figures:
+                status("drawing figures")
                 write_figures(out)
             return path
         sim = res.simulation()
@@ -91,6 +98,9 @@ def _execute(spec: RunSpec, out: Path, sim: Simulation | None, lock: DirLock, *,
         writer.attach(sim)      # takes the directory and writes the static data
         _remove_figures(out)    # a replaced run's pictures would pass for this one's
         write_text_atomic(out / "spec.json", spec.to_json() + "\n")
+    status("compiling the loop (once: numba caches it on disk)")
+    sim.run(steps=0, until_frozen=spec.stop.build().until_frozen)  # compiles; changes no bit of the state
+    status.clear()
     with _progress_bar(spec, sim, progress) as bar, _deferred_signals() as stop_requested:
         def after_chunk(s: Simulation) -> None:
             bar(s)
@@ -102,7 +112,9 @@ def _execute(spec: RunSpec, out: Path, sim: Simulation | None, lock: DirLock, *,
         run_to_stop(spec, sim, writers=[writer], after_chunk=after_chunk)
         bar(sim)
     if figures:
+        status("drawing figures")
         write_figures(out)
+    status.clear()
     return path
 
 
@@ -169,7 +181,7 @@ def _progress_bar(spec: RunSpec, sim: Simulation, show: bool | None) -> Iterator
         ("steps", stop.steps if stop.kind == "steps" else stop.max_steps)
     other = "steps" if unit == "collisions" else "collisions"
     with tqdm(total=total, initial=_counter(sim, unit), unit=f" {unit}", unit_scale=True, file=sys.stderr,
-              dynamic_ncols=True, delay=0.5, smoothing=0.1) as bar:
+              dynamic_ncols=True, smoothing=0.1, desc="running") as bar:
         def update(s: Simulation) -> None:
             bar.update(_counter(s, unit) - bar.n)
             bar.set_postfix_str(f"{other}={_counter(s, other):,}", refresh=False)

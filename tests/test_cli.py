@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -246,10 +247,21 @@ def test_schema_is_the_json_schema():
     assert code == 0 and json.loads(out) == pb.RunSpec.model_json_schema()
 
 
-@pytest.mark.parametrize("name", ["torus.json", "halfplane_100x50.json"])
+@pytest.mark.parametrize("name", sorted(p.name for p in (ROOT / "examples").glob("*.json")))
 def test_examples_validate(name):
     code, out, _ = call("validate", ROOT / "examples" / name)
     assert code == 0 and out.startswith("ok: ")
+
+
+def test_the_gallery_shows_each_example_spec_as_it_is():
+    page = (ROOT / "docs" / "gallery.md").read_text(encoding="utf-8")
+    shown = re.findall(r"`examples/(\S+\.json)`:\n\n```json\n(.*?)\n```", page, flags=re.S)
+    assert [name for name, _ in shown] == ["gallery_half_plane.json", "gallery_torus.json", "gallery_sphere.json",
+                                           "gallery_hyperbolic.json", "gallery_fcc.json"]
+    for name, text in shown:
+        assert text == (ROOT / "examples" / name).read_text(encoding="utf-8").rstrip()
+    for image in re.findall(r"\]\((gallery/[^)]+)\)", page):
+        assert (ROOT / "docs" / image).stat().st_size > 0
 
 
 # ---------------------------------------------------------------- as a process

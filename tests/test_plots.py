@@ -212,12 +212,61 @@ def test_write_figures_for_a_torus_run_has_no_energy_bars(tmp_path):
     assert [p.name for p in paths] == ["state_step_10.png", "state_final.png", "velocity_histograms.png"]
 
 
-def test_write_figures_writes_nothing_for_a_one_dimensional_chain(tmp_path):
-    """Changed by issue 8: a 3-D geometry now gets figures (below); a 1-D chain still gets none."""
+def test_write_figures_for_a_one_dimensional_chain_draws_each_velocity_at_its_ball(tmp_path):
+    """Changed by issue 11: every dimension gets figures; a 1-D chain gets stems at its positions."""
     geom = pb.GraphGeometry.from_positions(np.array([0.0, 2.0, 4.0]))
-    v = np.ones((3, 1))
-    assert plots.write_figures(results(geom, v, [snapshot(0, 0, v)]), tmp_path) == []
-    assert list(tmp_path.iterdir()) == []
+    v0, v1 = np.array([[3.0], [0.0], [-1.0]]), np.array([[-1.0], [0.0], [3.0]])
+    paths = plots.write_figures(results(geom, v1, [snapshot(0, 0, v0)]), tmp_path)
+    assert [p.name for p in paths] == ["state_initial.png", "state_final.png", "velocity_histograms.png"]
+    fig = plots.chain(geom.positions, v0)
+    ax = fig.axes[0]
+    stems = ax.collections[-2].get_segments()               # one vertical segment per moving ball
+    assert [(s[0][0], s[0][1], s[1][1]) for s in stems] == [(0.0, 0.0, 3.0), (4.0, 0.0, -1.0)]
+    assert ax.get_ylim() == pytest.approx((-3.3, 3.3))
+
+
+def test_a_user_graph_in_four_dimensions_gets_its_components_by_ball(tmp_path):
+    geom = pb.GraphGeometry.from_positions(np.sqrt(2.0) * np.eye(4)[[0, 1]], radius=1.0)   # two balls touching in 4-D
+    v = np.arange(8.0).reshape(2, 4) - 3.0
+    paths = plots.write_figures(results(geom, v, []), tmp_path)
+    assert [p.name for p in paths] == ["state_final.png"]   # no histograms of 4 components
+    fig = plots.components_by_ball(np.arange(2.0), v)
+    assert len(fig.axes) == 3                                # the first three components, and it says so
+    assert fig.axes[-1].get_xlabel() == "ball (components 0-2 of 4 drawn)"
+
+
+def test_snapshots_the_spec_placed_by_collisions_are_named_after_the_collisions(tmp_path):
+    half = pb.HalfPlane(rows=4, cols=6)
+    v = normal_state(half.n_balls, seed=4)
+    res = results(half, v, [snapshot(89335, 22579, v)])
+    res.spec = types.SimpleNamespace(snapshots=types.SimpleNamespace(counter="collisions"))
+    names = [p.name for p in plots.write_figures(res, tmp_path)]
+    assert names[0] == "state_collisions_22579.png"
+    assert plots.snapshot_name(snapshot(89335, 22579, v), "collisions")[1] == "after 22,579 collisions (89,335 steps)"
+    assert plots.snapshot_name(snapshot(89335, 22579, v), "steps")[0] == "state_step_89335.png"
+    assert set(plots.figure_files(tmp_path)) == set(tmp_path / n for n in names)
+
+
+def test_sphere_and_disk_views_carry_an_arrow_scale_key():
+    sphere, h = pb.Sphere.geodesic(2), pb.HyperbolicPlane(q=7, layers=2)
+    for geom, draw in ((sphere, plots.sphere_views), (h, plots.poincare_disk)):
+        v = normal_state(geom.n_balls, seed=1)
+        fig = draw(geom.positions, np.einsum("nd,ndk->nk", v, geom.frames()))
+        keys = [a for ax in fig.axes for a in ax.artists if type(a).__name__ == "QuiverKey"]
+        assert len(keys) == len(fig.axes) and all(k.text.get_text().startswith("speed ") for k in keys)
+    # the disk's key is half as long as the speed it names: the disk halves lengths at its centre
+    key = keys[0]
+    assert key.U == pytest.approx(0.5 * float(key.text.get_text().split()[1]))
+
+
+def test_a_shared_arrow_scale_is_the_same_for_every_frame():
+    half = pb.HalfPlane(rows=4, cols=6)
+    frames = [one_ball_state(half), normal_state(half.n_balls, seed=1), 0.1 * normal_state(half.n_balls, seed=2)]
+    scales = {plots.quiver(half.positions, v, shared=frames).axes[0].collections[1].scale for v in frames}
+    sizes = {tuple(plots.quiver(half.positions, v, shared=frames).get_size_inches()) for v in frames}
+    assert len(scales) == 1 and len(sizes) == 1
+    alone = {plots.quiver(half.positions, v).axes[0].collections[1].scale for v in frames}
+    assert len(alone) == 3
 
 
 def test_write_figures_for_a_sphere_shows_both_hemispheres(tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from .. import ensemble as ens
 from .plan import PAPER_FROZEN_COLLISIONS, Plan, _label, _Run
@@ -27,6 +28,7 @@ def _frozen_collisions_figure(ours: np.ndarray, paper_lattice: np.ndarray, label
     ax.axvline(PAPER_FROZEN_COLLISIONS, color="k", linestyle="--", label=f"paper: {PAPER_FROZEN_COLLISIONS:,}")
     ax.set_xlabel("collisions until frozen")
     ax.set_ylabel("runs")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_title("collisions until frozen, 100x50 half-plane, over seeds")
     ax.legend(fontsize="small")
     plots.save(fig, path)
