@@ -255,6 +255,8 @@ def ensemble_command(args) -> int:
 @subcommand("reproduce", "every figure of the paper as PNG, and report.md comparing its numbers with ours",
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
             arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about a minute)"),
+            arg("--extended", action="store_true",
+                help="then the studies beyond the paper (about 20 minutes; with --quick about 2)"),
             arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
             arg("--quiet", action="store_true", help="no progress messages"))
@@ -269,7 +271,7 @@ def reproduce_command(args) -> int:
     check_out_dir(args.out, args.force)
     log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
     report = reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
-                       progress=False if args.quiet else None, log=log)
+                       progress=False if args.quiet else None, log=log, extended=args.extended)
     results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
     if not args.quiet:
         print(f"wrote {report} in {results['wall_seconds']:.1f} s")
