@@ -5,6 +5,7 @@ import csv
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -207,3 +208,22 @@ def test_cli_extended_refuses_a_non_empty_directory(tmp_path, capsys):
     (tmp_path / "keep.txt").write_text("mine")
     assert cli.main(["reproduce", "--out", str(tmp_path), "--quick", "--extended"]) == 2
     assert "not empty" in capsys.readouterr().err
+
+
+def test_cli_passes_extended_and_quick_to_reproduce(tmp_path, monkeypatch):
+    import pinnedballs.reproduction as reproduction
+
+    seen = {}
+
+    def fake(out, **kwargs):
+        seen.update(kwargs)
+        out = Path(out)
+        out.mkdir()
+        (out / "results.json").write_text(json.dumps({"wall_seconds": 0.0, "failures": []}))
+        return out / "report.md"
+
+    monkeypatch.setattr(reproduction, "reproduce", fake)
+    assert cli.main(["reproduce", "--out", str(tmp_path / "x"), "--quick", "--extended", "--quiet"]) == 0
+    assert (seen["quick"], seen["extended"]) == (True, True)
+    assert cli.main(["reproduce", "--out", str(tmp_path / "y"), "--quiet"]) == 0
+    assert (seen["quick"], seen["extended"]) == (False, False)
