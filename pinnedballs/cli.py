@@ -299,6 +299,8 @@ def _ensemble(args, status) -> int:
 @subcommand("reproduce", "every figure of the paper as PNG, and report.md comparing its numbers with ours",
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
             arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about a minute)"),
+            arg("--extended", action="store_true",
+                help="then the studies beyond the paper (about 20 minutes; with --quick about 2)"),
             arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
             arg("--quiet", action="store_true", help="no progress messages"))
@@ -318,7 +320,7 @@ def reproduce_command(args) -> int:
     shown = status.shown  # the stages and bars on a terminal only
     log = (lambda message: print(message, file=sys.stderr, flush=True)) if shown else None
     report = reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
-                       progress=shown, log=log)
+                       progress=shown, log=log, extended=args.extended)
     results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
     if not args.quiet:
         print(f"wrote {report} in {results['wall_seconds']:.1f} s")

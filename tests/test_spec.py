@@ -62,6 +62,29 @@ def test_single_ball_velocity_given():
     assert np.array_equal(sim.velocities, expected)
 
 
+@pytest.mark.parametrize("geometry", [{"kind": "hyperbolic_plane", "q": 7, "layers": 3},
+                                      {"kind": "half_plane", "rows": 4, "cols": 5},
+                                      {"kind": "fcc", "nx": 2, "ny": 2, "nz": 2, "periodic": False}])
+def test_single_ball_inward_is_minus_the_boundary_outward(geometry):
+    d = spec(geometry=geometry, initial={"kind": "single_ball", "ball": "boundary_center", "direction": "inward",
+                                         "energy": 50})
+    sim = parse_spec(d).build()
+    g = sim.geometry
+    ball = g.boundary_center()
+    expected = np.zeros((g.n_balls, g.dim))
+    expected[ball] = -np.sqrt(2 * 50.0) * g.boundary.outward[ball]
+    assert np.allclose(sim.velocities, expected, rtol=1e-15, atol=0)
+    assert sim.energy() == pytest.approx(50.0, rel=1e-14)
+
+
+def test_single_ball_inward_moves_the_hyperbolic_rim_ball():
+    d = spec(geometry={"kind": "hyperbolic_plane", "q": 7, "layers": 3},
+             initial={"kind": "single_ball", "ball": "boundary_center", "direction": "inward", "energy": 100})
+    sim = parse_spec(d).build()
+    assert sim.run_until_frozen(max_steps=10**8)
+    assert sim.collisions > 0 and sim.energy() == pytest.approx(100.0, rel=1e-12)
+
+
 def test_gaussian_energy_momentum_and_seed():
     d = spec(initial={"kind": "gaussian", "energy": 7.5, "zero_momentum": True}, geometry__rows=8)
     a, b = parse_spec(d).build(), parse_spec(d).build()
@@ -207,6 +230,9 @@ BAD = [
     (spec(geometry={"kind": "graph_positions", "positions": "nope.npy"}), "geometry.positions", "file not found"),
     (spec(masses="nope.npy"), "masses", "file not found"),
     (spec(description=3), "description", "input should be a valid string"),
+    (spec(initial__direction="inward"), "initial.direction",
+     '"inward" needs a geometry with a boundary, got FlatTorus'),
+    (spec(initial__direction="outward"), "initial.direction", "input should be"),
 ]
 
 

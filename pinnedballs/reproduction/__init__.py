@@ -15,13 +15,17 @@ Single runs (the pictures) use ``seed`` itself; ensembles use replicas ``0..N-1`
 
 One module per idea: `plan` (what is run: the plan and the paper's set-ups), `run`
 (running it: `reproduce`), `checks` (the paper's statements against our numbers),
-`figures` and `report`. The command ``pinnedballs reproduce`` lives in `pinnedballs.cli`.
+`figures` and `report`; beyond the paper, `extended` (the studies of ``--extended``),
+`extended_report` and `fit`. The command ``pinnedballs reproduce`` lives in `pinnedballs.cli`.
 """
 
 from .checks import Check
 from .plan import (FULL, PAPER_SIZES, QUICK, Plan, expected_figures, half_plane_spec, paper_lattice_spec,
                    paper_lattice_row, torus_row, torus_spec)
+from .extended import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, expected_extended_figures
+from .fit import fit_exponent
 from .run import reproduce
 
 __all__ = ["Plan", "FULL", "QUICK", "PAPER_SIZES", "Check", "reproduce", "expected_figures",
-           "half_plane_spec", "torus_spec", "paper_lattice_spec", "paper_lattice_row", "torus_row"]
+           "half_plane_spec", "torus_spec", "paper_lattice_spec", "paper_lattice_row", "torus_row",
+           "ExtendedPlan", "EXTENDED_FULL", "EXTENDED_QUICK", "expected_extended_figures", "fit_exponent"]

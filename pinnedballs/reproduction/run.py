@@ -20,6 +20,8 @@ from .figures import (_far_share_figure, _figure_paper_lattice, _figure_sizes, _
                       _figures_half_plane, _figures_torus, _frozen_collisions_figure)
 from .plan import (FULL, QUICK, REPORT_NAME, Plan, _Run, _check_plan, _label, _sizes, half_plane_spec,
                    paper_lattice_row, paper_lattice_spec, torus_row, torus_spec)
+from .extended import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, check_extended_plan, run_extended
+from .extended_report import extended_section
 from .report import _report
 
 # ---------------------------------------------------------------- runs
@@ -41,11 +43,15 @@ def _single(spec: RunSpec) -> _Run:
 
 
 def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool = False, workers: int | None = None,
-              progress: bool | None = False, log: Callable[[str], None] | None = None, **overrides) -> Path:
+              progress: bool | None = False, log: Callable[[str], None] | None = None,
+              extended: bool | ExtendedPlan = False, **overrides) -> Path:
     """Run ``plan`` (default `QUICK` if ``quick`` else `FULL`, with ``overrides`` of its fields) into ``out``.
 
     Writes the PNGs of `expected_figures`, ``report.md``, ``results.json``, the specs
     (``specs/``) and every ensemble's table (``ensembles/<name>/``). Returns the report's path.
+    ``extended``: then the studies beyond the paper (`extended`), ``EXTENDED_QUICK`` if
+    ``quick`` else ``EXTENDED_FULL`` for True, or the `ExtendedPlan` given: their figures, a
+    table each in the report and ``results.json["extended"]``.
     ``workers``: local processes for the ensembles (default all cores). Refuses a
     non-empty ``out`` without ``force`` (`InputError`).
     """
@@ -54,6 +60,9 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     t0 = time.perf_counter()
     plan = dataclasses.replace(plan or (QUICK if quick else FULL), **overrides)
     _check_plan(plan)
+    xplan = (EXTENDED_QUICK if quick else EXTENDED_FULL) if extended is True else (extended or None)
+    if xplan is not None:
+        check_extended_plan(xplan)
     out = check_out_dir(out, force)
     say = log or (lambda message: None)
     say_t = lambda message: say(f"[{time.perf_counter() - t0:6.1f} s] {message}")  # noqa: E731
@@ -138,14 +147,20 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         _figures_correlations(out, plan, tres, _torus_stage(plan, plan.steps[-1]))
         checks += _torus_checks(plan, trun, tres, results)
 
+        if xplan is not None:
+            say_t("paper's sections done; extended studies")
+            results["extended"] = run_extended(xplan, out, ensemble, say_t)
+
         wall = time.perf_counter() - t0
         results["wall_seconds"] = wall
         results["failures"] = failures
         results["checks"] = [dataclasses.asdict(c) for c in checks]
         (out / "results.json").write_text(json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n", encoding="utf-8")
         report = out / REPORT_NAME
-        report.write_text(_report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry,
-                                  failures, wall), encoding="utf-8")
+        text = _report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry, failures, wall)
+        if xplan is not None:
+            text += "\n" + "\n".join(extended_section(results["extended"]))
+        report.write_text(text, encoding="utf-8")
         say_t(f"wrote {report}")
         return report
 

@@ -23,12 +23,16 @@ INIT_STREAM_KEY = 0x696E6974
 
 
 class SingleBallSpec(_Spec):
-    """One ball moves, all others rest: a ``velocity``, or a ``direction`` and a total ``energy``."""
+    """One ball moves, all others rest: a ``velocity``, or a ``direction`` and a total ``energy``.
+
+    ``direction: "inward"`` is minus the geometry's ``boundary.outward`` at the ball (in its own
+    frame), for a geometry with a boundary.
+    """
 
     kind: Literal["single_ball"] = "single_ball"
     ball: int | Literal["boundary_center"] = 0
     velocity: list[float] | None = None
-    direction: list[float] | None = None
+    direction: list[float] | Literal["inward"] | None = None
     energy: Annotated[float, Field(ge=0)] | None = None
 
     @field_validator("ball", mode="before")
@@ -55,7 +59,8 @@ class SingleBallSpec(_Spec):
         if self.velocity is not None:
             v[ball] = self._vector("velocity", self.velocity, geometry.dim)
             return v
-        d = self._vector("direction", self.direction, geometry.dim)
+        d = self._inward(geometry, ball) if self.direction == "inward" else \
+            self._vector("direction", self.direction, geometry.dim)
         norm = float(np.linalg.norm(d))
         if norm == 0:
             raise SpecError("initial.direction", "must not be the zero vector")
@@ -72,6 +77,14 @@ class SingleBallSpec(_Spec):
         if self.ball >= geometry.n_balls:
             raise SpecError("initial.ball", f"must be < n_balls = {geometry.n_balls}, got {self.ball}")
         return self.ball
+
+    @staticmethod
+    def _inward(geometry: Geometry, ball: int) -> np.ndarray:
+        """``(dim,)`` minus ``boundary.outward[ball]``."""
+        if geometry.boundary is None:
+            raise SpecError("initial.direction",
+                            f'"inward" needs a geometry with a boundary, got {type(geometry).__name__}')
+        return -np.asarray(geometry.boundary.outward[ball], dtype=np.float64)
 
     @staticmethod
     def _vector(name: str, values: list[float], dim: int) -> np.ndarray:

@@ -1,0 +1,141 @@
+"""The extended studies' section of ``report.md``: a table per study, what is settled and what stays open."""
+
+from __future__ import annotations
+
+import math
+
+from .extended import LAW
+
+
+def _f(x, fmt: str = ".3g") -> str:
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
+
+
+def _pm(mean, se, fmt: str = "+.4f") -> str:
+    return f"{_f(mean, fmt)} ± {_f(se, '.4f')}"
+
+
+def _table(head: list[str], rows: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head), *("| " + " | ".join(r) + " |" for r in rows), ""]
+
+
+def extended_section(x: dict) -> list[str]:
+    """Markdown lines for ``results["extended"]`` (`extended.run_extended`)."""
+    lines = ["## Beyond the paper (`--extended`)", "",
+             "Wall time of each study (s; included in the wall time above): "
+             + ", ".join(f"{k} {v:.1f}" for k, v in x["seconds"].items()) + ".", ""]
+    lines += _scaling(x) + _torus(x) + _sphere(x) + _hyperbolic(x) + _fcc(x) + _orders(x)
+    lines += ["### Figures", ""] + [f"* ![{n}]({n})" for names in x["figures"].values() for n in names]
+    return lines
+
+
+def _scaling(x: dict) -> list[str]:
+    rows = [[f"{r['length']:g}x{r['depth']:g}", f"{r['rows']}x{r['cols']}", f"{r['balls']:,}", str(r["replicas"]),
+             str(r["frozen"]), f"{r['collisions_mean']:,.0f}", f"{_f(r['collisions_sd'], ',.0f')}",
+             f"{r['steps_mean']:,.0f}", _f(r["boundary_share_mean"], ".3f"), _f(r["far_half_share_mean"], ".2e"),
+             f"{r['seconds']:.1f}"] for r in x["scaling"]]
+    fits = x["scaling_fit"]
+    fit_text = "; ".join(f"{what} ~ N^({f['exponent']:.3f} ± {f['exponent_se']:.3f}) "
+                         f"(chi²/dof {f['chi2_per_dof']:.2f}, {f['points']} sizes)" for what, f in fits.items())
+    return ["### Scaling: until frozen against the number of balls", "",
+            "Half-plane `HalfPlane.from_size(L, D)`, the boundary-centre ball moving inward with energy 100, "
+            "`RejectionFree` (the paper's law of steps and collisions), run until frozen.", "",
+            *_table(["L x D", "rows x cols", "balls N", "replicas", "frozen", "collisions (mean)", "collisions (sd)",
+                     "steps (mean)", "boundary share", "far-half share", "wall s"], rows),
+            f"Fitted: {fit_text}. Method: weighted least squares of log(mean) on log(N), each size weighted by "
+            "1/(relative standard error of its mean)², se = sd/sqrt(replicas); the exponent's standard error is "
+            "the fit's, scaled up by sqrt(chi²/dof) when the sizes scatter more than their errors.", ""]
+
+
+def _torus(x: dict) -> list[str]:
+    rows = [[f"{r['side']}x{r['side']}", f"{r['balls']:,}", f"{r['steps_per_ball']:,}", str(r["replicas"]),
+             _pm(r["kurtosis_mean"], r["kurtosis_se"], "+.3f"), _f(r["kurtosis_normal"], "+.4f"),
+             _pm(r["approaching_fraction_mean"], r["approaching_fraction_se"], ".4f"),
+             _pm(r["line_of_centres_correlation_mean"], r["line_of_centres_correlation_se"])] for r in x["torus_law"]]
+    return ["### The torus's long-run law", "",
+            "`FlatTorus(side, side)`, ball 0 moving along x with energy 100, `UniformRandomPair`; mean ± standard "
+            "error over replicas. Kurtosis: the mean of the x- and y-components' sample excess kurtosis; a normal "
+            "sample of N values gives -6/(N+1) on average.", "",
+            *_table(["torus", "balls N", "steps per ball", "replicas", "excess kurtosis", "normal sample",
+                     "approaching fraction", "line-of-centres correlation"], rows),
+            *_verdicts(x["torus_law_verdicts"]), ""]
+
+
+def _verdicts(v: dict) -> list[str]:
+    """What is settled and what stays open, from z-scores: |z| > 3 a difference, |z| < 2 none seen."""
+    out = ["**What is settled and what stays open** (largest torus, longest time; z = difference / its standard "
+           "error; |z| > 3 counts as a difference, below that none is claimed):", ""]
+    for name, label in LAW:
+        d = v[name]
+        text = (f"* {label}: {_pm(d['mean'], d['se'])} at {d['side']}x{d['side']}, {d['steps_per_ball']:,} steps "
+                f"per ball; reference {_f(d['reference'], '+.4f')}, z = {_f(d['z'], '+.1f')}")
+        moving = "time_z" in d and not abs(d["time_z"]) <= 3
+        sized = "size_z" in d and not abs(d["size_z"]) <= 3
+        if "time_change" in d:
+            text += (f"; change since the time before {_pm(d['time_change'], d['time_change_se'])} "
+                     f"(z = {_f(d['time_z'], '+.1f')})")
+        if "size_change" in d:
+            text += (f"; change from the smallest torus {_pm(d['size_change'], d['size_change_se'])} "
+                     f"(z = {_f(d['size_z'], '+.1f')})")
+        if moving:
+            verdict = "**open**: still changing with time, so its long-run value is not reached"
+        elif abs(d["z"]) > 3:
+            verdict = ("**settled: differs from the reference** and no longer changes with time"
+                       + (", but it changes with size" if sized else ", nor (within errors) with size"))
+        else:
+            verdict = "**no difference from the reference seen** at this precision"
+        out.append(f"{text}. {verdict}.")
+    return out
+
+
+def _sphere(x: dict) -> list[str]:
+    side = x["sphere_torus_side"]
+    rows = [[f"{r['steps_per_ball']:,}", str(r["replicas"]),
+             *[f"{_pm(r[f'{n}_mean'], r[f'{n}_se'], '+.4f')} (z {_f(r[f'{n}_z'], '+.1f')})" for n, _ in LAW]]
+            for r in x["sphere"]]
+    f = x["plan"]["sphere_frequency"]
+    return ["### Curved spaces: one moving ball on the sphere", "",
+            f"`Sphere.geodesic({f})` ({10 * f * f + 2:,} balls), ball 0 moving with energy 100, components in each "
+            f"ball's own frame; z compares with the {side}x{side} torus at the same steps per ball.", "",
+            *_table(["steps per ball", "replicas", *[label for _, label in LAW]], rows)]
+
+
+def _hyperbolic(x: dict) -> list[str]:
+    rows = [[str(r["layers"]), f"{r['balls']:,}", str(r["replicas"]), str(r["frozen"]), f"{r['collisions_mean']:,.0f}",
+             f"{r['steps_mean']:,.0f}", _f(r["boundary_share_mean"], ".3f"), _f(r["far_half_share_mean"], ".2e"),
+             _f(r["centre_share_mean"], ".2e")] for r in x["hyperbolic"]]
+    return ["### Curved spaces: the hyperbolic disk", "",
+            "`HyperbolicPlane(q=7, layers=L)`, the rim ball nearest the middle of the rim moving inward "
+            "(`\"direction\": \"inward\"`), energy 100, `RejectionFree`, until frozen. Shares are of the frozen "
+            "energy; the profile by rings is the figure.", "",
+            *_table(["rings L", "balls", "replicas", "frozen", "collisions (mean)", "steps (mean)", "rim share",
+                     "inner-half share", "centre-ball share"], rows)]
+
+
+def _fcc(x: dict) -> list[str]:
+    rows = [[f"{r['nx']}x{r['ny']}x{r['nz']}", f"{r['balls']:,}", str(r["replicas"]), str(r["frozen"]),
+             f"{r['collisions_mean']:,.0f}", f"{r['steps_mean']:,.0f}", _f(r["boundary_share_mean"], ".3f"),
+             _f(r["boundary_outward_fraction_mean"], ".3f"), _f(r["far_half_share_mean"], ".2e")]
+            for r in x["fcc_half_space"]]
+    return ["### 3-D: the half-space experiment on FCC", "",
+            "`FCC(nx, ny, nz, periodic=False)`: an open block, boundary the layer z = 0 (a block periodic in x and y "
+            "is infinite in those directions and never freezes). The boundary ball nearest the middle moves "
+            "inward (+z) with energy 100, `RejectionFree`, until frozen.", "",
+            *_table(["cells", "balls", "replicas", "frozen", "collisions (mean)", "steps (mean)",
+                     "boundary-layer share", "outward fraction there", "far-half share"], rows)]
+
+
+def _orders(x: dict) -> list[str]:
+    bound = lambda r, sign: "" if r["exhaustive"] else sign  # noqa: E731
+    rows = [[r["name"], str(r["balls"]), str(r["contacts"]), bound(r, "≤ ") + str(r["fewest_known"]),
+             bound(r, "≥ ") + str(r["most_known"]), "yes" if r["exhaustive"] else "no",
+             f"{r['states']:,}", str(r["replicas"]), f"{r['random_mean']:.2f} ± {r['random_sd']:.2f}",
+             f"{r['random_min']}–{r['random_max']}", f"{r['random_at_min']:.3f}", f"{r['random_at_max']:.3f}"]
+            for r in x["orders"]]
+    return ["### Every order of collisions against the random order", "",
+            "`explore_orders` (fewest and most collisions until frozen over every order; when not exhaustive, "
+            "bounds from the orders it and the random runs reached) against `UniformRandomPair` replicas (mean ± sd, "
+            "range, share of replicas reaching the "
+            "fewest and the most).", "",
+            *_table(["system", "balls", "contacts", "fewest", "most", "exhaustive", "states", "random runs",
+                     "random: mean ± sd", "random: range", "at fewest", "at most"], rows)]
