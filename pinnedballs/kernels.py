@@ -16,10 +16,11 @@ import numpy as np
 from numba import njit
 
 from .jitcache import jit_cached_if_possible
+from .fixedshape import fixed_width
 from .prefetch import prefetch
 from .random import load, store
 
-__all__ = ["chain_kernel", "contact_kernels", "live_kernel", "Loops", "Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "NO_LIMIT"]
+__all__ = ["chain_kernel", "contact_kernels", "fixed_rows", "live_kernel", "Loops", "Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "NO_LIMIT"]
 
 #: indices into the ``counters`` array shared by Python and the loops
 STEPS, COLLISIONS, LIVE = 0, 1, 2
@@ -32,6 +33,8 @@ _RING = 16  # ring buffer of drawn picks: a power of two > LOOKAHEAD
 
 #: above this many bytes of tables and velocities the loop prefetches (they no longer fit in cache)
 LOOKAHEAD_BYTES = 4 << 20
+
+_FEW = 1 << 32  #: at most this many contacts: a bounded pick needs no wide path
 
 
 def incidence(pairs: np.ndarray, n_balls: int) -> tuple[np.ndarray, np.ndarray]:
@@ -95,6 +98,22 @@ class Loops(NamedTuple):
 
 
 @functools.cache
+def fixed_rows(dim: int) -> Callable:
+    """``shaped(v, pairs, ends, units) -> (v, pairs, ends, units)``: the same arrays (views,
+    same memory) with their row lengths ``dim`` and 2 as compile-time constants, so the loop
+    finds a row with a shift or ``lea`` instead of a multiply by a shape held in memory."""
+    D = dim
+
+    @njit(inline="always")
+    def shaped(v, pairs, ends, units):
+        if v.shape[1] != D or units.shape[1] != D or pairs.shape[1] != 2 or ends.shape[1] != 2:
+            raise ValueError("the loop's tables do not have the row lengths it was built for")
+        return fixed_width(v, D), fixed_width(pairs, 2), fixed_width(ends, 2), fixed_width(units, D)
+
+    return shaped
+
+
+@functools.cache
 def contact_kernels(collide: Callable, dim: int, flat: bool) -> tuple[Callable, Callable]:
     """``(attempt, refresh)``: the inlined building blocks of every loop for one rule.
 
@@ -146,13 +165,25 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
     ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
     live_flags = live_kernel(collide, dim, flat)
+    shaped = fixed_rows(dim)
+
+    @njit(inline="always")
+    def run_steps(v, pairs, ends, units, masses, params, sched_state, rng, n, max_steps):
+        made = 0
+        for _ in range(max_steps):
+            k, rng = pick(sched_state, rng, n)
+            if attempt(v, pairs, ends, units, masses, params, k, True):
+                made += 1
+        return made, rng
 
     @jit_cached_if_possible
     def steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
-        n, made, rng = pairs.shape[0], 0, load(rng_words)
-        for _ in range(max_steps):
-            k, rng = pick(sched_state, rng, n)
-            made += attempt(v, pairs, ends, units, masses, params, k, True)
+        v, pairs, ends, units = shaped(v, pairs, ends, units)
+        n, rng = pairs.shape[0], load(rng_words)
+        if n <= _FEW:  # the same loop; knowing n's bound lets the compiler drop a test per pick
+            made, rng = run_steps(v, pairs, ends, units, masses, params, sched_state, rng, n, max_steps)
+        else:
+            made, rng = run_steps(v, pairs, ends, units, masses, params, sched_state, rng, n, max_steps)
         store(rng_words, rng)
         counters[STEPS] += max_steps
         counters[COLLISIONS] += made
@@ -162,6 +193,7 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
     def steps_prefetched(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
         # Every pick drawn is used before returning, so the scheduler and random
         # state left behind are those of `steps`, bit for bit.
+        v, pairs, ends, units = shaped(v, pairs, ends, units)
         n, made, rng = pairs.shape[0], 0, load(rng_words)
         ring = np.empty(_RING, dtype=np.uint64)
         for t in range(min(LOOKAHEAD, max_steps)):
@@ -187,6 +219,7 @@ def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loo
     @jit_cached_if_possible
     def limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
                 max_steps, max_collisions, track, ptr, inc, flags):
+        v, pairs, ends, units = shaped(v, pairs, ends, units)
         n, steps, rng = pairs.shape[0], 0, load(rng_words)
         collisions, live = counters[COLLISIONS], counters[LIVE]
         while steps < max_steps and collisions < max_collisions and not (track and live == 0):
