@@ -46,7 +46,7 @@ from numba import njit
 
 from .jitcache import jit_cached_if_possible
 from .errors import FieldError
-from .kernels import COLLISIONS, LIVE, STEPS, Chain, LiveSet, contact_kernels
+from .kernels import COLLISIONS, LIVE, STEPS, Chain, LiveSet, contact_kernels, fixed_rows
 from .random import bounded, load, random_float, store
 from .schedulers import Scheduler
 
@@ -84,6 +84,7 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
     velocities replaced), and the loop keeps them up to date.
     """
     attempt, _ = contact_kernels(collide, dim, flat)
+    shaped = fixed_rows(dim)
 
     @njit(inline="always")
     def update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, ball, skip):
@@ -139,6 +140,7 @@ def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
     @jit_cached_if_possible
     def run(v, pairs, ends, units, masses, params, state, rng_words, counters,
             max_steps, max_collisions, track, ptr, inc, flags):
+        v, pairs, ends, units = shaped(v, pairs, ends, units)
         n = pairs.shape[0]
         pos = np.full(n, -1, dtype=np.int32)
         live = state[2:]
