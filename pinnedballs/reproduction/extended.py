@@ -323,8 +323,10 @@ def _law_figure(series: dict[str, list[dict]], title: str, path: Path) -> str:
                         marker="o", capsize=3, label=text)
         ax.axhline(0.5 if name == "approaching_fraction" else 0.0, color="k", linewidth=0.8, linestyle=":")
         ax.set_xscale("log")
+        if name != "approaching_fraction":  # early transients are 10-100 times the long-run values
+            ax.set_yscale("symlog", linthresh=0.05)
         ax.set_xlabel("steps per ball")
-        ax.set_title(label, fontsize="medium")
+        ax.set_title(label + ("" if name == "approaching_fraction" else " (linear below |0.05|)"), fontsize="medium")
     axes[0].set_ylabel("mean ± se over replicas")
     axes[0].legend(fontsize="x-small")
     fig.suptitle(title)
