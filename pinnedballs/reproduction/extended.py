@@ -171,6 +171,9 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
         profiles[f"{length:g}x{depth:g}"] = _profile(res, "decile_")
     fits = {what: fit_exponent([r["balls"] for r in rows], [r[f"{what}_mean"] for r in rows],
                                [r[f"{what}_se"] for r in rows]) for what in ("collisions", "steps")}
+    n = np.log([r["balls"] for r in rows])
+    for what in ("collisions", "steps"):  # slopes between consecutive sizes: does one power law hold?
+        fits[what]["local_exponents"] = (np.diff(np.log([r[f"{what}_mean"] for r in rows])) / np.diff(n)).tolist()
     figures = [_scaling_figure(rows, fits, out / "extended_scaling.png"),
                _profiles_figure(profiles, out / "extended_scaling_profiles.png")]
     return {"rows": rows, "fit": fits, "profiles": profiles, "figures": figures}
