@@ -40,7 +40,7 @@ def test_results_hold_every_study(tiny):
 
 
 def test_scaling_rows_match_their_replicas(tiny):
-    out, _, results = tiny
+    out, text, results = tiny
     rows = results["extended"]["scaling"]
     assert [(r["length"], r["depth"], r["replicas"]) for r in rows] == [tuple(map(float, s[:2])) + (s[2],)
                                                                           for s in TINY_X.scaling]
@@ -64,7 +64,14 @@ def test_scaling_rows_match_their_replicas(tiny):
     fit = results["extended"]["scaling_fit"]["collisions"]
     again = rp.fit_exponent([r["balls"] for r in rows], [r["collisions_mean"] for r in rows],
                             [r["collisions_sd"] / math.sqrt(r["replicas"]) for r in rows])
+    local = fit.pop("local_exponents")
     assert fit == again and fit["exponent_se"] > 0
+
+    def slope(a, b):
+        return math.log(b["collisions_mean"] / a["collisions_mean"]) / math.log(b["balls"] / a["balls"])
+
+    assert local == pytest.approx([slope(a, b) for a, b in zip(rows, rows[1:])], rel=1e-12)
+    assert f"Local exponents of collisions between consecutive sizes: {local[0]:.2f}" in text
 
 
 def test_torus_sphere_and_frozen_studies(tiny):

@@ -171,6 +171,9 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
         profiles[f"{length:g}x{depth:g}"] = _profile(res, "decile_")
     fits = {what: fit_exponent([r["balls"] for r in rows], [r[f"{what}_mean"] for r in rows],
                                [r[f"{what}_se"] for r in rows]) for what in ("collisions", "steps")}
+    n = np.log([r["balls"] for r in rows])
+    for what in ("collisions", "steps"):  # slopes between consecutive sizes: does one power law hold?
+        fits[what]["local_exponents"] = (np.diff(np.log([r[f"{what}_mean"] for r in rows])) / np.diff(n)).tolist()
     figures = [_scaling_figure(rows, fits, out / "extended_scaling.png"),
                _profiles_figure(profiles, out / "extended_scaling_profiles.png")]
     return {"rows": rows, "fit": fits, "profiles": profiles, "figures": figures}
@@ -323,8 +326,10 @@ def _law_figure(series: dict[str, list[dict]], title: str, path: Path) -> str:
                         marker="o", capsize=3, label=text)
         ax.axhline(0.5 if name == "approaching_fraction" else 0.0, color="k", linewidth=0.8, linestyle=":")
         ax.set_xscale("log")
+        if name != "approaching_fraction":  # early transients are 10-100 times the long-run values
+            ax.set_yscale("symlog", linthresh=0.05)
         ax.set_xlabel("steps per ball")
-        ax.set_title(label, fontsize="medium")
+        ax.set_title(label + ("" if name == "approaching_fraction" else " (linear below |0.05|)"), fontsize="medium")
     axes[0].set_ylabel("mean ± se over replicas")
     axes[0].legend(fontsize="x-small")
     fig.suptitle(title)
