@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from .. import ensemble as ens
-from ..io import check_out_dir, write_text_atomic
+from ..io import check_out_dir
 from ..rundir import DirLock
 from ..specs import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
@@ -142,10 +142,10 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         results["wall_seconds"] = wall
         results["failures"] = failures
         results["checks"] = [dataclasses.asdict(c) for c in checks]
-        write_text_atomic(out / "results.json", json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n")
+        (out / "results.json").write_text(json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n", encoding="utf-8")
         report = out / REPORT_NAME
-        write_text_atomic(report, _report(plan, quick, checks, results, geom, trun.sim.geometry,
-                                          lattice_run.sim.geometry, failures, wall))
+        report.write_text(_report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry,
+                                  failures, wall), encoding="utf-8")
         say_t(f"wrote {report}")
         return report
 
