@@ -11,7 +11,7 @@ from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
 from .rejection_free import RejectionFree
 from .colored_sweep import ColoredSweep
 from .simulation import Simulation
-from .io import load
+from .io import ResultsError, load
 from .triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .writers import ResultsWriter
 from .specs import RunSpec
@@ -26,7 +26,7 @@ __all__ = [
     "CollisionRule", "Elastic", "Restitution",
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep",
     "Simulation", "__version__",
-    "load", "RunSpec", "run_ensemble",
+    "load", "ResultsError", "RunSpec", "run_ensemble",
     "explore_orders", "OrdersResult", "Replay",
     "ResultsWriter", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
 ]

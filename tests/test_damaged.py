@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.io import ResultsError
+from pinnedballs import ResultsError
 from runspecs import TORUS, spec, write
 from test_cli import assert_input_error, call
 
