@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from .. import ensemble as ens
-from ..io import check_out_dir
+from ..io import check_out_dir, write_text_atomic
 from ..rundir import DirLock
 from ..specs import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
@@ -83,7 +83,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
                  "torus": torus, "torus_ensemble": torus_long, "paper_lattice": lattice,
                  **{f"half_plane_{_label(s)}": spec for s, spec in size_specs.items()}}
         for name, spec in specs.items():
-            (out / "specs" / f"{name}.json").write_text(spec.to_json() + "\n", encoding="utf-8")
+            write_text_atomic(out / "specs" / f"{name}.json", spec.to_json() + "\n")
 
         checks: list[Check] = []
         results: dict = {"plan": dataclasses.asdict(plan)}
@@ -155,12 +155,12 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         results["wall_seconds"] = wall
         results["failures"] = failures
         results["checks"] = [dataclasses.asdict(c) for c in checks]
-        (out / "results.json").write_text(json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n", encoding="utf-8")
+        write_text_atomic(out / "results.json", json.dumps(ens._json_safe(_plain(results)), indent=2) + "\n")
         report = out / REPORT_NAME
         text = _report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry, failures, wall)
         if xplan is not None:
             text += "\n" + "\n".join(extended_section(results["extended"]))
-        report.write_text(text, encoding="utf-8")
+        write_text_atomic(report, text)  # a full disk leaves the old report or none, never half of one
         say_t(f"wrote {report}")
         return report
 
