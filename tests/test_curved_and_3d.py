@@ -462,8 +462,8 @@ def test_results_rebuild_the_geometry_and_plot_says_what_it_wrote(tmp_path, caps
     assert "state_final.png" in {Path(p).name for p in printed}
 
 
-def test_plot_lists_the_figures_of_a_1d_chain(tmp_path, capsys):
-    """Every dimension gets figures (issue 11), a 1-D chain too; plot names each file it wrote."""
+def test_plot_lists_the_figures_of_a_one_dimensional_chain(tmp_path, capsys):
+    """Changed by issue 11: a 1-D chain now gets figures (it got none, and plot said so)."""
     import json
 
     from pinnedballs import cli
@@ -476,6 +476,6 @@ def test_plot_lists_the_figures_of_a_1d_chain(tmp_path, capsys):
                      "--no-figures"]) == 0
     capsys.readouterr()
     assert cli.main(["plot", str(tmp_path / "run")]) == 0
-    listed = capsys.readouterr().out.split()
-    assert {p.name for p in map(Path, listed)} >= {"state_initial.png", "state_final.png"}
-    assert all(Path(p).is_file() and Path(p).parent == tmp_path / "run" for p in listed)
+    printed = [Path(p) for p in capsys.readouterr().out.split()]
+    assert [p.name for p in printed] == ["state_initial.png", "state_final.png", "velocity_histograms.png"]
+    assert all(p.parent == tmp_path / "run" and p.stat().st_size > 0 for p in printed)
