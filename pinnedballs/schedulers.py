@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from .errors import FieldError, FieldTypeError, check_jitted
-from .kernels import COLLISIONS, LIVE, LOOKAHEAD_BYTES, NO_LIMIT, Chain, LiveSet, chain_kernel
+from .kernels import LOOKAHEAD_BYTES, NO_LIMIT, Chain, LiveSet, chain_kernel
 from .random import bounded
 
 __all__ = ["Scheduler", "UniformRandomPair", "Sweep", "RandomSweep"]

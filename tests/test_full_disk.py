@@ -16,8 +16,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 import pinnedballs as pb
 from runspecs import TORUS, spec, write
 from test_resume import assert_identical, reference, resume

@@ -15,7 +15,7 @@ import pinnedballs as pb
 from pinnedballs import driver, runner
 from pinnedballs.io import ResultsError, load
 from pinnedballs.spec import parse_spec
-from runspecs import HALF_PLANE, TORUS, spec
+from runspecs import HALF_PLANE, spec
 
 REL = 1e-12
 

@@ -65,14 +65,19 @@ def cases(geom_names, rule_names=tuple(RULES), table=LOOPS):
     return out
 
 
-def pair(geom_name, rule_name, sched_name, seed=11):
-    """An engine simulation and its twin with the same inputs."""
+def inputs(geom_name, rule_name, seed):
+    """``(geom, v, masses, r, rule)`` of one case: random velocities (tangent on the sphere)."""
     geom = geometry(geom_name)
     r, unequal = RULES[rule_name]
     v, m = random_state(geom, seed=seed, unequal_masses=unequal)
     if geom_name == "sphere3d":
         v = tangent_velocities(geom, seed)
-    rule = pb.Elastic() if r == 1.0 else pb.Restitution(r)
+    return geom, v, m, r, pb.Elastic() if r == 1.0 else pb.Restitution(r)
+
+
+def pair(geom_name, rule_name, sched_name, seed=11):
+    """An engine simulation and its twin with the same inputs."""
+    geom, v, m, r, rule = inputs(geom_name, rule_name, seed)
     sim = pb.Simulation(geom, v, rule=rule, scheduler=SCHEDULER_CLASSES[sched_name](), masses=m, seed=seed)
     twin = ReferenceSimulation.from_geometry(geom, v, r=r, masses=m, scheduler=sched_name, seed=seed)
     return sim, twin
@@ -225,12 +230,7 @@ OWN_SCHEDULERS = {"rejection_free": pb.RejectionFree, "colored_sweep": lambda: p
 
 def own_pair(geom_name, rule_name, sched_name, seed=11):
     """An engine simulation with a loop-owning scheduler and its twin."""
-    geom = geometry(geom_name)
-    r, unequal = RULES[rule_name]
-    v, m = random_state(geom, seed=seed, unequal_masses=unequal)
-    if geom_name == "sphere3d":
-        v = tangent_velocities(geom, seed)
-    rule = pb.Elastic() if r == 1.0 else pb.Restitution(r)
+    geom, v, m, r, rule = inputs(geom_name, rule_name, seed)
     sim = pb.Simulation(geom, v, rule=rule, scheduler=OWN_SCHEDULERS[sched_name](), masses=m, seed=seed)
     if sched_name == "rejection_free":
         twin = ReferenceRejectionFree.from_geometry(geom, v, r=r, masses=m, seed=seed)

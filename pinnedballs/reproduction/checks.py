@@ -51,8 +51,6 @@ def _int(x: float) -> str:
 
 
 def _half_plane_checks(plan: Plan, detail: dict, size_results: dict, lattice_res, lattice_run) -> list[Check]:
-    from .. import observables as obs
-
     checks = []
     g, res = size_results[tuple(plan.detail)]
     n = res.replicas - len(res.failures)

@@ -146,13 +146,8 @@ def _frozen_row(res: ens.EnsembleResult) -> dict:
 
 def scaling_spec(length: float, depth: float, plan: ExtendedPlan) -> RunSpec:
     """Half-plane ``length x depth``: the boundary-centre ball moving inward, `RejectionFree`, until frozen."""
-    return parse_spec({
-        "description": f"scaling: half-plane {length:g}x{depth:g}, one boundary ball moving inward, until frozen",
-        "geometry": {"kind": "half_plane", "length": float(length), "depth": float(depth)},
-        "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": "inward",
-                    "energy": float(plan.energy)},
-        "scheduler": {"kind": "rejection_free"},
-        "stop": {"frozen": True, "max_steps": plan.max_steps}, "seed": plan.seed})
+    return _inward_spec({"kind": "half_plane", "length": float(length), "depth": float(depth)}, plan,
+                        f"scaling: half-plane {length:g}x{depth:g}")
 
 
 def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
@@ -341,6 +336,7 @@ def _law_figure(series: dict[str, list[dict]], title: str, path: Path) -> str:
 
 
 def _inward_spec(geometry: dict, plan: ExtendedPlan, what: str) -> RunSpec:
+    """``geometry``'s boundary-centre ball moving inward with the plan's energy, `RejectionFree`, until frozen."""
     return parse_spec({
         "description": f"{what}: the boundary-centre ball moving inward, until frozen",
         "geometry": geometry,
