@@ -24,8 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 _CHILD = r"""
 import json, sys, time
 from pathlib import Path
-from pinnedballs import runner
-from pinnedballs.spec import parse_spec
+from pinnedballs.run import execute as runner
+from pinnedballs.specs import parse_spec
 
 def wchar():
     return int(dict(line.split(": ") for line in open("/proc/self/io").read().splitlines())["wchar"])

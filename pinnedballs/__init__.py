@@ -4,29 +4,32 @@ Balls sit at fixed centres; their pseudo-velocities change when two touching
 balls approach and collide. See ``docs/`` and the README for a tour.
 """
 
+from ._version import __version__
+from .analysis.observables import register as register_observable
+from .analysis.orders import OrdersResult, explore_orders
+from .engine.errors import FieldError, FieldTypeError, InputError
 from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane,
                        Sphere)
+from .results.format import ResultsError
+from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
-from .schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
-from .rejection_free import RejectionFree
-from .colored_sweep import ColoredSweep
-from .simulation import Simulation
-from .io import ResultsError, load
-from .triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
-from .writers import ResultsWriter
-from .specs import RunSpec
-from .ensemble import run_ensemble
-from .orders import OrdersResult, Replay, explore_orders
-
-__version__ = "0.1.0"
+from .run.driver import Stop, Writer
+from .run.ensemble import run_ensemble
+from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from .run.writers import ResultsWriter
+from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
+from .simulation import RunState, Simulation
+from .specs.errors import SpecError
+from .specs.run import RunSpec
 
 __all__ = [
     "Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",
     "Sphere", "HyperbolicPlane", "FCC", "HCP",
     "CollisionRule", "Elastic", "Restitution",
-    "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep",
-    "Simulation", "__version__",
-    "load", "ResultsError", "RunSpec", "run_ensemble",
-    "explore_orders", "OrdersResult", "Replay",
-    "ResultsWriter", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
+    "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep", "Replay",
+    "Simulation", "RunState", "__version__",
+    "load", "Results", "ResultsError", "RunSpec", "run_ensemble",
+    "explore_orders", "OrdersResult",
+    "ResultsWriter", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
+    "register_observable", "InputError", "FieldError", "FieldTypeError", "SpecError",
 ]

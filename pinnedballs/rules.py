@@ -32,7 +32,7 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from .errors import FieldError, FieldTypeError
+from .engine import checks
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "collide_elastic", "collide_equal", "collide_masses"]
 
@@ -107,21 +107,28 @@ class CollisionRule(ABC):
     def kernel(self, equal_masses: bool) -> tuple[Callable, np.ndarray]:
         """``(collide, params)`` for the compiled loop; ``params`` is a float64 array."""
 
+    def to_spec(self) -> dict | None:
+        """The rule as a run spec's ``"rule"`` (a dict with its ``"kind"``), or None if it has none.
+
+        A run built in Python records this spec, so that ``pb.load(dir).simulation()`` rebuilds
+        the rule; a rule of your own may return ``{"kind": "python", "factory": ..., "args": ...}``.
+        """
+        return None
+
 
 class Restitution(CollisionRule):
     """Inelastic collisions with coefficient of restitution ``r`` in [0, 1]; momentum kept, energy never gained."""
 
     def __init__(self, r: float):
-        if isinstance(r, bool) or not isinstance(r, (int, float, np.number)):
-            raise FieldTypeError("r", f"coefficient of restitution must be a number, got {r!r}")
-        if not 0.0 <= r <= 1.0:  # also rejects NaN
-            raise FieldError("r", f"coefficient of restitution must be in [0, 1], got {r}")
-        self.r = float(r)
+        self.r = checks.number("r", r, 0.0, 1.0, what="coefficient of restitution")
 
     def kernel(self, equal_masses: bool) -> tuple[Callable, np.ndarray]:
         if equal_masses:
             return collide_elastic if self.r == 1.0 else collide_equal, np.array([(1.0 + self.r) / 2.0])
         return collide_masses, np.array([1.0 + self.r])
+
+    def to_spec(self) -> dict:
+        return {"kind": "restitution", "r": self.r}
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.r})"
@@ -138,6 +145,9 @@ class Elastic(Restitution):
 
     def __init__(self):
         super().__init__(1.0)
+
+    def to_spec(self) -> dict:
+        return {"kind": "elastic"}
 
     def __repr__(self) -> str:
         return "Elastic()"

@@ -1,18 +1,58 @@
-"""`Simulation`: owns the velocities, the counters and the random stream."""
+"""`Simulation`: owns the velocities, the counters and the random stream; `RunState`: all of
+it that changes during a run, as one record."""
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import numpy as np
 
-from .errors import FieldError, FieldTypeError, check_jitted
-from .geometry import Geometry
-from .limits import check_speeds
-from .kernels import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence, live_kernel
-from .random import seed_state
+from .engine import checks
+from .engine.chain import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
+from .engine.errors import FieldError, FieldTypeError, check_jitted
+from .engine.limits import check_speeds
+from .engine.loops import live_kernel
+from .engine.random import seed_state
+from .geometry.base import Geometry
 from .rules import CollisionRule, Elastic
-from .schedulers import Scheduler, UniformRandomPair
+from .schedulers.base import Scheduler
+from .schedulers.simple import UniformRandomPair
 
-__all__ = ["Simulation", "mass_array"]
+__all__ = ["Simulation", "RunState", "mass_array"]
+
+
+@dataclass(frozen=True, eq=False)
+class RunState:
+    """Everything that changes during a run: enough to resume it bit for bit.
+
+    velocities ``(n_balls, dim) float64``; steps and collisions so far; rng_state ``(4,) uint64``,
+    the random stream; scheduler_state ``(L,) int64``, the scheduler's own state.
+    """
+
+    velocities: np.ndarray
+    steps: int
+    collisions: int
+    rng_state: np.ndarray
+    scheduler_state: np.ndarray
+
+    #: the arrays among the fields (the rest are counts)
+    ARRAYS = ("velocities", "rng_state", "scheduler_state")
+
+    def copy(self) -> "RunState":
+        """A copy whose arrays share no memory with this one's."""
+        return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
+                        self.scheduler_state.copy())
+
+    def replace(self, **changes) -> "RunState":
+        """This state with the fields named in ``changes`` replaced."""
+        return dataclasses.replace(self, **changes)
+
+    def identical(self, other: "RunState") -> bool:
+        """True when ``other`` is this state bit for bit (every array, dtype and count)."""
+        return (self.steps, self.collisions) == (other.steps, other.collisions) and all(
+            getattr(self, name).dtype == getattr(other, name).dtype
+            and np.array_equal(getattr(self, name), getattr(other, name)) for name in self.ARRAYS)
 
 
 def mass_array(masses, n_balls: int) -> np.ndarray:
@@ -34,11 +74,7 @@ def mass_array(masses, n_balls: int) -> np.ndarray:
 
 def _count(name: str, value) -> int:
     """A count in ``[0, 2**63 - 1]`` (the loop's counters are int64)."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise FieldTypeError(name, f"must be an integer, got {value!r}")
-    if not 0 <= value <= NO_LIMIT:
-        raise FieldError(name, f"must be >= 0 and < 2**63, got {value}")
-    return int(value)
+    return checks.integer(name, value, 0, NO_LIMIT)
 
 
 def _sparse_copy(v: np.ndarray) -> np.ndarray:
@@ -68,7 +104,7 @@ class Simulation:
 
     The scheduler runs its own compiled loops (`Scheduler.advance`) on plain data the
     simulation owns: the velocities, the counters, the random stream, the scheduler's
-    state and the live-contact set (`kernels.LiveSet`), which it refreshes for the
+    state and the live-contact set (`engine.chain.LiveSet`), which it refreshes for the
     loops that want it.
     """
 
@@ -139,7 +175,7 @@ class Simulation:
         max_steps = NO_LIMIT if steps is None else _count("steps", steps)
         max_collisions = NO_LIMIT if collisions is None else _count("collisions", collisions)
         if writers is not None:
-            from .driver import drive_run
+            from .run.driver import drive_run
             return drive_run(self, steps, collisions, until_frozen, writers)
         return self._run(max_steps, max_collisions, track=until_frozen or steps is None)
 
@@ -150,7 +186,7 @@ class Simulation:
         exact step of the last collision. Returns True if frozen.
         """
         if writers is not None:
-            from .driver import drive_run
+            from .run.driver import drive_run
             drive_run(self, _count("max_steps", max_steps), None, True, writers)
             return self.is_frozen()
         self._run(_count("max_steps", max_steps), NO_LIMIT, track=True)
@@ -197,24 +233,19 @@ class Simulation:
         return self._mass_array @ self.velocities
 
     # ------------------------------------------------------------ state for checkpoints
-    def get_state(self) -> dict:
+    def get_state(self) -> RunState:
         """Everything that changes during a run, as copies: enough to resume bit for bit."""
-        return {
-            "velocities": self.velocities.copy(),
-            "steps": self.steps,
-            "collisions": self.collisions,
-            "rng_state": self._rng.copy(),
-            "scheduler_state": self._sched_state.copy(),
-        }
+        return RunState(self.velocities.copy(), self.steps, self.collisions, self._rng.copy(),
+                        self._sched_state.copy())
 
-    def set_state(self, state: dict) -> None:
+    def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
         scheduler). Everything is checked before anything changes."""
-        velocities = self._check_velocities(state["velocities"])
-        rng = np.asarray(state["rng_state"])
+        velocities = self._check_velocities(state.velocities)
+        rng = np.asarray(state.rng_state)
         if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
             raise FieldError("rng_state", f"must be 4 uint64 words, not all zero, got {rng.dtype} {rng.shape}")
-        sched = np.asarray(state["scheduler_state"])
+        sched = np.asarray(state.scheduler_state)
         if sched.dtype != np.int64:
             raise FieldError("scheduler_state", f"must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
@@ -223,7 +254,7 @@ class Simulation:
             flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
             self._live_flags(*self._chain()._replace(v=velocities), flags)
         self.scheduler.check_resume(sched, self._loops, flags)
-        steps, collisions = _count("steps", state["steps"]), _count("collisions", state["collisions"])
+        steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
         if collisions > steps:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
         self.velocities = velocities

@@ -1,4 +1,5 @@
-"""Shared test setup: make the plain-Python twin (`reference.py`) importable."""
+"""Shared test setup: the helpers (`helpers.py`), the plain-Python twin (`reference.py`) and a
+user's module (`user_components.py`) are importable from every test folder."""
 
 import pathlib
 import sys

@@ -21,7 +21,7 @@ from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from cases import FAST, SCHEDULER_CLASSES, chain, rule_kind, schedulers_for, two_balls
+from helpers import FAST, SCHEDULER_CLASSES, chain, rule_kind, schedulers_for, two_balls
 from reference import ReferenceSimulation, closing_speed
 
 REL = 1e-12

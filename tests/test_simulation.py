@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from scipy import stats
 
 import pinnedballs as pb
-from cases import (SLOWER, closing_speeds, energy, icosahedron_sphere, momentum, random_state, rule_kind,
+from helpers import (SLOWER, closing_speeds, energy, icosahedron_sphere, momentum, random_state, rule_kind,
                    schedulers_for, tangent_velocities)
 from reference import ReferenceSimulation
 
@@ -347,7 +347,7 @@ def test_get_state_set_state_continues_bit_identically(cls):
     a = pb.Simulation(g, v, rule=pb.Restitution(0.95), scheduler=cls(), masses=m, seed=5)
     a.run(steps=777)
     state = a.get_state()
-    assert state["steps"] == 777 and state["collisions"] == a.collisions
+    assert state.steps == 777 and state.collisions == a.collisions
     a.run(steps=1501)
     b = pb.Simulation(g, np.zeros_like(v), rule=pb.Restitution(0.95), scheduler=cls(), masses=m, seed=999)
     b.set_state(state)
@@ -355,7 +355,7 @@ def test_get_state_set_state_continues_bit_identically(cls):
     b.run(steps=1501)
     assert np.array_equal(a.velocities, b.velocities)
     assert (a.steps, a.collisions) == (b.steps, b.collisions)
-    assert np.array_equal(np.asarray(a.get_state()["rng_state"]), np.asarray(b.get_state()["rng_state"]))
+    assert np.array_equal(np.asarray(a.get_state().rng_state), np.asarray(b.get_state().rng_state))
 
 
 def test_split_runs_equal_one_run():
@@ -375,10 +375,10 @@ def test_state_and_velocities_are_copies():
     given_v[:] = 123.0  # the caller's array is not the simulation's
     assert sim.energy() == pytest.approx(100.0)
     state = sim.get_state()
-    state["velocities"][:] = 0.0
+    state.velocities[:] = 0.0
     assert sim.energy() == pytest.approx(100.0)
     sim.run(steps=100)
-    assert state["steps"] == 0
+    assert state.steps == 0
 
 
 def test_velocities_are_float64_of_shape_balls_by_dim():
@@ -507,11 +507,11 @@ def test_bad_states_are_refused():
     sim = pb.Simulation(g, v)
     good = sim.get_state()
     with pytest.raises(ValueError, match=r"^velocities: "):
-        sim.set_state({**good, "velocities": np.zeros((3, 2))})
+        sim.set_state(good.replace(velocities=np.zeros((3, 2))))
     with pytest.raises(ValueError, match=r"^rng_state: "):
-        sim.set_state({**good, "rng_state": np.zeros(4, dtype=np.uint64)})
+        sim.set_state(good.replace(rng_state=np.zeros(4, dtype=np.uint64)))
     with pytest.raises(ValueError, match=r"^steps: "):
-        sim.set_state({**good, "steps": -1})
+        sim.set_state(good.replace(steps=-1))
 
 
 def test_failed_set_state_leaves_the_simulation_unchanged():
@@ -519,12 +519,12 @@ def test_failed_set_state_leaves_the_simulation_unchanged():
     sim = pb.Simulation(g, v, seed=0)
     sim.run(steps=10)
     before = sim.get_state()
-    bad = {**before, "velocities": np.ones_like(v), "steps": -1}
+    bad = before.replace(velocities=np.ones_like(v), steps=-1)
     with pytest.raises(ValueError, match=r"^steps: "):
         sim.set_state(bad)
     after = sim.get_state()
-    assert np.array_equal(after["velocities"], before["velocities"]), "velocities were replaced by a refused state"
-    assert after["steps"] == before["steps"]
+    assert np.array_equal(after.velocities, before.velocities), "velocities were replaced by a refused state"
+    assert after.steps == before.steps
 
 
 @pytest.mark.parametrize(
@@ -542,6 +542,5 @@ def test_set_state_refuses_scheduler_states_that_index_outside_the_contacts(cls,
     g, v = small()
     sim = pb.Simulation(g, v, scheduler=cls())
     state = sim.get_state()
-    state["scheduler_state"] = bad(g.n_contacts)
     with pytest.raises(ValueError, match=r"^scheduler_state: "):
-        sim.set_state(state)
+        sim.set_state(state.replace(scheduler_state=bad(g.n_contacts)))

@@ -1,15 +1,17 @@
 """Geometries: where the balls sit and which of them touch.
 
-One module per idea: `base` (`Contacts`, `Geometry`, the `Boundary` capability,
-`GraphGeometry`), `lattices` (the flat torus and half-plane), `sphere`,
-`hyperbolic` (the {3,q} tiling) and `packings` (FCC and HCP in 3-D).
+One module per idea: `base` (`Contacts`, `Geometry`, the `Boundary` capability), `graph`
+(`GraphGeometry` and the `StoredGeometry` a results file holds), `lattices` (the flat torus and
+half-plane), `sphere`, `hyperbolic` (the {3,q} tiling) and `packings` (FCC and HCP in 3-D).
+Every geometry knows its spec (`Geometry.to_spec`), its boundary and how it is drawn (`Geometry.view`).
 """
 
-from .base import Boundary, Contacts, Geometry, GraphGeometry
+from .base import VIEWS, Boundary, Contacts, Geometry
+from .graph import GraphGeometry, StoredGeometry
 from .hyperbolic import HyperbolicPlane
 from .lattices import FlatTorus, HalfPlane
 from .packings import FCC, HCP
 from .sphere import Sphere
 
-__all__ = ["Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",
+__all__ = ["Contacts", "Geometry", "Boundary", "VIEWS", "FlatTorus", "HalfPlane", "GraphGeometry", "StoredGeometry",
            "Sphere", "HyperbolicPlane", "FCC", "HCP"]

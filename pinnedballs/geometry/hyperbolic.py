@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import FieldError
+from ..engine import checks
+from ..engine.errors import FieldError
 
-from .base import Boundary, Contacts, Geometry, _check_int, _check_radius
+from .base import Boundary, Contacts, Geometry
 
 __all__ = ["HyperbolicPlane", "contact_length", "MINKOWSKI"]
 
@@ -44,14 +45,18 @@ class HyperbolicPlane(Geometry):
     """
 
     curved = True
+    view = "poincare"
 
     def __init__(self, q: int = 7, layers: int = 4, radius: float = 1.0):
-        self.q = _check_int("q", q, 7)
-        self.layers = _check_int("layers", layers, 0)
-        self.radius = _check_radius(radius)
+        self.q = checks.integer("q", q, 7)
+        self.layers = checks.integer("layers", layers, 0)
+        self.radius = checks.number("radius", radius, 0.0, above=True)
         self.length = contact_length(self.q)
         self._r, self._phi, self.ring, self.pairs = _tiling(self.q, self.layers)
         self.positions = _hyperboloid(self._r, self._phi).astype(np.float64)
+
+    def to_spec(self) -> dict:
+        return {"kind": "hyperbolic_plane", "q": self.q, "layers": self.layers, "radius": self.radius}
 
     @property
     def boundary(self) -> Boundary:

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import FieldError, FieldTypeError
-from ..limits import check_memory, format_count, run_bytes
+from ..engine import checks
+from ..engine.errors import FieldError
+from ..engine.limits import check_memory, format_count, run_bytes
 
-from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry, _check_int, _check_radius
+from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry
 
 __all__ = ["FlatTorus", "HalfPlane"]
 
@@ -64,21 +65,24 @@ class FlatTorus(Geometry):
     """
 
     def __init__(self, rows: int, cols: int, radius: float = 1.0):
-        rows = _check_int("rows", rows, 4)
-        cols = _check_int("cols", cols, 3)
+        rows = checks.integer("rows", rows, 4)
+        cols = checks.integer("cols", cols, 3)
         if rows % 2:
             raise FieldError("rows", f"must be even for a flat torus, got {rows}")
         check_memory(run_bytes(rows * cols, 3 * rows * cols), "rows*cols",
                      f"a {format_count(rows)} x {format_count(cols)} flat torus")
         if rows * cols > _INT32_MAX // 3:
             raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {rows * cols}")
-        self.rows, self.cols, self.radius = rows, cols, _check_radius(radius)
+        self.rows, self.cols, self.radius = rows, cols, checks.number("radius", radius, 0.0, above=True)
         self.positions = _lattice_positions(rows, cols, self.radius)
 
     @property
     def period(self) -> np.ndarray:
         """``(2,)`` side lengths of the periodic box."""
         return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
+
+    def to_spec(self) -> dict:
+        return {"kind": "flat_torus", "rows": self.rows, "cols": self.cols, "radius": self.radius}
 
     def _build_contacts(self) -> Contacts:
         return _lattice_contacts(self.rows, self.cols, periodic=True)
@@ -97,14 +101,14 @@ class HalfPlane(Geometry):
     """
 
     def __init__(self, rows: int, cols: int, radius: float = 1.0, orientation: str = "along"):
-        self.rows = _check_int("rows", rows, 1)
-        self.cols = _check_int("cols", cols, 1)
+        self.rows = checks.integer("rows", rows, 1)
+        self.cols = checks.integer("cols", cols, 1)
         check_memory(run_bytes(self.rows * self.cols, 3 * self.rows * self.cols), "rows*cols",
                      f"a {format_count(self.rows)} x {format_count(self.cols)} half-plane lattice")
         if self.rows * self.cols > _INT32_MAX // 3:
             raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
-        self.radius = _check_radius(radius)
-        self.orientation = _check_orientation(orientation)
+        self.radius = checks.number("radius", radius, 0.0, above=True)
+        self.orientation = checks.choice("orientation", orientation, ORIENTATIONS)
         p = _lattice_positions(self.rows, self.cols, self.radius)
         self.positions = p if self.orientation == "along" else np.ascontiguousarray(p[:, ::-1])
 
@@ -119,16 +123,18 @@ class HalfPlane(Geometry):
         gives 57 rows of 25, the paper's 1,425 balls.
         """
         for name, value in (("length", length), ("depth", depth)):
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
-                raise FieldTypeError(name, f"must be a finite number, got {value!r}")
-            if value < 2:
+            if checks.number(name, value) < 2:
                 raise FieldError(name, f"must be >= 2 (one ball is 2 radii wide), got {value}")
-        if _check_orientation(orientation) == "across":
+        if checks.choice("orientation", orientation, ORIENTATIONS) == "across":
             rows, cols = int(np.floor(length / SQRT3 + 1e-9)), int(np.floor(depth / 2 + 1e-9))
             return cls(rows=max(rows, 1), cols=cols, radius=radius, orientation=orientation)
         cols = int(np.floor(length / 2 + 1e-9))
         rows = int(np.floor((depth - 1) / SQRT3 + 1e-9)) + 1
         return cls(rows=rows, cols=cols, radius=radius)
+
+    def to_spec(self) -> dict:
+        return {"kind": "half_plane", "rows": self.rows, "cols": self.cols, "radius": self.radius,
+                "orientation": self.orientation}
 
     def boundary_distance(self) -> np.ndarray:
         """``(n_balls,)`` distance of each centre from the boundary line ``y = 0``."""
@@ -147,8 +153,3 @@ class HalfPlane(Geometry):
             return c
         return Contacts(pairs=c.pairs, ends=c.ends, units=np.ascontiguousarray(c.units[:, ::-1]))
 
-
-def _check_orientation(orientation) -> str:
-    if not isinstance(orientation, str) or orientation not in ORIENTATIONS:
-        raise FieldError("orientation", f"must be 'along' or 'across', got {orientation!r}")
-    return orientation

@@ -12,10 +12,11 @@ import itertools
 
 import numpy as np
 
-from ..errors import FieldError, FieldTypeError
-from ..limits import check_memory, format_count, run_bytes
+from ..engine import checks
+from ..engine.errors import FieldError, FieldTypeError
+from ..engine.limits import check_memory, format_count, run_bytes
 
-from .base import _INT32_MAX, Boundary, Contacts, Geometry, _check_int, _check_radius
+from .base import _INT32_MAX, Boundary, Contacts, Geometry
 
 __all__ = ["FCC", "HCP"]
 
@@ -28,11 +29,12 @@ class _Packing(Geometry):
 
     CELL: np.ndarray
     BASIS: np.ndarray
+    kind: str  #: the spec's kind
 
     def __init__(self, nx: int, ny: int, nz: int, periodic=True, radius: float = 1.0):
-        self.shape = tuple(_check_int(name, n, 1) for name, n in zip(AXES, (nx, ny, nz)))
+        self.shape = tuple(checks.integer(name, n, 1) for name, n in zip(AXES, (nx, ny, nz)))
         self.periodic = _check_periodic(periodic)
-        self.radius = _check_radius(radius)
+        self.radius = checks.number("radius", radius, 0.0, above=True)
         n = int(np.prod(self.shape)) * len(self.BASIS)
         check_memory(run_bytes(n, 6 * n, dim=3), "nx*ny*nz",
                      f"a {' x '.join(format_count(s) for s in self.shape)} {type(self).__name__} packing")
@@ -44,6 +46,11 @@ class _Packing(Geometry):
         cells = np.indices(self.shape).reshape(3, -1).T
         p = (cells[:, None, :] * self.CELL + self.BASIS[None, :, :]).reshape(-1, 3)
         self.positions = self.radius * p
+
+    def to_spec(self) -> dict:
+        nx, ny, nz = self.shape
+        return {"kind": self.kind, "nx": nx, "ny": ny, "nz": nz, "periodic": list(self.periodic),
+                "radius": self.radius}
 
     @property
     def period(self) -> np.ndarray:
@@ -89,6 +96,7 @@ class FCC(_Packing):
     """Face-centred cubic packing: ``4 nx ny nz`` balls, cubic cells of side ``2 sqrt(2)`` radii,
     12 contacts per ball when periodic. ``periodic``: a bool or a triple for (x, y, z)."""
 
+    kind = "fcc"
     CELL = np.full(3, 2.0 * np.sqrt(2.0))
     BASIS = np.sqrt(2.0) * np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
 
@@ -98,6 +106,7 @@ class HCP(_Packing):
     ``4 nx ny nz`` balls in cells of ``2 x 2 sqrt(3) x 2 sqrt(8/3)`` radii, 12 contacts per ball
     when periodic. ``periodic``: a bool or a triple for (x, y, z)."""
 
+    kind = "hcp"
     _H = np.sqrt(8.0 / 3.0)
     CELL = np.array([2.0, 2.0 * np.sqrt(3.0), 2.0 * _H])
     BASIS = np.array([[0.0, 0.0, 0.0], [1.0, np.sqrt(3.0), 0.0],
@@ -109,11 +118,10 @@ def _cell_index(cells: np.ndarray, shape: np.ndarray) -> np.ndarray:
 
 
 def _check_periodic(periodic) -> tuple[bool, bool, bool]:
+    if isinstance(periodic, (tuple, list)) and len(periodic) == 3:
+        return tuple(checks.flag("periodic", p) for p in periodic)
     if isinstance(periodic, (bool, np.bool_)):
         return (bool(periodic),) * 3
-    if isinstance(periodic, (tuple, list)) and len(periodic) == 3 and all(isinstance(p, (bool, np.bool_))
-                                                                           for p in periodic):
-        return tuple(bool(p) for p in periodic)
     raise FieldTypeError("periodic", f"must be a bool or a triple of bools, got {periodic!r}")
 
 

@@ -12,9 +12,10 @@ import itertools
 
 import numpy as np
 
-from ..errors import FieldError, FieldTypeError
+from ..engine import checks
+from ..engine.errors import FieldError, FieldTypeError
 
-from .base import Contacts, Geometry, _check_int, _check_radius, tangent_contacts
+from .base import Contacts, Geometry, tangent_contacts
 
 __all__ = ["Sphere"]
 
@@ -36,12 +37,13 @@ class Sphere(Geometry):
     """
 
     curved = True
+    view = "sphere"
     frequency: int | None = None  #: of the geodesic grid; None for a sphere from points
 
     def __init__(self, positions: np.ndarray, pairs: np.ndarray, radius: float = 1.0):
         self.positions = np.ascontiguousarray(positions, dtype=np.float64)
         self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
-        self.radius = _check_radius(radius)
+        self.radius = checks.number("radius", radius, 0.0, above=True)
 
     @classmethod
     def geodesic(cls, frequency: int, radius: float = 1.0) -> "Sphere":
@@ -50,7 +52,7 @@ class Sphere(Geometry):
         ``10 f^2 + 2`` balls (12 of degree 5, the rest 6) and ``30 f^2`` contacts. Points
         shared by faces are merged by exact integer barycentric keys, never by rounding.
         """
-        f = _check_int("frequency", frequency, 1)
+        f = checks.integer("frequency", frequency, 1)
         keys, points, index = [], [], {}
         edges = set()
         for face in _ICO_FACES:
@@ -93,6 +95,12 @@ class Sphere(Geometry):
         s = hull.simplices[hull.equations[:, -1] < -1e-12]
         edges = np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1)
         return cls(p, np.unique(edges, axis=0), radius)
+
+    def to_spec(self) -> dict | None:
+        """The geodesic grid's spec; None for a sphere from points (rebuilt from its stored positions)."""
+        if self.frequency is None:
+            return None
+        return {"kind": "sphere", "frequency": self.frequency, "radius": self.radius}
 
     def frames(self) -> np.ndarray:
         """``(n_balls, 2, 3)`` orthonormal tangent bases: ``e1`` towards the z-axis (the x-axis within 0.9 of a

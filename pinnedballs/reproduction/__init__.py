@@ -10,7 +10,7 @@ The paper's set-ups (``docs/reproduce.md`` explains them and our choices):
   moving with energy 100, snapshots at 211,417 and 422,834 steps.
 
 Single runs (the pictures) use ``seed`` itself; ensembles use replicas ``0..N-1`` of
-``seed`` (`pinnedballs.ensemble`). Everything is seeded, so the report is reproducible.
+``seed`` (`pinnedballs.run.ensemble`). Everything is seeded, so the report is reproducible.
 `FULL` is the paper's scale; `QUICK` a smaller one for a first look.
 
 One module per idea: `plan` (what is run: the plan and the paper's set-ups), `run`

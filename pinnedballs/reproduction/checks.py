@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 
-from .. import ensemble as ens
+from ..run import ensemble as ens
 from .plan import (CORRELATION_TOLERANCE, PAPER_BOUNDARY_SHARE, PAPER_FROZEN_COLLISIONS, Plan, _label, _Run,
                    paper_lattice_row)
 
@@ -149,7 +149,7 @@ def _stat(x: np.ndarray, fmt: str = "+.4f") -> str:
 
 
 def _torus_checks(plan: Plan, run: _Run, res: ens.EnsembleResult, results: dict) -> list[Check]:
-    from .. import observables as obs
+    from ..analysis import observables as obs
 
     checks = []
     g = run.sim.geometry
@@ -168,7 +168,7 @@ def _torus_checks(plan: Plan, run: _Run, res: ens.EnsembleResult, results: dict)
         rates_ok = _binomial_ok(ks_rej, len(ks), 0.01) and _binomial_ok(ad_rej, len(ad), 0.05)
         if s in plan.steps:
             snap = run.snapshots.get(s)
-            v = snap.state["velocities"] if snap is not None else run.sim.velocities
+            v = snap.state.velocities if snap is not None else run.sim.velocities
             tests = [obs.normality_tests(v[:, k]) for k in range(2)]
             results["torus"]["single"][str(s)] = {"tests": tests, "variance_over_E_per_N": v.var(axis=0) * N / E}
             checks.append(Check(

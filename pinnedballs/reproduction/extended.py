@@ -24,9 +24,9 @@ from typing import Callable
 
 import numpy as np
 
-from .. import ensemble as ens
-from ..errors import InputError
-from ..specs import RunSpec, parse_spec
+from ..run import ensemble as ens
+from ..engine.errors import InputError
+from ..specs.run import RunSpec, parse_spec
 from .fit import fit_exponent
 from .plan import torus_row
 
@@ -86,7 +86,7 @@ def check_extended_plan(plan: ExtendedPlan) -> None:
 
 def decile_row(geometry, velocities, masses=None) -> dict[str, float]:
     """`ensemble.state_row` and ``decile_k``: the energy share at distance in ``[k, k+1) / 10`` of the largest."""
-    from .. import observables as obs
+    from ..analysis import observables as obs
 
     row = ens.state_row(geometry, velocities, masses)
     d = geometry.boundary.distance
@@ -99,7 +99,7 @@ def decile_row(geometry, velocities, masses=None) -> dict[str, float]:
 
 def level_row(geometry, velocities, masses=None) -> dict[str, float]:
     """`ensemble.state_row` and ``level_k``: the energy share of the ``k``-th row from the boundary."""
-    from .. import observables as obs
+    from ..analysis import observables as obs
 
     row = ens.state_row(geometry, velocities, masses)
     _, fraction = obs.energy_profile(geometry.boundary.distance, velocities, masses)
@@ -175,7 +175,7 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
 
 
 def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
-    from .. import plots
+    from ..plot import base as plots
 
     fig = plots.new_figure((8.0, 5.0))
     ax = fig.add_subplot()
@@ -199,7 +199,7 @@ def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
 
 
 def _profiles_figure(profiles: dict, path: Path) -> str:
-    from .. import plots
+    from ..plot import base as plots
 
     fig = plots.new_figure((8.0, 5.0))
     ax = fig.add_subplot()
@@ -310,7 +310,7 @@ def _z(difference: float, se: float) -> float:
 
 
 def _law_figure(series: dict[str, list[dict]], title: str, path: Path) -> str:
-    from .. import plots
+    from ..plot import base as plots
 
     fig = plots.new_figure((13.0, 4.2))
     axes = fig.subplots(1, 3)
@@ -381,7 +381,7 @@ def fcc_half_space(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
 
 
 def _levels_figure(profiles: dict, xlabel: str, title: str, path: Path) -> str:
-    from .. import plots
+    from ..plot import base as plots
 
     fig = plots.new_figure((8.0, 5.0))
     ax = fig.add_subplot()
@@ -402,7 +402,7 @@ def _levels_figure(profiles: dict, xlabel: str, title: str, path: Path) -> str:
 def order_configurations():
     """``{name: (geometry, velocities (n_balls, dim))}``: small systems, one boundary ball moving inward
     with unit energy, and the rhombus of ``docs/orders.md``."""
-    import pinnedballs as pb
+    from ..geometry import FCC, GraphGeometry, HalfPlane, HyperbolicPlane
 
     def inward(g):
         b = g.boundary_center()
@@ -410,18 +410,18 @@ def order_configurations():
         v[b] = -math.sqrt(2.0) * g.boundary.outward[b]
         return g, v
 
-    rhombus = pb.GraphGeometry.from_positions([[0, 0], [2, 0], [1, 3**0.5], [3, 3**0.5]])
+    rhombus = GraphGeometry.from_positions([[0, 0], [2, 0], [1, 3**0.5], [3, 3**0.5]])
     return {"rhombus (4 balls)": (rhombus, np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])),
-            "half-plane 2x3": inward(pb.HalfPlane(rows=2, cols=3)),
-            "open FCC 1x1x2": inward(pb.FCC(1, 1, 2, periodic=False)),
-            "{3,7} disk, 1 ring": inward(pb.HyperbolicPlane(7, 1)),
-            "half-plane 3x3": inward(pb.HalfPlane(rows=3, cols=3)),
-            "half-plane 3x4": inward(pb.HalfPlane(rows=3, cols=4))}
+            "half-plane 2x3": inward(HalfPlane(rows=2, cols=3)),
+            "open FCC 1x1x2": inward(FCC(1, 1, 2, periodic=False)),
+            "{3,7} disk, 1 ring": inward(HyperbolicPlane(7, 1)),
+            "half-plane 3x3": inward(HalfPlane(rows=3, cols=3)),
+            "half-plane 3x4": inward(HalfPlane(rows=3, cols=4))}
 
 
 def orders(plan: ExtendedPlan, out: Path, ensemble: Ensemble | None = None) -> dict:
     """`orders.orders_against_random` on each of `order_configurations`."""
-    from ..orders import orders_against_random
+    from ..analysis.orders import orders_against_random
 
     rows = []
     for name, (g, v) in order_configurations().items():
@@ -434,7 +434,7 @@ def orders(plan: ExtendedPlan, out: Path, ensemble: Ensemble | None = None) -> d
 
 
 def _orders_figure(rows: list[dict], path: Path) -> str:
-    from .. import plots
+    from ..plot import base as plots
 
     cols = 3
     fig = plots.new_figure((12.0, 3.4 * math.ceil(len(rows) / cols)))

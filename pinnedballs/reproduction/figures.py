@@ -7,14 +7,14 @@ from pathlib import Path
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from .. import ensemble as ens
+from ..run import ensemble as ens
 from .plan import PAPER_FROZEN_COLLISIONS, Plan, _label, _Run
 
 # ---------------------------------------------------------------- figures of our own
 
 
 def _frozen_collisions_figure(ours: np.ndarray, paper_lattice: np.ndarray, labels: tuple[str, str], path: Path):
-    from .. import plots
+    from ..plot import base as plots
 
     fig = plots.new_figure((8.0, 4.0))
     ax = fig.add_subplot()
@@ -36,7 +36,7 @@ def _frozen_collisions_figure(ours: np.ndarray, paper_lattice: np.ndarray, label
 
 
 def _far_share_figure(rows: list[tuple[str, int, np.ndarray, np.ndarray]], path: Path):
-    from .. import plots
+    from ..plot import base as plots
 
     fig = plots.new_figure((8.0, 4.0))
     ax = fig.add_subplot()
@@ -63,7 +63,8 @@ def _far_share_figure(rows: list[tuple[str, int, np.ndarray, np.ndarray]], path:
 
 
 def _figures_half_plane(out: Path, plan: Plan, geom, by_steps: _Run, by_collisions: _Run) -> None:
-    from ..plots import energy_by_distance, quiver
+    from ..plot.figures import energy_by_distance
+    from ..plot.states import quiver
 
     sim = by_steps.sim
     name = f"half-plane {_label(plan.detail)} ({geom.rows}x{geom.cols}, {geom.n_balls:,} balls)"
@@ -72,8 +73,8 @@ def _figures_half_plane(out: Path, plan: Plan, geom, by_steps: _Run, by_collisio
     for s in plan.steps:
         snap = by_steps.snapshots.get(s)
         if snap is not None:
-            title = f"{name}: after {s:,} steps ({snap.state['collisions']:,} collisions)"
-            v = snap.state["velocities"]
+            title = f"{name}: after {s:,} steps ({snap.state.collisions:,} collisions)"
+            v = snap.state.velocities
         else:
             title = (f"{name}: frozen at step {sim.steps:,} ({sim.collisions:,} collisions),\n"
                      f"before {s:,} steps: this is also the state at step {s:,}")
@@ -82,8 +83,8 @@ def _figures_half_plane(out: Path, plan: Plan, geom, by_steps: _Run, by_collisio
     dist = geom.boundary_distance()
     snap = by_collisions.snapshots.get(plan.collisions)
     if snap is not None:
-        v = snap.state["velocities"]
-        title = f"{name}: after {plan.collisions:,} collisions ({snap.state['steps']:,} steps)"
+        v = snap.state.velocities
+        title = f"{name}: after {plan.collisions:,} collisions ({snap.state.steps:,} steps)"
     else:
         v, title = sim.velocities, f"{name}: frozen after {sim.collisions:,} collisions, before {plan.collisions:,}"
     energy_by_distance(dist, v, title=title, path=out / f"fig3_energy_by_distance_collisions_{plan.collisions}.png")
@@ -93,8 +94,8 @@ def _figures_half_plane(out: Path, plan: Plan, geom, by_steps: _Run, by_collisio
 
 
 def _figure_sizes(out: Path, profiles: dict) -> None:
-    from .. import plots
-    from ..plots import energy_profiles
+    from ..plot import base as plots
+    from ..plot.figures import energy_profiles
 
     fig = plots.new_figure((9.0, 7.5))
     top, bottom = fig.subplots(2, 1)
@@ -105,7 +106,7 @@ def _figure_sizes(out: Path, profiles: dict) -> None:
 
 
 def _figure_paper_lattice(out: Path, run: _Run) -> None:
-    from ..plots import energy_by_distance
+    from ..plot.figures import energy_by_distance
 
     g = run.sim.geometry
     energy_by_distance(g.boundary.distance, run.sim.velocities, path=out / "extra_paper_lattice_energy_by_distance.png",
@@ -114,15 +115,16 @@ def _figure_paper_lattice(out: Path, run: _Run) -> None:
 
 
 def _figures_torus(out: Path, plan: Plan, run: _Run) -> None:
-    from ..plots import component_histograms, quiver
+    from ..plot.figures import component_histograms
+    from ..plot.states import quiver
 
     g = run.sim.geometry
     name = f"flat torus {g.rows}x{g.cols} ({g.n_balls:,} balls)"
     quiver(g.positions, run.initial, title=f"{name}: initial state", path=out / "fig5_torus_initial.png")
     for s in plan.steps:
         snap = run.snapshots.get(s)
-        v = snap.state["velocities"] if snap is not None else run.sim.velocities
-        collisions = snap.state["collisions"] if snap is not None else run.sim.collisions
+        v = snap.state.velocities if snap is not None else run.sim.velocities
+        collisions = snap.state.collisions if snap is not None else run.sim.collisions
         title = f"{name}: after {s:,} steps ({collisions:,} collisions)"
         quiver(g.positions, v, title=title, path=out / f"fig5_torus_step_{s}.png")
         component_histograms(v, title=f"{name}: velocity components after {s:,} steps",
@@ -130,7 +132,7 @@ def _figures_torus(out: Path, plan: Plan, run: _Run) -> None:
 
 
 def _figures_correlations(out: Path, plan: Plan, res: ens.EnsembleResult, at: str) -> None:
-    from ..plots import correlation_histogram
+    from ..plot.figures import correlation_histogram
 
     n = len(res.column("line_of_centres_correlation", at))
     correlation_histogram(res.column("line_of_centres_correlation", at), 0.02, xlabel="correlation of u and u'",

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import ensemble as ens
-from ..errors import InputError
-from ..specs import RunSpec, parse_spec
+from ..run import ensemble as ens
+from ..engine.errors import InputError
+from ..specs.run import RunSpec, parse_spec
 
 PAPER_SIZES = ((10, 5), (60, 30), (100, 50), (200, 100), (300, 150), (400, 200), (500, 250))
 #: the paper's numbers
@@ -90,7 +90,7 @@ def paper_lattice_spec(plan: Plan) -> RunSpec:
 
 def paper_lattice_row(geometry, velocities, masses=None) -> dict[str, float]:
     """`ensemble.state_row` (``boundary_share`` is the share at distance 0) and ``next_share`` (distance 1)."""
-    from .. import observables as obs
+    from ..analysis import observables as obs
 
     row = ens.state_row(geometry, velocities, masses)
     _, fraction = obs.energy_profile(geometry.boundary.distance, velocities, masses)
@@ -103,7 +103,7 @@ def torus_row(geometry, velocities, masses=None) -> dict[str, float]:
     the KS p-value and the Anderson–Darling statistic against a fitted normal (NaN where undefined)."""
     from scipy import stats
 
-    from .. import observables as obs
+    from ..analysis import observables as obs
 
     row = ens.state_row(geometry, velocities, masses)
     for k, name in enumerate("xy"[:velocities.shape[1]]):

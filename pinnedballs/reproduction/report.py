@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 
-from .. import ensemble as ens
+from ..run import ensemble as ens
 from .checks import Check
 from .plan import CORRELATION_TOLERANCE, Plan, _label, _sizes, expected_figures
 

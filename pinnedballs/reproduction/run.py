@@ -11,10 +11,10 @@ from typing import Callable
 
 import numpy as np
 
-from .. import ensemble as ens
-from ..io import check_out_dir, write_text_atomic
-from ..rundir import DirLock
-from ..specs import RunSpec
+from ..run import ensemble as ens
+from ..results.files import write_text_atomic
+from ..results.rundir import DirLock, check_out_dir
+from ..specs.run import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
 from .figures import (_far_share_figure, _figure_paper_lattice, _figure_sizes, _figures_correlations,
                       _figures_half_plane, _figures_torus, _frozen_collisions_figure)
@@ -28,13 +28,13 @@ from .report import _report
 
 
 def _single(spec: RunSpec) -> _Run:
-    from ..runner import run_to_stop
+    from ..run.execute import run_to_stop
 
     sim = spec.build()
     initial = sim.velocities.copy()
     counter = spec.snapshots.counter if spec.snapshots else ""
     snaps: dict[int, object] = {}
-    reason = run_to_stop(spec, sim, on_snapshot=lambda record: snaps.__setitem__(record.state[counter], record))
+    reason = run_to_stop(spec, sim, on_snapshot=lambda record: snaps.__setitem__(getattr(record.state, counter), record))
     return _Run(sim, initial, snaps, reason)
 
 
@@ -55,7 +55,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     ``workers``: local processes for the ensembles (default all cores). Refuses a
     non-empty ``out`` without ``force`` (`InputError`).
     """
-    from .. import observables as obs
+    from ..analysis import observables as obs
 
     t0 = time.perf_counter()
     plan = dataclasses.replace(plan or (QUICK if quick else FULL), **overrides)
@@ -110,7 +110,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         at_c = by_collisions.snapshots.get(plan.collisions)
         results["detail"] = {"rows": geom.rows, "cols": geom.cols, "balls": geom.n_balls, "steps": sim.steps,
                              "collisions": sim.collisions, "frozen": sim.is_frozen(), "final": final_row,
-                             "boundary_share_at_collisions": (obs.boundary_share(dist, at_c.state["velocities"])
+                             "boundary_share_at_collisions": (obs.boundary_share(dist, at_c.state.velocities)
                                                               if at_c is not None else None)}
 
         # ---------------------------------------------------------- half-plane: sizes (Figure 4) and ensembles

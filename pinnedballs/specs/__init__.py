@@ -14,10 +14,11 @@ or the working directory for a spec given as a dict.
 One module per idea: `base` (the model base, field types, engine errors), `geometry`,
 `initial`, `rule`, `scheduler` (the components by kind), `stop` (stop, snapshot and
 checkpoint specs), `python` (a user's components and entry-point kinds), `run` (`RunSpec`,
-reading specs) and `pydantic_errors` (their messages).
+reading specs) and `errors` (`SpecError` and the messages of pydantic's errors).
 """
 
-from ..errors import InputError, SpecError
+from ..engine.errors import InputError
+from .errors import SpecError
 from .base import Count, FilePath, Positive, engine_errors
 from .geometry import (FCCSpec, FlatTorusSpec, GeometrySpec, GraphPositionsSpec, HalfPlaneSpec, HCPSpec,
                        HyperbolicPlaneSpec, SphereSpec)

@@ -11,8 +11,9 @@ from typing import Annotated, Any, Iterator
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from ..errors import FieldError, SpecError
-from ..limits import check_memory, format_bytes
+from ..engine.errors import FieldError
+from .errors import SpecError
+from ..engine.limits import check_memory, format_bytes
 
 
 class _Spec(BaseModel):

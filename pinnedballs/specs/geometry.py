@@ -9,13 +9,13 @@ from typing import Any
 
 from pydantic import Field, field_validator, model_validator
 
-from ..errors import SpecError
+from .errors import SpecError
 from ..geometry import FCC, HCP, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 from .base import FilePath, Positive, _fields, _in_file, _load_npy, _Spec, engine_errors
 from .python import PythonGeometrySpec
 
 __all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "SphereSpec", "HyperbolicPlaneSpec", "FCCSpec",
-           "HCPSpec", "GeometrySpec", "geometry_from_stored"]
+           "HCPSpec", "GeometrySpec", "geometry_from_stored", "parse_geometry"]
 
 
 
@@ -166,3 +166,11 @@ def geometry_from_stored(spec, positions: np.ndarray):
     """The geometry of ``spec`` for a results file that stores ``positions (n, k)``: a spec that reads
     its positions from a file takes the stored ones instead (the file may be gone)."""
     return spec.build_from(positions) if hasattr(spec, "build_from") else spec.build()
+
+
+def parse_geometry(described: dict):
+    """The `GeometrySpec` of a dict with a ``"kind"`` (a geometry's own `Geometry.to_spec`), or None
+    for a dict without one (a geometry that has no spec)."""
+    from pydantic import TypeAdapter
+
+    return TypeAdapter(GeometrySpec).validate_python(described) if "kind" in described else None

@@ -20,10 +20,10 @@ from typing import Any, Callable, Literal
 import numpy as np
 from pydantic import field_validator
 
-from ..errors import SpecError
-from ..geometry import Geometry
+from .errors import SpecError
+from ..geometry.base import Geometry
 from ..rules import CollisionRule
-from ..schedulers import Scheduler
+from ..schedulers.base import Scheduler
 from .base import _Spec, engine_errors
 
 __all__ = ["PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",

@@ -10,15 +10,16 @@ from typing import Annotated, Any, Union
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ValidationError, field_validator, model_validator
 
-from .. import observe
-from ..errors import FieldError, SpecError
-from ..geometry import Geometry
-from ..limits import check_memory
+from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
+from ..analysis.observables import OBSERVABLES
+from ..engine.errors import FieldError
+from ..geometry.base import Geometry
+from ..engine.limits import check_memory
 from ..simulation import Simulation, mass_array
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
-from .pydantic_errors import _dot, _models_of, _short, first_error
+from .errors import SpecError, _dot, _models_of, _short, first_error
 from .python import ENTRY_POINT_GROUPS, expand_entry_points
 from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
@@ -31,8 +32,8 @@ MassesField = Union[Positive, FilePath]
 
 
 def _known_observable(name: str) -> str:
-    if name not in observe.OBSERVABLES:
-        raise ValueError(f"unknown observable {name!r} (known: {', '.join(observe.OBSERVABLES)})")
+    if name not in OBSERVABLES:
+        raise ValueError(f"unknown observable {name!r} (known: {', '.join(OBSERVABLES)})")
     return name
 
 
@@ -48,7 +49,7 @@ class RunSpec(_Spec):
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
-    observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(observe.DEFAULT[2:])
+    observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
     description: str = ""
 
     @model_validator(mode="before")

@@ -6,9 +6,10 @@ from typing import Annotated, Literal, Union
 
 from pydantic import Field
 
-from ..colored_sweep import ColoredSweep
-from ..rejection_free import RejectionFree
-from ..schedulers import RandomSweep, Scheduler, Sweep, UniformRandomPair
+from ..schedulers.base import Scheduler
+from ..schedulers.colored_sweep import ColoredSweep
+from ..schedulers.rejection_free import RejectionFree
+from ..schedulers.simple import RandomSweep, Sweep, UniformRandomPair
 from .base import _Spec
 from .python import PythonSchedulerSpec
 

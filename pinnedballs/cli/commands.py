@@ -1,0 +1,255 @@
+"""The subcommands of ``pinnedballs``: each is one function ``(args) -> int`` registered with
+`subcommand`, which names it, gives its help and its arguments; `main.main` finds it in `COMMANDS`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import dataclass
+from typing import Callable
+
+__all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
+
+EXIT_OK, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+PROG = "pinnedballs"
+
+
+@dataclass(frozen=True)
+class Subcommand:
+    name: str
+    help: str
+    arguments: tuple[tuple[tuple, dict], ...]
+    run: Callable[[argparse.Namespace], int]
+
+
+#: the subcommands, in the order ``--help`` lists them
+COMMANDS: dict[str, Subcommand] = {}
+
+
+def arg(*flags: str, **options) -> tuple[tuple, dict]:
+    """One ``add_argument(*flags, **options)`` of a subcommand."""
+    return flags, options
+
+
+def subcommand(name: str, help: str, *arguments: tuple[tuple, dict]):
+    """Register the decorated ``run(args) -> int`` as ``pinnedballs NAME``."""
+    def register(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+        COMMANDS[name] = Subcommand(name, help, arguments, run)
+        return run
+    return register
+
+
+class UsageError(Exception):
+    """Bad command-line arguments (exit 2, one line)."""
+
+
+# ---------------------------------------------------------------- subcommands
+
+
+@subcommand("run", "run a spec into a directory: results.h5, spec.json, figures",
+            arg("spec", metavar="SPEC.json", help="the run spec"),
+            arg("--out", required=True, metavar="DIR", help="the run directory (created)"),
+            arg("--force", action="store_true", help="write into a non-empty directory, replacing a run there"),
+            arg("--resume", action="store_true", help="continue the run in DIR from its last checkpoint"),
+            arg("--quiet", action="store_true", help="no progress bar, no summary"),
+            arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"))
+def run(args: argparse.Namespace) -> int:
+    from .status import Status
+
+    if args.force and args.resume:
+        raise UsageError("run: give --force or --resume, not both")
+    with Status(show=False if args.quiet else None) as status:
+        status("reading the spec")
+        from ..run.execute import execute
+        from ..specs.run import load_spec
+
+        spec = load_spec(args.spec)
+        path = execute(spec, args.out, force=args.force, resume=args.resume,
+                       progress=False if args.quiet else None,
+                       figures=not args.no_figures and _plots_available(), status=status)
+    if not args.quiet:
+        from ..results.load import load
+
+        res = load(path)
+        print(f"{res.stop_reason or res.status}: {res.steps:,} steps, {res.collisions:,} collisions, "
+              f"energy {res.energy:.12g}, {'frozen' if res.frozen else 'not frozen'}; wrote {path.parent}")
+    return EXIT_OK
+
+
+@subcommand("validate", "check a spec, and that it builds; print a one-line summary",
+            arg("spec", metavar="SPEC.json", help="the run spec"))
+def validate(args: argparse.Namespace) -> int:
+    from ..specs.run import describe, load_spec
+
+    spec = load_spec(args.spec)
+    print(f"ok: {describe(spec, spec.build())}")
+    return EXIT_OK
+
+
+@subcommand("schema", "print the JSON Schema of run specs")
+def schema(args: argparse.Namespace) -> int:
+    from ..specs.run import RunSpec
+
+    print(json.dumps(RunSpec.model_json_schema(), indent=2))
+    return EXIT_OK
+
+
+@subcommand("plot", "draw the figures of a run again from its results file",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"))
+def plot(args: argparse.Namespace) -> int:
+    from ..results.load import load
+    from ..run.execute import write_figures
+
+    run_dir = load(args.dir).path.parent  # checks the file before drawing
+    paths = write_figures(run_dir)
+    print("\n".join(map(str, paths)) if paths else f"{run_dir}: no figures fit this geometry; none written")
+    return EXIT_OK
+
+
+@subcommand("animate", "a movie of a run's snapshots (GIF; MP4 with the 'movies' extra)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
+            arg("--out", metavar="MOVIE", help="movie.gif or movie.mp4 (default: DIR/movie.gif)"),
+            arg("--fps", type=float, default=4.0, metavar="N", help="frames per second (default 4)"))
+def animate(args: argparse.Namespace) -> int:
+    from ..engine.errors import FieldError
+    from ..results.load import load
+
+    res = load(args.dir)
+    try:
+        path = res.animate(args.out, args.fps)
+    except FieldError as exc:  # name the flag, not the Python argument
+        if exc.field not in ("out", "fps"):
+            raise
+        raise UsageError(f"animate: --{exc.field}: {exc.problem}") from None
+    print(path)
+    return EXIT_OK
+
+
+@subcommand("info", "summarise a results file",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"))
+def info(args: argparse.Namespace) -> int:
+    from ..results.load import load
+
+    res = load(args.dir)
+    kinds = res.kinds
+    made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
+    lines = [
+        f"results:     {res.path}",
+        f"status:      {res.status}" + (f" ({res.stop_reason})" if res.stop_reason else " (last checkpoint)"),
+        f"geometry:    {kinds['geometry']}: {len(res.positions)} balls, {len(res.pairs)} contacts, "
+        f"dim {res.velocities.shape[1]}",
+        f"run:         {kinds.get('initial', 'given velocities')}, {kinds['rule']}, {kinds['scheduler']}, {made}",
+        f"steps:       {res.steps:,}",
+        f"collisions:  {res.collisions:,}",
+        f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
+        f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
+        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.step for s in res.snapshots])}"
+                                                if res.snapshots else ""),
+        f"time:        {res.elapsed_seconds:.1f} s in {res.checkpoints} checkpoint(s); "
+        f"written by pinnedballs {res.version}",
+    ]
+    print("\n".join(lines))
+    return EXIT_OK
+
+
+def _few(values: list[int]) -> str:
+    shown = ", ".join(f"{v:,}" for v in values[:5])
+    return shown + (f", ... ({len(values)} in all)" if len(values) > 5 else "")
+
+
+def _plots_available() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("pinnedballs.plot") is not None
+
+
+@subcommand("ensemble", "run N independent replicas of a spec: replicas.csv, summary.json, correlation histograms",
+            arg("spec", metavar="SPEC.json", help="the run spec (its seed seeds the replicas)"),
+            arg("--replicas", type=int, required=True, metavar="N", help="number of replicas (>= 1)"),
+            arg("--workers", type=int, metavar="K", help="local processes (default: all cores; 1 runs in-process)"),
+            arg("--dask", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)"),
+            arg("--out", required=True, metavar="DIR", help="output directory (created)"),
+            arg("--force", action="store_true", help="write into a non-empty directory"),
+            arg("--quiet", action="store_true", help="no progress bar, no summary line"))
+def ensemble_command(args) -> int:
+    """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
+    from .status import Status
+
+    with Status(show=False if args.quiet else None) as status:
+        status("reading the spec")
+        return _ensemble(args, status)
+
+
+def _ensemble(args, status) -> int:
+    from ..engine.errors import InputError
+    from ..results.rundir import DirLock, check_out_dir
+    from ..run.ensemble import (ERROR_COLUMN, _check_count, _check_replicas_memory, _remove_old_outputs, replica_seed,
+                                run_ensemble, write_outputs)
+    from ..run.executors import dask_client
+    from ..specs.run import load_spec
+
+    replicas = _check_count("--replicas", args.replicas)
+    _check_replicas_memory(replicas, "--replicas")
+    if args.workers is not None:
+        _check_count("--workers", args.workers)
+        if args.dask is not None:
+            raise InputError("--workers, --dask: give one of them, not both")
+    spec = load_spec(args.spec)
+    out = check_out_dir(args.out, args.force)
+    status("building the geometry")
+    spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
+    status.clear()
+    client = None
+    if args.dask is not None:
+        client, _ = dask_client(args.dask, None, "--dask")
+    with DirLock(out, "--out"):  # one ensemble at a time writes into a directory
+        try:
+            result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
+                                  progress=False if args.quiet else None)
+        finally:
+            if client is not None:
+                client.close()
+        status("writing the tables and histograms")
+        if args.force and out.is_dir():
+            _remove_old_outputs(out)
+        write_outputs(result, out)
+        status.clear()
+    for row in result.failures:
+        print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
+              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)
+    if not args.quiet:
+        print(f"{replicas - len(result.failures)} of {replicas} replicas done in {result.wall_seconds:.1f} s "
+              f"({result.where}); wrote {out}")
+    return 1 if result.failures else 0
+
+
+@subcommand("reproduce", "every figure of the paper as PNG, and report.md comparing its numbers with ours",
+            arg("--out", required=True, metavar="DIR", help="output directory (created)"),
+            arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about a minute)"),
+            arg("--extended", action="store_true",
+                help="then the studies beyond the paper (about 20 minutes; with --quick about 2)"),
+            arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
+            arg("--force", action="store_true", help="write into a non-empty directory"),
+            arg("--quiet", action="store_true", help="no progress messages"))
+def reproduce_command(args) -> int:
+    """``pinnedballs reproduce``: exit 0, 1 if a replica failed (the report is still written), 2 on bad input."""
+    from .status import Status
+
+    with Status(show=False if args.quiet else None) as status:
+        status("loading the reproduction")
+        from .. import reproduction
+        from ..results.rundir import check_out_dir
+        from ..run.ensemble import _check_count
+
+        if args.workers is not None:
+            _check_count("--workers", args.workers)
+        check_out_dir(args.out, args.force)
+    shown = status.shown  # the stages and bars on a terminal only
+    log = (lambda message: print(message, file=sys.stderr, flush=True)) if shown else None
+    report = reproduction.reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
+                       progress=shown, log=log, extended=args.extended)
+    results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
+    if not args.quiet:
+        print(f"wrote {report} in {results['wall_seconds']:.1f} s")
+    return 1 if results["failures"] else 0

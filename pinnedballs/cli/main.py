@@ -1,0 +1,79 @@
+"""The ``pinnedballs`` command line: `main` parses the arguments, runs the subcommand (`commands`)
+and turns every failure into one line on stderr and an exit status.
+
+Exit status: 0 done; 2 bad input (one line on stderr naming the field or file);
+1 anything else; 130 interrupted (after a complete checkpoint).
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import os
+import sys
+import traceback
+
+from .._version import __version__
+from ..engine.errors import InputError
+from ..run.execute import Interrupted
+from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):
+        command = self.prog.partition(" ")[2]  # "pinnedballs run" -> "run"
+        raise UsageError(f"{command}: {message}" if command else message)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description="Simulate pinned billiard balls from JSON run specs.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    subs = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    subs.required = True
+    for command in COMMANDS.values():
+        p = subs.add_parser(command.name, help=command.help, description=command.help)
+        for flags, options in command.arguments:
+            p.add_argument(*flags, **options)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
+    try:
+        args = _parser().parse_args(argv)
+        return COMMANDS[args.command].run(args)
+    except SystemExit as exc:  # --help, --version
+        return exc.code if isinstance(exc.code, int) else EXIT_OK
+    except (UsageError, InputError, FileNotFoundError) as exc:
+        _say(f"error: {_one_line(exc)}")
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        _say("interrupted")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # the reader (e.g. ``| head``) has had enough: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return EXIT_OK
+    except Exception as exc:  # noqa: BLE001 - the catch-all of a command line
+        if isinstance(exc, Interrupted):
+            _say(str(exc))
+            return EXIT_INTERRUPTED
+        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:  # the last checkpoint is intact
+            _say(f"error: {_one_line(exc)}; free some space, then continue a run with --resume")
+            return EXIT_ERROR
+        traceback.print_exc(file=sys.stderr)
+        _say(f"error: {type(exc).__name__}: {_one_line(exc)}")
+        return EXIT_ERROR
+
+
+#: errors of a full disk or quota: one line, not a traceback
+_DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+
+
+def _say(message: str) -> None:
+    print(f"{PROG}: {message}", file=sys.stderr)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__

@@ -1,0 +1,8 @@
+"""The engine: the plain data of a chain, its compiled loops, the random stream, numba's disk
+cache for the loops, and the checks that keep every input inside what the machine can hold.
+
+One module per idea: `errors` (errors naming the argument at fault), `checks` (the one helper
+that validates arguments), `limits` (memory and the float64 range), `random` (xoshiro256**),
+`jitcache` (the loops' disk cache), `intrinsics` (LLVM hints for the hot loop), `chain` (the
+data every loop reads) and `loops` (the compiled loops).
+"""

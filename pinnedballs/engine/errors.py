@@ -1,0 +1,51 @@
+"""Errors that name what the user got wrong: a field of a spec, an argument, a file.
+
+The engine raises `FieldError` (a ``ValueError``) or `FieldTypeError` (also a
+``TypeError``) with the argument's name in ``field``; a spec maps that name to its
+own field path without reading the message (`pinnedballs.specs.base.engine_errors`); a spec
+raises `pinnedballs.specs.errors.SpecError`, a `FieldError` whose field is the spec's field path.
+"""
+
+from __future__ import annotations
+
+__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "check_jitted"]
+
+
+class InputError(ValueError):
+    """Bad input from the user: a spec, a data file, an argument or an output directory."""
+
+
+class FieldError(InputError):
+    """A bad value of one argument or field. ``field`` names it, ``problem`` says what is wrong;
+    the message is ``"field: problem"`` (just ``problem`` when ``field`` is empty)."""
+
+    def __init__(self, field: str, problem: str):
+        self.field, self.problem = field, problem
+        super().__init__(f"{field}: {problem}" if field else problem)
+
+    def __reduce__(self):  # picklable across processes (Dask, process pools)
+        return type(self), (self.field, self.problem)
+
+
+#: the same class under the name the run driver's modules use
+FieldValueError = FieldError
+
+
+class FieldTypeError(FieldError, TypeError):
+    """A `FieldError` for a value of the wrong type (also a ``TypeError``)."""
+
+
+
+def check_jitted(function, field: str, what: str):
+    """``function`` if it is compiled by numba (``@njit``), else a `FieldTypeError` on ``field``.
+
+    The compiled loops call it inside numba: a plain Python function would fail there with a
+    TypingError from deep inside the engine. With ``NUMBA_DISABLE_JIT=1`` everything is plain.
+    """
+    from numba import config
+    from numba.core.dispatcher import Dispatcher
+
+    if config.DISABLE_JIT or isinstance(function, Dispatcher):
+        return function
+    raise FieldTypeError(field, f"{what} must be a numba-compiled function (decorate it with @numba.njit), "
+                                f"got {function!r}")

@@ -1,0 +1,228 @@
+"""Geometries given as data: any contact graph (`GraphGeometry`), balls touching at given
+positions (`GraphGeometry.from_positions`), and a geometry read back from a results file
+(`StoredGeometry`)."""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+
+from ..engine import checks
+from ..engine.errors import FieldError, FieldTypeError
+from .base import _INT32_MAX, VIEWS, Boundary, Contacts, Geometry
+
+__all__ = ["GraphGeometry", "StoredGeometry"]
+
+
+def _as_positions(positions) -> np.ndarray:
+    try:
+        p = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise FieldTypeError("positions", f"must be an array of numbers ({exc})") from None
+    if p.ndim == 1:
+        p = p[:, None]
+    if p.ndim != 2 or p.shape[1] < 1:
+        raise FieldError("positions", f"must have shape (n_balls, d), got {p.shape}")
+    if not np.isfinite(p).all():
+        raise FieldError("positions", "contain NaN or inf")
+    return p
+
+
+def _flat_units(positions: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """``(n_contacts, d)`` unit vectors from ``i`` to ``j`` in flat space."""
+    delta = positions[pairs[:, 1]] - positions[pairs[:, 0]]
+    norm = np.linalg.norm(delta, axis=1)
+    bad = np.flatnonzero(norm == 0)
+    if len(bad):
+        i, j = pairs[bad[0]]
+        raise FieldError("contacts", f"balls {i} and {j} have the same centre, so no line of centres")
+    return delta / norm[:, None]
+
+
+class GraphGeometry(Geometry):
+    """Any contact graph: balls anywhere in ``R^d`` (``d >= 1``), edges are contacts.
+
+    ``graph`` is a networkx graph whose nodes carry ``"pos"`` (a length-``d``
+    sequence). Ball ``n`` is the ``n``-th node of ``graph.nodes``. An edge may
+    carry ``"units" = {u: t_u, v: t_v}`` (needed for periodic or curved spaces);
+    otherwise ``t_u`` points from ``u`` to ``v`` in a straight line and ``t_v = -t_u``.
+    Nodes may carry ``"frame"`` ``(dim, d)``, their tangent basis on a curved surface
+    (as `Geometry.contact_graph` writes it); then every edge needs ``"units"`` of length ``dim``.
+    """
+
+    def __init__(self, graph: nx.Graph, radius: float = 1.0):
+        if not isinstance(graph, nx.Graph) or graph.is_directed() or graph.is_multigraph():
+            raise FieldTypeError("graph", f"must be an undirected networkx.Graph, got {type(graph).__name__}")
+        if graph.number_of_nodes() == 0:
+            raise FieldError("graph", "has no nodes")
+        nodes = list(graph.nodes)
+        index = {node: n for n, node in enumerate(nodes)}
+        missing = [node for node in nodes if "pos" not in graph.nodes[node]]
+        if missing:
+            raise FieldError("graph", f"node {missing[0]!r} has no 'pos' attribute")
+        try:
+            positions = _as_positions([graph.nodes[node]["pos"] for node in nodes])
+        except (TypeError, ValueError) as exc:
+            raise FieldError("graph", f"node 'pos' attributes must be equal-length finite sequences ({exc})") from None
+        loops = list(nx.selfloop_edges(graph))
+        if loops:
+            raise FieldError("graph", f"self-loop at node {loops[0][0]!r}; a ball cannot touch itself")
+        edges = self._ordered_edges(graph)
+        pairs = np.array([(index[u], index[v]) for u, v, _ in edges], dtype=np.int64).reshape(-1, 2)
+        self._frames = self._node_frames(graph, nodes, positions.shape[1])
+        self.curved = self._frames is not None
+        dim = positions.shape[1] if self._frames is None else self._frames.shape[1]
+        if self.curved:
+            t_i = np.zeros((len(pairs), dim))
+        else:
+            t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, dim))
+        t_j = -t_i
+        for e, (u, v, data) in enumerate(edges):
+            if data.get("units") is not None:
+                t_i[e], t_j[e] = self._given_units(u, v, data["units"], dim)
+            elif self.curved:
+                raise FieldError("graph", f"edge ({u!r}, {v!r}) needs 'units' on a curved surface (nodes carry 'frame')")
+        self._init(positions, pairs, t_i, t_j, radius)
+        self.nodes = nodes
+        self._view = graph.graph.get("view")
+        if self._view is not None:
+            checks.choice("graph (its 'view' attribute)", self._view, VIEWS)
+
+    @staticmethod
+    def _node_frames(graph: nx.Graph, nodes: list, k: int) -> np.ndarray | None:
+        """``(n_balls, dim, k)`` from the nodes' ``"frame"`` attributes, or None if no node has one."""
+        has = ["frame" in graph.nodes[node] for node in nodes]
+        if not any(has):
+            return None
+        if not all(has):
+            raise FieldError("graph", f"node {nodes[has.index(False)]!r} has no 'frame' (other nodes have one)")
+        try:
+            frames = np.array([graph.nodes[node]["frame"] for node in nodes], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise FieldError("graph", "node 'frame' attributes must be equal-shape (dim, k) arrays of numbers") from None
+        if frames.ndim != 3 or frames.shape[2] != k or not np.isfinite(frames).all():
+            raise FieldError("graph", f"node 'frame' attributes must be finite (dim, {k}) arrays, got {frames.shape[1:]}")
+        return frames
+
+    def frames(self) -> np.ndarray:
+        """``(n_balls, dim, k)``: the nodes' ``"frame"`` attributes if given, else the identity."""
+        return super().frames() if self._frames is None else self._frames
+
+    @property
+    def view(self) -> str:
+        """The graph's ``"view"`` attribute if it has one (`Geometry.contact_graph` writes it), else
+        as for any geometry (`Geometry.view`)."""
+        return self._view or super().view
+
+    @staticmethod
+    def _ordered_edges(graph: nx.Graph) -> list[tuple]:
+        """``(u, v, data)`` per edge: in contact order, ``u`` first, when every edge carries
+        ``"contact"`` (its index) and ``"pair"`` (``(u, v)``), as `Geometry.contact_graph`
+        writes them; otherwise in networkx's order."""
+        edges = list(graph.edges(data=True))
+        if not edges or not all("contact" in d and "pair" in d for _, _, d in edges):
+            return edges
+        ordered = sorted(edges, key=lambda edge: edge[2]["contact"])
+        if [d["contact"] for _, _, d in ordered] != list(range(len(edges))):
+            raise FieldError("graph", "edge 'contact' attributes must number the edges 0, 1, ..., n_contacts - 1")
+        out = []
+        for u, v, d in ordered:
+            if {*d["pair"]} != {u, v} or len(d["pair"]) != 2:
+                raise FieldError("graph", f"edge ({u!r}, {v!r}) has 'pair' {d['pair']!r}, not its two ends")
+            out.append((*d["pair"], d))
+        return out
+
+    @staticmethod
+    def _given_units(u, v, units, dim: int) -> tuple[np.ndarray, np.ndarray]:
+        try:
+            tu, tv = np.asarray(units[u], dtype=float), np.asarray(units[v], dtype=float)
+        except (KeyError, TypeError, ValueError):
+            raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must map both ends to a vector") from None
+        for t in (tu, tv):
+            if t.shape != (dim,) or not np.isfinite(t).all() or abs(np.linalg.norm(t) - 1) > 1e-9:
+                raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim}")
+        return tu, tv
+
+    def _init(self, positions, pairs, t_i, t_j, radius) -> None:
+        n = len(positions)
+        if n > _INT32_MAX or 2 * len(pairs) > _INT32_MAX:
+            raise FieldError("graph", "too large for 32-bit contact tables")
+        self.positions = positions
+        self.radius = checks.number("radius", radius, 0.0, above=True)
+        e = len(pairs)
+        units = np.empty((2 * e, t_i.shape[1]))
+        units[0::2], units[1::2] = t_i, t_j
+        ends = np.arange(2 * e).reshape(e, 2)
+        self._contacts = Contacts.build(pairs, ends, units)
+
+    def _build_contacts(self) -> Contacts:
+        return self._contacts
+
+    @classmethod
+    def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6) -> "GraphGeometry":
+        """Balls of ``radius`` at ``positions`` ``(n_balls, d)``; contacts are pairs at distance ``2*radius``.
+
+        Distances within ``rtol * 2 * radius`` of contact count as touching (centres
+        computed by repeated addition still touch); closer pairs are overlapping
+        balls and an error. Uses a scipy KD-tree: ``O(n log n)``.
+        """
+        from scipy.spatial import cKDTree
+
+        p = _as_positions(positions)
+        radius = checks.number("radius", radius, 0.0, above=True)
+        if not (0 <= rtol < 0.5):
+            raise FieldError("rtol", f"must be in [0, 0.5), got {rtol}")
+        contact = 2.0 * radius
+        pairs = cKDTree(p).query_pairs(contact * (1 + rtol), output_type="ndarray").astype(np.int64)
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else pairs.reshape(0, 2)
+        dist = np.linalg.norm(p[pairs[:, 1]] - p[pairs[:, 0]], axis=1)
+        overlap = np.flatnonzero(dist < contact * (1 - rtol))
+        if len(overlap):
+            i, j = pairs[overlap[0]]
+            raise FieldError(
+                "positions", f"balls {i} and {j} overlap (centres {dist[overlap[0]]:.6g} apart, "
+                f"contact distance {contact:.6g}); {len(overlap)} overlapping pair(s) in all"
+            )
+        self = cls.__new__(cls)
+        self._frames, self._view = None, None
+        t_i = _flat_units(p, pairs) if len(pairs) else np.zeros((0, p.shape[1]))
+        self._init(p, pairs, t_i, -t_i, radius)
+        self.nodes = list(range(len(p)))
+        return self
+
+
+class StoredGeometry(Geometry):
+    """A geometry as a results file stores it: centres ``positions (n, k)``, contacts ``pairs (E, 2)``
+    with unit vectors ``t_i, t_j (E, d)``, and what the layers above the engine ask of a geometry:
+    its ``boundary`` (or None), its ``frames`` ``(n, d, k)`` on a curved surface (or None) and its
+    ``view``. The same contact arrays give the same bits, so a run continues on it exactly.
+    ``complete``: the view was given (results files store it with the boundary and frames since
+    the layout of 2026-11; older ones hold only the contacts).
+    """
+
+    def __init__(self, positions, pairs, t_i, t_j, radius: float = 1.0, *, boundary: Boundary | None = None,
+                 frames: np.ndarray | None = None, view: str | None = None):
+        self.positions = np.asarray(positions, dtype=np.float64)
+        self.radius = float(radius)
+        e = len(pairs)
+        units = np.empty((2 * e, np.shape(t_i)[1]))
+        units[0::2], units[1::2] = t_i, t_j
+        self._contacts = Contacts.build(pairs, np.arange(2 * e).reshape(e, 2), units)
+        self._boundary, self._frames = boundary, frames
+        self.curved = frames is not None
+        self._view = None if view is None else checks.choice("view", view, VIEWS)
+        self.complete = view is not None
+
+    @property
+    def boundary(self) -> Boundary | None:
+        return self._boundary
+
+    @property
+    def view(self) -> str:
+        return self._view or super().view
+
+    def frames(self) -> np.ndarray:
+        return super().frames() if self._frames is None else self._frames
+
+    def _build_contacts(self) -> Contacts:
+        return self._contacts

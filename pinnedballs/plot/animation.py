@@ -1,0 +1,110 @@
+"""Movies of a run's snapshots: one frame per state, in the geometry's own view, on one arrow scale.
+
+`animate` draws the initial state, every snapshot and the final state with the state picture
+of `states.state_picture` (the plane, both hemispheres of a sphere, the Poincare
+disk, a slice of a 3-D packing, a 1-D chain), all frames sharing one arrow scale and one
+figure size, and writes a GIF (Pillow) or an MP4 (ffmpeg from imageio-ffmpeg, the optional
+extra ``movies``). The movie is written to a temporary file and renamed: a failure leaves no
+partial movie.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..engine.errors import FieldError, FieldTypeError
+from .states import state_picture
+
+__all__ = ["animate", "movie_frames", "MOVIE_NAME", "FORMATS"]
+
+#: the movie's name in the run directory when no ``out`` is given
+MOVIE_NAME = "movie.gif"
+#: the movie formats, by file suffix
+FORMATS = (".gif", ".mp4")
+MP4_MISSING = "writing MP4 needs ffmpeg: pip install 'pinnedballs[movies]' (imageio-ffmpeg), or write a .gif"
+
+
+def movie_frames(res) -> list[tuple[str, np.ndarray]]:
+    """``[(title, velocities (n, dim)), ...]``: the initial state, each snapshot and the final state of
+    ``res`` (what `pinnedballs.load` returns), each state once, titled with its steps and collisions."""
+    frames: list[tuple[int, int, np.ndarray]] = []
+    snapshots = list(res.snapshots or ())
+    initial = getattr(res, "initial_velocities", None)
+    if initial is not None and not any(int(s.step) == 0 for s in snapshots):
+        frames.append((0, 0, np.asarray(initial, dtype=np.float64)))
+    frames += [(int(s.step), int(s.collisions), np.asarray(s.velocities, dtype=np.float64)) for s in snapshots]
+    if not frames or frames[-1][0] != int(res.steps):
+        frames.append((int(res.steps), int(res.collisions), np.asarray(res.velocities, dtype=np.float64)))
+    last = len(frames) - 1
+    return [(f"step {s:,}, {c:,} collisions" + (" (final)" if k == last else ""), v)
+            for k, (s, c, v) in enumerate(frames)]
+
+
+def _check(out, fps) -> tuple[Path, float]:
+    if not isinstance(out, (str, os.PathLike)):
+        raise FieldTypeError("out", f"must be a path ending in .gif or .mp4, got {type(out).__name__}")
+    out = Path(out)
+    if out.suffix.lower() not in FORMATS:
+        raise FieldError("out", f"must end in .gif or .mp4, got {out.name!r}")
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 100:
+        raise FieldError("fps", f"must be a number of frames per second in (0, 100], got {fps!r}")
+    if out.suffix.lower() == ".mp4":
+        try:
+            import imageio_ffmpeg
+
+            imageio_ffmpeg.get_ffmpeg_exe()  # a RuntimeError if it has no ffmpeg for this machine
+        except (ImportError, RuntimeError):
+            raise FieldError("out", MP4_MISSING) from None
+    return out, float(fps)
+
+
+def _rgb(fig) -> np.ndarray:
+    """The figure drawn by Agg, ``(height, width, 3)`` uint8."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+
+
+def animate(res, out=None, fps: float = 4) -> Path:
+    """Write a movie of the run ``res`` (its `Results`, from `pinnedballs.load`) to ``out`` (default ``<run dir>/movie.gif``; ``.gif`` or ``.mp4``) at ``fps`` frames per second;
+    returns its path. Frames: see `movie_frames`; the state picture: `states.state_picture`, with
+    one arrow scale (`base.MOVIE_LONGEST`) and one size for all frames.
+    """
+    out, fps = _check(res.run_dir / MOVIE_NAME if out is None else out, fps)
+    frames = movie_frames(res)
+    draw = state_picture(res.geometry)
+    shared = [v for _, v in frames]
+    images = [_rgb(draw(v, title, shared=shared)) for title, v in frames]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.{os.getpid()}.tmp{out.suffix}"  # beside out: the rename is atomic
+    try:
+        (_write_mp4 if out.suffix.lower() == ".mp4" else _write_gif)(images, Path(tmp), fps)
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return out
+
+
+def _write_gif(images: list[np.ndarray], path: Path, fps: float) -> None:
+    from PIL import Image
+
+    pictures = [Image.fromarray(im) for im in images]
+    pictures[0].save(path, format="GIF", save_all=True, append_images=pictures[1:], duration=round(1000 / fps),
+                     loop=0, optimize=False)
+
+
+def _write_mp4(images: list[np.ndarray], path: Path, fps: float) -> None:
+    import imageio_ffmpeg
+
+    h, w = images[0].shape[:2]
+    even = [np.pad(im, ((0, h % 2), (0, w % 2), (0, 0)), constant_values=255) for im in images]  # yuv420p
+    writer = imageio_ffmpeg.write_frames(str(path), (w + w % 2, h + h % 2), fps=fps, codec="libx264",
+                                         pix_fmt_out="yuv420p", macro_block_size=1, ffmpeg_log_level="error",
+                                         output_params=["-f", "mp4"])
+    writer.send(None)
+    for im in even:
+        writer.send(np.ascontiguousarray(im))
+    writer.close()

@@ -1,0 +1,113 @@
+"""What every figure shares: headless figures, atomic PNGs, and the arrow scale of state pictures.
+
+Headless by construction: figures are `matplotlib.figure.Figure` objects drawn
+by the Agg canvas, and pyplot is never imported, so no window can open and no
+figure outlives its caller. Each drawing function draws into ``ax`` if given (and returns
+its figure) or into a new figure, saves a PNG when ``path`` is given, and
+returns the `Figure`.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ..results.files import write_bytes_atomic
+
+__all__ = ["new_figure", "save", "arrow_scale", "key_speed", "DPI", "MOVIE_LONGEST"]
+
+DPI = 100
+BALL_COLOUR = "0.75"
+BALL_SIZE = 0.6  #: drawn diameter of a ball, in spacings between centres
+ARROW_COLOUR = "tab:red"
+FIT_COLOUR = "tab:orange"
+COMPONENT_NAMES = "xyz"
+
+
+def new_figure(figsize) -> Figure:
+    """A figure of ``figsize`` inches drawn by Agg: never a window, whatever the backend."""
+    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _new_axes(ax, figsize, title):
+    """``(figure, ax)``: the given axes, or one axes on a `new_figure` of ``figsize`` inches."""
+    if ax is None:
+        ax = new_figure(figsize).add_subplot()
+    if title:
+        ax.set_title(title)
+    return ax.figure, ax
+
+
+def save(fig: Figure, path) -> Figure:
+    """Write ``fig`` as a PNG at ``path`` (its folder created) unless ``path`` is None: drawn in
+    memory and written through a temporary file and a rename, so a failed write (a full disk)
+    leaves no partial PNG."""
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        image = io.BytesIO()
+        fig.savefig(image, dpi=DPI, format="png")
+        write_bytes_atomic(path, image.getvalue())
+    return fig
+
+
+def _spacing(p: np.ndarray) -> float:
+    """Median distance from a centre ``p (n, 2)`` to its nearest neighbour (1 for a single ball)."""
+    if len(p) < 2:
+        return 1.0
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(p).query(p, k=2)
+    d = d[:, 1][d[:, 1] > 0]
+    return float(np.median(d)) if len(d) else 1.0
+
+
+def arrow_scale(speeds: np.ndarray, spacing: float, longest: float = 3.0) -> float:
+    """Arrow length per unit speed, for ``speeds (n,)`` and ``spacing`` between centres.
+
+    The 95th percentile of the speeds gets one spacing, but no arrow gets more
+    than ``longest`` spacings: a spread-out state shows typical arrows half a spacing long,
+    and a state with all energy on one ball shows a single arrow three spacings long.
+    """
+    top = float(speeds.max()) if len(speeds) else 0.0
+    reference = max(float(np.quantile(speeds, 0.95)) if len(speeds) else 0.0, top / longest)
+    return spacing / reference if reference > 0 else 1.0
+
+
+#: in a movie (`shared` velocities of every frame) the longest arrow, in spacings: the pooled
+#: 95th percentile still gets one spacing, so the spread-out frames stay readable
+MOVIE_LONGEST = 10.0
+
+
+def _shared_scale(speeds: np.ndarray, shared, spacing: float, norm) -> float:
+    """`arrow_scale` of this state's ``speeds``, or of every frame's when ``shared`` (a movie) is given;
+    ``norm(v) -> (n,)`` turns one frame's velocities into speeds."""
+    if shared is None:
+        return arrow_scale(speeds, spacing)
+    return arrow_scale(np.concatenate([norm(np.asarray(v, dtype=np.float64)) for v in shared]), spacing,
+                       longest=MOVIE_LONGEST)
+
+
+def _key(ax, arrows, k: float, spacing: float, width: float, y: float = -0.07, drawn: float = 1.0,
+         where: str = "") -> None:
+    """The arrow-scale key at the left of ``ax`` (``y`` in axes units): a round speed about one spacing
+    long, its tail at 2 % of the axes' ``width`` (in data units). ``drawn``: the picture's length of a
+    unit of length where the key applies (``where``)."""
+    key = key_speed(spacing / k)
+    ax.quiverkey(arrows, X=0.02 + key * drawn * k / width, Y=y, U=key * drawn, label=f"speed {key:g}{where}",
+                 labelpos="E", coordinates="axes", fontproperties={"size": "small"})
+
+
+def key_speed(speed: float) -> float:
+    """The round speed (1, 2 or 5 times a power of ten) nearest ``speed`` (> 0) on a log scale:
+    the speed of the arrow-scale key, drawn about one spacing long."""
+    power = 10.0 ** np.floor(np.log10(speed))
+    candidates = np.array([1.0, 2.0, 5.0, 10.0]) * power
+    return float(candidates[np.argmin(np.abs(np.log(candidates / speed)))])
+
+

@@ -1,0 +1,95 @@
+"""The figures of one run, written beside its results (``pinnedballs run`` and ``plot``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .base import save
+from .figures import component_histograms, energy_by_distance
+from .states import state_picture
+
+__all__ = ["write_figures", "figure_files", "snapshot_name", "snapshot_counter", "FIGURE_PATTERNS"]
+
+
+# ---------------------------------------------------------------- one run
+
+#: the names `write_figures` gives its files
+FIGURE_PATTERNS = ("state_initial.png", "state_step_*.png", "state_collisions_*.png", "state_final.png", "energy_by_distance.png",
+                   "energy_by_height.png", "velocity_histograms.png")
+
+
+def figure_files(out_dir) -> list[Path]:
+    """The files in ``out_dir`` that `write_figures` may have written (to clear a stale run's)."""
+    out = Path(out_dir)
+    return sorted({p for pattern in FIGURE_PATTERNS for p in out.glob(pattern)})
+
+
+def snapshot_counter(res) -> str:
+    """``"collisions"`` if the run's spec placed its snapshots by collisions, else ``"steps"``."""
+    snapshots = getattr(getattr(res, "spec", None), "snapshots", None)
+    return getattr(snapshots, "counter", "steps")
+
+
+def snapshot_name(snap, counter: str) -> tuple[str, str]:
+    """``(file name, title)`` of the state picture of ``snap``, named after the count ``counter`` the
+    spec asked for: ``state_collisions_22579.png``, "after 22,579 collisions (89,335 steps)"."""
+    step, collisions = int(snap.step), int(snap.collisions)
+    if step == 0:
+        return "state_initial.png", "initial state"
+    if counter == "collisions":
+        return f"state_collisions_{collisions}.png", f"after {collisions:,} collisions ({step:,} steps)"
+    return f"state_step_{step}.png", f"after {step:,} steps ({collisions:,} collisions)"
+
+
+def write_figures(res, out_dir) -> list[Path]:
+    """Write the figures of one run's results into ``out_dir``; return their paths.
+
+    res: what `pinnedballs.load` returns (``positions (n, k)``, final
+    ``velocities (n, dim)``, ``snapshots`` with ``.step``, ``.collisions``,
+    ``.velocities``, ``geometry``, ``masses`` or None, and ``initial_velocities`` if it
+    has them). Writes ``state_initial.png`` (the initial velocities, or a snapshot at
+    step 0), ``state_step_<N>.png`` or ``state_collisions_<C>.png`` (every other snapshot, named
+    after the counter the spec placed them by) and ``state_final.png`` in the geometry's view
+    (see `state_picture`: the plane, both hemispheres of a sphere, the Poincare disk, a slice of
+    a 3-D packing, a 1-D chain); ``energy_by_distance.png`` on any geometry with a ``boundary``;
+    ``energy_by_height.png`` in flat 3-D; ``velocity_histograms.png`` (one panel per component, up to 3).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    positions = np.asarray(res.positions, dtype=np.float64)
+    final = np.asarray(res.velocities, dtype=np.float64)
+    geometry = res.geometry
+    written: list[Path] = []
+
+    def emit(name: str, fig: Figure) -> None:
+        path = out / name
+        save(fig, path)
+        written.append(path)
+
+    draw = state_picture(geometry)
+    if draw is not None:
+        snapshots = list(() if res.snapshots is None else res.snapshots)
+        initial = getattr(res, "initial_velocities", None)
+        if initial is not None and not any(int(snap.step) == 0 for snap in snapshots):
+            emit("state_initial.png", draw(np.asarray(initial, dtype=np.float64), "initial state"))
+        counter = snapshot_counter(res)
+        for snap in snapshots:
+            name, title = snapshot_name(snap, counter)
+            emit(name, draw(np.asarray(snap.velocities, dtype=np.float64), title))
+        emit("state_final.png", draw(final, "final state"))
+    if geometry.boundary is not None:
+        emit("energy_by_distance.png", energy_by_distance(geometry.boundary.distance, final, res.masses,
+                                                          title="energy by distance from the boundary, final state"))
+    if geometry.dim == 3 and positions.shape[1] == 3 and not geometry.curved:
+        fig = energy_by_distance(positions[:, 2] - positions[:, 2].min(), final, res.masses,
+                                 title="energy by height (z), final state")
+        fig.axes[0].set_xlabel("height z above the lowest layer")
+        for text in fig.axes[0].texts:
+            text.set_text(text.get_text().replace("boundary row", "lowest layer"))
+        emit("energy_by_height.png", fig)
+    if final.ndim == 2 and 1 <= final.shape[1] <= 3:
+        emit("velocity_histograms.png", component_histograms(final, title="velocity components, final state"))
+    return written

@@ -1,0 +1,246 @@
+"""State pictures: the velocities over the balls, in each geometry's own view (`Geometry.view`).
+
+`state_picture(geometry)` gives the drawing function of a geometry's view: arrows in the plane
+(`quiver`), both hemispheres of a sphere (`sphere_views`), the Poincare disk (`poincare_disk`),
+a 3-D packing (`layers`), a 1-D chain (`chain`), or each component against the ball index
+(`components_by_ball`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import EllipseCollection
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from matplotlib.ticker import MaxNLocator
+
+from .base import (ARROW_COLOUR, BALL_COLOUR, BALL_SIZE, COMPONENT_NAMES, _key, _new_axes, _shared_scale, _spacing,
+                   new_figure, save)
+
+__all__ = ["quiver", "sphere_views", "poincare_disk", "layers", "chain", "components_by_ball", "state_picture"]
+
+
+def quiver(positions, velocities, ax=None, title: str | None = None, path=None, shared=None) -> Figure:
+    """The paper's state pictures: velocities as arrows over grey balls.
+
+    positions: ``(n_balls, 2)`` centres; velocities: ``(n_balls, 2)``. Balls are
+    grey dots (``BALL_SIZE`` of the typical spacing across); see `arrow_scale`
+    for arrow lengths, and the key below the bottom left corner for the scale. Balls at rest
+    get no arrow; the axes reach every arrow's tip. ``shared``: the velocities ``[(n_balls, 2), ...]``
+    of every frame of a movie, which get one arrow scale and one extent (the same figure size).
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    v = np.asarray(velocities, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"positions: must have shape (n_balls, 2), got {p.shape}")
+    if v.shape != p.shape:
+        raise ValueError(f"velocities: must have shape (n_balls, 2) = {p.shape}, got {v.shape}")
+    spacing = _spacing(p)
+    speeds = np.linalg.norm(v, axis=1)
+    k = _shared_scale(speeds, shared, spacing, lambda u: np.linalg.norm(u, axis=1))
+    tips = [p + k * np.asarray(u, dtype=np.float64) for u in (shared if shared is not None else [v])]
+    reach = np.concatenate([p, *tips]) if len(p) else np.array([[0.0, 0.0], [1.0, 1.0]])
+    lo, hi = reach.min(axis=0) - spacing, reach.max(axis=0) + spacing
+    width, height = hi - lo
+    lines = 1 + (title or "").count("\n")  # room for every line of the title, and the key below
+    fig, ax = _new_axes(ax, (8.0, float(np.clip(8.0 * height / width, 2.5, 10.0)) + 0.6 + 0.25 * lines), title)
+    ax.add_collection(EllipseCollection(
+        BALL_SIZE * spacing, BALL_SIZE * spacing, 0.0, units="xy", offsets=p, offset_transform=ax.transData,
+        facecolors=BALL_COLOUR, edgecolors="none"))
+    moving = speeds > 0
+    if moving.any():
+        arrows = ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR,
+                           angles="xy", scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing,
+                           headwidth=3.5, headlength=4.0, headaxislength=3.5, minlength=0.0)
+        _key(ax, arrows, k, spacing, width)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    return save(fig, path)
+
+
+def _tangent_arrows(ax, p: np.ndarray, v: np.ndarray, k: float, spacing: float):
+    """Arrows ``v (n, 2)`` at ``p (n, 2)``, ``k`` long per unit speed; the `Quiver`, or None if all rest."""
+    moving = np.linalg.norm(v, axis=1) > 0
+    if moving.any():
+        return ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR, angles="xy",
+                  scale_units="xy", scale=1.0 / k, units="xy", width=0.1 * spacing, headwidth=3.5, headlength=4.0,
+                  headaxislength=3.5, minlength=0.0)
+    return None
+
+
+def sphere_views(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+    """Orthographic views of both hemispheres of the unit sphere, velocities as tangent arrows.
+
+    positions: ``(n_balls, 3)`` on the unit sphere; velocities: ``(n_balls, 3)`` in embedding
+    coordinates (``einsum("nd,ndk->nk", v, geom.frames())``). Left: the northern hemisphere seen
+    from above (+z); right: the southern seen from below (x mirrored, so both are seen from outside).
+    Balls are foreshortened towards the rim (at least to a fifth, to stay visible); arrows show
+    each velocity's part in the picture plane, on the common scale of `arrow_scale` (of every
+    frame's velocities ``shared`` in a movie), with its key under each view.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    V = np.asarray(velocities, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or V.shape != x.shape:
+        raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
+    fig = new_figure((11.0, 5.8))
+    spacing = _spacing(x)
+    k = _shared_scale(np.linalg.norm(V, axis=1), shared, spacing, lambda u: np.linalg.norm(u, axis=1))
+    for ax, sign, name in zip(fig.subplots(1, 2), (1.0, -1.0), ("northern hemisphere (from +z)",
+                                                                  "southern hemisphere (from -z)")):
+        on = sign * x[:, 2] >= 0
+        flip = np.array([sign, 1.0])
+        p, v = x[on, :2] * flip, V[on, :2] * flip
+        ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
+        # a ball seen at a slant: its width along the rim kept, its depth towards the centre foreshortened by |z|
+        size = np.full(len(p), BALL_SIZE * spacing)
+        along_rim = np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90
+        ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), along_rim, units="xy",
+                                            offsets=p, offset_transform=ax.transData, facecolors=BALL_COLOUR,
+                                            edgecolors="none"))
+        arrows = _tangent_arrows(ax, p, v, k, spacing)
+        if arrows is not None:
+            _key(ax, arrows, k, spacing, 2.5, y=0.04)
+        ax.set_xlim(-1.25, 1.25)
+        ax.set_ylim(-1.25, 1.25)
+        ax.set_aspect("equal")
+        ax.set_title(name)
+        ax.set_xlabel("x" if sign > 0 else "-x")
+        ax.set_ylabel("y")
+    if title:
+        fig.suptitle(title)
+    return save(fig, path)
+
+
+def poincare_disk(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+    """A state of the hyperbolic plane drawn in the Poincare disk.
+
+    positions: ``(n_balls, 3)`` on the hyperboloid; velocities: ``(n_balls, 3)`` in embedding
+    coordinates. Balls sit at ``p = (x1, x2) / (1 + x0)``; balls and arrows are drawn at their
+    hyperbolic sizes carried to the disk by the same map (conformal: directions are true,
+    lengths shrink by ``(1 - |p|^2) / 2`` towards the rim). Arrow lengths follow `arrow_scale`
+    in hyperbolic units, with the spacing of the ball nearest the centre (one scale for every
+    frame's velocities ``shared`` in a movie); the key gives the speed of an arrow at the centre.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    V = np.asarray(velocities, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or V.shape != x.shape:
+        raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
+    one = 1.0 + x[:, :1]
+    p = x[:, 1:] / one
+    dp = (V[:, 1:] * one - x[:, 1:] * V[:, :1]) / one**2
+    shrink = (1.0 - np.einsum("nk,nk->n", p, p)) / 2.0
+    def minkowski_speeds(u):
+        return np.sqrt(np.maximum(np.einsum("nk,nk->n", u[:, 1:], u[:, 1:]) - u[:, 0] ** 2, 0.0))
+
+    speeds = minkowski_speeds(V)
+    centre = int(np.argmin(x[:, 0]))
+    cosh = x[centre, 0] * x[:, 0] - x[:, 1:] @ x[centre, 1:]
+    cosh[centre] = np.inf
+    spacing = float(np.arccosh(cosh.min())) if len(x) > 1 else 1.0
+    k = _shared_scale(speeds, shared, spacing, minkowski_speeds)
+    fig, ax = _new_axes(None, (8.0, 8.0), title)
+    ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
+    size = BALL_SIZE * spacing * shrink
+    ax.add_collection(EllipseCollection(size, size, np.zeros(len(p)), units="xy", offsets=p,
+                                        offset_transform=ax.transData, facecolors=BALL_COLOUR, edgecolors="none"))
+    moving = speeds > 0
+    if moving.any():
+        arrows = ax.quiver(p[moving, 0], p[moving, 1], dp[moving, 0], dp[moving, 1], color=ARROW_COLOUR,
+                           angles="xy", scale_units="xy", scale=1.0 / k, units="dots", width=2.0, headwidth=3.5,
+                           headlength=4.0, headaxislength=3.5, minlength=0.0)
+        _key(ax, arrows, k, spacing, 2.1, y=0.03, drawn=0.5, where=" at the centre")  # the disk halves lengths there
+    ax.set_xlim(-1.05, 1.05)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_aspect("equal")
+    ax.set_xlabel("Poincare disk x")
+    ax.set_ylabel("Poincare disk y")
+    return save(fig, path)
+
+
+def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = None, path=None,
+                       shared=None) -> Figure:
+    """Each velocity component as a stem at its ball's ``x (n_balls,)``: the state picture of a 1-D
+    chain (``x`` its positions) and of any geometry no other picture fits (``x`` the ball index).
+
+    velocities: ``(n_balls, dim)``, one panel per component (at most three drawn); the vertical
+    axis is the same for all panels and, with ``shared`` (every frame of a movie), for all frames.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    v = np.asarray(velocities, dtype=np.float64)
+    if v.ndim != 2 or x.shape != (len(v),):
+        raise ValueError(f"x, velocities: must have shapes (n_balls,) and (n_balls, dim), got {x.shape} and {v.shape}")
+    panels = min(v.shape[1], 3)
+    top = max(float(np.abs(np.asarray(u)).max(initial=0.0)) for u in (shared if shared is not None else [v]))
+    top = 1.1 * top if top > 0 else 1.0
+    fig = new_figure((8.0, 1.2 + 2.2 * panels))
+    axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
+    for k, ax in enumerate(axes):
+        ax.axhline(0.0, color=BALL_COLOUR, linewidth=4, zorder=0)
+        ax.scatter(x, np.zeros_like(x), s=12, color="0.5", zorder=1)
+        moving = v[:, k] != 0
+        if moving.any():
+            ax.vlines(x[moving], 0.0, v[moving, k], color=ARROW_COLOUR, linewidth=2)
+            ax.scatter(x[moving], v[moving, k], s=10, color=ARROW_COLOUR)
+        ax.set_ylim(-top, top)
+        name = COMPONENT_NAMES[k] if v.shape[1] <= 3 else str(k)
+        ax.set_ylabel(f"{name}-component of velocity" if v.shape[1] > 1 else "velocity")
+    axes[-1].set_xlabel(xlabel if v.shape[1] <= 3 else f"{xlabel} (components 0-2 of {v.shape[1]} drawn)")
+    if len(x) and np.all(np.diff(x) == 1):
+        axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
+    if title:
+        fig.suptitle(title)
+    return save(fig, path)
+
+
+def chain(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+    """A state of a 1-D chain: ``positions (n_balls, 1)``, each velocity ``(n_balls, 1)`` a stem at its ball."""
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 1:
+        raise ValueError(f"positions: must have shape (n_balls, 1), got {p.shape}")
+    return components_by_ball(p[:, 0], velocities, xlabel="position x", title=title, path=path, shared=shared)
+
+
+def layers(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+    """A state of a 3-D packing: the bottom layer's ``(v_x, v_y)`` as arrows over its balls.
+
+    positions: ``(n_balls, 3)``; velocities: ``(n_balls, 3)``; ``shared`` as in `quiver`.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    layer = np.flatnonzero(p[:, 2] <= p[:, 2].min() + 1e-9)
+    where = f"the bottom layer (z = {p[layer[0], 2]:g}), arrows (v_x, v_y)"
+    return quiver(p[layer, :2], np.asarray(velocities)[layer, :2], title=f"{title}: {where}" if title else where,
+                  path=path, shared=None if shared is None else [np.asarray(u)[layer, :2] for u in shared])
+
+
+def _embedded(draw, frames: np.ndarray):
+    """``draw`` of velocities given in the balls' frames, carried to embedding coordinates first."""
+    def embed(v):
+        return np.einsum("nd,ndk->nk", np.asarray(v, dtype=np.float64), frames)
+
+    def embedded(positions, v, title=None, path=None, shared=None):
+        return draw(positions, embed(v), title=title, path=path,
+                    shared=None if shared is None else [embed(u) for u in shared])
+    return embedded
+
+
+def _by_ball(positions, v, title=None, path=None, shared=None) -> Figure:
+    return components_by_ball(np.arange(len(positions), dtype=np.float64), v, title=title, path=path, shared=shared)
+
+
+#: the drawing of each view (`pinnedballs.geometry.VIEWS`): ``draw(positions, velocities, title, path, shared)``
+DRAWINGS = {"plane": quiver, "sphere": sphere_views, "poincare": poincare_disk, "layers": layers, "chain": chain,
+            "components": _by_ball}
+
+
+def state_picture(geometry):
+    """``draw(velocities (n, dim), title, shared=None) -> Figure`` for this geometry's states, in its
+    `view` (velocities in the balls' frames on a curved surface are carried to the embedding first).
+    ``shared``: every frame's velocities of a movie, drawn on one scale."""
+    draw = DRAWINGS[geometry.view]
+    if geometry.view in ("sphere", "poincare"):
+        draw = _embedded(draw, geometry.frames())
+    positions = np.asarray(geometry.positions, dtype=np.float64)
+    return lambda v, title, shared=None: draw(positions, v, title=title, shared=shared)

@@ -1,0 +1,79 @@
+"""Files written so that a kill or a full disk never leaves half of one: through a temporary file,
+flushed and renamed; HDF5 files built in memory first."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from pathlib import Path
+
+import h5py
+
+__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "tmp_path", "remove"]
+
+
+@contextlib.contextmanager
+def h5_file(path: Path):
+    """An HDF5 file built in memory, then written to ``path`` (`write_bytes_atomic`) if the block succeeds.
+
+    HDF5 never writes to disk itself: a full disk is a plain OSError from our own write,
+    never a file HDF5 cannot close (h5py issue 2160: a native crash on closing a file
+    whose write failed), and no partial file is left behind.
+    """
+    f = h5py.File(f"{path.name}.{id(path)}", "w", driver="core", backing_store=False)
+    try:
+        yield f
+        f.flush()
+        image = f.id.get_file_image()
+    finally:
+        f.close()
+    write_bytes_atomic(path, image)
+
+
+def tmp_path(path: Path) -> Path:
+    return path.with_name(path.name + ".tmp")
+
+
+def remove(path: Path) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        path.unlink()
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename: a kill leaves the
+    old file or the new one, never half of one."""
+    write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename; if writing fails
+    (a full disk), the temporary file is removed and ``path`` is as it was."""
+    path = Path(path)
+    tmp = tmp_path(path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        _commit(tmp, path)
+    except BaseException:
+        remove(tmp)
+        raise
+
+
+def _commit(tmp: Path, path: Path) -> None:
+    """Flush ``tmp`` to disk and rename it over ``path`` (atomic on POSIX)."""
+    fd = os.open(tmp, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    os.replace(tmp, path)
+    try:
+        fd = os.open(path.parent, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)

@@ -1,0 +1,114 @@
+"""The results format: one run directory per run, written append-only (`store`), read back with
+`load.load`, checked before use (`check`).
+
+A run directory holds ``results.h5``, a small *index*, and ``results.data/``:
+``static.h5`` (written once) and one *segment* ``frames_<first>.h5`` per checkpoint
+that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity components,
+``E`` contacts, ``F`` snapshots), format 2::
+
+    /                 attrs: format, format_version, version (package), spec (JSON, "" for a run
+                             built in Python), run (JSON: what a Python run was built from),
+                             status ("running" | "done"), stop_reason, created, updated,
+                             elapsed_seconds, checkpoints, checked, observables (JSON names),
+                             segments (JSON [[file, first, count], ...])
+    /geometry         -> static.h5: positions (n, k), pairs (E, 2) int32, t_i (E, d), t_j (E, d),
+                         masses (n,) [only if given], boundary_distance (n,) and boundary_outward
+                         (n, d) [with a boundary], frames (n, d, k) [curved]; attrs radius, view
+    /initial          -> static.h5: velocities (n, d), momentum (d,); attrs energy, approaching
+    /snapshots        velocities (F, n, d); steps, collisions (links to /observables)
+    /observables      one column per recorded observable (`pinnedballs.analysis.observables`): (F,) or (F, ...)
+    /state            the latest state, enough to resume bit for bit: velocities (n, d),
+                      rng_state (4,) uint64, scheduler_state (L,) int64, momentum (d,);
+                      attrs steps, collisions, energy, approaching, frozen
+
+``/geometry`` and ``/initial`` are external links, ``/snapshots`` and ``/observables``
+virtual datasets over the segments, so ``h5py`` reads the index like one file.
+
+Why segments and an index: a checkpoint writes only what is new (its frames, into a
+segment written to a temporary name, flushed and renamed) and then replaces the index
+(temporary file, flush, rename), so the bytes a run writes grow with its final size,
+not with snapshots x size, and a kill at any moment leaves the last complete index,
+whose segments all exist. A segment the index does not list (a kill between the two
+renames) is removed when the run continues. An HDF5 file appended in place would be
+smaller to describe but can be left unreadable by a kill in the middle of a write.
+
+Format 1 (a single file, copied whole at each checkpoint) still loads; continuing such
+a run converts it to format 2 first.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..analysis import observables
+from ..engine.errors import InputError
+from ..simulation import RunState
+
+__all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",
+           "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES"]
+
+FORMAT = "pinnedballs-results"
+FORMAT_VERSION = 2
+RESULTS_NAME = "results.h5"
+#: the directory beside the index holding ``static.h5`` and the segments
+DATA_DIR = "results.data"
+STATIC_NAME = "static.h5"
+#: the fields of ``/state`` a results file holds (its attribute ``keys`` lists them)
+STATE_KEYS = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
+V1_OBSERVABLES = ("steps", "collisions", "energy", "momentum", "approaching")
+
+
+class ResultsError(InputError):
+    """A results file that is not one, or is damaged."""
+
+
+class Snapshot(NamedTuple):
+    """The velocities ``(n_balls, dim)`` after ``step`` steps and ``collisions`` collisions."""
+
+    step: int
+    collisions: int
+    velocities: np.ndarray
+
+
+@dataclass(frozen=True)
+class Record:
+    """A state and its observables, as the driver hands it to the writer.
+
+    state: the `RunState`; energy, momentum ``(d,)``, approaching and frozen are measured on it;
+    values: the selected observables by name.
+    """
+
+    state: RunState
+    energy: float
+    momentum: np.ndarray
+    approaching: int
+    values: dict = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, sim, names=observables.DEFAULT) -> "Record":
+        """The current state of the `Simulation` ``sim`` and its observables ``names``."""
+        values = observables.measure(sim, names)
+        energy = float(values["energy"]) if "energy" in values else sim.energy()
+        momentum = values["momentum"] if "momentum" in values else np.asarray(sim.momentum(), dtype=np.float64)
+        approaching = int(values["approaching"]) if "approaching" in values else sim.approaching()
+        return cls(sim.get_state(), energy, np.asarray(momentum, dtype=np.float64), approaching, values)
+
+    @property
+    def frozen(self) -> bool:
+        return self.approaching == 0
+
+
+def results_path(path: str | os.PathLike) -> Path:
+    """``path`` itself, or ``path/results.h5`` if ``path`` is a directory."""
+    path = Path(path)
+    return path / RESULTS_NAME if path.is_dir() else path
+
+
+def data_dir(path: Path) -> Path:
+    """The directory of the static file and the segments beside the index ``path``."""
+    return path.with_name(DATA_DIR) if path.name == RESULTS_NAME else path.with_name(path.stem + ".data")

@@ -1,0 +1,264 @@
+"""Reading a results file: `load` gives the `Results` of a run, finished or at its last checkpoint,
+after `check.check_results` has found the file sound."""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ..geometry.base import Boundary, Geometry
+from ..geometry.graph import StoredGeometry
+from ..simulation import RunState, Simulation
+from ..specs.geometry import geometry_from_stored, parse_geometry
+from ..specs.run import RunSpec
+from .check import check_results
+from .format import (FORMAT, FORMAT_VERSION, RESULTS_NAME, STATIC_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
+                     data_dir, results_path)
+
+__all__ = ["Results", "load", "open_checked", "read"]
+
+
+@dataclass(eq=False)
+class Results:
+    """A run read back from its results file (finished, or the last checkpoint of an unfinished one).
+
+    latest: the latest `RunState` (``velocities``, ``steps``, ``collisions``, ``rng_state``,
+    ``scheduler_state`` are its fields, as properties here too); stored: the `StoredGeometry`
+    the file holds (``positions (n, k)``, ``pairs (E, 2)``, ``t_i, t_j (E, d)`` are its arrays);
+    snapshots: list of `Snapshot` ``(step, collisions, velocities (n, d))``; observables: dict of
+    per-snapshot columns (``steps, collisions (F,)`` and the recorded observables).
+    spec: the `RunSpec`, or None for a run built in Python, which ``run`` describes
+    (``geometry``, ``rule``, ``scheduler``: each component's own spec, else ``{"class": ...}``).
+    """
+
+    path: Path
+    spec: RunSpec | None
+    version: str
+    status: str
+    stop_reason: str
+    energy: float
+    momentum: np.ndarray
+    approaching: int
+    frozen: bool
+    stored: StoredGeometry
+    masses: np.ndarray | None
+    initial_velocities: np.ndarray
+    initial_energy: float
+    snapshots: list[Snapshot]
+    observables: dict[str, np.ndarray]
+    elapsed_seconds: float
+    checkpoints: int
+    created: str
+    updated: str
+    latest: RunState
+    run: dict = field(default_factory=dict, repr=False)
+    format_version: int = FORMAT_VERSION
+
+    @property
+    def velocities(self) -> np.ndarray:
+        return self.latest.velocities
+
+    @property
+    def steps(self) -> int:
+        return self.latest.steps
+
+    @property
+    def collisions(self) -> int:
+        return self.latest.collisions
+
+    @property
+    def rng_state(self) -> np.ndarray:
+        return self.latest.rng_state
+
+    @property
+    def scheduler_state(self) -> np.ndarray:
+        return self.latest.scheduler_state
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.stored.positions
+
+    @property
+    def pairs(self) -> np.ndarray:
+        return self.stored.contacts.pairs
+
+    @property
+    def t_i(self) -> np.ndarray:
+        return self.stored.contacts.t_i
+
+    @property
+    def t_j(self) -> np.ndarray:
+        return self.stored.contacts.t_j
+
+    @property
+    def radius(self) -> float:
+        return self.stored.radius
+
+    @property
+    def complete(self) -> bool:
+        """True once the run reached its stop (False for a checkpoint of a run still going or killed)."""
+        return self.status == "done"
+
+    @property
+    def run_dir(self) -> Path:
+        return self.path.parent
+
+    @property
+    def kinds(self) -> dict[str, str]:
+        """``geometry``, ``initial``, ``rule``, ``scheduler``: the kind of each component (or its class)."""
+        if self.spec is not None:
+            return {k: getattr(self.spec, k).kind for k in ("geometry", "initial", "rule", "scheduler")}
+        return {k: v.get("kind") or v.get("class", "?") for k, v in self.run.items() if isinstance(v, dict)}
+
+    @functools.cached_property
+    def geometry(self) -> Geometry:
+        """The run's geometry: rebuilt from its spec (the stored positions stand in for a file of
+        positions), or the stored one (`stored`) for a geometry that has no spec."""
+        spec = self.spec.geometry if self.spec is not None else parse_geometry(self.run.get("geometry", {}))
+        if spec is None or (spec.kind == "python" and self.stored.complete):
+            return self.stored
+        return geometry_from_stored(spec, self.positions)
+
+    def state(self) -> RunState:
+        """A copy of the latest state, for `Simulation.set_state`."""
+        return self.latest.copy()
+
+    def simulation(self, *, rule=None, scheduler=None) -> Simulation:
+        """A `Simulation` at the latest state, ready to go on exactly where this run stopped.
+
+        A run built in Python with a rule or scheduler that has no spec needs them given.
+        """
+        if self.spec is not None:
+            sim = self.spec.build_with(self.geometry, self.initial_velocities, self.masses)
+        else:
+            from ..specs import RuleSpec, SchedulerSpec
+
+            rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
+            scheduler = scheduler if scheduler is not None else \
+                _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
+            sim = Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
+                             masses=self.masses, seed=0)
+        sim.set_state(self.state())
+        return sim
+
+    def animate(self, out=None, fps: float = 4) -> Path:
+        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`."""
+        from ..plot.animation import animate
+
+        return animate(self, out, fps)
+
+    def __repr__(self) -> str:
+        return (f"Results({str(self.path)!r}, {self.status}, steps={self.steps}, collisions={self.collisions}, "
+                f"snapshots={len(self.snapshots)}, frozen={self.frozen})")
+
+
+def _component(described: dict, slot, name: str):
+    """The rule or scheduler a Python run described as a spec dict; a ValueError naming ``name`` if it has none."""
+    from pydantic import TypeAdapter
+
+    if "kind" not in described:
+        raise ValueError(f"{name}: this run used {described.get('class', 'a component')}, which has no spec; "
+                         f"pass {name}= to simulation()")
+    return TypeAdapter(slot).validate_python(described).build()
+
+
+def load(path: str | os.PathLike) -> Results:
+    """Read a results file, or ``DIR/results.h5`` given a run directory.
+
+    Raises FileNotFoundError if there is none, `ResultsError` (a ValueError) if the
+    file is not a pinnedballs results file or is damaged; both name the path.
+    """
+    p = results_path(path)
+    if not p.exists():
+        where = f"{path}: no {RESULTS_NAME} in this directory" if Path(path).is_dir() else f"{p}: no such file"
+        raise FileNotFoundError(where)
+    with open_checked(p) as f:
+        try:
+            return read(p, f)
+        except (KeyError, OSError) as exc:
+            raise ResultsError(f"{p}: damaged results file ({exc})") from None
+
+
+def open_checked(p: Path) -> h5py.File:
+    """The results file ``p`` opened for reading, after checking it is one this version reads,
+    that every file it refers to is there, and its structure (`check_results`): the one place
+    results files are opened."""
+    try:
+        f = h5py.File(p, "r")
+    except OSError as exc:
+        raise ResultsError(f"{p}: not a readable HDF5 file (truncated or not HDF5): {exc}") from None
+    try:
+        if f.attrs.get("format") != FORMAT:
+            raise ResultsError(f"{p}: not a pinnedballs results file (no format={FORMAT!r} attribute)")
+        version = int(f.attrs.get("format_version", -1))
+        if version > FORMAT_VERSION:
+            raise ResultsError(f"{p}: written by a newer pinnedballs (format {f.attrs['format_version']}); upgrade")
+        if version < 1:
+            raise ResultsError(f"{p}: damaged results file: / (attribute format_version): must be 1 or 2, "
+                               f"got {f.attrs.get('format_version')!r}")
+        if version >= 2:
+            data = data_dir(p)
+            try:
+                needed = [STATIC_NAME, *(s[0] for s in json.loads(f.attrs["segments"]))]
+            except (KeyError, ValueError, TypeError) as exc:
+                raise ResultsError(f"{p}: damaged results file (no segment list: {exc})") from None
+            missing = [name for name in needed if not (data / name).is_file()]
+            if missing:
+                raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
+        check_results(p, f, data_dir(p) if version >= 2 else None)
+    except BaseException:
+        f.close()
+        raise
+    return f
+
+
+def read(p: Path, f: h5py.File) -> Results:
+    """The `Results` in the open results file ``f`` (at ``p``), already checked."""
+    try:
+        spec = RunSpec.model_validate_json(f.attrs["spec"]) if f.attrs["spec"] else None
+    except ValueError as exc:
+        raise ResultsError(f"{p}: its stored spec is not valid for this version of pinnedballs ({exc})") from None
+    version = int(f.attrs["format_version"])
+    s, o = f["state"], f["observables"]
+    latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
+                      s["scheduler_state"][()])
+    frames = f["snapshots/velocities"][()]
+    names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
+    observables = {name: o[name][()] for name in names}
+    steps, collisions = observables["steps"], observables["collisions"]
+    g = f["geometry"]
+    return Results(
+        path=p, spec=spec, version=str(f.attrs["version"]), status=str(f.attrs["status"]),
+        stop_reason=str(f.attrs["stop_reason"]),
+        energy=float(s.attrs["energy"]), momentum=s["momentum"][()], approaching=int(s.attrs["approaching"]),
+        frozen=bool(s.attrs["frozen"]), stored=stored_geometry(g), masses=g["masses"][()] if "masses" in g else None,
+        initial_velocities=f["initial/velocities"][()], initial_energy=float(f["initial"].attrs["energy"]),
+        snapshots=[Snapshot(int(a), int(b), v) for a, b, v in zip(steps, collisions, frames)],
+        observables=observables,
+        elapsed_seconds=float(f.attrs["elapsed_seconds"]), checkpoints=int(f.attrs["checkpoints"]),
+        created=str(f.attrs["created"]), updated=str(f.attrs["updated"]),
+        latest=latest, run=json.loads(f.attrs.get("run", "") or "{}"), format_version=version,
+    )
+
+
+def stored_geometry(g: h5py.Group) -> StoredGeometry:
+    """The geometry in the group ``/geometry`` of a results file: its contacts and, in files that
+    store them, its boundary, frames and view (``complete``: all that reading the run needs)."""
+    boundary = None
+    if "boundary_distance" in g:
+        boundary = Boundary(g["boundary_distance"][()], g["boundary_outward"][()])
+    view = g.attrs.get("view")
+    return StoredGeometry(g["positions"][()], g["pairs"][()], g["t_i"][()], g["t_j"][()],
+                          float(g.attrs.get("radius", 1.0)), boundary=boundary,
+                          frames=g["frames"][()] if "frames" in g else None, view=None if view is None else str(view))
+
+
+def scalar(value):
+    """An HDF5 attribute as a plain Python number."""
+    return value.item() if isinstance(value, np.generic) else value

@@ -1,0 +1,353 @@
+"""Ensembles: many independent replicas of one run spec, on local processes or a Dask cluster.
+
+Replica ``k`` of ``N`` is seeded with child ``k`` of ``SeedSequence(spec.seed).spawn(N)``
+(entropy ``spec.seed``, spawn key ``(k,)``; `replica_seed`), so its result depends
+on the spec and ``k`` only: not on ``N``, the number of workers, or where it ran.
+Each replica runs the spec's stop rule (`execute.run_to_stop`) and gives one table
+row per snapshot and one for the final state (`state_row`: `observables.summary`
+and a few more). Rows are ordered by replica, then by time, so the same spec and
+``N`` give a bit-identical table however the replicas were spread.
+
+A replica that raises becomes one row with its index, seed and the error; the
+others are kept. `write_outputs` writes ``replicas.csv``, ``summary.json``,
+``spec.json`` and histograms of the correlations over replicas into a directory.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .._version import __version__
+from ..engine import checks
+from ..engine.errors import InputError
+from ..engine.limits import check_memory
+from ..geometry.base import Geometry
+from ..results.files import write_text_atomic
+from ..specs.run import RunSpec
+from . import executors
+
+__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
+           "write_outputs", "read_table", "KEY_COLUMNS", "ERROR_COLUMN", "FINAL", "CORRELATIONS",
+           "TABLE_NAME", "SUMMARY_NAME"]
+
+TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json", "spec.json", "figures"
+#: the first columns of every row; observables follow, then `ERROR_COLUMN`
+KEY_COLUMNS = ("replica", "seed_entropy", "spawn_key", "at", "steps", "collisions", "frozen", "stop_reason")
+ERROR_COLUMN = "error"
+#: the ``at`` of a replica's final state (snapshots are ``"steps=N"`` or ``"collisions=N"``)
+FINAL = "final"
+#: correlation columns drawn as histograms over replicas (bin width 0.02 on [-1, 1])
+CORRELATIONS = {"line_of_centres_correlation": "line-of-centres correlation of (u, u') over contacts",
+                "xy_correlation": "correlation of the x- and y-components over balls"}
+CORRELATION_BIN_WIDTH = 0.02
+
+#: ``task(spec, index, seed) -> rows`` of one replica; module-level (it is pickled to workers)
+Task = Callable[[RunSpec, int, np.random.SeedSequence], list[dict]]
+#: ``observe(geometry, velocities (n_balls, dim), masses (n_balls,) | None) -> {column: value}``
+Observe = Callable[[Geometry, np.ndarray, "np.ndarray | None"], dict]
+
+
+# ---------------------------------------------------------------- one replica
+
+
+def replica_seed(spec: RunSpec, index: int) -> np.random.SeedSequence:
+    """The seed of replica ``index``: child ``index`` of ``SeedSequence(spec.seed).spawn(N)`` for any ``N > index``."""
+    return np.random.SeedSequence(spec.seed, spawn_key=(index,))
+
+
+def state_row(geometry: Geometry, velocities: np.ndarray, masses=None) -> dict[str, float]:
+    """The observables of one state: `observables.summary`, and `far_shares` on a geometry with a boundary."""
+    from ..analysis import observables as obs
+
+    row = obs.summary(velocities, geometry, masses)
+    if geometry.boundary is not None:
+        row.update(obs.far_shares(geometry.boundary.distance, velocities, masses))
+    return row
+
+
+def _head(index: int, seed: np.random.SeedSequence) -> dict:
+    return {"replica": index, "seed_entropy": seed.entropy, "spawn_key": json.dumps(list(seed.spawn_key))}
+
+
+def run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence | None = None,
+                observe: Observe = state_row) -> list[dict]:
+    """Run replica ``index`` of ``spec`` to its stop; its rows: one per snapshot reached, then the final state.
+
+    ``seed`` defaults to `replica_seed`. Each row holds `KEY_COLUMNS` and ``observe``'s columns.
+    Snapshots the run never reaches (it froze first) have no row.
+    """
+    from .execute import run_to_stop
+
+    seed = replica_seed(spec, index) if seed is None else seed
+    sim = spec.build(seed=seed)
+    head = _head(index, seed)
+    rows: list[dict] = []
+    counter = spec.snapshots.counter if spec.snapshots else ""
+
+    def row(at: str, state: dict, frozen: bool, reason: str) -> dict:
+        return {**head, "at": at, "steps": int(state.steps), "collisions": int(state.collisions),
+                "frozen": int(frozen), "stop_reason": reason,
+                **observe(sim.geometry, state.velocities, sim.masses)}
+
+    def on_snapshot(record) -> None:
+        rows.append(row(f"{counter}={getattr(record.state, counter)}", record.state, record.frozen, ""))
+
+    reason = run_to_stop(spec, sim, on_snapshot=on_snapshot)
+    rows.append(row(FINAL, sim.get_state(), sim.is_frozen(), reason))
+    return rows
+
+
+def _error_row(index: int, seed: np.random.SeedSequence, exc: BaseException) -> dict:
+    message = " ".join(str(exc).split())
+    return {**_head(index, seed), ERROR_COLUMN: f"{type(exc).__name__}: {message}" if message else type(exc).__name__}
+
+
+def _attempt(task: Task, spec: RunSpec, index: int, seed: np.random.SeedSequence) -> list[dict]:
+    """``task``'s rows, or one error row if it raises (runs on the worker)."""
+    try:
+        return task(spec, index, seed)
+    except Exception as exc:  # noqa: BLE001 - a failed replica is reported, not fatal
+        return [_error_row(index, seed, exc)]
+
+
+# ---------------------------------------------------------------- many replicas
+
+
+@dataclass(frozen=True)
+class EnsembleResult:
+    """The rows of an ensemble, ordered by replica then time, and how it ran.
+
+    ``rows``: dicts with `KEY_COLUMNS`, observables and, for a failed replica, only
+    ``replica``, ``seed_entropy``, ``spawn_key`` and `ERROR_COLUMN`.
+    """
+
+    spec: RunSpec
+    replicas: int
+    rows: list[dict]
+    where: str
+    wall_seconds: float
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names: `KEY_COLUMNS`, observables in first-seen order, `ERROR_COLUMN`."""
+        seen = dict.fromkeys(KEY_COLUMNS)
+        for row in self.rows:
+            seen.update(dict.fromkeys(k for k in row if k != ERROR_COLUMN))
+        return [*seen, ERROR_COLUMN]
+
+    @property
+    def failures(self) -> list[dict]:
+        """The error rows, one per failed replica."""
+        return [row for row in self.rows if row.get(ERROR_COLUMN)]
+
+    def stages(self) -> list[str]:
+        """The ``at`` labels present: snapshots in time order, then `FINAL`."""
+        labels = dict.fromkeys(row["at"] for row in self.rows if not row.get(ERROR_COLUMN))
+        snaps = sorted((a for a in labels if a != FINAL), key=lambda a: int(a.partition("=")[2]))
+        return snaps + ([FINAL] if FINAL in labels else [])
+
+    def column(self, name: str, at: str = FINAL) -> np.ndarray:
+        """``(n,)`` float values of column ``name`` at ``at`` over the replicas that have it, by replica."""
+        return np.array([float(row[name]) for row in self.rows
+                         if not row.get(ERROR_COLUMN) and row["at"] == at and name in row], dtype=np.float64)
+
+    def statistics(self) -> dict[str, dict[str, dict[str, float]]]:
+        """``{at: {column: {n, mean, std, min, max}}}`` of every numeric column (``std`` with ``ddof=1``)."""
+        skip = {"replica", "seed_entropy", "spawn_key", "at", "stop_reason", ERROR_COLUMN}
+        out: dict[str, dict[str, dict[str, float]]] = {}
+        for at in self.stages():
+            out[at] = {}
+            for name in self.columns:
+                if name in skip:
+                    continue
+                x = self.column(name, at)
+                x = x[np.isfinite(x)]
+                if len(x):
+                    out[at][name] = {"n": int(len(x)), "mean": float(x.mean()),
+                                     "std": float(x.std(ddof=1)) if len(x) > 1 else math.nan,
+                                     "min": float(x.min()), "max": float(x.max())}
+        return out
+
+
+def _check_count(name: str, value, minimum: int = 1) -> int:
+    return checks.integer(name, value, minimum)
+
+
+#: bytes held per replica while an ensemble runs: its seed, its job and a row (upper estimate)
+REPLICA_BYTES = 4096
+
+
+def _check_replicas_memory(replicas: int, name: str) -> None:
+    """Refuse (naming ``name``) more replicas than the memory can track at once."""
+    check_memory(replicas * REPLICA_BYTES, name, f"an ensemble of {replicas:,} replicas")
+
+
+def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, dask_address: str | None = None,
+                 cluster=None, progress: bool | None = False, task: Task | None = None) -> EnsembleResult:
+    """Run ``replicas`` independent replicas of ``spec``; see the module docstring for seeds and rows.
+
+    Where: ``workers`` local processes (default ``os.cpu_count()``; 1 runs in this
+    process); or the Dask scheduler at ``dask_address``; or ``cluster`` (a Dask
+    cluster or ``Client``). ``progress``: a tqdm bar over replicas on stderr (None:
+    only if stderr is a terminal). ``task(spec, index, seed) -> rows`` replaces
+    `run_replica` (e.g. ``functools.partial(run_replica, observe=f)``); it must be
+    picklable to run elsewhere. Raises `InputError` on bad arguments.
+    """
+    if not isinstance(spec, RunSpec):
+        raise InputError(f"spec: must be a RunSpec, got {type(spec).__name__}")
+    replicas = _check_count("replicas", replicas)
+    _check_replicas_memory(replicas, "replicas")
+    if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
+        raise InputError("workers, dask_address, cluster: give at most one")
+    task = run_replica if task is None else task
+    seeds = np.random.SeedSequence(spec.seed).spawn(replicas)
+    jobs = {k: (_attempt, task, spec, k, seeds[k]) for k in range(replicas)}
+
+    def lost(k: int, exc: BaseException) -> list[dict]:  # its worker died or was lost
+        return [_error_row(k, seeds[k], exc)]
+
+    start = time.perf_counter()
+    with _progress(replicas, progress) as tick:
+        if dask_address is not None or cluster is not None:
+            client, own = executors.dask_client(dask_address, cluster)
+            try:
+                where = f"dask {client.scheduler.address}"
+                results = executors.on_dask(client, jobs, tick, lost)
+            finally:
+                if own:
+                    client.close()
+        else:
+            workers = (os.cpu_count() or 1) if workers is None else _check_count("workers", workers)
+            workers = min(workers, replicas)
+            where = "in-process" if workers == 1 else f"{workers} local processes"
+            results = executors.in_process(jobs, tick) if workers == 1 else \
+                executors.on_processes(jobs, workers, tick, lost)
+    rows = [row for k in range(replicas) for row in results[k]]
+    return EnsembleResult(spec, replicas, rows, where, time.perf_counter() - start)
+
+
+class _progress:
+    """Context manager giving ``tick()``: one replica done (a tqdm bar, or nothing)."""
+
+    def __init__(self, total: int, show: bool | None):
+        self.total, self.show = total, sys.stderr.isatty() if show is None else show
+        self.bar = None
+
+    def __enter__(self) -> Callable[[], None]:
+        if not self.show:
+            return lambda: None
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=self.total, unit=" replicas", file=sys.stderr, dynamic_ncols=True, desc="replicas")
+        return lambda: self.bar.update(1)
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+# ---------------------------------------------------------------- output
+
+
+def _cell(value) -> str:
+    """A CSV cell: floats as their shortest round-trip repr (so tables compare bit for bit)."""
+    if value is None:
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    return str(value)
+
+
+def write_table(result: EnsembleResult, path) -> Path:
+    """Write ``result.rows`` as CSV at ``path`` (missing cells empty), atomically."""
+    path, text = Path(path), io.StringIO()
+    columns = result.columns
+    w = csv.writer(text, lineterminator="\n")
+    w.writerow(columns)
+    for row in result.rows:
+        w.writerow([_cell(row.get(c)) for c in columns])
+    write_text_atomic(path, text.getvalue())
+    return path
+
+
+def read_table(path) -> list[dict[str, str]]:
+    """The rows of a ``replicas.csv`` as dicts of strings (empty cells left out)."""
+    with Path(path).open(newline="", encoding="utf-8") as f:
+        return [{k: v for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
+
+
+def _json_safe(value):
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _slug(at: str) -> str:
+    return at.replace("=", "_")
+
+
+def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list[Path]:
+    """Write ``replicas.csv``, ``summary.json``, ``spec.json`` and (if ``figures``)
+    ``figures/<correlation>_<at>.png`` into ``out_dir`` (created); return the paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = [write_table(result, out / TABLE_NAME)]
+    summary = {
+        "replicas": result.replicas,
+        "succeeded": result.replicas - len(result.failures),
+        "failed": [{k: row[k] for k in ("replica", "seed_entropy", "spawn_key", ERROR_COLUMN)}
+                   for row in result.failures],
+        "seed": result.spec.seed,
+        "seeds": "replica k: numpy.random.SeedSequence(seed).spawn(replicas)[k] (entropy seed, spawn key [k])",
+        "where": result.where,
+        "wall_seconds": result.wall_seconds,
+        "version": __version__,
+        "statistics": result.statistics(),
+        "spec": json.loads(result.spec.model_dump_json()),
+    }
+    path = out / SUMMARY_NAME
+    write_text_atomic(path, json.dumps(_json_safe(summary), indent=2) + "\n")
+    path2 = out / SPEC_NAME
+    write_text_atomic(path2, result.spec.to_json() + "\n")
+    written += [path, path2]
+    if figures:
+        from ..plot.figures import correlation_histogram
+
+        for at in result.stages():
+            for name, label in CORRELATIONS.items():
+                x = result.column(name, at)
+                x = x[np.isfinite(x)]
+                if not len(x):
+                    continue
+                when = "final state" if at == FINAL else at.replace("=", " = ")
+                fig_path = out / FIGURES_DIR / f"{name}_{_slug(at)}.png"
+                correlation_histogram(x, CORRELATION_BIN_WIDTH, title=f"{label}\n{len(x)} replicas, {when}",
+                                      xlabel=name.replace("_", " "), path=fig_path)
+                written.append(fig_path)
+    return written
+
+
+def _remove_old_outputs(out: Path) -> None:
+    """Before writing with --force: remove what an earlier ensemble wrote here (other files stay)."""
+    for name in (TABLE_NAME, SUMMARY_NAME, SPEC_NAME):
+        (out / name).unlink(missing_ok=True)
+    for name in CORRELATIONS:
+        for png in (out / FIGURES_DIR).glob(f"{name}_*.png"):
+            png.unlink()

@@ -1,0 +1,223 @@
+"""Carry out a run spec: the driver with a `ResultsWriter`, progress, signals, resuming, figures.
+
+`execute` runs a spec into a run directory (``spec.json``, ``results.h5`` (see
+`pinnedballs.results`) and the figures (``*.png``, `pinnedballs.plot`)) through the one
+driver (`driver.drive`) and the same `ResultsWriter` a Python run uses,
+adding a progress bar, SIGINT/SIGTERM handling and resuming. `run_to_stop` runs a
+spec's simulation to its stop with any writers (ensembles, the reproduction).
+The final state equals that of the plain calls ``sim.run(steps=S)``,
+``sim.run(collisions=C)`` (which also stops at a freeze) or ``sim.run_until_frozen(max_steps=M)``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+from ..engine.errors import InputError
+from ..results.files import write_text_atomic
+from ..results.format import RESULTS_NAME, Record
+from ..results.load import Results, load
+from ..results.rundir import DirLock
+from ..simulation import Simulation
+from ..specs.run import RunSpec
+from .driver import Writer, drive
+from .writers import OnSnapshot, ResultsWriter
+
+__all__ = ["Interrupted", "run_to_stop", "execute", "write_figures", "SILENT"]
+
+
+class _Silent:
+    """A status line that says nothing (the command line hands `execute` a real one)."""
+
+    def __call__(self, message: str) -> None:
+        pass
+
+    def clear(self) -> None:
+        pass
+
+
+#: the default ``status`` of `execute`: a callable told each stage, with ``clear()``
+SILENT = _Silent()
+
+
+class Interrupted(RuntimeError):
+    """The run was stopped by SIGINT/SIGTERM after writing a complete checkpoint."""
+
+
+def _counter(sim: Simulation, name: str) -> int:
+    return sim.steps if name == "steps" else sim.collisions
+
+
+def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record], None] | None = None,
+                writers: Sequence[Writer] = (), after_chunk: Callable[[Simulation], None] | None = None) -> str:
+    """Run ``sim`` (built from ``spec``) to ``spec.stop`` with ``writers``, calling ``on_snapshot``
+    at each of the spec's snapshots; returns the stop reason."""
+    writers = list(writers)
+    if on_snapshot is not None and spec.snapshots is not None:
+        writers.append(OnSnapshot(spec.snapshots.build(), on_snapshot))
+    return drive(sim, spec.stop.build(), writers, after_chunk=after_chunk)
+
+
+# ---------------------------------------------------------------- run directories
+
+
+def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, resume: bool = False,
+            progress: bool | None = None, figures: bool = True, status=SILENT) -> Path:
+    """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
+
+    Everything is validated and the simulation built before anything is written.
+    A non-empty ``out_dir`` is refused (`InputError`) unless ``force`` (which
+    replaces our files) or ``resume`` (which continues from the last checkpoint
+    of the same spec; a finished run is left as it is). ``progress``: a tqdm bar
+    on stderr; None means only if stderr is a terminal. ``status``: a `Status` line told each
+    stage (building, compiling, drawing). SIGINT/SIGTERM write a checkpoint and raise `Interrupted`.
+    """
+    out = Path(out_dir)
+    path = out / RESULTS_NAME
+    sim = None
+    if not (resume and path.exists()):
+        status("building the geometry")
+        sim = spec.build()  # bad input fails before anything is written
+    with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
+        return _execute(spec, out, sim, lock, force=force, resume=resume, progress=progress, figures=figures,
+                        status=status)
+
+
+def _execute(spec: RunSpec, out: Path, sim: Simulation | None, lock: DirLock, *, force: bool, resume: bool,
+             progress: bool | None, figures: bool, status) -> Path:
+    """`execute` holding ``lock`` on ``out``; ``sim``: the new simulation, None to resume."""
+    path = out / RESULTS_NAME
+    writer = ResultsWriter(out, snapshots=spec.snapshots.build() if spec.snapshots else None,
+                           checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
+                           force=force, resume=sim is None, lock=lock)
+    if sim is None:
+        status("reading the last checkpoint")
+        res = load(path)
+        _check_same_run(res, spec)
+        if not (out / "spec.json").exists():
+            write_text_atomic(out / "spec.json", res.spec.to_json() + "\n")
+        if res.complete:
+            if figures:
+                status("drawing figures")
+                write_figures(out)
+            return path
+        sim = res.simulation()
+    else:
+        writer.resume = resume  # a directory a run killed at birth left may be taken over
+        writer.attach(sim)      # takes the directory and writes the static data
+        _remove_figures(out)    # a replaced run's pictures would pass for this one's
+        write_text_atomic(out / "spec.json", spec.to_json() + "\n")
+    status("compiling the loop (once: numba caches it on disk)")
+    sim.run(steps=0, until_frozen=spec.stop.build().until_frozen)  # compiles; changes no bit of the state
+    status.clear()
+    with _progress_bar(spec, sim, progress) as bar, _deferred_signals() as stop_requested:
+        def after_chunk(s: Simulation) -> None:
+            bar(s)
+            if stop_requested():
+                writer.checkpoint(s)
+                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {path.parent} is complete: "
+                                  f"continue with --resume")
+
+        run_to_stop(spec, sim, writers=[writer], after_chunk=after_chunk)
+        bar(sim)
+    if figures:
+        status("drawing figures")
+        write_figures(out)
+    status.clear()
+    return path
+
+
+def _check_same_run(res: Results, spec: RunSpec) -> None:
+    """Refuse to resume ``res`` with a different spec (checkpoint settings and description may differ)."""
+    if res.spec is None:
+        raise InputError(f"--resume: the run in {res.path.parent} was built in Python, not from a spec; "
+                         f"continue it in Python (pb.load(...).simulation())")
+    ignore = {"checkpoint", "description"}
+    old, new = res.spec.model_dump(exclude=ignore), spec.model_dump(exclude=ignore)
+    where = _first_difference(old, new)
+    if where is not None:
+        path, a, b = where
+        raise InputError(f"{path}: differs from the run in {res.path.parent} ({a!r} there, {b!r} here); "
+                         f"run without --resume, and with --force to overwrite it")
+
+
+def _first_difference(a, b, path: str = "") -> tuple[str, object, object] | None:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in list(a) + [k for k in b if k not in a]:
+            found = _first_difference(a.get(key), b.get(key), f"{path}.{key}" if path else key)
+            if found:
+                return found
+        return None
+    return None if a == b else (path, a, b)
+
+
+@contextlib.contextmanager
+def _deferred_signals() -> Iterator[Callable[[], bool]]:
+    """Turn SIGINT/SIGTERM into a request the loop honours between chunks (main thread only).
+
+    A second SIGINT interrupts at once.
+    """
+    requested = []
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+
+    def handler(signum, frame):
+        if requested and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        requested.append(signum)
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield lambda: bool(requested)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def _progress_bar(spec: RunSpec, sim: Simulation, show: bool | None) -> Iterator[Callable[[Simulation], None]]:
+    """A callable updating a tqdm bar on stderr (steps, collisions, rate, ETA); a no-op when not shown."""
+    if show is None:
+        show = sys.stderr.isatty()
+    if not show:
+        yield lambda s: None
+        return
+    from tqdm import tqdm
+
+    stop = spec.stop
+    unit, total = ("collisions", stop.collisions) if stop.kind == "collisions" else \
+        ("steps", stop.steps if stop.kind == "steps" else stop.max_steps)
+    other = "steps" if unit == "collisions" else "collisions"
+    with tqdm(total=total, initial=_counter(sim, unit), unit=f" {unit}", unit_scale=True, file=sys.stderr,
+              dynamic_ncols=True, smoothing=0.1, desc="running") as bar:
+        def update(s: Simulation) -> None:
+            bar.update(_counter(s, unit) - bar.n)
+            bar.set_postfix_str(f"{other}={_counter(s, other):,}", refresh=False)
+        yield update
+
+
+# ---------------------------------------------------------------- figures
+
+
+def write_figures(run_dir: str | os.PathLike) -> list[Path]:
+    """Draw the figures of the run in ``run_dir`` (PNG files beside its results), first removing
+    any figures an earlier run left there; the paths written."""
+    from ..plot.run import write_figures as draw
+
+    res = load(run_dir)
+    _remove_figures(Path(run_dir))
+    return list(draw(res, Path(run_dir)))
+
+
+def _remove_figures(run_dir: Path) -> None:
+    from ..plot.run import figure_files
+
+    for old in figure_files(run_dir):
+        old.unlink()

@@ -1,0 +1,183 @@
+"""Where an ensemble's jobs run: in this process, on local processes, or on a Dask cluster.
+
+A job is ``(fn, *args)``; each executor returns ``{index: fn(*args)}`` for the jobs given as
+``{index: job}``, calling ``tick()`` as each ends. A job whose worker failed (a process that died,
+a Dask worker lost) gives ``on_error(index, exc)`` instead of its result, and the others go on.
+
+Before Dask connects to a ``tcp://`` address, `check_scheduler` reads the server's greeting itself.
+A Dask listener speaks first: on every new connection it sends its handshake, one
+message framed as ``8 bytes (native uint64) n`` + ``n bytes`` of frames, holding a
+dict with ``"pickle-protocol"`` (``distributed.comm.core.Listener.on_connection``).
+`distributed.comm.connect` reads that handshake without a timeout and trusts its
+length: a server that sends nothing (an HTTP server, a dashboard port) makes it wait
+for ever, and one that sends garbage makes it allocate what the first 8 bytes say
+(exabytes). `check_scheduler` reads the greeting within the timeout and refuses the
+address unless it is a Dask handshake of sane size. The probe closes its connection after
+the greeting; a real scheduler logs that at info level ("closed before handshake completed").
+Only plain ``tcp://`` addresses are probed (TLS and other transports are left to Dask).
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Callable
+
+from ..engine.errors import InputError
+
+__all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "MAX_GREETING",
+           "CONNECT_TIMEOUT"]
+
+#: largest handshake accepted, in bytes (a real one is about 100)
+MAX_GREETING = 1 << 16
+#: seconds to reach a Dask scheduler: its handshake, then `Client`'s connect
+CONNECT_TIMEOUT = 10.0
+
+#: ``on_error(index, exc) -> result`` of a job whose worker failed
+OnError = Callable[[int, BaseException], object]
+
+
+# ---------------------------------------------------------------- executors
+
+
+def in_process(jobs: dict, tick: Callable[[], None]) -> dict:
+    """Run each job here, in order."""
+    results = {}
+    for k, (fn, *args) in jobs.items():
+        results[k] = fn(*args)
+        tick()
+    return results
+
+
+def _collect(finished, futures: dict, tick, on_error: OnError) -> dict:
+    """The result of each future in ``finished`` (an iterator in completion order), by index; a future
+    that raised (a worker process died, a worker was lost) gives ``on_error``'s result."""
+    results = {}
+    for future in finished:
+        k = futures[future]
+        try:
+            results[k] = future.result()
+        except Exception as exc:  # noqa: BLE001 - reported by on_error, the others kept
+            results[k] = on_error(k, exc)
+        tick()
+    return results
+
+
+def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: OnError) -> dict:
+    """Run the jobs on ``workers`` local processes."""
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
+        futures = {pool.submit(*job): k for k, job in jobs.items()}
+        return _collect(as_completed(futures), futures, tick, on_error)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def on_dask(client, jobs: dict, tick: Callable[[], None], on_error: OnError) -> dict:
+    """Run the jobs on the Dask cluster of ``client``."""
+    from dask.distributed import as_completed as dask_completed
+
+    futures = {client.submit(*job, pure=False): k for k, job in jobs.items()}
+    try:
+        return _collect(dask_completed(list(futures), loop=client.loop), futures, tick, on_error)
+    finally:
+        client.cancel([f for f in futures if not f.done()])
+
+
+def dask_client(address: str | None, cluster, option: str = "dask_address"):
+    """``(client, owned)``: a Dask client for ``address`` or ``cluster`` (an `InputError` naming ``option``
+    if unreachable)."""
+    from dask.distributed import Client
+    from distributed.comm.addressing import get_address_host_port
+
+    if cluster is not None and isinstance(cluster, Client):
+        return cluster, False
+    if cluster is None:
+        try:  # before Client(): a half-built one prints a traceback when collected
+            get_address_host_port(address)
+        except (ValueError, TypeError) as exc:
+            raise InputError(f"{option} {address}: not a Dask scheduler address such as tcp://host:8786 "
+                             f"({' '.join(str(exc).split())})") from None
+        check_scheduler(address, CONNECT_TIMEOUT, option)  # Dask itself hangs or crashes on a non-Dask server
+    try:
+        return Client(cluster if cluster is not None else address, timeout=f"{CONNECT_TIMEOUT}s",
+                      set_as_default=False), True
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        what = f"{option} {address}" if address is not None else "cluster"
+        raise InputError(f"{what}: cannot connect to a Dask scheduler ({' '.join(str(exc).split())})") from None
+
+
+# ---------------------------------------------------------------- is a Dask scheduler listening?
+
+
+def check_scheduler(address: str, timeout: float, option: str = "dask_address") -> None:
+    """Raise an `InputError` naming ``option`` unless the ``tcp://`` server at ``address`` greets
+    like a Dask scheduler within ``timeout`` seconds. A refused or unreachable address passes:
+    `distributed.Client` retries it until its own timeout and reports it."""
+    from distributed.comm.addressing import get_address_host_port, parse_address
+
+    if parse_address(address)[0] != "tcp":
+        return
+    host, port = get_address_host_port(address)
+    deadline = time.monotonic() + timeout
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except OSError:
+        return
+    try:
+        header = _read(sock, 8, deadline)
+        (size,) = struct.unpack("Q", header)
+        if not 0 < size <= MAX_GREETING:
+            raise _NotDask(f"its greeting announces {size} bytes")
+        greeting = _decode(_read(sock, size, deadline))
+        if not (isinstance(greeting, dict) and "pickle-protocol" in greeting):
+            raise _NotDask("its greeting is not a Dask handshake")
+    except (socket.timeout, TimeoutError):
+        raise InputError(f"{option} {address}: not a Dask scheduler (no Dask handshake within {timeout:g} s; "
+                         f"a dashboard or another server?)") from None
+    except _NotDask as exc:
+        raise InputError(f"{option} {address}: not a Dask scheduler ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"{option} {address}: not a Dask scheduler (the connection failed during the "
+                         f"handshake: {' '.join(str(exc).split())})") from None
+    finally:
+        sock.close()
+
+
+class _NotDask(Exception):
+    """The server answered, but not as a Dask scheduler."""
+
+
+def _read(sock: socket.socket, n: int, deadline: float) -> bytes:
+    """Exactly ``n`` bytes from ``sock`` before ``deadline`` (``time.monotonic``)."""
+    chunks, got = [], 0
+    while got < n:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError
+        sock.settimeout(left)
+        chunk = sock.recv(n - got)
+        if not chunk:
+            raise _NotDask(f"it closed the connection after {got} of {n} bytes of its greeting"
+                           if got or n != 8 else "it closed the connection without a greeting")
+        chunks.append(chunk)
+        got += len(chunk)
+    return b"".join(chunks)
+
+
+def _decode(data: bytes):
+    """The message in a Dask frame block, or `_NotDask` if it is not one."""
+    from distributed.protocol import loads
+    from distributed.protocol.utils import unpack_frames
+
+    try:
+        if len(data) < 8 or struct.unpack_from("Q", data)[0] > len(data) // 8:
+            raise ValueError("frame count beyond the data")
+        frames, buffers = unpack_frames(data, partial=True)
+        if buffers:
+            raise ValueError("unexpected buffers")
+        return loads(frames, deserialize=False)
+    except Exception as exc:  # noqa: BLE001 - any failure to decode untrusted bytes means "not Dask"
+        raise _NotDask(f"its greeting does not decode as a Dask message: {type(exc).__name__}") from None

@@ -1,0 +1,223 @@
+"""`ResultsWriter`: record a run into a results directory, from Python or the command line.
+
+::
+
+    w = pb.ResultsWriter("DIR", snapshots={"every_steps": 100_000}, checkpoint_seconds=60)
+    sim.run(steps=10**7, writers=[w])
+
+writes the directory ``pinnedballs run`` writes (``results.h5``, see `pinnedballs.results.format`):
+the spec (or, for a run built in Python, a description of its components), the geometry,
+the snapshots with their observables, and the latest state, checkpointed every
+``checkpoint_seconds`` and after snapshots. ``pinnedballs info`` and ``plot`` and `pb.load`
+read it; ``pb.load("DIR").simulation()`` continues the run bit for bit, and
+``ResultsWriter("DIR", resume=True, ...)`` goes on recording into the same directory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .._version import __version__
+from ..engine import checks
+from ..analysis import observables as named
+from ..results.format import DATA_DIR, RESULTS_NAME, Record
+from ..results.rundir import DirLock, take_run_dir
+from ..results.store import ResultsStore
+from .driver import Writer
+from .triggers import Counts, Trigger
+
+__all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]
+
+#: a snapshot's checkpoint is skipped (kept for the next one) if the last write was
+#: more recent than this many times its own duration: checkpoints stay under ~10 % of the time
+WRITE_COST_RATIO = 10.0
+
+
+def _trigger(snapshots) -> Trigger | None:
+    """A `Trigger` from a trigger, None, or a dict of `SnapshotsSpec` fields."""
+    if snapshots is None or isinstance(snapshots, Trigger):
+        return snapshots
+    if isinstance(snapshots, dict):
+        from pydantic import ValidationError
+
+        from ..specs.errors import SpecError, first_error
+        from ..specs.stop import SnapshotsSpec
+
+        try:
+            return SnapshotsSpec.model_validate(snapshots).build()
+        except ValidationError as exc:
+            error = first_error(exc, SnapshotsSpec)
+            raise SpecError(f"snapshots.{error.path}" if error.path else "snapshots", error.problem) from None
+    raise TypeError(f"snapshots: must be a Trigger, a dict such as {{'every_steps': 1000}}, or None, "
+                    f"got {type(snapshots).__name__}")
+
+
+class ResultsWriter(Writer):
+    """Record a run into the directory ``out_dir`` (see the module's docstring).
+
+    snapshots: a `Trigger`, a dict like a spec's ``"snapshots"`` (``{"at_steps": [...]}``,
+    ``{"every_collisions": 100}``, ...), or None for no snapshots.
+    checkpoint_seconds: wall time between checkpoints (0: after every chunk).
+    observables: names from `pinnedballs.analysis.observables.OBSERVABLES` recorded with each snapshot (default: all built-ins).
+    force: replace a run already in ``out_dir``; resume: append to it (the simulation must be at
+    its latest state, as ``pb.load(out_dir).simulation()`` gives it).
+    The writer holds an exclusive lock on ``out_dir`` (`pinnedballs.results.rundir.DirLock`) from the
+    start of a run to its stop (or `close`); lock: one the caller holds instead.
+    """
+
+    def __init__(self, out_dir: str | os.PathLike, snapshots=None, checkpoint_seconds: float = 60.0,
+                 observables=None, *, force: bool = False, resume: bool = False, spec=None, lock=None):
+        checks.number("checkpoint_seconds", checkpoint_seconds, 0.0)
+        if force and resume:
+            raise ValueError("force, resume: give one of them, not both")
+        self.out_dir = Path(out_dir)
+        self.trigger = _trigger(snapshots)
+        self.every = float(checkpoint_seconds)
+        if observables is None:
+            observables = spec.observables if spec is not None else named.DEFAULT
+        self.names = named.check_names(observables)
+        self.force, self.resume, self.spec = force, resume, spec
+        self.store: ResultsStore | None = None
+        self._lock, self._own_lock = lock, lock is None
+        self.pending: list[Record] = []
+        self._checked: Counts | None = None
+        self._saved: Counts | None = None  #: the counts of the state last checkpointed
+        self._elapsed0, self._start, self._last, self._cost = 0.0, time.monotonic(), time.monotonic(), 0.0
+
+    @property
+    def path(self) -> Path:
+        return self.out_dir / RESULTS_NAME
+
+    def to_spec(self) -> dict:
+        """What this writer records, in a run spec's words: ``snapshots`` (None if its trigger has
+        no spec), ``checkpoint`` and ``observables``."""
+        return {"snapshots": None if self.trigger is None else self.trigger.to_spec(),
+                "checkpoint": {"every_seconds": self.every}, "observables": list(self.names[2:])}
+
+    # ------------------------------------------------------------ the driver's calls
+    def attach(self, sim) -> Counts | None:
+        if self._own_lock and self._lock is None:
+            self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
+        if self.store is None:
+            try:
+                self.store = self._open(sim)
+            except BaseException:
+                self.close()
+                raise
+        elif (sim.steps, sim.collisions) != self._checked:
+            self._checked = None  # the simulation moved on without us: check its state afresh
+        self._start = self._last = time.monotonic()
+        return self._checked
+
+    def write(self, sim) -> None:
+        record = Record.of(sim, self.names)
+        self.pending.append(record)
+        if time.monotonic() - self._last >= min(self.every, WRITE_COST_RATIO * self._cost):
+            self._checkpoint(record)
+
+    def after_chunk(self, sim) -> None:
+        if time.monotonic() - self._last >= self.every and self._saved != (sim.steps, sim.collisions):
+            self.checkpoint(sim)
+
+    def finish(self, sim, reason: str) -> None:
+        self._checked = (sim.steps, sim.collisions)
+        self._checkpoint(Record.of(sim, self.names), done=True, reason=reason)
+        self._elapsed0 = self.elapsed()
+        self.close()
+
+    def close(self) -> None:
+        """Release the lock on ``out_dir`` if this writer took it (the next run takes it again)."""
+        if self._own_lock and self._lock is not None:
+            self._lock.release()
+            self._lock = None
+
+    # ------------------------------------------------------------ checkpoints
+    def elapsed(self) -> float:
+        """Wall seconds spent in runs recorded here, over every session."""
+        return self._elapsed0 + time.monotonic() - self._start
+
+    def checkpoint(self, sim) -> None:
+        """Write the pending snapshots and ``sim``'s state now."""
+        self._checked = (sim.steps, sim.collisions)
+        self._checkpoint(Record.of(sim, self.names))
+
+    def _checkpoint(self, state: Record, done: bool = False, reason: str = "") -> None:
+        t = time.monotonic()
+        self.store.checkpoint(self.pending, state, done=done, stop_reason=reason, elapsed_seconds=self.elapsed())
+        self.pending = []
+        self._saved = (state.state.steps, state.state.collisions)
+        self._last = time.monotonic()
+        self._cost = self._last - t
+
+    def _open(self, sim) -> ResultsStore:
+        if self.resume and self.path.exists():
+            store = ResultsStore.reopen(self.path)
+            _check_continues(store, sim, self.path)
+            self._elapsed0 = float(store.attrs["elapsed_seconds"])
+            stored = tuple(json.loads(store.attrs["observables"]))
+            if stored != self.names:
+                raise ValueError(f"observables: {list(self.names)} differ from the {list(stored)} recorded in "
+                                 f"{self.path}")
+            self._checked = (sim.steps, sim.collisions) if store.attrs.get("checked") else None
+            return store
+        # what a run killed at birth leaves may be resumed over
+        cli = self.spec is not None
+        take_run_dir(self.out_dir, force=self.force, may_hold=_BIRTH if self.resume else frozenset(),
+                     option="--out" if cli else "out_dir",
+                     hint="use --force to overwrite or --resume to continue" if cli else
+                     "pass force=True to overwrite or resume=True to continue")
+        initial = Record.of(sim, self.names)
+        spec = self.spec.model_dump_json() if self.spec is not None else ""
+        run = "" if self.spec is not None else json.dumps(describe_run(sim, self))
+        return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
+                                   initial=initial, version=__version__)
+
+
+_BIRTH = frozenset({"spec.json", DATA_DIR, RESULTS_NAME + ".tmp"})
+
+
+class OnSnapshot(Writer):
+    """Hands a `Record` of each snapshot ``trigger`` fires on to ``on_snapshot`` (ensembles, the
+    reproduction: snapshots kept in memory)."""
+
+    def __init__(self, trigger: Trigger, on_snapshot, names=named.DEFAULT):
+        self.trigger, self.on_snapshot, self.names = trigger, on_snapshot, tuple(names)
+
+    def write(self, sim) -> None:
+        self.on_snapshot(Record.of(sim, self.names))
+
+
+def _check_continues(store: ResultsStore, sim, path: Path) -> None:
+    """A ValueError unless ``sim`` is at the state stored in ``path`` (counters and velocities)."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        steps, collisions = int(f["state"].attrs["steps"]), int(f["state"].attrs["collisions"])
+        same = (sim.steps, sim.collisions) == (steps, collisions) and \
+            np.array_equal(f["state/velocities"][()], sim.velocities)
+    if not same:
+        raise ValueError(f"resume: the simulation is at step {sim.steps:,}, not at the state stored in {path} "
+                         f"(step {steps:,}); continue from pb.load(...).simulation()")
+
+
+def describe_run(sim, writer: Writer | None = None) -> dict:
+    """What a run built in Python was made of: its geometry, rule and scheduler as their own specs
+    (`to_spec`), or ``{"class": "module.Name", "repr": ...}`` for one that has none; whether it has
+    masses; and the ``writer``'s own spec."""
+    out = {name: _described(getattr(sim, name)) for name in ("geometry", "rule", "scheduler")}
+    out["masses"] = sim.masses is not None
+    if writer is not None:
+        out["writer"] = writer.to_spec()
+    return out
+
+
+def _described(component) -> dict:
+    spec = component.to_spec()
+    if spec is not None:
+        return spec
+    return {"class": f"{type(component).__module__}.{type(component).__qualname__}", "repr": repr(component)}

@@ -1,0 +1,250 @@
+"""`ColoredSweep`: colour classes of contacts that share no ball, each class in parallel.
+
+The contacts are split into colour classes, each a matching (a proper edge
+colouring): no two contacts of a class share a ball, so the collisions of a class
+commute and may run at once. A sweep runs the classes in turn, each on all numba
+threads (``prange``); the result does not depend on the number of threads, nor on
+the order within a class, so the sequential loop used for collision targets and
+the freeze gives the same bits.
+
+**The colouring** is greedy (each contact takes the smallest colour free at both
+its balls) over the contacts ordered by direction (their ``t_i`` row), then by
+ball: on a lattice each direction's lines alternate two colours, which gives the
+lower bound, the maximum degree, on the triangular lattice (6) and FCC (12).
+Short of that, the contact order is tried too and the fewer classes kept. Greedy never needs
+more than ``2 * degree - 1``. Each class is sorted by its smaller ball, for
+memory locality.
+
+**The state** is ``(6,) int64``: ``[slot, offset, w0, w1, w2, w3]``: the position
+of the current class in the sweep (``-1``: start a new sweep before the next
+contact), the contacts of that class already tried, and (with ``shuffle``) the
+random stream's words as the sweep began, from which the sweep's order of classes
+is replayed (a Fisher-Yates shuffle of ``0..C-1``, as `RandomSweep` does).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable, NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..engine import checks
+from ..engine.chain import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet
+from ..engine.errors import FieldError
+from ..engine.jitcache import jit_cached_if_possible
+from ..engine.loops import contact_kernels
+from ..engine.random import bounded, load, store
+from .base import _EMPTY_FLAGS, _EMPTY_INC, _EMPTY_PTR, Scheduler
+
+__all__ = ["ColoredSweep", "colour_classes", "colored_sweep_kernel", "SweepLoops"]
+
+_STATE = 6  #: length of the state array
+
+
+@njit(cache=True)
+def _greedy_colours(pairs, order, n_balls, max_colours):
+    """``(E,) int64`` colours: contacts in ``order`` take the smallest colour free at both balls."""
+    used = np.zeros((n_balls, max_colours), dtype=np.uint8)
+    colour = np.empty(pairs.shape[0], dtype=np.int64)
+    for k in order:
+        i, j = pairs[k, 0], pairs[k, 1]
+        c = 0
+        while used[i, c] or used[j, c]:
+            c += 1
+        colour[k] = c
+        used[i, c] = 1
+        used[j, c] = 1
+    return colour
+
+
+def colour_classes(pairs: np.ndarray, ends: np.ndarray, n_balls: int) -> list[np.ndarray]:
+    """The colour classes of contacts ``pairs (E, 2)`` (``ends (E, 2)`` gives their directions):
+    a list of ``int64`` arrays of contact indices, each a matching, each sorted by its smaller ball."""
+    pairs = np.asarray(pairs).astype(np.int64)
+    if len(pairs) == 0:
+        return []
+    low = pairs.min(axis=1)
+    degree = int(np.bincount(pairs.ravel(), minlength=n_balls).max())
+    colour = _greedy_colours(pairs, np.lexsort((pairs.max(axis=1), low, np.asarray(ends)[:, 0])), n_balls, 2 * degree)
+    if colour.max() + 1 > degree:  # not yet the fewest possible: try the contact order too
+        other = _greedy_colours(pairs, np.arange(len(pairs)), n_balls, 2 * degree)
+        colour = other if other.max() < colour.max() else colour
+    by_class = np.lexsort((np.arange(len(pairs)), low, colour))
+    bounds = np.searchsorted(colour[by_class], np.arange(colour.max() + 2))
+    return [by_class[bounds[c]:bounds[c + 1]] for c in range(colour.max() + 1)]
+
+
+@njit(cache=True)
+def class_order(state, n_classes, shuffle):
+    """``(C,) int64``: the order of classes in the sweep under way, replayed from ``state``."""
+    order = np.arange(n_classes)
+    if shuffle and state[0] >= 0:
+        _shuffle(order, load(state[2:_STATE].view(np.uint64)))
+    return order
+
+
+@njit(cache=True, inline="always")
+def _shuffle(order, rng):
+    """Fisher-Yates on ``order`` in place, as `simple.pick_random_sweep`; the advanced stream."""
+    for m in range(order.shape[0] - 1, 0, -1):
+        r, rng = bounded(rng, m + 1)
+        order[m], order[r] = order[r], order[m]
+    return rng
+
+
+@njit(cache=True)
+def start_sweep(state, order, rng, shuffle):
+    """Begin a sweep: the order of classes (with ``shuffle`` drawn, and the stream as it began
+    remembered in ``state[2:6]``); returns the advanced stream. Not inlined: ``view`` defeats
+    numba's analysis of the parallel loop."""
+    for m in range(order.shape[0]):
+        order[m] = m
+    if shuffle:
+        store(state[2:_STATE].view(np.uint64), rng)
+        rng = _shuffle(order, rng)
+    state[0], state[1] = 0, 0
+    return rng
+
+
+class SweepLoops(NamedTuple):
+    """The compiled loops of `colored_sweep_kernel` and one geometry's classes: ``classes (E,)
+    int64`` contact indices, class ``c`` at ``classes[starts[c]:starts[c + 1]]``, ``starts (C+1,)``."""
+
+    steps: Callable
+    limited: Callable
+    classes: np.ndarray
+    starts: np.ndarray
+
+
+@functools.cache
+def colored_sweep_kernel(collide: Callable, dim: int, flat: bool, shuffle: bool) -> tuple[Callable, Callable]:
+    """``(steps, limited)`` for one rule's ``collide``, ``dim``, ``flat`` and ``shuffle``:
+
+    steps(v, pairs, ends, units, masses, params, classes, starts, state, rng_words, counters, max_steps)
+        tries ``max_steps`` contacts, each class (or the part of it within the limit) in parallel;
+    limited(... same ..., max_steps, max_collisions, track, ptr, inc, flags)
+        the same contacts one by one, stopping at ``max_collisions`` or, when ``track``, right
+        after the collision that leaves no live contact (as `engine.loops.Loops.limited`).
+    """
+    attempt, refresh = contact_kernels(collide, dim, flat)
+    SHUFFLE = shuffle
+
+    @njit(inline="always")
+    def move_on(state, starts, order, tried):
+        """``tried`` more contacts of the current class; to the next class at its end."""
+        c = order[state[0]]
+        state[1] += tried
+        if starts[c] + state[1] == starts[c + 1]:
+            state[0] = state[0] + 1 if state[0] + 1 < order.shape[0] else -1
+            state[1] = 0
+
+    @jit_cached_if_possible(parallel=True)
+    def steps(v, pairs, ends, units, masses, params, classes, starts, state, rng_words, counters, max_steps):
+        order = class_order(state, starts.shape[0] - 1, SHUFFLE)
+        taken, made, rng = 0, 0, load(rng_words)
+        while taken < max_steps:
+            if state[0] < 0:
+                rng = start_sweep(state, order, rng, SHUFFLE)
+            c = order[state[0]]
+            lo = starts[c] + state[1]
+            hi = min(starts[c + 1], lo + (max_steps - taken))
+            part = 0
+            for m in prange(lo, hi):  # a matching: no two iterations touch the same ball
+                part += 1 if attempt(v, pairs, ends, units, masses, params, classes[m], True) else 0
+            made += part
+            taken += hi - lo
+            move_on(state, starts, order, hi - lo)
+        store(rng_words, rng)
+        counters[STEPS] += max_steps
+        counters[COLLISIONS] += made
+        return max_steps
+
+    @jit_cached_if_possible
+    def limited(v, pairs, ends, units, masses, params, classes, starts, state, rng_words, counters,
+                max_steps, max_collisions, track, ptr, inc, flags):
+        order = class_order(state, starts.shape[0] - 1, SHUFFLE)
+        taken, rng = 0, load(rng_words)
+        collisions, live = counters[COLLISIONS], counters[LIVE]
+        while taken < max_steps and collisions < max_collisions and not (track and live == 0):
+            if state[0] < 0:
+                rng = start_sweep(state, order, rng, SHUFFLE)
+            k = classes[starts[order[state[0]]] + state[1]]
+            move_on(state, starts, order, 1)
+            taken += 1
+            if attempt(v, pairs, ends, units, masses, params, k, True):
+                collisions += 1
+                if track:
+                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0])
+                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1])
+        store(rng_words, rng)
+        counters[STEPS] += taken
+        counters[COLLISIONS], counters[LIVE] = collisions, live
+        return taken
+
+    return steps, limited
+
+
+class ColoredSweep(Scheduler):
+    """Every contact once per sweep, colour class by colour class (`classes`); each class runs in
+    parallel on all numba threads, with the same bits on any number of threads. With ``shuffle``,
+    a fresh random order of the classes each sweep (the order within a class does not matter)."""
+
+    def __init__(self, shuffle: bool = False):
+        self.shuffle = checks.flag("shuffle", shuffle)
+
+    @staticmethod
+    def classes(geometry) -> list[np.ndarray]:
+        """The colour classes of ``geometry``'s contacts, in the order a sweep runs them (without
+        shuffle): a list of ``int64`` arrays of contact indices, each a matching."""
+        c = geometry.contacts
+        return colour_classes(c.pairs, c.ends, geometry.n_balls)
+
+    def loops(self, collide: Callable, geometry) -> SweepLoops:
+        classes = self.classes(geometry)
+        starts = np.zeros(len(classes) + 1, dtype=np.int64)
+        np.cumsum([len(c) for c in classes], out=starts[1:])
+        steps, limited = colored_sweep_kernel(collide, geometry.dim, geometry.contacts.flat, self.shuffle)
+        return SweepLoops(steps, limited, np.concatenate(classes), starts)
+
+    def advance(self, loops: SweepLoops, chain: Chain, live: LiveSet | None, state, rng, counters,
+                max_steps: int, max_collisions: int, track: bool) -> int:
+        tables = (loops.classes, loops.starts, state, rng, counters, max_steps)
+        if not track and max_collisions == NO_LIMIT:
+            return loops.steps(*chain, *tables)
+        ptr, inc, flags = live if track else (_EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS)
+        return loops.limited(*chain, *tables, max_collisions, track, ptr, inc, flags)
+
+    def initial_state(self, n_contacts: int) -> np.ndarray:
+        """``[-1, 0, 0, 0, 0, 0]``: start a sweep before the first contact."""
+        state = np.zeros(_STATE, dtype=np.int64)
+        state[0] = -1
+        return state
+
+    def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        super().check_state(state, n_contacts)
+        if state[0] < -1 or state[1] < 0 or (state[0] == -1 and state[1] != 0):
+            raise FieldError("scheduler_state", f"the position in the sweep must be a class slot >= -1 and an offset "
+                             f">= 0 (0 between sweeps), got {state[0]}, {state[1]}")
+        if self.shuffle and state[0] >= 0 and not state[2:].any():
+            raise FieldError("scheduler_state", "the random words of the sweep under way must not all be zero")
+
+    def check_resume(self, state: np.ndarray, loops: SweepLoops, flags) -> None:
+        n_classes = len(loops.starts) - 1
+        if state[0] >= n_classes:
+            raise FieldError("scheduler_state", f"class slot {state[0]} is beyond the {n_classes} classes")
+        if state[0] >= 0:
+            c = class_order(state, n_classes, self.shuffle)[state[0]]
+            size = loops.starts[c + 1] - loops.starts[c]
+            if state[1] >= size:
+                raise FieldError("scheduler_state", f"offset {state[1]} is beyond the {size} contacts of its class")
+
+    def to_spec(self) -> dict:
+        return {"kind": "colored_sweep", "shuffle": self.shuffle}
+
+    def __repr__(self) -> str:
+        return f"ColoredSweep(shuffle={self.shuffle})"
+
+    def __hash__(self) -> int:
+        return hash((type(self), self.shuffle))

@@ -1,0 +1,95 @@
+"""The schedulers that answer "which contact next" one pick at a time: the paper's uniform
+random pair, and every contact once per sweep in a fixed or a fresh random order."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from numba import njit
+
+from ..engine.errors import FieldError
+from ..engine.random import bounded
+from .base import Scheduler
+
+__all__ = ["UniformRandomPair", "Sweep", "RandomSweep", "pick_uniform", "pick_sweep", "pick_random_sweep"]
+
+
+@njit(cache=True, inline="always")
+def pick_uniform(state, rng, n_contacts):
+    """The paper's Algorithm 2: a contact uniformly at random."""
+    return bounded(rng, n_contacts)
+
+
+@njit(cache=True, inline="always")
+def pick_sweep(state, rng, n_contacts):
+    """Contacts ``0, 1, ..., n-1, 0, 1, ...``; ``state[0]`` is the next one."""
+    k = state[0]
+    state[0] = k + 1 if k + 1 < n_contacts else 0
+    return np.uint64(k), rng
+
+
+@njit(cache=True, inline="always")
+def pick_random_sweep(state, rng, n_contacts):
+    """Every contact once per sweep in a fresh random order (Fisher-Yates).
+
+    ``state[0]`` is the position in the sweep, ``state[1:]`` the current order.
+    """
+    order = state[1:]
+    if state[0] >= n_contacts:
+        for m in range(n_contacts - 1, 0, -1):
+            r, rng = bounded(rng, m + 1)
+            order[m], order[r] = order[r], order[m]
+        state[0] = 0
+    k = order[state[0]]
+    state[0] += 1
+    return np.uint64(k), rng
+
+
+class UniformRandomPair(Scheduler):
+    """Each step tries one contact chosen uniformly at random (the paper's scheduler)."""
+
+    def kernel(self) -> Callable:
+        return pick_uniform
+
+    def to_spec(self) -> dict:
+        return {"kind": "uniform_random_pair"}
+
+
+class Sweep(Scheduler):
+    """Tries every contact once per sweep, in the geometry's fixed contact order."""
+
+    def kernel(self) -> Callable:
+        return pick_sweep
+
+    def to_spec(self) -> dict:
+        return {"kind": "sweep"}
+
+    def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        super().check_state(state, n_contacts)
+        if not 0 <= state[0] < n_contacts:
+            raise FieldError("scheduler_state", f"the next contact must be in [0, {n_contacts}), got {state[0]}")
+
+
+class RandomSweep(Scheduler):
+    """Tries every contact once per sweep, in a fresh uniformly random order each sweep."""
+
+    def kernel(self) -> Callable:
+        return pick_random_sweep
+
+    def to_spec(self) -> dict:
+        return {"kind": "random_sweep"}
+
+    def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        super().check_state(state, n_contacts)
+        if not 0 <= state[0] <= n_contacts:
+            raise FieldError("scheduler_state",
+                             f"the position in the sweep must be in [0, {n_contacts}], got {state[0]}")
+        if not np.array_equal(np.sort(state[1:]), np.arange(n_contacts)):
+            raise FieldError("scheduler_state", f"the sweep order must be a permutation of 0..{n_contacts - 1}")
+
+    def initial_state(self, n_contacts: int) -> np.ndarray:
+        state = np.empty(n_contacts + 1, dtype=np.int64)
+        state[0] = n_contacts  # shuffle before the first pick
+        state[1:] = np.arange(n_contacts)
+        return state

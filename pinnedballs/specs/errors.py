@@ -1,0 +1,106 @@
+"""`SpecError`, and pydantic's validation errors as one `SpecError` with a dotted field path and a
+suggestion on typos."""
+
+from __future__ import annotations
+
+import difflib
+import re
+import types
+from typing import Annotated, Any, Union, get_args, get_origin
+
+from pydantic import BaseModel, ValidationError
+
+from ..engine.errors import FieldError
+
+__all__ = ["SpecError", "first_error"]
+
+
+class SpecError(FieldError):
+    """A spec field is wrong. ``path`` (also ``field``) is the dotted field path (``"geometry.rows"``)."""
+
+    def __init__(self, path: str, problem: str):
+        super().__init__(path, problem)
+
+    @property
+    def path(self) -> str:
+        return self.field
+
+
+_PRIORITY = {"extra_forbidden": 0, "union_tag_invalid": 1, "union_tag_not_found": 1}
+
+
+def first_error(exc: ValidationError, root: type[BaseModel]) -> SpecError:
+    """The most telling error of a pydantic `ValidationError` of ``root``, as a `SpecError` with a dotted path."""
+    e = sorted(exc.errors(), key=lambda e: _PRIORITY.get(e["type"], 2))[0]
+    loc = tuple(e["loc"])
+    if e["type"] == "extra_forbidden":
+        path, model, _ = _walk(loc[:-1], root)
+        key, valid = str(loc[-1]), list(model.model_fields) if model else []
+        return SpecError(_dot(path, key), f"unknown key{_suggest(key, valid)} (valid keys: {', '.join(valid)})")
+    path, _, tags = _walk(loc, root)
+    if e["type"] == "union_tag_not_found":
+        return SpecError(_dot(path, "kind"), f"missing; one of: {', '.join(tags)}")
+    if e["type"] == "union_tag_invalid":
+        tag = str(e["ctx"]["tag"])
+        return SpecError(_dot(path, "kind"), f"unknown kind {tag!r}{_suggest(tag, list(tags))} "
+                                             f"(valid kinds: {', '.join(tags)})")
+    message = e["msg"]
+    if message.startswith("Value error, "):
+        message = message[len("Value error, "):]
+        head, sep, rest = message.partition(": ")
+        if sep and re.fullmatch(r"[\w.]*", head):  # a model validator naming its own field
+            return SpecError(_dot(path, head), rest)
+        return SpecError(path, message)
+    if e["type"] == "missing":
+        return SpecError(path, "missing (required)")
+    return SpecError(path, f"{message[0].lower()}{message[1:]}, got {_short(e.get('input'))}")
+
+
+def _walk(loc: tuple, root: type[BaseModel]) -> tuple[str, type[BaseModel] | None, dict[str, type[BaseModel]]]:
+    """Follow ``loc`` from ``root``: the dotted path (union tags and member labels dropped),
+    the model reached, and the ``kind``-tagged models if a union was reached."""
+    parts: list[str] = []
+    model: type[BaseModel] | None = root
+    tags: dict[str, type[BaseModel]] = {}
+    for element in loc:
+        if isinstance(element, int):
+            if parts:
+                parts[-1] += f"[{element}]"
+        elif model is not None and element in model.model_fields:
+            parts.append(element)
+            model, tags = _models_of(model.model_fields[element].annotation)
+        elif element in tags:
+            model, tags = tags[element], {}
+    return ".".join(parts), model, tags
+
+
+def _models_of(annotation: Any) -> tuple[type[BaseModel] | None, dict[str, type[BaseModel]]]:
+    """The single model behind ``annotation``, or its ``kind``-tagged members."""
+    members = [a for a in _flatten(annotation) if isinstance(a, type) and issubclass(a, BaseModel)]
+    tags = {m.model_fields["kind"].default: m for m in members if "kind" in m.model_fields}
+    if len(members) == 1 and not tags:
+        return members[0], {}
+    return None, tags
+
+
+def _flatten(annotation: Any) -> list[Any]:
+    """The members of a (possibly Annotated or Optional) union annotation."""
+    if get_origin(annotation) is Annotated:
+        return _flatten(get_args(annotation)[0])
+    if get_origin(annotation) in (Union, types.UnionType):
+        return [m for a in get_args(annotation) for m in _flatten(a)]
+    return [annotation]
+
+
+def _suggest(word: str, choices: list[str]) -> str:
+    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.5)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _dot(path: str, name: str) -> str:
+    return f"{path}.{name}" if path and name else path or name
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

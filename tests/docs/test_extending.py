@@ -1,0 +1,160 @@
+"""The examples of docs/extending.md run, and do what the page says."""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+
+DOC = Path(__file__).resolve().parents[2] / "docs" / "extending.md"
+
+
+@pytest.fixture(scope="module")
+def doc():
+    """The namespace after running every python block of the page, in order."""
+    ns = {}
+    for block in re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S):
+        exec(compile(block, str(DOC), "exec"), ns)
+    return ns
+
+
+def test_chain_geometry_is_a_path_with_flat_units(doc):
+    chain = doc["Chain"](5)
+    assert chain.n_contacts == 4 and chain.dim == 2
+    assert chain.contacts.flat
+    assert sorted(chain.degrees()) == [1, 1, 2, 2, 2]
+    ref = pb.GraphGeometry.from_positions(chain.positions)
+    np.testing.assert_array_equal(ref.contacts.pairs, chain.contacts.pairs)
+    np.testing.assert_array_equal(ref.contacts.t_i, chain.contacts.t_i)
+
+
+def test_newtons_cradle_on_the_chain(doc):
+    """Equal masses on a line: the velocity passes to the far end, and the chain freezes."""
+    chain = doc["Chain"](5)
+    v = np.zeros((5, 2))
+    v[0, 0] = 1.0
+    sim = pb.Simulation(chain, v, scheduler=pb.Sweep())
+    assert sim.run_until_frozen(max_steps=100)
+    expected = np.zeros((5, 2))
+    expected[4, 0] = 1.0
+    np.testing.assert_array_equal(sim.velocities, expected)
+    assert sim.collisions == 4
+
+
+def test_sticky_with_keep_one_is_elastic_bit_for_bit(doc):
+    torus = pb.FlatTorus(6, 6)
+    v = np.random.default_rng(3).normal(size=(torus.n_balls, 2))
+    a = pb.Simulation(torus, v, rule=doc["Sticky"](1.0), seed=5)
+    b = pb.Simulation(torus, v, rule=pb.Elastic(), seed=5)
+    a.run(steps=20_000)
+    b.run(steps=20_000)
+    np.testing.assert_array_equal(a.velocities, b.velocities)
+    assert a.collisions == b.collisions
+
+
+def test_sticky_loses_energy_keeps_momentum(doc):
+    torus = pb.FlatTorus(6, 6)
+    v = np.random.default_rng(4).normal(size=(torus.n_balls, 2))
+    sim = pb.Simulation(torus, v, rule=doc["Sticky"](0.5), seed=1)
+    e0, p0 = sim.energy(), sim.momentum()
+    sim.run(steps=5_000)
+    assert sim.energy() < 0.5 * e0
+    np.testing.assert_allclose(sim.momentum(), p0, atol=1e-12 * np.sqrt(e0) * torus.n_balls)
+
+
+def test_among_touches_only_its_contacts(doc):
+    torus = pb.FlatTorus(8, 8)
+    v = np.random.default_rng(5).normal(size=(torus.n_balls, 2))
+    chosen = np.arange(0, 30, 3)
+    sim = pb.Simulation(torus, v, scheduler=doc["Among"](chosen), seed=2)
+    sim.run(steps=2_000)
+    touched = np.unique(torus.contacts.pairs[chosen].astype(np.int64))
+    untouched = np.setdiff1d(np.arange(torus.n_balls), touched)
+    assert sim.collisions > 0
+    np.testing.assert_array_equal(sim.velocities[untouched], v[untouched])
+    with pytest.raises(ValueError, match="contacts: must be a non-empty list of indices below 192"):
+        pb.Simulation(torus, v, scheduler=doc["Among"]([192]))
+
+
+def test_schedulers_and_rules_compare_by_parameters_and_hash(doc):
+    among = doc["Among"]
+    assert among([1, 2]) == among([1, 2]) and among([1, 2]) != among([1, 3])
+    assert pb.Sweep() == pb.Sweep() and pb.Sweep() != pb.RandomSweep()
+    assert pb.Restitution(0.5) != pb.Restitution(0.6) and pb.Restitution(1.0) != pb.Elastic()
+    table = {pb.Elastic(): "e", pb.Restitution(0.5): "r", pb.Sweep(): "s", among([1, 2]): "a"}
+    assert table[pb.Elastic()] == "e" and table[pb.Restitution(0.5)] == "r"
+    assert table[pb.Sweep()] == "s" and table[among([1, 2])] == "a"
+
+
+def test_backwards_owns_its_loop_and_sweeps_last_to_first(doc):
+    """On separate approaching pairs the loop collides the last pair first; on a chain it freezes
+    after exactly the inversions, and run_until_frozen stops right after the last collision."""
+    from helpers import chain, matching
+
+    geom = matching(6, dim=1)
+    v = np.zeros((12, 1))
+    v[0::2, 0], v[1::2, 0] = 1.0, -1.0
+    sim = pb.Simulation(geom, v, scheduler=doc["Backwards"](), seed=0)
+    sim.run(steps=2)
+    moved = np.flatnonzero(sim.velocities[:, 0] != v[:, 0])
+    np.testing.assert_array_equal(moved, [8, 9, 10, 11])
+    line = chain(30)
+    v = np.random.default_rng(1).normal(size=(30, 1))
+    inversions = sum(int(a > b) for k, a in enumerate(v[:, 0]) for b in v[k + 1:, 0])
+    sim = pb.Simulation(line, v, scheduler=doc["Backwards"](), seed=0)
+    assert sim.run_until_frozen(max_steps=10**6)
+    assert sim.collisions == inversions
+    with pytest.raises(ValueError, match=r"scheduler_state: the position must be in \[0, 29\), got 29"):
+        sim.set_state(sim.get_state().replace(scheduler_state=np.array([29])))
+def test_recorded_chain_run(doc):
+    """Collisions along a chain come one at a time; the snapshots land on the counts asked for."""
+    res = doc["res"]
+    assert [s.collisions for s in res.snapshots] == [0, 2, 4, 6] and res.frozen and res.collisions == 7
+    assert res.spec is None and res.run["geometry"]["class"].endswith("Chain")
+    resumed = doc["resumed"]
+    np.testing.assert_array_equal(resumed.velocities, doc["sim"].velocities)
+    assert resumed.steps == doc["sim"].steps and type(resumed.scheduler) is pb.Sweep
+
+
+def test_registered_observable_is_recorded(doc):
+    sim = pb.Simulation(doc["Chain"](3), np.array([[1.0, 0], [0, 0], [0, 0]]), scheduler=pb.Sweep())
+    sim.run(steps=14, writers=[doc["measured"]])
+    res = pb.load(doc["measured"].out_dir)
+    assert res.observables["steps"].tolist() == [7, 14]
+    assert res.observables["speed_of_last_ball"].tolist() == [1.0, 1.0]  # the cradle passed it on
+
+
+def test_a_plain_python_pick_or_collide_is_refused_naming_the_component():
+    """A pick or collide without @njit would fail inside the compiled loop with a numba TypingError;
+    it is refused up front with a TypeError naming the scheduler or the rule."""
+    from numba import config
+
+    from pinnedballs.rules import CollisionRule, collide_equal
+    from pinnedballs.schedulers import Scheduler
+
+    if config.DISABLE_JIT:
+        pytest.skip("with NUMBA_DISABLE_JIT every function is plain Python, so nothing to tell apart")
+
+    def plain_pick(state, rng, n_contacts):
+        return np.uint64(0), rng
+
+    def plain_collide(v, units, i, j, a, b, masses, params, dim, flat, write):
+        return collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write)
+
+    class Plain(Scheduler):
+        def kernel(self):
+            return plain_pick
+
+    class PlainRule(CollisionRule):
+        def kernel(self, equal_masses):
+            return plain_collide, np.array([1.0])
+
+    geom = pb.HalfPlane(2, 2)
+    v = np.zeros((4, 2))
+    with pytest.raises(TypeError, match=r"^scheduler: Plain.kernel\(\)'s pick must be a numba-compiled function "
+                                        r"\(decorate it with @numba.njit\), got <function"):
+        pb.Simulation(geom, v, scheduler=Plain())
+    with pytest.raises(TypeError, match=r"^rule: PlainRule.kernel\(\)'s collide must be a numba-compiled"):
+        pb.Simulation(geom, v, rule=PlainRule())

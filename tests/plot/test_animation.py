@@ -1,0 +1,135 @@
+"""Movies of a run's snapshots: one frame per state, one size and one arrow scale, no partial file."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.quiver import Quiver
+from PIL import Image
+
+import pinnedballs as pb
+from pinnedballs.plot import animation
+from pinnedballs.cli import main as cli
+from pinnedballs.plot import run as plot_run
+
+
+def record(tmp_path, geometry, every=300, steps=1_500, name="run"):
+    """A Python run of ``steps`` steps recorded into ``tmp_path/name`` with a snapshot ``every`` steps."""
+    v = np.zeros((geometry.n_balls, geometry.dim))
+    v[0, 0] = 10.0
+    sim = pb.Simulation(geometry, v, seed=3)
+    sim.run(steps=steps, writers=[pb.ResultsWriter(tmp_path / name, snapshots={"every_steps": every})])
+    return pb.load(tmp_path / name)
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures `animate` turns into frames, in order."""
+    figures = []
+    rgb = animation._rgb
+    monkeypatch.setattr(animation, "_rgb", lambda fig: figures.append(fig) or rgb(fig))
+    return figures
+
+
+def gif_frames(path) -> list[np.ndarray]:
+    im = Image.open(path)
+    frames = []
+    for k in range(im.n_frames):
+        im.seek(k)
+        frames.append(np.asarray(im.convert("RGB")))
+    return frames
+
+
+def test_a_gif_has_one_frame_per_state_of_one_size_on_one_arrow_scale(tmp_path, drawn):
+    res = record(tmp_path, pb.HalfPlane(rows=5, cols=8))
+    path = res.animate()
+    assert path == tmp_path / "run" / "movie.gif"
+    frames = gif_frames(path)
+    # the initial state, the snapshots at 300, 600, ..., 1500 (the last one is the final state)
+    assert len(frames) == len(drawn) == 6
+    width, height = drawn[0].canvas.get_width_height()
+    assert {f.shape for f in frames} == {(height, width, 3)}
+    scales = [[c.scale for c in fig.axes[0].collections if isinstance(c, Quiver)] for fig in drawn]
+    assert all(len(s) == 1 for s in scales) and len({s[0] for s in scales}) == 1
+    titles = [fig.axes[0].get_title() for fig in drawn]
+    assert titles[0] == "step 0, 0 collisions"
+    assert titles[1] == f"step 300, {res.snapshots[0].collisions:,} collisions"
+    assert titles[-1] == f"step 1,500, {res.collisions:,} collisions (final)"
+    assert not np.array_equal(frames[0], frames[-1])
+
+
+def test_a_movie_of_a_sphere_shows_both_hemispheres_in_every_frame(tmp_path, drawn):
+    res = record(tmp_path, pb.Sphere.geodesic(2), every=500, steps=1_000)
+    frames = gif_frames(pb.load(tmp_path / "run").animate(tmp_path / "sphere.gif", fps=2))
+    assert len(frames) == 3
+    assert all(len(fig.axes) == 2 for fig in drawn)
+    scales = {c.scale for fig in drawn for ax in fig.axes for c in ax.collections if isinstance(c, Quiver)}
+    assert len(scales) == 1
+    assert res.snapshots[-1].step == res.steps == 1_000
+
+
+def test_a_movie_of_a_chain_keeps_one_vertical_scale(tmp_path, drawn):
+    res = record(tmp_path, pb.GraphGeometry.from_positions(np.arange(6.0) * 2), every=2, steps=6)
+    res.animate(tmp_path / "chain.gif")
+    assert len({fig.axes[0].get_ylim() for fig in drawn}) == 1
+    assert drawn[0].axes[0].get_ylim() == pytest.approx((-11.0, 11.0))
+
+
+def test_an_mp4_has_one_frame_per_state(tmp_path):
+    import imageio_ffmpeg
+
+    res = record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    path = res.animate(tmp_path / "movie.mp4", fps=5)
+    reader = imageio_ffmpeg.read_frames(str(path))
+    meta = next(reader)
+    assert len(list(reader)) == 4
+    assert meta["fps"] == 5
+
+
+def test_mp4_without_ffmpeg_is_refused_with_what_to_install(tmp_path, monkeypatch, capsys):
+    record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)    # as if not installed
+    with pytest.raises(ValueError, match=r"^out: writing MP4 needs ffmpeg: pip install 'pinnedballs\[movies\]'"):
+        pb.load(tmp_path / "run").animate(tmp_path / "movie.mp4")
+    assert cli.main(["animate", str(tmp_path / "run"), "--out", str(tmp_path / "movie.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert err == ("pinnedballs: error: animate: --out: writing MP4 needs ffmpeg: pip install 'pinnedballs[movies]' "
+                   "(imageio-ffmpeg), or write a .gif\n")
+    assert not (tmp_path / "movie.mp4").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--out", "movie.avi"], "animate: --out: must end in .gif or .mp4, got 'movie.avi'"),
+    (["--fps", "0"], "animate: --fps: must be a number of frames per second in (0, 100], got 0.0"),
+])
+def test_bad_animate_arguments_exit_2_with_one_line(tmp_path, capsys, argv, message):
+    record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    assert cli.main(["animate", str(tmp_path / "run"), *argv]) == 2
+    assert capsys.readouterr().err == f"pinnedballs: error: {message}\n"
+
+
+def test_a_failed_movie_leaves_no_file_and_an_old_movie_intact(tmp_path, monkeypatch):
+    res = record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    old = res.animate()
+    before = old.read_bytes()
+
+    def broken(images, path, fps):
+        path.write_bytes(b"GIF89a half a movie")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(animation, "_write_gif", broken)
+    with pytest.raises(OSError, match="disk full"):
+        res.animate()
+    assert old.read_bytes() == before
+    assert sorted(p.name for p in old.parent.iterdir() if "movie" in p.name) == ["movie.gif"]
+
+
+def test_the_cli_prints_the_movie_it_wrote(tmp_path, capsys):
+    record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    assert cli.main(["animate", str(tmp_path / "run"), "--fps", "10"]) == 0
+    out = capsys.readouterr().out
+    assert out == f"{tmp_path / 'run' / 'movie.gif'}\n"
+    assert Image.open(tmp_path / "run" / "movie.gif").info["duration"] == 100
+    assert plot_run.figure_files(tmp_path / "run") == []   # a movie is not one of the run's figures

@@ -1,0 +1,236 @@
+"""`reproduce --extended` on tiny sizes: results.json["extended"], the report's tables, the figures;
+the exponent fit on synthetic power laws."""
+
+import csv
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.cli import main as cli
+from pinnedballs import reproduction as rp
+from pinnedballs.reproduction import extended as ext
+
+TINY = dict(sizes=((10, 5), (20, 10)), detail=(20, 10), torus=(8, 8), steps=(3_000, 6_000), long_steps=20_000,
+            collisions=30, replicas=4, size_replicas=2)
+TINY_X = rp.ExtendedPlan(scaling=((10, 5, 3), (20, 10, 3), (30, 15, 2)), torus_sides=(6, 8), torus_times=(50, 200),
+                         torus_replicas=4, sphere_frequency=3, hyperbolic_layers=(1, 2), hyperbolic_replicas=3,
+                         fcc=((2, 2, 2), (3, 3, 2)), fcc_replicas=2, orders_replicas=20, orders_max_states=2000)
+PNG = b"\x89PNG\r\n\x1a\n"
+SCALING_KEYS = {"length", "depth", "balls", "replicas", "collisions_mean", "collisions_sd", "steps_mean"}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("extended") / "out"
+    report = rp.reproduce(out, workers=1, extended=TINY_X, **TINY)
+    return out, report.read_text(), json.loads((out / "results.json").read_text())
+
+
+def test_results_hold_every_study(tiny):
+    _, _, results = tiny
+    x = results["extended"]
+    assert set(ext.STUDIES) <= set(x) and set(x["seconds"]) == set(ext.STUDIES) == set(x["figures"])
+    assert results["checks"]  # the paper's sections ran first, as before
+    assert x["plan"]["scaling"] == [list(s) for s in TINY_X.scaling]
+
+
+def test_scaling_rows_match_their_replicas(tiny):
+    out, text, results = tiny
+    rows = results["extended"]["scaling"]
+    assert [(r["length"], r["depth"], r["replicas"]) for r in rows] == [tuple(map(float, s[:2])) + (s[2],)
+                                                                          for s in TINY_X.scaling]
+    for r in rows:
+        assert SCALING_KEYS <= set(r)
+        assert r["balls"] == pb.HalfPlane.from_size(r["length"], r["depth"]).n_balls
+        assert r["frozen"] == r["replicas"]
+        with open(out / "ensembles" / f"scaling_{r['length']:g}x{r['depth']:g}" / "replicas.csv") as f:
+            table = [row for row in csv.DictReader(f) if row["at"] == "final"]
+        collisions = np.array([float(row["collisions"]) for row in table])
+        steps = np.array([float(row["steps"]) for row in table])
+        assert len(table) == r["replicas"]
+        assert r["collisions_mean"] == pytest.approx(collisions.mean(), rel=1e-12)
+        assert r["collisions_sd"] == pytest.approx(collisions.std(ddof=1), rel=1e-12)
+        assert r["steps_mean"] == pytest.approx(steps.mean(), rel=1e-12)
+        assert (steps >= collisions).all()
+        # every replica kept the energy, all in the profile's deciles
+        assert all(math.isclose(float(row["energy"]), 100.0, rel_tol=1e-10) for row in table)
+        profile = results["extended"]["scaling_profiles"][f"{r['length']:g}x{r['depth']:g}"]
+        assert len(profile) == ext.DECILES and sum(profile) == pytest.approx(1.0, abs=1e-9)
+    fit = results["extended"]["scaling_fit"]["collisions"]
+    again = rp.fit_exponent([r["balls"] for r in rows], [r["collisions_mean"] for r in rows],
+                            [r["collisions_sd"] / math.sqrt(r["replicas"]) for r in rows])
+    local = fit.pop("local_exponents")
+    assert fit == again and fit["exponent_se"] > 0
+
+    def slope(a, b):
+        return math.log(b["collisions_mean"] / a["collisions_mean"]) / math.log(b["balls"] / a["balls"])
+
+    assert local == pytest.approx([slope(a, b) for a, b in zip(rows, rows[1:])], rel=1e-12)
+    assert f"Local exponents of collisions between consecutive sizes: {local[0]:.2f}" in text
+
+
+def test_torus_sphere_and_frozen_studies(tiny):
+    _, _, results = tiny
+    x = results["extended"]
+    torus = x["torus_law"]
+    assert [(r["side"], r["steps_per_ball"]) for r in torus] == [(s, t) for s in TINY_X.torus_sides
+                                                                 for t in TINY_X.torus_times]
+    for r in torus:
+        assert r["steps"] == r["steps_per_ball"] * r["side"] ** 2 and r["replicas"] == TINY_X.torus_replicas
+        assert 0 < r["approaching_fraction_mean"] < 1 and -1 < r["line_of_centres_correlation_mean"] < 1
+        assert r["kurtosis_normal"] == pytest.approx(-6 / (r["balls"] + 1))
+    assert set(x["torus_law_verdicts"]) == {name for name, _ in ext.LAW}
+    assert [r["steps_per_ball"] for r in x["sphere"]] == list(TINY_X.torus_times)
+    assert x["sphere_torus_side"] == 8 and x["sphere"][0]["balls"] == 92
+    for r, t in zip(x["sphere"], [r for r in torus if r["side"] == 8]):
+        assert r["approaching_fraction_minus_torus"] == pytest.approx(
+            r["approaching_fraction_mean"] - t["approaching_fraction_mean"], abs=1e-15)
+    assert [(r["layers"], r["balls"]) for r in x["hyperbolic"]] == [(1, 8), (2, 29)]
+    assert [(r["nx"], r["ny"], r["nz"], r["balls"]) for r in x["fcc_half_space"]] == [(2, 2, 2, 32), (3, 3, 2, 72)]
+    for r in x["hyperbolic"] + x["fcc_half_space"]:
+        assert r["frozen"] == r["replicas"]
+    for profile in (*x["hyperbolic_profiles"].values(), *x["fcc_half_space_profiles"].values()):
+        assert sum(profile) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_orders_study_brackets_the_random_order(tiny):
+    _, _, results = tiny
+    rows = results["extended"]["orders"]
+    assert [r["name"] for r in rows] == list(ext.order_configurations())
+    for r in rows:
+        assert sum(n for _, n in r["random_histogram"]) == r["replicas"] == TINY_X.orders_replicas
+        assert r["fewest_known"] <= r["random_min"] and r["most_known"] >= r["random_max"]
+        if r["exhaustive"]:
+            assert r["min_collisions"] <= r["random_min"] and r["max_collisions"] >= r["random_max"]
+    rhombus = rows[0]
+    assert rhombus["exhaustive"] and (rhombus["min_collisions"], rhombus["max_collisions"]) == (2, 6)
+
+
+def _table_rows(text: str, heading: str) -> list[list[str]]:
+    section = text.split(heading, 1)[1].split("\n### ", 1)[0]
+    lines = [line for line in section.splitlines() if line.startswith("| ")]
+    return [[c.strip() for c in line.strip("|").split(" | ")] for line in lines[1:]]
+
+
+def test_report_has_a_table_per_study_and_every_figure(tiny):
+    out, text, results = tiny
+    x = results["extended"]
+    for heading, study in (("### Scaling", "scaling"), ("### The torus's long-run law", "torus_law"),
+                           ("one moving ball on the sphere", "sphere"), ("the hyperbolic disk", "hyperbolic"),
+                           ("### 3-D", "fcc_half_space"), ("### Every order", "orders")):
+        rows = _table_rows(text, heading)
+        assert len(rows) == len(x[study]), study
+    scaling = _table_rows(text, "### Scaling")
+    assert [row[2] for row in scaling] == [f"{r['balls']:,}" for r in x["scaling"]]
+    fit = x["scaling_fit"]["collisions"]
+    assert f"collisions ~ N^({fit['exponent']:.3f} ± {fit['exponent_se']:.3f})" in text
+    assert len(re.findall(r"\*\*(open|settled: differs|no difference from the reference seen)", text)) == 3
+    names = rp.expected_extended_figures()
+    assert sorted(n for names_ in x["figures"].values() for n in names_) == sorted(names)
+    for name in names:
+        assert (out / name).read_bytes()[:8] == PNG and f"]({name})" in text
+
+
+def test_scaling_study_is_bit_identical_for_the_same_seed(tmp_path):
+    from pinnedballs.run import ensemble as ens
+
+    plan = rp.ExtendedPlan(scaling=((10, 5, 3), (20, 10, 2)))
+
+    def ensemble(name, spec, replicas, **kwargs):
+        return ens.run_ensemble(spec, replicas, workers=1, **kwargs)
+
+    a = ext.scaling(plan, tmp_path, ensemble)["rows"]
+    b = ext.scaling(plan, tmp_path, ensemble)["rows"]
+    keep = lambda rows: [{k: v for k, v in r.items() if k != "seconds"} for r in rows]  # noqa: E731
+    assert keep(a) == keep(b)
+
+
+# ---------------------------------------------------------------- the exponent fit
+
+
+def test_fit_recovers_an_exact_power_law():
+    n = np.array([15, 60, 135, 1500, 6000])
+    f = rp.fit_exponent(n, 3.5 * n**1.75, 0.035 * n**1.75)
+    assert f["exponent"] == pytest.approx(1.75, abs=1e-12) and f["prefactor"] == pytest.approx(3.5, rel=1e-10)
+    assert f["chi2_per_dof"] == pytest.approx(0.0, abs=1e-20) and f["points"] == 5
+    # equal relative errors 1 %: the slope's se is 0.01 / sqrt(sum (log n - mean)^2)
+    x = np.log(n)
+    assert f["exponent_se"] == pytest.approx(0.01 / math.sqrt(((x - x.mean()) ** 2).sum()), rel=1e-10)
+
+
+def test_fit_error_bars_cover_the_true_exponent():
+    """2,000 synthetic scaling studies (exponent 1.6, 8 sizes, known relative errors): the fitted exponent
+    is unbiased and within 1.96 standard errors in 95 % of them (binomial sd 0.5 %; we accept 93-97 %)."""
+    rng = np.random.default_rng(12)
+    n = np.array([15, 135, 366, 1442, 5776, 14641, 36000, 144000], dtype=float)
+    rel = np.array([0.05, 0.04, 0.03, 0.03, 0.02, 0.02, 0.05, 0.08])
+    z = []
+    for _ in range(2000):
+        mean = 2.0 * n**1.6 * np.exp(rel * rng.standard_normal(len(n)))
+        f = rp.fit_exponent(n, mean, rel * mean)
+        z.append((f["exponent"] - 1.6) / f["exponent_se"])
+    z = np.array(z)
+    assert abs(z.mean()) < 4 / math.sqrt(len(z))
+    assert 0.93 <= np.mean(np.abs(z) < 1.96) <= 0.97
+
+
+@pytest.mark.parametrize("args,message", [
+    (([10], [1.0], [0.1]), "balls: need at least two different sizes"),
+    (([10, 20], [1.0, -1.0], [0.1, 0.1]), "means: must be finite and > 0"),
+    (([10, 20], [1.0, 2.0], [0.1, -0.1]), "standard_errors: must be finite and >= 0"),
+    (([10, 20], [1.0, 2.0], [0.1]), "must be 1-D of one length"),
+])
+def test_fit_refuses_bad_input(args, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        rp.fit_exponent(*args)
+
+
+# ---------------------------------------------------------------- plans and the command line
+
+
+def test_plans_fit_the_issue():
+    full = rp.EXTENDED_FULL.scaling
+    assert len(full) >= 8 and full[0][:2] == (10, 5) and full[-1][:2] == (1000, 500)
+    assert all(s[2] >= 2 for s in full)
+    for plan in (rp.EXTENDED_FULL, rp.EXTENDED_QUICK):
+        ext.check_extended_plan(plan)
+
+
+def test_bad_extended_plan_names_its_field(tmp_path):
+    from pinnedballs.engine.errors import InputError
+
+    with pytest.raises(InputError, match=r"scaling: give at least two \(length, depth, replicas >= 2\)"):
+        rp.reproduce(tmp_path / "x", extended=rp.ExtendedPlan(scaling=((10, 5, 1), (20, 10, 3))), **TINY)
+    with pytest.raises(InputError, match="torus_replicas: must be an integer >= 1"):
+        rp.reproduce(tmp_path / "x", extended=rp.ExtendedPlan(torus_replicas=0), **TINY)
+    assert not (tmp_path / "x").exists()
+
+
+def test_cli_extended_refuses_a_non_empty_directory(tmp_path, capsys):
+    (tmp_path / "keep.txt").write_text("mine")
+    assert cli.main(["reproduce", "--out", str(tmp_path), "--quick", "--extended"]) == 2
+    assert "not empty" in capsys.readouterr().err
+
+
+def test_cli_passes_extended_and_quick_to_reproduce(tmp_path, monkeypatch):
+    import pinnedballs.reproduction as reproduction
+
+    seen = {}
+
+    def fake(out, **kwargs):
+        seen.update(kwargs)
+        out = Path(out)
+        out.mkdir()
+        (out / "results.json").write_text(json.dumps({"wall_seconds": 0.0, "failures": []}))
+        return out / "report.md"
+
+    monkeypatch.setattr(reproduction, "reproduce", fake)
+    assert cli.main(["reproduce", "--out", str(tmp_path / "x"), "--quick", "--extended", "--quiet"]) == 0
+    assert (seen["quick"], seen["extended"]) == (True, True)
+    assert cli.main(["reproduce", "--out", str(tmp_path / "y"), "--quiet"]) == 0
+    assert (seen["quick"], seen["extended"]) == (False, False)

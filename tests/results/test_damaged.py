@@ -1,0 +1,180 @@
+"""Damaged results files (issue 10, item 5): each class of damage, made by editing a good run
+with h5py, is refused by `pb.load` (`ResultsError` naming the file and the dataset) and by
+``info``, ``plot`` and ``run --resume`` (exit 2, one line), and ``--resume`` leaves the damaged
+files exactly as they were instead of finishing them as "done"."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs import ResultsError
+from helpers import TORUS, spec, write
+from helpers import assert_input_error, call
+
+#: 16 balls, 48 contacts, 2 components; a sweep in random order, so a scheduler state with a range
+RUN = spec(TORUS, scheduler={"kind": "random_sweep"}, initial={"kind": "gaussian", "energy": 100.0})
+N, E = 16, 48
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory) -> tuple[Path, Path]:
+    """``(spec path, run directory)``: a finished run, marked as a checkpoint still running (its
+    --resume has nothing left to do but to mark it done)."""
+    base = tmp_path_factory.mktemp("good")
+    s = write(base / "s.json", RUN)
+    out = base / "run"
+    assert call("run", s, "--out", out, "--quiet", "--no-figures")[0] == 0
+    with h5py.File(out / "results.h5", "r+") as f:
+        f.attrs["status"], f.attrs["stop_reason"] = "running", ""
+    return s, out
+
+
+def _index(run: Path) -> Path:
+    return run / "results.h5"
+
+
+def _static(run: Path) -> Path:
+    return run / "results.data" / "static.h5"
+
+
+def _segment(run: Path) -> Path:
+    return sorted((run / "results.data").glob("frames_*.h5"))[0]
+
+
+def _last_segment(run: Path) -> Path:
+    return sorted((run / "results.data").glob("frames_*.h5"))[-1]
+
+
+def _replace(path: Path, name: str, value) -> None:
+    with h5py.File(path, "r+") as f:
+        del f[name]
+        f[name] = value
+
+
+def _set(path: Path, name: str, change) -> None:
+    with h5py.File(path, "r+") as f:
+        x = f[name][()]
+        change(x)
+        f[name][...] = x
+
+
+def _attr(path: Path, group: str, **attrs) -> None:
+    with h5py.File(path, "r+") as f:
+        f[group].attrs.update(attrs)
+
+
+def _truncate(path: Path) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) // 2])
+
+
+def _nan_at_0(x):
+    x[0, 0] = np.nan
+
+
+def _nan_in_frame(x):
+    x[-1, 3, 1] = np.nan
+
+
+def _roll_pairs(r: Path) -> None:
+    """The same contacts, listed in another order (so every t_i / t_j is attached to the wrong pair)."""
+    _set(_static(r), "geometry/pairs", lambda x: x.__setitem__(slice(None), np.roll(x, 1, axis=0)))
+
+
+#: name: (damage done to the run directory, the file named, words of the message)
+DAMAGE = {
+    "format": (lambda r: _attr(_index(r), "/", format="something-else"), _index, "not a pinnedballs results file"),
+    "version": (lambda r: _attr(_index(r), "/", format_version=-3), _index, "format_version"),
+    "status": (lambda r: _attr(_index(r), "/", status="finished?"), _index, "status"),
+    "velocities shape": (lambda r: _replace(_index(r), "state/velocities", np.zeros((3, 3))), _index,
+                         f"state/velocities: must have shape ({N}, 2), got (3, 3)"),
+    "velocities strings": (lambda r: _replace(_index(r), "state/velocities", np.full((N, 2), b"fast")), _index,
+                           "state/velocities: must be floating point, got |S4"),
+    "initial velocities shape": (lambda r: _replace(_static(r), "initial/velocities", np.zeros((N, 3))), _index,
+                                 f"initial/velocities: must have shape ({N}, 2), got ({N}, 3)"),
+    "pairs out of range": (lambda r: _set(_static(r), "geometry/pairs", lambda x: x.__setitem__((0, 0), 99)),
+                           _index, f"geometry/pairs: must be pairs of distinct balls in [0, {N})"),
+    "pairs replaced": (_roll_pairs, _index, "geometry/pairs: differ from the 48 contacts of the spec's geometry"),
+    "negative steps": (lambda r: _attr(_index(r), "state", steps=-5), _index, "state/steps: must be >= 0, got -5"),
+    "collisions > steps": (lambda r: _attr(_index(r), "state", collisions=10**6), _index,
+                           "state/collisions: 1000000 is more than the 1000 steps taken"),
+    "NaN velocities": (lambda r: _set(_index(r), "state/velocities", _nan_at_0), _index,
+                       "state/velocities: holds 1 non-finite values"),
+    "NaN in a snapshot": (lambda r: _set(_segment(r), "velocities", _nan_in_frame), _index,
+                          "snapshots/velocities: holds non-finite values"),
+    "snapshot past the state": (lambda r: _set(_segment(r), "observables/steps",
+                                               lambda x: x.__setitem__(-1, 5_000)), _index,
+                                "observables/steps: must be >= 0, in order and at most the state's 1,000"),
+    "zero rng state": (lambda r: _replace(_index(r), "state/rng_state", np.zeros(4, np.uint64)), _index,
+                       "state/rng_state: is all zero"),
+    "rng state dtype": (lambda r: _replace(_index(r), "state/rng_state", np.ones(4)), _index,
+                        "state/rng_state: must be unsigned integers (uint64), got float64"),
+    "scheduler state out of range": (lambda r: _set(_index(r), "state/scheduler_state",
+                                                    lambda x: x.__setitem__(0, E + 7)), _index,
+                                     f"state/scheduler_state: the position in the sweep must be in [0, {E}], got 55"),
+    "scheduler state not a permutation": (lambda r: _set(_index(r), "state/scheduler_state",
+                                                         lambda x: x.__setitem__(1, x[2])), _index,
+                                          "state/scheduler_state: the sweep order must be a permutation"),
+    "missing segment": (lambda r: _segment(r).unlink(), _index, "frames_000000000.h5 is missing"),
+    "truncated index": (lambda r: _truncate(_index(r)), _index, "not a readable HDF5 file"),
+    "truncated static": (lambda r: _truncate(_static(r)), _static, "not a readable HDF5 file (truncated?)"),
+    "truncated segment": (lambda r: _truncate(_segment(r)), _segment, "not a readable HDF5 file (truncated?)"),
+    "short segment": (lambda r: _replace(_last_segment(r), "velocities", np.zeros((1, N, 2))), _index,
+                      "frames_000000001.h5: velocities: must have 2 rows"),
+}
+
+
+def _digest(run: Path) -> dict[str, str]:
+    return {str(p.relative_to(run)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(run.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("name", list(DAMAGE))
+def test_damage_is_named_and_never_resumed(good, tmp_path, name):
+    s, source = good
+    run = tmp_path / "run"
+    shutil.copytree(source, run)
+    damage, named, words = DAMAGE[name]
+    named = named(run)  # before the damage: a segment may be removed
+    damage(run)
+    before = _digest(run)
+    with pytest.raises(ResultsError) as caught:
+        pb.load(run)
+    message = str(caught.value)
+    assert message.startswith(f"{_index(run)}: ") and str(named) in message and words in message, message
+    for argv in (["info", run], ["plot", run], ["run", s, "--out", run, "--resume", "--quiet", "--no-figures"]):
+        code, stdout, err = call(*argv)
+        assert_input_error(code, err, str(named), words)
+        assert stdout == ""
+    assert _digest(run) == before  # --resume wrote nothing, and did not mark the run done
+
+
+def test_the_undamaged_copy_loads_and_resumes_to_done(good, tmp_path):
+    """The control: the same file, undamaged, passes every check and --resume finishes it."""
+    s, source = good
+    run = tmp_path / "run"
+    shutil.copytree(source, run)
+    res = pb.load(run)
+    assert (res.status, res.steps, len(res.snapshots)) == ("running", 1000, 3)
+    assert call("info", run)[0] == 0
+    assert call("run", s, "--out", run, "--resume", "--quiet", "--no-figures")[0] == 0
+    res = pb.load(run)
+    assert res.complete and res.steps == 1000
+
+
+def test_a_python_writer_will_not_resume_a_damaged_file(good, tmp_path):
+    s, source = good
+    run = tmp_path / "run"
+    shutil.copytree(source, run)
+    sim = pb.load(run).simulation()
+    _attr(_index(run), "state", collisions=10**6)
+    with pytest.raises(ResultsError, match="state/collisions: 1000000 is more than the 1000 steps"):
+        sim.run(steps=10, writers=[pb.ResultsWriter(run, resume=True)])
+    assert sim.steps == 1000
