@@ -3,6 +3,8 @@ import neither ``cli`` nor the paper's reproduction."""
 
 from __future__ import annotations
 
+import pytest
+
 import json
 import pkgutil
 import subprocess
@@ -22,12 +24,14 @@ def loaded_after(code: str) -> set[str]:
     return {m for m in json.loads(out) if m.startswith("pinnedballs")}
 
 
+@pytest.mark.slow
 def test_import_pinnedballs_loads_no_front_end():
     loaded = loaded_after("import pinnedballs")
     assert not {m for m in loaded if m in FRONT_ENDS or m.startswith(("pinnedballs.reproduction.", "pinnedballs.cli."))}
     assert {"pinnedballs.run.writers", "pinnedballs.run.driver", "pinnedballs.run.triggers"} <= loaded
 
 
+@pytest.mark.slow
 def test_no_library_module_imports_the_command_line():
     library = sorted(m.name for m in pkgutil.walk_packages(pinnedballs.__path__, "pinnedballs.")
                      if m.name not in FRONT_ENDS and not m.name.startswith(("pinnedballs.reproduction", "pinnedballs.cli")))

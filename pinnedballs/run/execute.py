@@ -26,7 +26,7 @@ from ..results.load import Results, load
 from ..results.rundir import DirLock
 from ..simulation import Simulation
 from ..specs.run import RunSpec
-from .driver import Writer, drive
+from .driver import Stop, Writer, drive
 from .writers import OnSnapshot, ResultsWriter
 
 __all__ = ["Interrupted", "run_to_stop", "execute", "write_figures", "SILENT"]
@@ -71,66 +71,64 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             progress: bool | None = None, figures: bool = True, status=SILENT) -> Path:
     """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
 
-    Everything is validated and the simulation built before anything is written.
-    A non-empty ``out_dir`` is refused (`InputError`) unless ``force`` (which
-    replaces our files) or ``resume`` (which continues from the last checkpoint
-    of the same spec; a finished run is left as it is). ``progress``: a tqdm bar
-    on stderr; None means only if stderr is a terminal. ``status``: a `Status` line told each
+    The spec is built once into what runs it (the simulation, its stop, the writer's trigger),
+    before anything is written: bad input fails first. A non-empty ``out_dir`` is refused
+    (`InputError`) unless ``force`` (which replaces our files) or ``resume`` (which continues
+    from the last checkpoint of the same spec; a finished run is left as it is). ``progress``: a
+    tqdm bar on stderr; None means only if stderr is a terminal. ``status``: a callable told each
     stage (building, compiling, drawing). SIGINT/SIGTERM write a checkpoint and raise `Interrupted`.
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
+    stop = spec.stop.build()
+    snapshots = spec.snapshots.build() if spec.snapshots else None
     sim = None
     if not (resume and path.exists()):
         status("building the geometry")
-        sim = spec.build()  # bad input fails before anything is written
+        sim = spec.build()
     with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
-        return _execute(spec, out, sim, lock, force=force, resume=resume, progress=progress, figures=figures,
-                        status=status)
-
-
-def _execute(spec: RunSpec, out: Path, sim: Simulation | None, lock: DirLock, *, force: bool, resume: bool,
-             progress: bool | None, figures: bool, status) -> Path:
-    """`execute` holding ``lock`` on ``out``; ``sim``: the new simulation, None to resume."""
-    path = out / RESULTS_NAME
-    writer = ResultsWriter(out, snapshots=spec.snapshots.build() if spec.snapshots else None,
-                           checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
-                           force=force, resume=sim is None, lock=lock)
-    if sim is None:
-        status("reading the last checkpoint")
-        res = load(path)
-        _check_same_run(res, spec)
-        if not (out / "spec.json").exists():
-            write_text_atomic(out / "spec.json", res.spec.to_json() + "\n")
-        if res.complete:
-            if figures:
-                status("drawing figures")
-                write_figures(out)
-            return path
-        sim = res.simulation()
-    else:
-        writer.resume = resume  # a directory a run killed at birth left may be taken over
-        writer.attach(sim)      # takes the directory and writes the static data
-        _remove_figures(out)    # a replaced run's pictures would pass for this one's
-        write_text_atomic(out / "spec.json", spec.to_json() + "\n")
-    status("compiling the loop (once: numba caches it on disk)")
-    sim.run(steps=0, until_frozen=spec.stop.build().until_frozen)  # compiles; changes no bit of the state
-    status.clear()
-    with _progress_bar(spec, sim, progress) as bar, _deferred_signals() as stop_requested:
-        def after_chunk(s: Simulation) -> None:
-            bar(s)
-            if stop_requested():
-                writer.checkpoint(s)
-                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {path.parent} is complete: "
-                                  f"continue with --resume")
-
-        run_to_stop(spec, sim, writers=[writer], after_chunk=after_chunk)
-        bar(sim)
+        writer = ResultsWriter(out, snapshots=snapshots, checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
+                               force=force, resume=resume, lock=lock)
+        if sim is None:
+            status("reading the last checkpoint")
+            sim = _resumed(spec, path)
+        else:
+            writer.attach(sim)      # takes the directory and writes the static data
+            _remove_figures(out)    # a replaced run's pictures would pass for this one's
+            write_text_atomic(out / "spec.json", spec.to_json() + "\n")
+        if sim is not None:         # None: that run had finished
+            _drive(sim, stop, writer, progress, status)
     if figures:
         status("drawing figures")
         write_figures(out)
     status.clear()
     return path
+
+
+def _resumed(spec: RunSpec, path: Path) -> Simulation | None:
+    """The simulation at the last checkpoint in ``path`` of the same ``spec``, or None if that run is complete."""
+    res = load(path)
+    _check_same_run(res, spec)
+    if not (path.parent / "spec.json").exists():
+        write_text_atomic(path.parent / "spec.json", res.spec.to_json() + "\n")
+    return None if res.complete else res.simulation()
+
+
+def _drive(sim: Simulation, stop: Stop, writer: ResultsWriter, progress: bool | None, status) -> None:
+    """``sim`` to ``stop`` recording into ``writer``, with a progress bar; SIGINT/SIGTERM checkpoint and stop."""
+    status("compiling the loop (once: numba caches it on disk)")
+    sim.run(steps=0, until_frozen=stop.until_frozen)  # compiles; changes no bit of the state
+    status.clear()
+    with _progress_bar(stop, sim, progress) as bar, _deferred_signals() as stop_requested:
+        def after_chunk(s: Simulation) -> None:
+            bar(s)
+            if stop_requested():
+                writer.checkpoint(s)
+                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
+                                  f"continue with --resume")
+
+        drive(sim, stop, [writer], after_chunk=after_chunk)
+        bar(sim)
 
 
 def _check_same_run(res: Results, spec: RunSpec) -> None:
@@ -182,7 +180,7 @@ def _deferred_signals() -> Iterator[Callable[[], bool]]:
 
 
 @contextlib.contextmanager
-def _progress_bar(spec: RunSpec, sim: Simulation, show: bool | None) -> Iterator[Callable[[Simulation], None]]:
+def _progress_bar(stop: Stop, sim: Simulation, show: bool | None) -> Iterator[Callable[[Simulation], None]]:
     """A callable updating a tqdm bar on stderr (steps, collisions, rate, ETA); a no-op when not shown."""
     if show is None:
         show = sys.stderr.isatty()
@@ -191,9 +189,7 @@ def _progress_bar(spec: RunSpec, sim: Simulation, show: bool | None) -> Iterator
         return
     from tqdm import tqdm
 
-    stop = spec.stop
-    unit, total = ("collisions", stop.collisions) if stop.kind == "collisions" else \
-        ("steps", stop.steps if stop.kind == "steps" else stop.max_steps)
+    unit, total = ("collisions", stop.collisions) if stop.collisions is not None else ("steps", stop.steps)
     other = "steps" if unit == "collisions" else "collisions"
     with tqdm(total=total, initial=_counter(sim, unit), unit=f" {unit}", unit_scale=True, file=sys.stderr,
               dynamic_ncols=True, smoothing=0.1, desc="running") as bar:

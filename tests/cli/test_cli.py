@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import re
@@ -249,6 +248,7 @@ def _python(*argv, cwd=None) -> subprocess.CompletedProcess:
                           cwd=cwd, env=env, timeout=120)
 
 
+@pytest.mark.slow
 def test_process_bad_input_exits_2(tmp_path):
     bad = _python("validate", write(tmp_path / "b.json", spec(geometry__rows=5)))
     assert bad.returncode == 2
@@ -262,6 +262,7 @@ def test_help_and_version_exit_0():
     assert (code, out) == (0, f"pinnedballs {pb.__version__}\n")
 
 
+@pytest.mark.slow
 def test_process_run_is_quiet_off_a_terminal(tmp_path):
     done = _python("run", write(tmp_path / "s.json", TORUS), "--out", tmp_path / "out", "--no-figures")
     assert done.returncode == 0 and done.stderr == ""  # stderr is a pipe: no progress bar
@@ -282,6 +283,7 @@ def test_force_leaves_no_figure_of_the_replaced_run(tmp_path, figures):
     assert pngs == (expected if figures else [])
 
 
+@pytest.mark.slow
 def test_a_closed_pipe_ends_quietly():
     """``pinnedballs schema | head -1``: the reader leaves early; no traceback, exit 0."""
     read_end, write_end = os.pipe()

@@ -376,6 +376,7 @@ def _ensemble_cli(tmp_path: Path, address: str, timeout: float) -> tuple[int, st
      "not a Dask scheduler (it closed the connection after 3 of 64 bytes of its greeting)"),
     (lambda: _Server(hang_up=True), "not a Dask scheduler (it closed the connection without a greeting)"),
 ])
+@pytest.mark.slow
 def test_dask_address_of_a_server_that_is_not_dask_exits_2(tmp_path, server, words):
     s = server()
     try:
@@ -386,6 +387,7 @@ def test_dask_address_of_a_server_that_is_not_dask_exits_2(tmp_path, server, wor
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_a_real_scheduler_passes_the_probe(tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     from pinnedballs.run import executors as daskprobe

@@ -22,6 +22,8 @@ from pinnedballs.cli import main as cli
 from pinnedballs.cli import status
 from helpers import TORUS, spec, write
 
+pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
+
 ROOT = Path(__file__).resolve().parents[2]
 LIMIT_SECONDS = 240  # a bound on a hung child, not a measurement
 

@@ -6,12 +6,15 @@ import sys
 import textwrap
 
 import numpy as np
+import pytest
 from numba import njit
 
 from pinnedballs.engine.jitcache import _ClosureCache
 from pinnedballs.engine.loops import chain_kernel
 from pinnedballs.rules import collide_equal, collide_masses
 from pinnedballs.schedulers.simple import pick_random_sweep, pick_sweep, pick_uniform
+
+pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 
 
 def _key(loops):

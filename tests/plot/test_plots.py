@@ -172,6 +172,7 @@ def test_correlation_histogram_counts_runs(tmp_path):
     assert all(float(tick).is_integer() for tick in ax.get_yticks())   # counts of runs
 
 
+@pytest.mark.slow
 def test_plots_never_import_pyplot():
     code = ("import sys, numpy as np; from pinnedballs.plot import states; "
             "states.quiver(np.zeros((2, 2)) + [[0, 0], [2, 0]], np.ones((2, 2))); "

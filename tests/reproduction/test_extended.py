@@ -15,6 +15,8 @@ from pinnedballs.cli import main as cli
 from pinnedballs import reproduction as rp
 from pinnedballs.reproduction import extended as ext
 
+pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
+
 TINY = dict(sizes=((10, 5), (20, 10)), detail=(20, 10), torus=(8, 8), steps=(3_000, 6_000), long_steps=20_000,
             collisions=30, replicas=4, size_replicas=2)
 TINY_X = rp.ExtendedPlan(scaling=((10, 5, 3), (20, 10, 3), (30, 15, 2)), torus_sides=(6, 8), torus_times=(50, 200),

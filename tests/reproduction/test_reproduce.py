@@ -16,6 +16,8 @@ from pinnedballs.cli import main as cli
 from pinnedballs import reproduction as rp
 from pinnedballs.engine.errors import InputError
 
+pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
+
 TINY = dict(sizes=((10, 5), (20, 10)), detail=(20, 10), torus=(8, 8), steps=(3_000, 6_000), long_steps=20_000,
             collisions=30, replicas=4, size_replicas=2)
 PNG = b"\x89PNG\r\n\x1a\n"

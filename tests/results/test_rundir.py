@@ -118,6 +118,7 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", list(COMMANDS))
 def test_output_in_an_unwritable_directory_is_refused(command):
     """As a user without write permission on the parent (root ignores permissions, so as nobody)."""
@@ -177,6 +178,7 @@ def _wait_stopped(child: subprocess.Popen, timeout: float = 120.0) -> None:
     raise AssertionError("the first run never reached its checkpoint")
 
 
+@pytest.mark.slow
 def test_two_concurrent_runs_one_is_refused_and_a_killed_run_resumes(tmp_path):
     """Run A holds the directory (stopped mid-run); run B is refused naming A's pid; A is
     SIGKILLed and its --resume ends on the bits of an uninterrupted run, 10 snapshots."""

@@ -86,6 +86,7 @@ def test_half_plane_rows_freeze_with_snapshot_and_far_shares():
 # ---------------------------------------------------------------- wherever it runs
 
 
+@pytest.mark.slow
 def test_tables_are_bit_identical_in_process_on_local_processes_and_on_dask(cluster, tmp_path):
     for name, data in (("torus", TORUS), ("half_plane", HALF_PLANE)):
         spec = parse_spec(data)

@@ -8,6 +8,8 @@ the child's binary writes fail with ENOSPC once a byte budget is spent.
 
 from __future__ import annotations
 
+import pytest
+
 import contextlib
 import errno
 import os
@@ -19,6 +21,8 @@ from pathlib import Path
 import pinnedballs as pb
 from helpers import TORUS, spec, write
 from helpers import assert_identical, reference, resume
+
+pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 
 ROOT = Path(__file__).resolve().parents[2]
 DISK_BYTES = 512 * 1024

@@ -61,6 +61,7 @@ def wait_for_checkpoint(child: subprocess.Popen, out: Path, steps: int, timeout:
 
 @pytest.mark.parametrize("scheduler", [None, {"kind": "rejection_free"}, {"kind": "colored_sweep", "shuffle": True}],
                          ids=["uniform", "rejection_free", "colored_sweep"])
+@pytest.mark.slow
 def test_sigkill_then_resume_is_bit_identical(tmp_path, scheduler):
     data = LONG if scheduler is None else spec(LONG, scheduler=scheduler)
     spec_path = write(tmp_path / "long.json", data)
@@ -84,6 +85,7 @@ def test_sigkill_then_resume_is_bit_identical(tmp_path, scheduler):
     assert_identical(load(out), ref)
 
 
+@pytest.mark.slow
 def test_sigterm_checkpoints_and_says_so(tmp_path):
     spec_path = write(tmp_path / "long.json", LONG)
     out = tmp_path / "stopped"

@@ -120,6 +120,7 @@ def run_with_threads(threads: int, shuffle: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shuffle", ["fixed", "shuffle"])
 def test_same_bits_on_one_and_two_threads(shuffle):
     """A 30,000-ball torus, 10 sweeps and a bit, then 1,000 more collisions: the same bits of
