@@ -12,7 +12,7 @@ from .engine import checks
 from .engine.chain import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
 from .engine.errors import FieldError, FieldTypeError, check_jitted
 from .engine.limits import check_speeds
-from .engine.loops import live_kernel
+from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, live_kernel, loops
 from .engine.random import seed_state
 from .geometry.base import Geometry
 from .rules import CollisionRule, Elastic
@@ -127,12 +127,15 @@ class Simulation:
         self.velocities = self._check_velocities(velocities)
         self._collide, self._params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
         check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
-        self._loops = scheduler.loops(self._collide, geometry)
-        self._live_flags = live_kernel(self._collide, geometry.dim, geometry.contacts.flat)
+        self._selector = _selector(scheduler, geometry)
+        s, dim, flat = self._selector, geometry.dim, geometry.contacts.flat
+        self._loops = loops(self._collide, s.select, s.begin, s.changed, s.skips, dim, flat)
+        self._own_steps = None if s.steps is None else s.steps(self._collide, dim, flat)
+        self._live_flags, self._any_live = live_kernel(self._collide, dim, flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
         self._rng = seed_state(seed)
         self._counters = np.zeros(3, dtype=np.int64)
-        self._live = None  # the LiveSet, built when a run first needs it
+        self._live = None  # the LiveSet, built when a tracked run first needs it
 
     # ------------------------------------------------------------ input checks
     def _check_velocities(self, velocities) -> np.ndarray:
@@ -177,7 +180,7 @@ class Simulation:
         if writers is not None:
             from .run.driver import drive_run
             return drive_run(self, steps, collisions, until_frozen, writers)
-        return self._run(max_steps, max_collisions, track=until_frozen or steps is None)
+        return self._run(max_steps, max_collisions, until_frozen or steps is None)
 
     def run_until_frozen(self, max_steps: int, *, writers=None) -> bool:
         """Run until no contact approaches, for at most ``max_steps`` more steps.
@@ -189,15 +192,23 @@ class Simulation:
             from .run.driver import drive_run
             drive_run(self, _count("max_steps", max_steps), None, True, writers)
             return self.is_frozen()
-        self._run(_count("max_steps", max_steps), NO_LIMIT, track=True)
+        self._run(_count("max_steps", max_steps), NO_LIMIT, True)
         return bool(self._counters[LIVE] == 0)
 
-    def _run(self, max_steps: int, max_collisions: int, track: bool) -> int:
-        """The scheduler runs its loops on the chain's data (see `Scheduler.advance`)."""
+    def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken."""
         max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
-        live = self._refresh_live() if self.scheduler.needs_live(track) else None
-        return self.scheduler.advance(self._loops, self._chain(), live, self._sched_state, self._rng,
-                                      self._counters, max_steps, max_collisions, track)
+        chain, s, loops_ = self._chain(), self._selector, self._loops
+        tables = (self._sched_state, s.aux, self._rng, self._counters)
+        if s.tracks:
+            return loops_.tracked(*chain, *tables, max_steps, max_collisions, until_frozen, *self._refresh_live())
+        large = chain.pairs.nbytes + chain.ends.nbytes + chain.v.nbytes > LOOKAHEAD_BYTES and not s.skips
+        if not until_frozen and max_collisions == NO_LIMIT:
+            plain = self._own_steps or (loops_.steps_prefetched if large else loops_.steps)
+            return plain(*chain, *tables, max_steps)
+        chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
+        limited = loops_.limited_prefetched if large else loops_.limited
+        return limited(*chain, *tables, max_steps, max_collisions, until_frozen, chunk, np.empty_like(self._sched_state))
 
     def _chain(self) -> Chain:
         c = self.geometry.contacts
@@ -222,7 +233,7 @@ class Simulation:
 
     def is_frozen(self) -> bool:
         """True when no contact is live, so no collision can ever happen again."""
-        return self.approaching() == 0
+        return not self._any_live(*self._chain())
 
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
@@ -250,10 +261,10 @@ class Simulation:
             raise FieldError("scheduler_state", f"must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
         flags = None
-        if self.scheduler.needs_live(False):
+        if self._selector.tracks:
             flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
             self._live_flags(*self._chain()._replace(v=velocities), flags)
-        self.scheduler.check_resume(sched, self._loops, flags)
+        self.scheduler.check_resume(sched, self._selector, flags)
         steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
         if collisions > steps:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
@@ -266,3 +277,12 @@ class Simulation:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
                 f"steps={self.steps}, collisions={self.collisions})")
 
+
+def _selector(scheduler: Scheduler, geometry: Geometry):
+    """The scheduler's selector on ``geometry``; a clear error for a scheduler written for the loop
+    protocol before the engine owned the loop (``loops()`` and ``advance()``)."""
+    if any(hasattr(scheduler, name) for name in ("advance", "loops")):
+        raise FieldTypeError("scheduler", f"{type(scheduler).__name__} defines advance() or loops(), which the engine "
+                                          f"no longer calls: give it kernel() (a pick) or selector() instead "
+                                          f"(docs/extending.md)")
+    return scheduler.selector(geometry)

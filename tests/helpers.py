@@ -27,6 +27,14 @@ from pinnedballs.specs.run import parse_spec
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def pick_loops(collide, pick, dim: int, flat: bool):
+    """The engine's compiled `Loops` for a rule's ``collide`` and a scheduler's ``pick``."""
+    from pinnedballs.engine.loops import loops, pick_selector
+
+    s = pick_selector(pick)
+    return loops(collide, s.select, s.begin, s.changed, s.skips, dim, flat)
+
+
 # ================================================================ small systems and physics checks
 
 #: hypothesis settings for the engine tests: reproducible in CI, no per-example deadline

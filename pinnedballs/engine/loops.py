@@ -1,10 +1,40 @@
-"""The compiled loops (numba).
+"""The one loop template: the engine owns the loop, its stop conditions, its counters and freeze
+detection; a scheduler supplies only its `Selector` ("which contact next"), a rule its ``collide``.
 
-`chain_kernel(collide, pick, dim, flat)` builds the hot loops for a collision
-rule and a scheduler: pick a contact, try to collide it, count. The
-rule's ``collide`` and the scheduler's ``pick`` are compiled into the loop
-(inlined, not called through pointers); each combination is built once per
-process and cached on disk (`jitcache`), so later processes load it.
+`loops(collide, selector, dim, flat)` builds, for one rule and one scheduler, the compiled loops
+(`Loops`), each compiled on first use and cached on disk (`jitcache`): the rule's ``collide`` and
+the selector's functions are inlined, and ``dim`` and ``flat`` are compile-time constants.
+
+**The loops.** Every loop picks a contact (``select``), tries to collide it (``collide``) and counts:
+a *step* is a pick, a *collision* a pick that changed velocities.
+
+* ``steps`` takes exactly ``max_steps`` steps (``steps_prefetched``: the same bits, fetching the
+  rows of picks drawn a few steps early, for tables larger than the cache).
+* ``limited`` (and ``limited_prefetched``) also stops at a total of ``max_collisions`` and, with
+  ``until_frozen``, right after the collision that leaves no live contact. It tracks nothing per
+  collision: it runs *chunks* of steps untracked, then asks `any_live` (a scan of the contacts that
+  stops at the first live one). A contact live at the start of a chunk stays live until a collision
+  touches one of its balls, so a chunk without a collision cannot freeze the system; a chunk whose
+  scan finds it frozen ends at its last collision: the random stream and the scheduler's state are
+  restored to the start of the chunk and its picks replayed up to that collision. The state is then
+  bit for bit the one a loop re-testing every contact after every collision would reach.
+* ``tracked`` keeps the live set up to date after every collision (``flags``, their count, and the
+  selector told of every change): for a selector that picks among live contacts (`RejectionFree`).
+
+**A selector** (`Selector`) is a few jitted functions and the arrays they use:
+``select(state, aux, rng, n_contacts, left) -> (k, taken, rng)`` picks the next contact ``k`` and
+says how many steps the pick takes (1 for the paper's picks; a selector that jumps over picks says
+how many, at most ``left``, and returns ``k < 0`` when none falls within them); ``begin(state, aux,
+flags)`` prepares ``aux`` from ``state`` at the start of each call (and after a rewind);
+``changed(state, aux, c, live)`` hears that contact ``c`` became live or not (tracked loops only).
+``state`` is the scheduler's ``int64`` array (checkpointed), ``aux`` anything else it needs (tables,
+scratch), rebuilt from the geometry and ``state``. A scheduler that only picks gives
+``pick(state, rng, n_contacts) -> (k, rng)`` and `pick_selector` wraps it.
+
+Shapes: v ``(n_balls, dim)``; pairs, ends ``(E, 2)``; units ``(K, dim)``; rng_words ``(4,) uint64``;
+counters ``(3,) int64``, totals ``[steps, collisions, live]`` (live: the number of live contacts
+after a tracked loop, 0 after a loop that found the system frozen, -1 when not known); flags
+``(E,) uint8`` and the incidence ``ptr, inc`` (`chain.incidence`). Every loop returns the steps taken.
 """
 
 from __future__ import annotations
@@ -20,44 +50,93 @@ from .intrinsics import fixed_width, prefetch
 from .jitcache import jit_cached_if_possible
 from .random import load, store
 
-__all__ = ["chain_kernel", "contact_kernels", "fixed_rows", "live_kernel", "Loops", "LOOKAHEAD_BYTES"]
+__all__ = ["Selector", "Loops", "loops", "pick_selector", "contact_kernels", "live_kernel", "fixed_rows",
+           "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN"]
 
-#: picks drawn ahead, and how far ahead the velocity rows are fetched, in the lookahead loop
+#: picks drawn ahead, and how far ahead the velocity rows are fetched, in the prefetching loops
 LOOKAHEAD, HALFWAY = 8, 4
 _RING = 16  # ring buffer of drawn picks: a power of two > LOOKAHEAD
 
-#: above this many bytes of tables and velocities the loop prefetches (they no longer fit in cache)
+#: above this many bytes of tables and velocities the loops prefetch (they no longer fit in cache)
 LOOKAHEAD_BYTES = 4 << 20
+
+#: an untracked chunk is at least this many steps ...
+FREEZE_CHUNK_MIN = 1 << 12
+#: ... and this many per contact (chosen by measurement: benchmarks/bench_freeze.py)
+FREEZE_CHUNK_PER_CONTACT = 4
+
+#: ``counters[LIVE]`` when no loop counted the live contacts
+UNKNOWN = -1
 
 _FEW = 1 << 32  #: at most this many contacts: a bounded pick needs no wide path
 
 
+class Selector(NamedTuple):
+    """What a scheduler gives the engine: its jitted functions (see the module docstring) and flags.
+
+    aux: the arrays (or a tuple of them) its functions read besides ``state``.
+    tracks: it needs the live set kept up to date after every collision (the ``tracked`` loop).
+    skips: ``select`` may take more than one step per pick, or return no contact (``k < 0``).
+    steps: None, or ``steps(collide, dim, flat) -> loop``: its own compiled loop for plain steps
+    (`ColoredSweep` runs a class in parallel), called as the `Loops` ``steps`` are.
+    """
+
+    select: Callable
+    begin: Callable
+    changed: Callable
+    aux: object
+    tracks: bool = False
+    skips: bool = False
+    steps: Callable | None = None
+
+
+@njit(cache=True, inline="always")
+def no_begin(state, aux, flags):
+    """Nothing to prepare."""
+
+
+@njit(cache=True, inline="always")
+def no_change(state, aux, c, live):
+    """Nothing to hear."""
+
+
+#: the ``aux`` of a selector that needs none
+NO_AUX = np.zeros(0, dtype=np.int64)
+
+
+@functools.cache
+def pick_selector(pick: Callable) -> Selector:
+    """The `Selector` of a scheduler that picks one contact per step: ``pick(state, rng, n) -> (k, rng)``."""
+
+    @njit(inline="always")
+    def select(state, aux, rng, n, left):
+        k, rng = pick(state, rng, n)
+        return k, 1, rng
+
+    return Selector(select, no_begin, no_change, NO_AUX)
+
+
 class Loops(NamedTuple):
-    """The compiled loops of one (rule, scheduler, dim, flat), each compiled on first use.
+    """The compiled loops of one (rule, selector, dim, flat); see the module docstring.
 
-    steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps)
-        picks ``max_steps`` contacts;
-    steps_prefetched(... same ...)
-        the same, bit for bit, prefetching rows of picks drawn a few steps early (faster
-        when the tables do not fit in cache);
-    limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
-            max_steps, max_collisions, track, ptr, inc, flags)
-        stops after ``max_steps`` picks, at ``max_collisions`` in total (`NO_LIMIT`: none)
-        or, when ``track``, right after the collision that leaves no live contact;
-    live_flags(v, pairs, ends, units, masses, params, flags) -> count
-        sets ``flags[k] = 1`` where picking contact ``k`` would change velocities (it is
-        *live*: approaching, and not by a rounding remnant) and counts them.
-
-    Shapes: v ``(n_balls, dim)``; pairs, ends ``(E, 2)``; units ``(K, dim)``; rng_words
-    ``(4,) uint64``; counters ``(3,) int64`` totals ``[steps, collisions, live contacts]``,
-    the last exact only when ``track``, kept with ``flags (E,) uint8`` and the incidence
-    ``ptr, inc`` (see `incidence`). The loops return the number of steps taken.
+    steps, steps_prefetched(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps)
+    limited, limited_prefetched(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+                                max_steps, max_collisions, until_frozen, chunk, saved)
+        ``chunk``: steps between scans; ``saved``: scratch as long as ``state``;
+    tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+            max_steps, max_collisions, until_frozen, ptr, inc, flags)
+        ``counters[LIVE]`` and ``flags`` must hold the live contacts of ``v`` on entry;
+    picks(state, aux, rng_words, n_contacts, out) -> None
+        the next ``len(out)`` picks into ``out`` (int64), advancing the stream and the state as a
+        loop would: what a run in exact arithmetic follows.
     """
 
     steps: Callable
     steps_prefetched: Callable
     limited: Callable
-    live_flags: Callable
+    limited_prefetched: Callable
+    tracked: Callable
+    picks: Callable
 
 
 @functools.cache
@@ -82,8 +161,9 @@ def contact_kernels(collide: Callable, dim: int, flat: bool) -> tuple[Callable, 
 
     attempt(v, pairs, ends, units, masses, params, k, write) -> bool
         try contact ``k`` (`pinnedballs.rules`); writes only if ``write``;
-    refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball) -> int
-        re-test the contacts of ``ball``, update ``flags``, return the change in live ones.
+    refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball, skip, changed, state, aux) -> int
+        re-test the contacts of ``ball`` but ``skip``, update ``flags``, tell ``changed`` of each
+        change; returns the change in the number of live contacts.
     """
     D, FLAT = dim, flat  # constants of the compiled loops: component loops unroll
 
@@ -92,23 +172,33 @@ def contact_kernels(collide: Callable, dim: int, flat: bool) -> tuple[Callable, 
         return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT, write)
 
     @njit(inline="always")
-    def refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball):
-        """Re-test the contacts of ``ball``; return the change in the number of live ones."""
+    def refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball, skip, changed, state, aux):
         delta = 0
         for m in range(ptr[ball], ptr[ball + 1]):
             c = inc[m]
+            if c == skip:
+                continue
             live = 1 if attempt(v, pairs, ends, units, masses, params, c, False) else 0
-            delta += live - np.int64(flags[c])  # int64: uint8 would wrap without the JIT
-            flags[c] = live
+            if live != flags[c]:  # int64 arithmetic: uint8 would wrap without the JIT
+                flags[c] = live
+                delta += 2 * live - 1
+                changed(state, aux, c, live)
         return delta
 
     return attempt, refresh
 
 
 @functools.cache
-def live_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
-    """``live_flags(v, pairs, ends, units, masses, params, flags) -> count`` for one rule (see `Loops`)."""
+def live_kernel(collide: Callable, dim: int, flat: bool) -> tuple[Callable, Callable]:
+    """``(live_flags, any_live)`` for one rule, compiled once and shared by every scheduler:
+
+    live_flags(v, pairs, ends, units, masses, params, flags) -> count
+        sets ``flags[k] = 1`` where picking contact ``k`` would collide (it is *live*) and counts them;
+    any_live(v, pairs, ends, units, masses, params) -> bool
+        whether any contact is live: a scan in contact order that stops at the first.
+    """
     attempt, _ = contact_kernels(collide, dim, flat)
+    shaped = fixed_rows(dim)
 
     @jit_cached_if_possible
     def live_flags(v, pairs, ends, units, masses, params, flags):
@@ -119,83 +209,169 @@ def live_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
             count += live
         return count
 
-    return live_flags
+    @jit_cached_if_possible
+    def any_live(v, pairs, ends, units, masses, params):
+        v, pairs, ends, units = shaped(v, pairs, ends, units)
+        for k in range(pairs.shape[0]):
+            if attempt(v, pairs, ends, units, masses, params, k, False):
+                return True
+        return False
+
+    return live_flags, any_live
 
 
 @functools.cache
-def chain_kernel(collide: Callable, pick: Callable, dim: int, flat: bool) -> Loops:
-    """The compiled loops for one rule's ``collide``, one scheduler's ``pick``, ``dim`` and
-    ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
+def loops(collide: Callable, select: Callable, begin: Callable, changed: Callable, skips: bool, dim: int,
+          flat: bool) -> Loops:
+    """The compiled `Loops` for one rule's ``collide``, one selector's functions (see `Selector`),
+    ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
-    live_flags = live_kernel(collide, dim, flat)
+    _, any_live = live_kernel(collide, dim, flat)
     shaped = fixed_rows(dim)
+    SKIPS = skips
 
     @njit(inline="always")
-    def run_steps(v, pairs, ends, units, masses, params, sched_state, rng, n, max_steps):
-        made = 0
-        for _ in range(max_steps):
-            k, rng = pick(sched_state, rng, n)
+    def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left):
+        """Up to ``count`` steps, stopping right after the ``collisions_left``-th collision:
+        ``(steps taken, collisions, step index of the last collision or -1, rng)``."""
+        taken, made, last = 0, 0, -1
+        while taken < count:
+            k, g, rng = select(state, aux, rng, n, count - taken)
+            taken += g
+            if SKIPS and k < 0:
+                break
             if attempt(v, pairs, ends, units, masses, params, k, True):
                 made += 1
-        return made, rng
+                last = taken - 1
+                if made == collisions_left:
+                    break
+        return taken, made, last, rng
 
-    @jit_cached_if_possible
-    def steps(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
-        v, pairs, ends, units = shaped(v, pairs, ends, units)
-        n, rng = pairs.shape[0], load(rng_words)
-        if n <= _FEW:  # the same loop; knowing n's bound lets the compiler drop a test per pick
-            made, rng = run_steps(v, pairs, ends, units, masses, params, sched_state, rng, n, max_steps)
-        else:
-            made, rng = run_steps(v, pairs, ends, units, masses, params, sched_state, rng, n, max_steps)
-        store(rng_words, rng)
-        counters[STEPS] += max_steps
-        counters[COLLISIONS] += made
-        return max_steps
-
-    @jit_cached_if_possible
-    def steps_prefetched(v, pairs, ends, units, masses, params, sched_state, rng_words, counters, max_steps):
-        # Every pick drawn is used before returning, so the scheduler and random
-        # state left behind are those of `steps`, bit for bit.
-        v, pairs, ends, units = shaped(v, pairs, ends, units)
-        n, made, rng = pairs.shape[0], 0, load(rng_words)
-        ring = np.empty(_RING, dtype=np.uint64)
-        for t in range(min(LOOKAHEAD, max_steps)):
-            ring[t], rng = pick(sched_state, rng, n)
-            prefetch(pairs, ring[t])
-            prefetch(ends, ring[t])
-        for t in range(max_steps):
-            if t + LOOKAHEAD < max_steps:
-                k, rng = pick(sched_state, rng, n)
+    @njit(inline="always")
+    def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left):
+        """`chunk`, fetching ahead the rows of picks drawn `LOOKAHEAD` steps early (one step per pick).
+        A chunk that stops early leaves the stream past picks it drew: the caller rewinds."""
+        made, last, taken = 0, -1, count
+        ring = np.empty(_RING, dtype=np.int64)
+        for t in range(min(LOOKAHEAD, count)):
+            k, _, rng = select(state, aux, rng, n, 1)
+            ring[t] = k
+            prefetch(pairs, k)
+            prefetch(ends, k)
+        for t in range(count):
+            if t + LOOKAHEAD < count:
+                k, _, rng = select(state, aux, rng, n, 1)
                 ring[(t + LOOKAHEAD) % _RING] = k
                 prefetch(pairs, k)
                 prefetch(ends, k)
-            if t + HALFWAY < max_steps:
+            if t + HALFWAY < count:
                 k = ring[(t + HALFWAY) % _RING]
                 prefetch(v, pairs[k, 0])
                 prefetch(v, pairs[k, 1])
-            made += attempt(v, pairs, ends, units, masses, params, ring[t % _RING], True)
-        store(rng_words, rng)
-        counters[STEPS] += max_steps
-        counters[COLLISIONS] += made
-        return max_steps
+            if attempt(v, pairs, ends, units, masses, params, ring[t % _RING], True):
+                made += 1
+                last = t
+                if made == collisions_left:
+                    taken = t + 1
+                    break
+        return taken, made, last, rng
+
+    @njit(inline="always")
+    def replay(state, aux, rng, n, count):
+        """The stream after ``count`` more picks (``state`` advanced with it)."""
+        taken = 0
+        while taken < count:
+            _, g, rng = select(state, aux, rng, n, count - taken)
+            taken += g
+        return rng
+
+    def make_steps(PREFETCH):
+        @jit_cached_if_possible
+        def run(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps):
+            v, pairs, ends, units = shaped(v, pairs, ends, units)
+            n, rng = pairs.shape[0], load(rng_words)
+            begin(state, aux, np.empty(0, dtype=np.uint8))
+            if PREFETCH:
+                _, made, _, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n,
+                                                   max_steps, -1)
+            elif n <= _FEW:  # the same loop; knowing n's bound lets the compiler drop a test per pick
+                _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1)
+            else:
+                _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1)
+            store(rng_words, rng)
+            counters[STEPS] += max_steps
+            counters[COLLISIONS] += made
+            counters[LIVE] = UNKNOWN
+            return max_steps
+        return run
+
+    def make_limited(PREFETCH):
+        @jit_cached_if_possible
+        def run(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+                max_steps, max_collisions, until_frozen, chunk_steps, saved):
+            v, pairs, ends, units = shaped(v, pairs, ends, units)
+            n, rng = pairs.shape[0], load(rng_words)
+            flags = np.empty(0, dtype=np.uint8)
+            begin(state, aux, flags)
+            taken, collisions, frozen = 0, counters[COLLISIONS], False
+            if until_frozen and not any_live(v, pairs, ends, units, masses, params):
+                frozen = True
+            while not frozen and taken < max_steps and collisions < max_collisions:
+                count = min(chunk_steps, max_steps - taken)
+                start = rng
+                saved[:] = state
+                if PREFETCH:
+                    used, made, last, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng,
+                                                             n, count, max_collisions - collisions)
+                else:
+                    used, made, last, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count,
+                                                  max_collisions - collisions)
+                collisions += made
+                if until_frozen and last >= 0 and not any_live(v, pairs, ends, units, masses, params):
+                    frozen, used = True, last + 1  # the run ends right after its last collision
+                if used < count and (PREFETCH or frozen):  # picks drawn past the end: replay up to it
+                    state[:] = saved
+                    begin(state, aux, flags)
+                    rng = replay(state, aux, start, n, used)
+                taken += used
+            store(rng_words, rng)
+            counters[STEPS] += taken
+            counters[COLLISIONS] = collisions
+            counters[LIVE] = 0 if frozen else UNKNOWN
+            return taken
+        return run
 
     @jit_cached_if_possible
-    def limited(v, pairs, ends, units, masses, params, sched_state, rng_words, counters,
-                max_steps, max_collisions, track, ptr, inc, flags):
+    def tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+                max_steps, max_collisions, until_frozen, ptr, inc, flags):
         v, pairs, ends, units = shaped(v, pairs, ends, units)
-        n, steps, rng = pairs.shape[0], 0, load(rng_words)
-        collisions, live = counters[COLLISIONS], counters[LIVE]
-        while steps < max_steps and collisions < max_collisions and not (track and live == 0):
-            k, rng = pick(sched_state, rng, n)
-            steps += 1
+        n, rng = pairs.shape[0], load(rng_words)
+        begin(state, aux, flags)
+        taken, collisions, live = 0, counters[COLLISIONS], counters[LIVE]
+        while taken < max_steps and collisions < max_collisions and not (until_frozen and live == 0):
+            k, g, rng = select(state, aux, rng, n, max_steps - taken)
+            taken += g
+            if SKIPS and k < 0:
+                break
             if attempt(v, pairs, ends, units, masses, params, k, True):
                 collisions += 1
-                if track:
-                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0])
-                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1])
+                # contact k is re-tested once, with ball i's contacts: ball j's pass would find the same
+                live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0], -1,
+                                changed, state, aux)
+                live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1], k,
+                                changed, state, aux)
         store(rng_words, rng)
-        counters[STEPS] += steps
+        counters[STEPS] += taken
         counters[COLLISIONS], counters[LIVE] = collisions, live
-        return steps
+        return taken
 
-    return Loops(steps, steps_prefetched, limited, live_flags)
+    @jit_cached_if_possible
+    def picks(state, aux, rng_words, n, out):
+        rng = load(rng_words)
+        begin(state, aux, np.empty(0, dtype=np.uint8))
+        for t in range(out.shape[0]):
+            k, _, rng = select(state, aux, rng, n, 1)
+            out[t] = k
+        store(rng_words, rng)
+
+    return Loops(make_steps(False), make_steps(True), make_limited(False), make_limited(True), tracked, picks)

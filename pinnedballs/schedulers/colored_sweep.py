@@ -25,20 +25,20 @@ is replayed (a Fisher-Yates shuffle of ``0..C-1``, as `RandomSweep` does).
 from __future__ import annotations
 
 import functools
-from typing import Callable, NamedTuple
+from typing import Callable
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine import checks
-from ..engine.chain import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet
+from ..engine.chain import COLLISIONS, LIVE, STEPS
 from ..engine.errors import FieldError
 from ..engine.jitcache import jit_cached_if_possible
-from ..engine.loops import contact_kernels
+from ..engine.loops import Selector, contact_kernels, no_change
 from ..engine.random import bounded, load, store
-from .base import _EMPTY_FLAGS, _EMPTY_INC, _EMPTY_PTR, Scheduler
+from .base import Scheduler
 
-__all__ = ["ColoredSweep", "colour_classes", "colored_sweep_kernel", "SweepLoops"]
+__all__ = ["ColoredSweep", "colour_classes", "sweep_selector", "sweep_steps"]
 
 _STATE = 6  #: length of the state array
 
@@ -108,41 +108,51 @@ def start_sweep(state, order, rng, shuffle):
     return rng
 
 
-class SweepLoops(NamedTuple):
-    """The compiled loops of `colored_sweep_kernel` and one geometry's classes: ``classes (E,)
-    int64`` contact indices, class ``c`` at ``classes[starts[c]:starts[c + 1]]``, ``starts (C+1,)``."""
-
-    steps: Callable
-    limited: Callable
-    classes: np.ndarray
-    starts: np.ndarray
+@njit(cache=True, inline="always")
+def _move_on(state, starts, order, tried):
+    """``tried`` more contacts of the current class; to the next class at its end."""
+    c = order[state[0]]
+    state[1] += tried
+    if starts[c] + state[1] == starts[c + 1]:
+        state[0] = state[0] + 1 if state[0] + 1 < order.shape[0] else -1
+        state[1] = 0
 
 
 @functools.cache
-def colored_sweep_kernel(collide: Callable, dim: int, flat: bool, shuffle: bool) -> tuple[Callable, Callable]:
-    """``(steps, limited)`` for one rule's ``collide``, ``dim``, ``flat`` and ``shuffle``:
-
-    steps(v, pairs, ends, units, masses, params, classes, starts, state, rng_words, counters, max_steps)
-        tries ``max_steps`` contacts, each class (or the part of it within the limit) in parallel;
-    limited(... same ..., max_steps, max_collisions, track, ptr, inc, flags)
-        the same contacts one by one, stopping at ``max_collisions`` or, when ``track``, right
-        after the collision that leaves no live contact (as `engine.loops.Loops.limited`).
-    """
-    attempt, refresh = contact_kernels(collide, dim, flat)
+def sweep_selector(shuffle: bool) -> tuple[Callable, Callable]:
+    """``(select, begin)`` of the sweep one contact at a time (what the engine's limited loops run):
+    ``aux = (classes (E,), starts (C + 1,), order (C,))``, class ``c`` at ``classes[starts[c]:starts[c + 1]]``."""
     SHUFFLE = shuffle
 
     @njit(inline="always")
-    def move_on(state, starts, order, tried):
-        """``tried`` more contacts of the current class; to the next class at its end."""
-        c = order[state[0]]
-        state[1] += tried
-        if starts[c] + state[1] == starts[c + 1]:
-            state[0] = state[0] + 1 if state[0] + 1 < order.shape[0] else -1
-            state[1] = 0
+    def select(state, aux, rng, n, left):
+        classes, starts, order = aux
+        if state[0] < 0:
+            rng = start_sweep(state, order, rng, SHUFFLE)
+        k = classes[starts[order[state[0]]] + state[1]]
+        _move_on(state, starts, order, 1)
+        return k, 1, rng
+
+    @njit(inline="always")
+    def begin(state, aux, flags):
+        order = aux[2]
+        order[:] = class_order(state, order.shape[0], SHUFFLE)
+
+    return select, begin
+
+
+@functools.cache
+def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Callable:
+    """The parallel loop of plain steps for one rule's ``collide``, ``dim``, ``flat`` and ``shuffle``:
+    ``steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps)`` tries
+    ``max_steps`` contacts, each class (or the part of it within the limit) on all numba threads."""
+    attempt, _ = contact_kernels(collide, dim, flat)
+    SHUFFLE = shuffle
 
     @jit_cached_if_possible(parallel=True)
-    def steps(v, pairs, ends, units, masses, params, classes, starts, state, rng_words, counters, max_steps):
-        order = class_order(state, starts.shape[0] - 1, SHUFFLE)
+    def steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps):
+        classes, starts, order = aux
+        order[:] = class_order(state, order.shape[0], SHUFFLE)
         taken, made, rng = 0, 0, load(rng_words)
         while taken < max_steps:
             if state[0] < 0:
@@ -155,35 +165,14 @@ def colored_sweep_kernel(collide: Callable, dim: int, flat: bool, shuffle: bool)
                 part += 1 if attempt(v, pairs, ends, units, masses, params, classes[m], True) else 0
             made += part
             taken += hi - lo
-            move_on(state, starts, order, hi - lo)
+            _move_on(state, starts, order, hi - lo)
         store(rng_words, rng)
         counters[STEPS] += max_steps
         counters[COLLISIONS] += made
+        counters[LIVE] = -1
         return max_steps
 
-    @jit_cached_if_possible
-    def limited(v, pairs, ends, units, masses, params, classes, starts, state, rng_words, counters,
-                max_steps, max_collisions, track, ptr, inc, flags):
-        order = class_order(state, starts.shape[0] - 1, SHUFFLE)
-        taken, rng = 0, load(rng_words)
-        collisions, live = counters[COLLISIONS], counters[LIVE]
-        while taken < max_steps and collisions < max_collisions and not (track and live == 0):
-            if state[0] < 0:
-                rng = start_sweep(state, order, rng, SHUFFLE)
-            k = classes[starts[order[state[0]]] + state[1]]
-            move_on(state, starts, order, 1)
-            taken += 1
-            if attempt(v, pairs, ends, units, masses, params, k, True):
-                collisions += 1
-                if track:
-                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0])
-                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1])
-        store(rng_words, rng)
-        counters[STEPS] += taken
-        counters[COLLISIONS], counters[LIVE] = collisions, live
-        return taken
-
-    return steps, limited
+    return steps
 
 
 class ColoredSweep(Scheduler):
@@ -201,20 +190,16 @@ class ColoredSweep(Scheduler):
         c = geometry.contacts
         return colour_classes(c.pairs, c.ends, geometry.n_balls)
 
-    def loops(self, collide: Callable, geometry) -> SweepLoops:
+    def selector(self, geometry) -> Selector:
+        """The sweep one contact at a time (`sweep_selector`) and its parallel loop of plain steps
+        (`sweep_steps`)."""
         classes = self.classes(geometry)
         starts = np.zeros(len(classes) + 1, dtype=np.int64)
         np.cumsum([len(c) for c in classes], out=starts[1:])
-        steps, limited = colored_sweep_kernel(collide, geometry.dim, geometry.contacts.flat, self.shuffle)
-        return SweepLoops(steps, limited, np.concatenate(classes), starts)
-
-    def advance(self, loops: SweepLoops, chain: Chain, live: LiveSet | None, state, rng, counters,
-                max_steps: int, max_collisions: int, track: bool) -> int:
-        tables = (loops.classes, loops.starts, state, rng, counters, max_steps)
-        if not track and max_collisions == NO_LIMIT:
-            return loops.steps(*chain, *tables)
-        ptr, inc, flags = live if track else (_EMPTY_PTR, _EMPTY_INC, _EMPTY_FLAGS)
-        return loops.limited(*chain, *tables, max_collisions, track, ptr, inc, flags)
+        aux = (np.concatenate(classes), starts, np.arange(len(classes), dtype=np.int64))
+        select, begin = sweep_selector(self.shuffle)
+        return Selector(select, begin, no_change, aux,
+                        steps=functools.partial(sweep_steps, shuffle=self.shuffle))
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         """``[-1, 0, 0, 0, 0, 0]``: start a sweep before the first contact."""
@@ -230,13 +215,14 @@ class ColoredSweep(Scheduler):
         if self.shuffle and state[0] >= 0 and not state[2:].any():
             raise FieldError("scheduler_state", "the random words of the sweep under way must not all be zero")
 
-    def check_resume(self, state: np.ndarray, loops: SweepLoops, flags) -> None:
-        n_classes = len(loops.starts) - 1
+    def check_resume(self, state: np.ndarray, selector: Selector, flags) -> None:
+        starts = selector.aux[1]
+        n_classes = len(starts) - 1
         if state[0] >= n_classes:
             raise FieldError("scheduler_state", f"class slot {state[0]} is beyond the {n_classes} classes")
         if state[0] >= 0:
             c = class_order(state, n_classes, self.shuffle)[state[0]]
-            size = loops.starts[c + 1] - loops.starts[c]
+            size = starts[c + 1] - starts[c]
             if state[1] >= size:
                 raise FieldError("scheduler_state", f"offset {state[1]} is beyond the {size} contacts of its class")
 

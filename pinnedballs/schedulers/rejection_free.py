@@ -22,9 +22,10 @@ geometric with the same ``p`` (the law is memoryless) and the live set has not
 changed, so keeping it gives the same law as drawing afresh, and it makes a run
 split into calls (chunks, checkpoints, resume) bit-identical to one call.
 
-**The live set** is an array ``live[:L]`` plus a position map ``pos (M,) int32``
-(``-1``: not live). After a collision only the contacts of its two balls are
-re-tested: O(degree), a swap with the last entry to remove.
+**The live set** is an array ``live[:L]`` plus a position map ``pos (M,) int64``
+(``-1``: not live). The engine's tracked loop (`engine.loops`) re-tests the contacts of the two
+balls of each collision and tells `changed` of each contact that became live or not: an append,
+or a swap with the last entry to remove.
 
 **The checkpoint** is the live array in its current order and the picks still to
 come, ``state = [L, rest, live[0], ..., live[L-1], -1, ...]`` (``(M + 2,) int64``;
@@ -32,26 +33,21 @@ come, ``state = [L, rest, live[0], ..., live[L-1], -1, ...]`` (``(M + 2,) int64`
 the velocities, but its order follows from the history of swaps, and the pick
 ``live[r]`` depends on that order: a set rebuilt in contact order would continue
 the same law but not the same bits. ``state[0] = -1`` (a fresh run) means
-"build from the velocities, in contact order" (and then ``rest = 0``). The position map is rebuilt from
-the array at each call (O(M), like the live flags).
+"build from the velocities, in contact order" (and then ``rest = 0``). The position map is rebuilt
+from the array at each call (`begin`, O(M), like the live flags).
 """
 
 from __future__ import annotations
 
-import functools
-from typing import Callable
-
 import numpy as np
 from numba import njit
 
-from ..engine.chain import COLLISIONS, LIVE, STEPS, Chain, LiveSet
 from ..engine.errors import FieldError
-from ..engine.jitcache import jit_cached_if_possible
-from ..engine.loops import contact_kernels, fixed_rows
-from ..engine.random import bounded, load, random_float, store
+from ..engine.loops import Selector
+from ..engine.random import bounded, random_float
 from .base import Scheduler
 
-__all__ = ["RejectionFree", "rejection_free_kernel", "picks_until_live"]
+__all__ = ["RejectionFree", "picks_until_live"]
 
 _CAP = float(2**62)  #: picks beyond this are as good as never
 
@@ -72,117 +68,77 @@ def _picks(rng, log_q):
     return 1.0 + np.floor(np.log(1.0 - u) / log_q), rng
 
 
-@functools.cache
-def rejection_free_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
-    """The compiled loop for one rule's ``collide``, ``dim`` and ``flat``:
+@njit(cache=True, inline="always")
+def select(state, aux, rng, n, left):
+    """The next live contact and the picks up to it (at most ``left``; ``k = -1`` beyond them, the
+    rest kept in ``state[1]``). ``aux = (pos (M,), log_q (M + 1,))``: ``log_q[L]`` caches
+    ``log1p(-L / M)`` (0.0: not yet)."""
+    n_live = state[0]
+    if n_live == 0:  # frozen: the paper's chain picks on without ever colliding
+        return np.int64(-1), left, rng
+    if state[1] > 0:  # picks left over from an earlier call
+        g = state[1]
+        state[1] = 0
+    else:
+        if n_live == n:
+            x = 1.0
+        else:
+            log_q = aux[1]
+            if log_q[n_live] == 0.0:
+                log_q[n_live] = np.log1p(-(n_live / n))
+            x, rng = _picks(rng, log_q[n_live])  # as picks_until_live, bit for bit
+        g = np.int64(min(x, _CAP))
+    if g > left:  # the next live pick lies beyond the run
+        state[1] = g - left
+        return np.int64(-1), left, rng
+    r, rng = bounded(rng, n_live)
+    return state[2 + np.int64(r)], g, rng
 
-    run(v, pairs, ends, units, masses, params, state, rng_words, counters,
-        max_steps, max_collisions, track, ptr, inc, flags) -> steps taken
 
-    ``state (M + 2,) int64`` as in the module docstring; ``flags (M,) uint8`` the live
-    flags of ``v`` and ``counters[LIVE]`` their count (from the `Simulation`): the array is
-    built from them when ``state`` does not hold exactly that set (a fresh run, or
-    velocities replaced), and the loop keeps them up to date.
-    """
-    attempt, _ = contact_kernels(collide, dim, flat)
-    shaped = fixed_rows(dim)
+@njit(cache=True, inline="always")
+def changed(state, aux, c, live):
+    """Contact ``c`` became live (``live = 1``: appended) or not (swapped with the last entry)."""
+    pos, n_live = aux[0], state[0]
+    if live:
+        state[2 + n_live] = c
+        pos[c] = n_live
+        state[0] = n_live + 1
+    else:
+        at = pos[c]
+        n_live -= 1
+        last = state[2 + n_live]
+        state[2 + at] = last
+        pos[last] = at
+        state[2 + n_live] = -1
+        pos[c] = -1
+        state[0] = n_live
 
-    @njit(inline="always")
-    def update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, ball, skip):
-        """Re-test the contacts of ``ball`` but ``skip``; add or remove them from ``live[:n_live]``
-        (``flags``, small enough to stay in cache, says which are in; ``pos`` is read only on a
-        change); the new count."""
-        for m in range(ptr[ball], ptr[ball + 1]):
-            c = inc[m]
-            if c == skip:
-                continue
-            now = 1 if attempt(v, pairs, ends, units, masses, params, c, False) else 0
-            if now == flags[c]:  # no change: the common case
-                continue
-            flags[c] = now
-            if now:
-                live[n_live] = c
-                pos[c] = n_live
+
+@njit(cache=True)
+def begin(state, aux, flags):
+    """Fill the position map from ``state``'s live array, or rebuild both from ``flags`` (in contact
+    order, the rest reset) when the array does not hold exactly the live contacts of ``flags``."""
+    pos, n_live = aux[0], state[0]
+    pos[:] = -1
+    ok = n_live >= 0 and n_live == np.count_nonzero(flags)
+    if ok:
+        for m in range(n_live):
+            c = state[2 + m]
+            if flags[c] == 0 or pos[c] >= 0:
+                ok = False
+                break
+            pos[c] = m
+    if not ok:
+        pos[:] = -1
+        state[2:] = -1
+        state[1] = 0  # picks drawn for another live set
+        n_live = 0
+        for k in range(flags.shape[0]):
+            if flags[k] != 0:
+                state[2 + n_live] = k
+                pos[k] = n_live
                 n_live += 1
-            else:
-                at = pos[c]
-                n_live -= 1
-                last = live[n_live]
-                live[at] = last
-                pos[last] = at
-                live[n_live] = -1
-                pos[c] = -1
-        return n_live
-
-    @njit(inline="always")
-    def positions(state, counters, flags, pos):
-        """Fill ``pos`` from ``state``'s live array, or rebuild both from ``flags``; the live count."""
-        live, n_live = state[2:], state[0]
-        ok = n_live == counters[LIVE]
-        if ok:
-            for m in range(n_live):
-                c = live[m]
-                if flags[c] == 0 or pos[c] >= 0:
-                    ok = False
-                    break
-                pos[c] = m
-        if not ok:
-            pos[:] = -1
-            live[:] = -1
-            n_live = 0
-            state[1] = 0  # picks drawn for another live set
-            for k in range(flags.shape[0]):
-                if flags[k] != 0:
-                    live[n_live] = k
-                    pos[k] = n_live
-                    n_live += 1
-        return n_live
-
-    @jit_cached_if_possible
-    def run(v, pairs, ends, units, masses, params, state, rng_words, counters,
-            max_steps, max_collisions, track, ptr, inc, flags):
-        v, pairs, ends, units = shaped(v, pairs, ends, units)
-        n = pairs.shape[0]
-        pos = np.full(n, -1, dtype=np.int32)
-        live = state[2:]
-        n_live = positions(state, counters, flags, pos)
-        rest = state[1]
-        log_q = np.zeros(n + 1)  # log1p(-L / n), computed once per L seen (0.0: not yet)
-        steps, collisions, rng = 0, counters[COLLISIONS], load(rng_words)
-        while steps < max_steps and collisions < max_collisions and not (track and n_live == 0):
-            left = max_steps - steps
-            if n_live == 0:  # frozen: the paper's chain picks on without ever colliding
-                steps = max_steps
-                break
-            if rest > 0:  # picks left over from the last call
-                g, rest = rest, 0
-            else:
-                if n_live == n:
-                    x = 1.0
-                else:
-                    if log_q[n_live] == 0.0:
-                        log_q[n_live] = np.log1p(-(n_live / n))
-                    x, rng = _picks(rng, log_q[n_live])  # as picks_until_live, bit for bit
-                g = np.int64(min(x, _CAP))
-            if g > left:  # the next live pick lies beyond the run
-                rest = g - left
-                steps = max_steps
-                break
-            steps += g
-            r, rng = bounded(rng, n_live)
-            k = live[np.int64(r)]
-            if attempt(v, pairs, ends, units, masses, params, k, True):  # live: always true
-                collisions += 1
-            # contact k is re-tested once, with ball i's: ball j's pass would find the same
-            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, pairs[k, 0], -1)
-            n_live = update(v, pairs, ends, units, masses, params, ptr, inc, flags, live, pos, n_live, pairs[k, 1], k)
-        store(rng_words, rng)
-        state[0], state[1] = n_live, rest
-        counters[STEPS] += steps
-        counters[COLLISIONS], counters[LIVE] = collisions, n_live
-        return steps
-
-    return run
+        state[0] = n_live
 
 
 class RejectionFree(Scheduler):
@@ -191,15 +147,10 @@ class RejectionFree(Scheduler):
     contact chosen uniformly. Same joint law of steps, collisions and velocities as
     `UniformRandomPair`; far faster when few contacts are live (a half-plane near its freeze)."""
 
-    def loops(self, collide: Callable, geometry) -> Callable:
-        return rejection_free_kernel(collide, geometry.dim, geometry.contacts.flat)
-
-    def needs_live(self, track: bool) -> bool:
-        return True
-
-    def advance(self, loops, chain: Chain, live: LiveSet | None, state, rng, counters,
-                max_steps: int, max_collisions: int, track: bool) -> int:
-        return loops(*chain, state, rng, counters, max_steps, max_collisions, track, *live)
+    def selector(self, geometry) -> Selector:
+        n = geometry.n_contacts
+        aux = (np.full(n, -1, dtype=np.int64), np.zeros(n + 1))
+        return Selector(select, begin, changed, aux, tracks=True, skips=True)
 
     def to_spec(self) -> dict:
         return {"kind": "rejection_free"}
@@ -225,7 +176,7 @@ class RejectionFree(Scheduler):
         if (rest != -1).any():
             raise FieldError("scheduler_state", "entries after the live contacts must be -1")
 
-    def check_resume(self, state: np.ndarray, loops, flags: np.ndarray | None) -> None:
+    def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:
         n_live = state[0]
         if n_live >= 0 and not np.array_equal(np.sort(state[2:2 + n_live]), np.flatnonzero(flags)):
             raise FieldError("scheduler_state", f"its {n_live} live contacts are not those of the velocities "

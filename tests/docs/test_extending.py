@@ -88,26 +88,31 @@ def test_schedulers_and_rules_compare_by_parameters_and_hash(doc):
     assert table[pb.Sweep()] == "s" and table[among([1, 2])] == "a"
 
 
-def test_backwards_owns_its_loop_and_sweeps_last_to_first(doc):
-    """On separate approaching pairs the loop collides the last pair first; on a chain it freezes
-    after exactly the inversions, and run_until_frozen stops right after the last collision."""
+def test_by_ball_tries_each_ball_s_contacts_in_turn_and_freezes_a_chain(doc):
+    """On separate approaching pairs ball 0's contact collides first, ball 1's (the same, now
+    receding) next, then ball 2's; on a chain the run freezes after exactly the inversions, and a
+    state outside the sweep is refused before anything runs."""
     from helpers import chain, matching
 
     geom = matching(6, dim=1)
     v = np.zeros((12, 1))
     v[0::2, 0], v[1::2, 0] = 1.0, -1.0
-    sim = pb.Simulation(geom, v, scheduler=doc["Backwards"](), seed=0)
+    sim = pb.Simulation(geom, v, scheduler=doc["ByBall"](), seed=0)
     sim.run(steps=2)
-    moved = np.flatnonzero(sim.velocities[:, 0] != v[:, 0])
-    np.testing.assert_array_equal(moved, [8, 9, 10, 11])
+    np.testing.assert_array_equal(np.flatnonzero(sim.velocities[:, 0] != v[:, 0]), [0, 1])
+    sim.run(steps=1)
+    np.testing.assert_array_equal(np.flatnonzero(sim.velocities[:, 0] != v[:, 0]), [0, 1, 2, 3])
+    assert sim.collisions == 2
     line = chain(30)
     v = np.random.default_rng(1).normal(size=(30, 1))
     inversions = sum(int(a > b) for k, a in enumerate(v[:, 0]) for b in v[k + 1:, 0])
-    sim = pb.Simulation(line, v, scheduler=doc["Backwards"](), seed=0)
+    sim = pb.Simulation(line, v, scheduler=doc["ByBall"](), seed=0)
     assert sim.run_until_frozen(max_steps=10**6)
     assert sim.collisions == inversions
-    with pytest.raises(ValueError, match=r"scheduler_state: the position must be in \[0, 29\), got 29"):
-        sim.set_state(sim.get_state().replace(scheduler_state=np.array([29])))
+    with pytest.raises(ValueError, match=r"scheduler_state: ball 3, offset 7 is not a place in the sweep"):
+        sim.set_state(sim.get_state().replace(scheduler_state=np.array([3, 7])))
+
+
 def test_recorded_chain_run(doc):
     """Collisions along a chain come one at a time; the snapshots land on the counts asked for."""
     res = doc["res"]

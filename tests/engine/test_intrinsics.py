@@ -7,9 +7,10 @@ from numba import njit
 
 import pinnedballs as pb
 from pinnedballs.engine.intrinsics import fixed_width
-from pinnedballs.engine.loops import chain_kernel
+from pinnedballs.engine.loops import NO_AUX
 from pinnedballs.rules import collide_elastic
 from pinnedballs.schedulers.simple import pick_uniform
+from helpers import pick_loops
 
 
 def _copy_and_bump(width):
@@ -41,10 +42,10 @@ def test_view_reads_and_writes_the_same_elements(dtype, width):
 def test_loop_refuses_tables_of_another_row_length():
     geom = pb.FlatTorus(rows=4, cols=4)
     c = geom.contacts
-    loops = chain_kernel(collide_elastic, pick_uniform, 2, True)
+    loops = pick_loops(collide_elastic, pick_uniform, 2, True)
     v3 = np.zeros((geom.n_balls, 3))  # three components for a loop built for two
     rng, counters = np.array([1, 2, 3, 4], dtype=np.uint64), np.zeros(3, dtype=np.int64)
     with pytest.raises(ValueError, match="^the loop's tables do not have the row lengths it was built for$"):
         loops.steps(v3, c.pairs, c.ends, c.units, np.ones(geom.n_balls), np.array([1.0]),
-                    np.zeros(1, dtype=np.int64), rng, counters, 10)
+                    np.zeros(1, dtype=np.int64), NO_AUX, rng, counters, 10)
     assert counters.tolist() == [0, 0, 0]

@@ -10,9 +10,9 @@ import pytest
 from numba import njit
 
 from pinnedballs.engine.jitcache import _ClosureCache
-from pinnedballs.engine.loops import chain_kernel
 from pinnedballs.rules import collide_equal, collide_masses
 from pinnedballs.schedulers.simple import pick_random_sweep, pick_sweep, pick_uniform
+from helpers import pick_loops
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 
@@ -26,18 +26,19 @@ def test_every_combination_has_its_own_key():
     """A shared key would load one rule's compiled loop for another (a bug we once had)."""
     combos = [(c, p, d, f) for c in (collide_equal, collide_masses)
               for p in (pick_uniform, pick_sweep, pick_random_sweep) for d in (1, 2, 3) for f in (True, False)]
-    keys = {_key(chain_kernel(*combo)) for combo in combos}
+    keys = {_key(pick_loops(*combo)) for combo in combos}
     assert len(keys) == len(combos)
 
 
 def test_key_is_the_same_in_another_process():
-    here = _key(chain_kernel(collide_equal, pick_sweep, 2, True))
+    here = _key(pick_loops(collide_equal, pick_sweep, 2, True))
     code = textwrap.dedent("""
         from pinnedballs.engine.jitcache import _ClosureCache
-        from pinnedballs.engine.loops import chain_kernel
+        from pinnedballs.engine.loops import loops, pick_selector
         from pinnedballs.rules import collide_equal
         from pinnedballs.schedulers.simple import pick_sweep
-        k = chain_kernel(collide_equal, pick_sweep, 2, True).limited
+        s = pick_selector(pick_sweep)
+        k = loops(collide_equal, s.select, s.begin, s.changed, s.skips, 2, True).limited
         print(repr(_ClosureCache(k.py_func)._index_key(("sig",), k.targetctx.codegen())))
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -47,8 +48,10 @@ def test_key_is_the_same_in_another_process():
 def test_function_without_source_file_is_not_disk_cached():
     ns = {}
     exec("def f(v, units, i, j, a, b, masses, params, dim, flat):\n    return False", ns)
-    loops = chain_kernel(njit(ns["f"]), pick_uniform, 2, True)
-    assert not any(isinstance(kernel._cache, _ClosureCache) for kernel in loops)
+    loops = pick_loops(njit(ns["f"]), pick_uniform, 2, True)
+    colliding = [loops.steps, loops.steps_prefetched, loops.limited, loops.limited_prefetched, loops.tracked]
+    assert not any(isinstance(kernel._cache, _ClosureCache) for kernel in colliding)
+    assert isinstance(loops.picks._cache, _ClosureCache)  # it never calls the rule
 
 
 def test_cached_loops_give_each_rule_its_own_physics(tmp_path):
@@ -88,18 +91,19 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
     code = textwrap.dedent("""
         import numpy as np, pinnedballs as pb
         from pinnedballs.engine.jitcache import _ClosureCache
-        from pinnedballs.engine.loops import chain_kernel
+        from pinnedballs.engine.loops import loops as make_loops, pick_selector
         from pinnedballs.engine.random import seed_state
         from pinnedballs.schedulers.simple import pick_sweep
         import myrule
-        loops = chain_kernel(myrule.collide, pick_sweep, 2, True)
+        s = pick_selector(pick_sweep)
+        loops = make_loops(myrule.collide, s.select, s.begin, s.changed, s.skips, 2, True)
         k = loops.steps
         key = _ClosureCache(k.py_func)._index_key(("sig",), k.targetctx.codegen())
         v = np.array([[1.0, 0.0], [0.0, 0.0]])
         g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0]])
         counters = np.zeros(3, np.int64)
         k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0]),
-          np.zeros(1, np.int64), seed_state(0), counters, 1)
+          np.zeros(1, np.int64), np.zeros(0, np.int64), seed_state(0), counters, 1)
         print(repr(key), v[:, 0].tolist())
     """)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
@@ -123,10 +127,10 @@ def test_parallel_colored_sweep_loop_is_loaded_from_disk_in_a_fresh_process(tmp_
         geom = pb.FlatTorus(6, 6)
         sim = pb.Simulation(geom, np.random.default_rng(1).normal(size=(36, 2)), scheduler=pb.ColoredSweep(), seed=1)
         sim.run(steps=1000)
-        stats = sim._loops.steps.stats
+        stats = sim._own_steps.stats
         print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), sim.velocities.sum().hex())
     """)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": root}
     runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
             .stdout.split() for _ in range(2)]

@@ -211,3 +211,19 @@ def test_a_chain_makes_exactly_its_inversions_in_collisions(scheduler):
         assert sim.collisions == inversions > 100
         # sorted, to rounding: v_i - (v_i - v_j) is v_j only to within an ulp of the larger
         np.testing.assert_allclose(sim.velocities[:, 0], np.sort(v[:, 0]), rtol=0, atol=1e-14)
+
+
+def test_a_scheduler_written_for_the_old_loop_protocol_is_refused_with_what_to_do():
+    """Schedulers once ran their own loops through loops() and advance(); the engine now owns the
+    loop, so such a scheduler is refused when the Simulation is built, naming the way out."""
+    class OwnLoop(pb.Scheduler):
+        def loops(self, collide, geometry):
+            return None
+
+        def advance(self, loops, chain, live, state, rng, counters, max_steps, max_collisions, track):
+            return 0
+
+    geom = pb.FlatTorus(4, 4)
+    with pytest.raises(TypeError, match=r"^scheduler: OwnLoop defines advance\(\) or loops\(\), which the engine "
+                                        r"no longer calls: give it kernel\(\) \(a pick\) or selector\(\) instead"):
+        pb.Simulation(geom, np.zeros((16, 2)), scheduler=OwnLoop())
