@@ -11,11 +11,14 @@ import numpy as np
 from .engine import checks
 from .engine.chain import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
 from .engine.errors import FieldError, FieldTypeError, check_jitted
+from .engine.exact import BLOCK as EXACT_BLOCK
+from .engine.exact import ExactChain
+from .engine.fields import NotExact
 from .engine.limits import check_speeds
 from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, live_kernel, loops
 from .engine.random import seed_state
 from .geometry.base import Geometry
-from .rules import CollisionRule, Elastic
+from .rules import CollisionRule, Elastic, threshold
 from .schedulers.base import Scheduler
 from .schedulers.simple import UniformRandomPair
 
@@ -27,7 +30,9 @@ class RunState:
     """Everything that changes during a run: enough to resume it bit for bit.
 
     velocities ``(n_balls, dim) float64``; steps and collisions so far; rng_state ``(4,) uint64``,
-    the random stream; scheduler_state ``(L,) int64``, the scheduler's own state.
+    the random stream; scheduler_state ``(L,) int64``, the scheduler's own state; exact: for a
+    run in exact arithmetic, the exact velocities as ``(n_balls, dim, m)`` strings, each velocity
+    component's coefficients on its number field's basis (``velocities`` are then their roundings).
     """
 
     velocities: np.ndarray
@@ -35,6 +40,7 @@ class RunState:
     collisions: int
     rng_state: np.ndarray
     scheduler_state: np.ndarray
+    exact: np.ndarray | None = None
 
     #: the arrays among the fields (the rest are counts)
     ARRAYS = ("velocities", "rng_state", "scheduler_state")
@@ -42,7 +48,7 @@ class RunState:
     def copy(self) -> "RunState":
         """A copy whose arrays share no memory with this one's."""
         return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
-                        self.scheduler_state.copy())
+                        self.scheduler_state.copy(), None if self.exact is None else self.exact.copy())
 
     def replace(self, **changes) -> "RunState":
         """This state with the fields named in ``changes`` replaced."""
@@ -50,7 +56,9 @@ class RunState:
 
     def identical(self, other: "RunState") -> bool:
         """True when ``other`` is this state bit for bit (every array, dtype and count)."""
-        return (self.steps, self.collisions) == (other.steps, other.collisions) and all(
+        same_exact = (self.exact is None) == (other.exact is None) and (
+            self.exact is None or np.array_equal(self.exact, other.exact))
+        return (self.steps, self.collisions) == (other.steps, other.collisions) and same_exact and all(
             getattr(self, name).dtype == getattr(other, name).dtype
             and np.array_equal(getattr(self, name), getattr(other, name)) for name in self.ARRAYS)
 
@@ -96,20 +104,29 @@ class Simulation:
     velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
     masses: ``(n_balls,)`` positive masses, or None for all equal.
     seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream.
+    A contact collides only if its closing speed exceeds ``threshold`` (`pinnedballs.rules.threshold`,
+    about 4 units in the last place of the largest speed the velocities given can give a ball):
+    closing speeds below it are rounding remnants, which exact arithmetic shows are no approach.
+
+    arithmetic: ``"float"`` (float64, the compiled loop) or ``"exact"``: the same chain, the same
+    picks from the same stream, with every velocity exact in the number field of the contact
+    normals (`pinnedballs.engine.exact`; ``velocities`` are then the exact values rounded, and
+    `exact_velocities` the values themselves). Exact runs need normals in a known field (the
+    triangular lattices: Q(sqrt 3); FCC: Q(sqrt 2); HCP: Q(sqrt 2, sqrt 3); chains: Q), the
+    built-in rules, and a scheduler that picks without a live set.
 
     Each step the scheduler picks a contact; if its balls approach, the rule
     collides them. ``steps`` counts picks, ``collisions`` the picks that changed
     velocities. Same inputs and seed give bit-identical velocities and counters,
     however the run is split into calls.
 
-    The scheduler runs its own compiled loops (`Scheduler.advance`) on plain data the
-    simulation owns: the velocities, the counters, the random stream, the scheduler's
-    state and the live-contact set (`engine.chain.LiveSet`), which it refreshes for the
-    loops that want it.
+    The engine's loops (`pinnedballs.engine.loops`) run the scheduler's selector on plain data
+    the simulation owns: the velocities, the counters, the random stream, the scheduler's state
+    and, for a selector that tracks them, the live contacts (`engine.chain.LiveSet`).
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
-                 scheduler: Scheduler | None = None, masses=None, seed=0):
+                 scheduler: Scheduler | None = None, masses=None, seed=0, arithmetic: str = "float"):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -125,7 +142,9 @@ class Simulation:
         self._mass_array = mass_array(masses, geometry.n_balls)
         self.masses = None if masses is None else self._mass_array
         self.velocities = self._check_velocities(velocities)
-        self._collide, self._params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
+        self._collide, params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
+        self.threshold = threshold(self.velocities, self._mass_array)
+        self._params = np.append(np.asarray(params, dtype=np.float64), self.threshold)  # params[-1]: `approaching`
         check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
         self._selector = _selector(scheduler, geometry)
         s, dim, flat = self._selector, geometry.dim, geometry.contacts.flat
@@ -136,6 +155,10 @@ class Simulation:
         self._rng = seed_state(seed)
         self._counters = np.zeros(3, dtype=np.int64)
         self._live = None  # the LiveSet, built when a tracked run first needs it
+        self.arithmetic = checks.choice("arithmetic", arithmetic, ("float", "exact"))
+        self._exact = _exact_chain(self) if self.arithmetic == "exact" else None
+        if self._exact is not None:
+            self.velocities = self._exact.shadow  # the exact values rounded, kept by the exact chain
 
     # ------------------------------------------------------------ input checks
     def _check_velocities(self, velocities) -> np.ndarray:
@@ -198,6 +221,8 @@ class Simulation:
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken."""
         max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
+        if self._exact is not None:
+            return self._run_exact(max_steps, max_collisions, until_frozen)
         chain, s, loops_ = self._chain(), self._selector, self._loops
         tables = (self._sched_state, s.aux, self._rng, self._counters)
         if s.tracks:
@@ -209,6 +234,29 @@ class Simulation:
         chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
         limited = loops_.limited_prefetched if large else loops_.limited
         return limited(*chain, *tables, max_steps, max_collisions, until_frozen, chunk, np.empty_like(self._sched_state))
+
+    def _run_exact(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        """`_run` in exact arithmetic: the compiled selector's picks in blocks, each tried exactly
+        (`ExactChain.run`); a block cut short is drawn again to its end, so the stream and the
+        scheduler's state are those of the float loop after the same steps."""
+        ex, s, n = self._exact, self._selector, self.geometry.n_contacts
+        if ex.flags is None:
+            ex.count_live()
+        taken, collisions = 0, self.collisions
+        while taken < max_steps and collisions < max_collisions and not (until_frozen and ex.live == 0):
+            block = int(min(EXACT_BLOCK, max_steps - taken))
+            rng, state = self._rng.copy(), self._sched_state.copy()
+            picks = np.empty(block, dtype=np.int64)
+            self._loops.picks(self._sched_state, s.aux, self._rng, n, picks)
+            used, made = ex.run(picks.tolist(), max_collisions - collisions, until_frozen)
+            if used < block:
+                self._rng[:], self._sched_state[:] = rng, state
+                self._loops.picks(self._sched_state, s.aux, self._rng, n, np.empty(used, dtype=np.int64))
+            taken, collisions = taken + used, collisions + made
+        ex.sync()
+        self._counters[STEPS] += taken
+        self._counters[COLLISIONS], self._counters[LIVE] = collisions, ex.live
+        return taken
 
     def _chain(self) -> Chain:
         c = self.geometry.contacts
@@ -226,14 +274,26 @@ class Simulation:
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
         """Number of live contacts: those whose balls approach, so that picking one would
-        change velocities (0 means frozen). A closing speed so small that the collision
+        collide (0 means frozen). In float arithmetic a closing speed so small that the collision
         would change no bit of any velocity, a remnant of rounding, does not count."""
+        if self._exact is not None:
+            return self._exact.count_live()
         flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
         return int(self._live_flags(*self._chain(), flags))
 
     def is_frozen(self) -> bool:
         """True when no contact is live, so no collision can ever happen again."""
+        if self._exact is not None:
+            return self.approaching() == 0
         return not self._any_live(*self._chain())
+
+    @property
+    def exact_velocities(self) -> np.ndarray | None:
+        """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.fields.Exact` numbers) of a run in
+        exact arithmetic; None in float arithmetic."""
+        if self._exact is None:
+            return None
+        return self._exact.numbers()
 
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
@@ -246,8 +306,9 @@ class Simulation:
     # ------------------------------------------------------------ state for checkpoints
     def get_state(self) -> RunState:
         """Everything that changes during a run, as copies: enough to resume bit for bit."""
+        exact = None if self._exact is None else self._exact.coefficients()
         return RunState(self.velocities.copy(), self.steps, self.collisions, self._rng.copy(),
-                        self._sched_state.copy())
+                        self._sched_state.copy(), exact)
 
     def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
@@ -268,10 +329,36 @@ class Simulation:
         steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
         if collisions > steps:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
-        self.velocities = velocities
+        exact = self._exact_state(state, velocities)
+        if exact is not None:
+            self._exact.set_velocities(exact)
+        else:
+            self.velocities = velocities
         self._rng = rng.copy()
         self._sched_state = sched.copy()
         self._counters[STEPS], self._counters[COLLISIONS] = steps, collisions
+
+    def _exact_state(self, state: RunState, velocities: np.ndarray) -> list | None:
+        """The exact velocities of ``state`` for an exact simulation (None for a float one), checked:
+        they parse in this geometry's field and round to ``velocities``."""
+        if self._exact is None:
+            return None
+        if state.exact is None:
+            raise FieldError("exact", "a simulation in exact arithmetic resumes only from an exact state "
+                                      "(this one holds float velocities only)")
+        shape = (*velocities.shape, self._exact.field.m)
+        if np.shape(state.exact) != shape:
+            raise FieldError("exact", f"must have shape (n_balls, dim, m) = {shape} in {self._exact.field}, "
+                                      f"got {np.shape(state.exact)}")
+        try:
+            exact = self._exact.parse(state.exact)
+        except (ValueError, TypeError) as exc:
+            raise FieldError("exact", f"a coefficient is not a rational number ({exc})") from None
+        F = self._exact.field
+        rounded = np.array([[F.to_float(x) for x in row] for row in exact])
+        if not np.array_equal(rounded, velocities):
+            raise FieldError("exact", "the exact velocities do not round to the state's velocities")
+        return exact
 
     def __repr__(self) -> str:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
@@ -286,3 +373,21 @@ def _selector(scheduler: Scheduler, geometry: Geometry):
                                           f"no longer calls: give it kernel() (a pick) or selector() instead "
                                           f"(docs/extending.md)")
     return scheduler.selector(geometry)
+
+
+def _exact_chain(sim: Simulation) -> ExactChain:
+    """The `ExactChain` of ``sim``, or a `FieldError` on ``arithmetic`` saying why it cannot have one."""
+    r = sim.rule.exact_restitution()
+    if r is None:
+        raise FieldError("arithmetic", f"exact arithmetic runs the built-in rules (Elastic, Restitution); "
+                                       f"{sim.rule!r} has no exact form")
+    if sim._selector.tracks:
+        raise FieldError("arithmetic", f"exact arithmetic follows the picks of a scheduler that needs no live set; "
+                                       f"{sim.scheduler!r} picks among live contacts in float arithmetic "
+                                       f"(UniformRandomPair has the same law)")
+    try:
+        return ExactChain(sim.geometry, sim.velocities, sim._mass_array, r)
+    except NotExact as exc:
+        raise FieldError("arithmetic", f"exact arithmetic needs every contact normal in a known number field "
+                                       f"(q*sqrt(d) components), and {type(sim.geometry).__name__}'s are not: "
+                                       f"{exc}") from None

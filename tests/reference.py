@@ -182,14 +182,15 @@ def closing_speed(v: list[list[float]], i: int, j: int, ti, tj) -> float:
     return w
 
 
-def collide(v, i, j, ti, tj, r: float, masses, write: bool = True) -> bool:
-    """Collide contact ``(i, j)`` if it approaches; return whether any velocity component
-    changes (a collision, as the paper counts them). Writes only if ``write``.
+def collide(v, i, j, ti, tj, r: float, masses, write: bool = True, threshold: float = 0.0) -> bool:
+    """Collide contact ``(i, j)`` if it approaches (closing speed above ``threshold``, which is
+    >= 0: smaller ones are rounding remnants); return whether any velocity component changes (a
+    collision, as the paper counts them). Writes only if ``write``.
 
     ``masses`` is None for equal masses, else a list of floats.
     """
     w = closing_speed(v, i, j, ti, tj)
-    if not w > 0.0:
+    if not w > 0.0 or not w > threshold:
         return False
     if masses is None:
         ci = cj = w * ((1.0 + r) / 2.0)
@@ -217,7 +218,8 @@ class ReferenceSimulation:
     the colored sweeps.
     """
 
-    def __init__(self, pairs, t_i, t_j, velocities, r=1.0, masses=None, scheduler="uniform", seed=0, classes=None):
+    def __init__(self, pairs, t_i, t_j, velocities, r=1.0, masses=None, scheduler="uniform", seed=0, classes=None,
+                 threshold=None):
         self.pairs = np.asarray(pairs).astype(np.int64).tolist()
         self._t_i = np.asarray(t_i, dtype=np.float64)  # rows become lists of Python floats on use
         self._t_j = np.asarray(t_j, dtype=np.float64)
@@ -227,6 +229,11 @@ class ReferenceSimulation:
             m = [float(x) for x in np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(self.v),))]
             masses = None if all(x == m[0] for x in m) else m
         self.masses = masses
+        if threshold is None:  # a parameter of the chain, as the engine sets it (tested on its own)
+            from pinnedballs.rules import threshold as remnants
+            m = np.ones(len(self.v)) if masses is None else np.asarray(masses, dtype=np.float64)
+            threshold = remnants(np.asarray(velocities, dtype=np.float64), m)
+        self.threshold = float(threshold)
         self.picker = make_picker(scheduler, len(self.pairs), classes)
         self.rng = Xoshiro(seed_state(seed))
         self.steps = 0
@@ -260,7 +267,7 @@ class ReferenceSimulation:
         self.picks.append(k)
         self.steps += 1
         i, j = self.pairs[k]
-        hit = collide(self.v, i, j, *self.units(k), self.r, self.masses)
+        hit = collide(self.v, i, j, *self.units(k), self.r, self.masses, threshold=self.threshold)
         if hit:
             self.collisions += 1
             self.collision_steps.append(self.steps)
@@ -269,7 +276,7 @@ class ReferenceSimulation:
     def live(self, k: int) -> bool:
         """Would picking contact ``k`` change velocities?"""
         i, j = self.pairs[k]
-        return collide(self.v, i, j, *self.units(k), self.r, self.masses, write=False)
+        return collide(self.v, i, j, *self.units(k), self.r, self.masses, write=False, threshold=self.threshold)
 
     def approaching(self) -> int:
         """Live contacts (0: frozen), counted afresh over all contacts."""
@@ -346,13 +353,13 @@ class OrderTree:
     def live(self, v) -> list[int]:
         """Contacts whose collision would change some velocity component, in contact order."""
         s = self.sim
-        return [k for k in range(len(s.pairs)) if collide(v, *s.pairs[k], *s.units(k), s.r, s.masses, write=False)]
+        return [k for k in range(len(s.pairs)) if collide(v, *s.pairs[k], *s.units(k), s.r, s.masses, write=False, threshold=s.threshold)]
 
     def after(self, v, k: int):
         """A copy of ``v`` after colliding contact ``k``."""
         s = self.sim
         w = [list(row) for row in v]
-        collide(w, *s.pairs[k], *s.units(k), s.r, s.masses)
+        collide(w, *s.pairs[k], *s.units(k), s.r, s.masses, threshold=s.threshold)
         return w
 
     def sequences(self) -> list[tuple[int, ...]]:
@@ -461,7 +468,7 @@ class ReferenceRejectionFree(ReferenceSimulation):
             k = self.live_list[self.rng.bounded(len(self.live_list))]
             self.picks.append(k)
             i, j = self.pairs[k]
-            assert collide(self.v, i, j, *self.units(k), self.r, self.masses)
+            assert collide(self.v, i, j, *self.units(k), self.r, self.masses, threshold=self.threshold)
             self.collisions += 1
             self.collision_steps.append(self.steps + taken)
             self._update(i)

@@ -27,11 +27,13 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numba import njit
 
+from ..engine import checks
+from ..engine.errors import FieldError
 from ..engine.jitcache import jit_cached_if_possible
 from ..geometry.base import Geometry
 from ..rules import closing_speed
 from ..schedulers.simple import UniformRandomPair
-from ..simulation import Simulation, mass_array
+from ..simulation import Simulation
 
 __all__ = ["explore_orders", "OrdersResult", "order_kernels", "orders_against_random"]
 
@@ -93,21 +95,68 @@ def order_kernels(collide: Callable, dim: int, flat: bool) -> OrderKernels:
     return OrderKernels(live, child, collide_at)
 
 
-class _System:
-    """A geometry's tables, masses and rule bound to the search kernels."""
+class _FloatSystem:
+    """A float64 system: the engine's compiled ``collide`` on velocity arrays, states keyed by their bits."""
 
-    def __init__(self, geometry: Geometry, masses: np.ndarray, rule, min_closing_speed: float = 0.0):
-        c = geometry.contacts
+    arithmetic = "float"
+
+    def __init__(self, sim: Simulation, min_closing_speed: float = 0.0):
+        c, masses = sim.geometry.contacts, sim._mass_array
         self.min_w = float(min_closing_speed)
-        collide, params = rule.kernel(bool(np.all(masses == masses[0])))
-        self.tables = (c.pairs, c.ends, c.units, masses, params)
-        self.kernels = order_kernels(collide, geometry.dim, c.flat)
+        self.tables = (c.pairs, c.ends, c.units, masses, sim._params)  # the rule's params and the threshold
+        self.kernels = order_kernels(sim._collide, sim.geometry.dim, c.flat)
+        self.start = np.ascontiguousarray(sim.velocities)
 
     def live(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.kernels.live(v, *self.tables, self.min_w)
 
     def child(self, v: np.ndarray, k: int) -> np.ndarray:
         return self.kernels.child(v, *self.tables, k)
+
+    @staticmethod
+    def key(v: np.ndarray) -> bytes:
+        return _key(v)
+
+    @staticmethod
+    def size(v: np.ndarray) -> int:
+        return v.nbytes
+
+
+class _ExactSystem:
+    """An exact system (`pinnedballs.engine.exact`): states are the exact velocities, tuples of field
+    elements, merged by exact equality; a contact is live when its exact closing speed is positive."""
+
+    arithmetic = "exact"
+
+    def __init__(self, sim: Simulation, min_closing_speed: float = 0.0):
+        self.chain, self.min_w = sim._exact, float(min_closing_speed)
+        self.start = tuple(tuple(row) for row in self.chain.v)
+
+    def live(self, v: tuple) -> tuple[np.ndarray, np.ndarray]:
+        chain, F = self.chain, self.chain.field
+        ks, ws = [], []
+        for k, (i, j) in enumerate(chain.pairs):
+            w = chain.closing_of(v[i], v[j], k)
+            if F.sign(w) > 0 and (not self.min_w or F.to_float(w) > self.min_w):
+                ks.append(k)
+                ws.append(F.to_float(w))
+        return np.array(ks, dtype=np.int64), np.array(ws, dtype=np.float64)
+
+    def child(self, v: tuple, k: int) -> tuple:
+        chain, (i, j), (a, b) = self.chain, self.chain.pairs[k], self.chain.ends[k]
+        ci, cj = chain.kicks(chain.closing_of(v[i], v[j], k), k)
+        out = list(v)
+        out[i] = tuple(chain.kicked(v[i], ci, chain.units[a]))
+        out[j] = tuple(chain.kicked(v[j], cj, chain.units[b]))
+        return tuple(out)
+
+    @staticmethod
+    def key(v: tuple) -> tuple:
+        return v
+
+    def size(self, v: tuple) -> int:
+        """About the bytes a state holds (its rationals grow with the collisions behind it)."""
+        return sum(len(str(c)) + 64 for row in v for x in row for c in x)
 
 
 #: states up to this many bytes are keyed by their bits; larger ones by a 128-bit digest of them
@@ -148,6 +197,7 @@ class OrdersResult:
     states: int
     exhaustive: bool
     sampled: int = 0
+    arithmetic: str = "exact"
 
     def _figures(self) -> tuple[str, str]:
         if self.exhaustive:
@@ -193,7 +243,7 @@ class _Frame:
         return (0, 0, -1, -1) if not self.ks else (self.lo, self.hi, self.k_lo, self.k_hi)
 
 
-def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, list[_Frame], int]:
+def _search(system, v0, max_states: int) -> tuple[dict, list[_Frame], int]:
     """Depth-first search from ``v0`` over at most ``max_states`` distinct states (and a path
     of at most `PATH_BYTES` of velocities).
 
@@ -202,7 +252,7 @@ def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, lis
     An explicit stack: orders can be longer than Python's recursion limit.
     """
     memo: dict[bytes, tuple[int, int, int, int]] = {}
-    root = _Frame(v0, _key(v0), system.live(v0)[0])
+    root = _Frame(v0, system.key(v0), system.live(v0)[0])
     path, on_path, states = [root], {root.key}, 1
     while path:
         f = path[-1]
@@ -218,7 +268,7 @@ def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, lis
             continue
         k = f.ks[f.next]
         v = system.child(f.v, k)
-        key = _key(v)
+        key = system.key(v)
         known = memo.get(key)
         if known is not None:
             f.take(k, known[0], known[1])
@@ -226,7 +276,7 @@ def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, lis
         elif key in on_path:
             raise ValueError(f"velocities: an order returns to a state it passed (by contact {k}), so this "
                              "system can collide forever (a torus or a sphere can): nothing freezes it")
-        elif states >= max_states or (len(path) + 1) * v.nbytes > PATH_BYTES:
+        elif states >= max_states or (len(path) + 1) * system.size(v) > PATH_BYTES:
             return memo, path, states
         else:
             states += 1
@@ -235,14 +285,14 @@ def _search(system: _System, v0: np.ndarray, max_states: int) -> tuple[dict, lis
     return memo, [], states
 
 
-def _follow(system: _System, v: np.ndarray, memo: dict, which: int) -> list[int]:
+def _follow(system, v, memo: dict, which: int) -> list[int]:
     """The order the memo records from the fully explored state ``v``: ``which`` 2 for the fewest, 3 the most."""
     order = []
-    k = memo[_key(v)][which]
+    k = memo[system.key(v)][which]
     while k >= 0:
         order.append(k)
         v = system.child(v, k)
-        k = memo[_key(v)][which]
+        k = memo[system.key(v)][which]
     return order
 
 
@@ -262,7 +312,7 @@ class _Best:
             self.hi = (count_hi, order_hi)
 
 
-def _from_path(system: _System, memo: dict, path: list[_Frame], best: _Best) -> None:
+def _from_path(system, memo: dict, path: list[_Frame], best: _Best) -> None:
     """Complete orders through the open frames' explored children."""
     prefix: list[int] = []
     for f in path:
@@ -274,13 +324,13 @@ def _from_path(system: _System, memo: dict, path: list[_Frame], best: _Best) -> 
             prefix = prefix + [f.ks[f.next]]
 
 
-def _walk(system: _System, v: np.ndarray, memo: dict, choose: Callable, best: _Best, limit: int) -> None:
+def _walk(system, v, memo: dict, choose: Callable, best: _Best, limit: int) -> None:
     """One order from ``v`` to frozen, each contact chosen by ``choose(contacts, closing speeds)``;
     it ends early at a fully explored state, whose fewest and most complete it both ways.
     Raises ValueError after ``limit`` collisions without freezing."""
     order: list[int] = []
     while len(order) < limit:
-        known = memo.get(_key(v))
+        known = memo.get(system.key(v))
         if known is not None:
             best.offer(len(order) + known[0], order + _follow(system, v, memo, 2),
                        len(order) + known[1], order + _follow(system, v, memo, 3))
@@ -323,7 +373,7 @@ def _check_speed(speed) -> None:
 
 def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_states: int = 10**6,
                    *, restarts: int = 100, seed=0, min_closing_speed: float = 0.0,
-                   max_collisions: int = 10**6) -> OrdersResult:
+                   max_collisions: int = 10**6, arithmetic: str = "auto") -> OrdersResult:
     """Fewest and most collisions until frozen over every order of collisions.
 
     geometry, velocities ``(n_balls, dim)``, masses ``(n_balls,)`` or None, rule (default
@@ -333,25 +383,32 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     ``restarts`` orders choosing a live contact uniformly at random (``seed``: int or
     ``numpy.random.SeedSequence``). Same inputs give the same result.
 
-    ``min_closing_speed`` > 0 leaves out contacts closing at or below it, in velocity units:
-    rounding remnants (closing speeds of 1e-17 and less that can halve at each of dozens of
-    collisions) then count neither as collisions nor against the freeze. The orders still
-    replay collision for collision, but end with only such slow contacts live, not frozen.
+    ``arithmetic``: ``"exact"`` searches in exact arithmetic (`pinnedballs.engine.exact`): states
+    are merged by exact equality and a contact is live when its exact closing speed is positive,
+    so the fewest and the most are exact; ``"float"`` uses the engine's float64 loop (states merged
+    by their bits, rounding remnants below the engine's threshold left out); ``"auto"`` (default):
+    exact where the geometry's normals lie in a known number field, float elsewhere. The result
+    says which (``arithmetic``).
+
+    ``min_closing_speed`` > 0 also leaves out contacts closing at or below it, in velocity units;
+    the orders still replay collision for collision, but end with only such slow contacts live.
 
     Raises ValueError when an order returns to a state it passed, or when a sampled order of
     ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever.
     """
-    sim = Simulation(geometry, velocities, rule=rule, masses=masses)  # checks these as the engine does
+    sim = _simulation(geometry, velocities, masses, rule, checks.choice("arithmetic", arithmetic,
+                                                                         ("auto", "exact", "float")))
     max_states = _check_count("max_states", max_states, 1)
     restarts = _check_count("restarts", restarts, 0)
     max_collisions = _check_count("max_collisions", max_collisions, 1)
     _check_seed(seed)
     _check_speed(min_closing_speed)
-    system = _System(geometry, mass_array(masses, geometry.n_balls), sim.rule, min_closing_speed)
-    v0 = np.ascontiguousarray(sim.velocities)
+    system = (_ExactSystem if sim.arithmetic == "exact" else _FloatSystem)(sim, min_closing_speed)
+    v0 = system.start
     memo, path, states = _search(system, v0, max_states)
     if not path:
-        return OrdersResult(*_root_result(system, v0, memo), states=states, exhaustive=True)
+        return OrdersResult(*_root_result(system, v0, memo), states=states, exhaustive=True,
+                            arithmetic=system.arithmetic)
     best = _Best()
     _from_path(system, memo, path, best)
     _walk(system, v0, memo, lambda ks, ws: int(np.argmax(ws)), best, max_collisions)
@@ -360,11 +417,23 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     for _ in range(restarts):
         _walk(system, v0, memo, lambda ks, ws: int(rng.integers(len(ks))), best, max_collisions)
     return OrdersResult(best.lo[0], best.hi[0], tuple(best.lo[1]), tuple(best.hi[1]),
-                        states=states, exhaustive=False, sampled=restarts + 2)
+                        states=states, exhaustive=False, sampled=restarts + 2, arithmetic=system.arithmetic)
 
 
-def _root_result(system: _System, v0: np.ndarray, memo: dict) -> tuple:
-    lo, hi = memo[_key(v0)][:2]
+def _simulation(geometry, velocities, masses, rule, arithmetic: str) -> Simulation:
+    """The system as a `Simulation` (which checks every input as the engine does), in exact
+    arithmetic when asked for or, with ``"auto"``, when the geometry and rule allow it."""
+    if arithmetic != "float":
+        try:
+            return Simulation(geometry, velocities, rule=rule, masses=masses, arithmetic="exact")
+        except FieldError as exc:
+            if arithmetic == "exact" or exc.field != "arithmetic":
+                raise
+    return Simulation(geometry, velocities, rule=rule, masses=masses)
+
+
+def _root_result(system, v0, memo: dict) -> tuple:
+    lo, hi = memo[system.key(v0)][:2]
     return lo, hi, tuple(_follow(system, v0, memo, 2)), tuple(_follow(system, v0, memo, 3))
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Callable
 
 from numba import njit
-from numba.core.caching import FunctionCache
+from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
 
 __all__ = ["jit_cached_if_possible"]
@@ -33,12 +33,36 @@ class _ClosureCache(FunctionCache):
     helper they call, in any module, invalidates the entry.
     """
 
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = _KeyedFiles(self._cache_path, self._impl.filename_base,
+                                       self._impl.locator.get_source_stamp())
+
     def _index_key(self, sig, codegen):
         parts = [self._py_func.__code__.co_code, *map(_constant, _cells(self._py_func))]
         for f in reachable_functions(self._py_func):
             parts += [f"{f.__module__}.{f.__qualname__}".encode(), f.__code__.co_code,
                       _source_digest(_source_file(f)), *map(_constant, _cells(f))]
         return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
+
+
+class _KeyedFiles(IndexDataCacheFile):
+    """numba's index and data files, with each entry's data file named after its key.
+
+    numba numbers a new entry's data file after the entries its index lists, and writes the index
+    before the data: two processes filling one cache at once (the test suite's workers) can give
+    two keys the same number, and the index one key while the file holds the other's machine code:
+    a loop compiled for one rule loaded for another. Named after the key, an entry's file holds
+    only that key's code; an index that loses a key to a concurrent write only costs a compile.
+    """
+
+    def save(self, key, data):
+        overloads = self._load_index()
+        name = self._data_name_pattern.replace("{number:d}", hashlib.sha256(repr(key).encode()).hexdigest()[:20])
+        if overloads.get(key) != name:
+            overloads[key] = name
+            self._save_index(overloads)
+        self._save_data(name, data)
 
 
 #: the package's files whose functions a loop inlines: an edit to one invalidates every loop

@@ -123,6 +123,8 @@ def _check(f: h5py.File, data_dir: Path | None) -> None:
     if sched.dtype != np.int64:
         raise _Damage("state/scheduler_state", f"must be int64, got {sched.dtype}")
     _check_scheduler_state(f, sched, e)
+    if "exact" in f["state"]:
+        _check_exact(f, n, d)
     _check_snapshots(f, n, d, steps, collisions)
 
 
@@ -205,3 +207,17 @@ def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int) 
         ds = _dataset(f, f"observables/{name}")
         if ds.shape[:1] != (count,):
             raise _Damage(f"observables/{name}", f"must have {count} rows, got shape {ds.shape}")
+
+
+def _check_exact(f: h5py.File, n: int, d: int) -> None:
+    """The exact velocities of a run in exact arithmetic: ``(n, d, m)`` texts of rational numbers."""
+    ds = _dataset(f, "state/exact")
+    if ds.ndim != 3 or ds.shape[:2] != (n, d) or ds.dtype.kind != "O":
+        raise _Damage("state/exact", f"must be text of shape ({n}, {d}, m), got {ds.dtype} {ds.shape}")
+    from gmpy2 import mpq
+
+    for text in ds.asstr()[()].ravel():
+        try:
+            mpq(text)
+        except (ValueError, TypeError, ZeroDivisionError):
+            raise _Damage("state/exact", f"holds {text[:40]!r}, not a rational number") from None

@@ -143,7 +143,7 @@ class Results:
             scheduler = scheduler if scheduler is not None else \
                 _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
             sim = Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
-                             masses=self.masses, seed=0)
+                             masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
         sim.set_state(self.state())
         return sim
 
@@ -226,8 +226,9 @@ def read(p: Path, f: h5py.File) -> Results:
         raise ResultsError(f"{p}: its stored spec is not valid for this version of pinnedballs ({exc})") from None
     version = int(f.attrs["format_version"])
     s, o = f["state"], f["observables"]
+    exact = s["exact"].asstr()[()] if "exact" in s else None
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
-                      s["scheduler_state"][()])
+                      s["scheduler_state"][()], exact)
     frames = f["snapshots/velocities"][()]
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
     observables = {name: o[name][()] for name in names}

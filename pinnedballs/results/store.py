@@ -176,6 +176,8 @@ def _write_state(f: h5py.File, record: Record) -> None:
         s[name] = getattr(state, name)
     s.attrs.update(steps=state.steps, collisions=state.collisions)
     s.attrs["keys"] = json.dumps(list(STATE_KEYS))  # what format 2 has always listed
+    if state.exact is not None:  # a run in exact arithmetic: each component's coefficients, as text
+        s.create_dataset("exact", data=np.asarray(state.exact, dtype=object), dtype=h5py.string_dtype())
     s["momentum"] = record.momentum
     s.attrs.update(energy=record.energy, approaching=record.approaching, frozen=record.frozen)
 

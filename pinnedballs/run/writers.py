@@ -211,6 +211,7 @@ def describe_run(sim, writer: Writer | None = None) -> dict:
     masses; and the ``writer``'s own spec."""
     out = {name: _described(getattr(sim, name)) for name in ("geometry", "rule", "scheduler")}
     out["masses"] = sim.masses is not None
+    out["arithmetic"] = sim.arithmetic
     if writer is not None:
         out["writer"] = writer.to_spec()
     return out

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Annotated, Any, Union
+from typing import Annotated, Any, Literal, Union
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ValidationError, field_validator, model_validator
@@ -38,7 +38,8 @@ def _known_observable(name: str) -> str:
 
 
 class RunSpec(_Spec):
-    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots."""
+    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, and the
+    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``)."""
 
     geometry: GeometrySpec
     initial: InitialSpec
@@ -50,6 +51,7 @@ class RunSpec(_Spec):
     snapshots: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
+    arithmetic: Literal["float", "exact"] = "float"
     description: str = ""
 
     @model_validator(mode="before")
@@ -111,9 +113,9 @@ class RunSpec(_Spec):
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
-                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed"}):
+                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic"}):
                 return Simulation(geometry, velocities, rule=self.rule.build(), scheduler=self.scheduler.build(),
-                                  masses=masses, seed=seq)
+                                  masses=masses, seed=seq, arithmetic=self.arithmetic)
         except SpecError as exc:
             files = {"geometry": getattr(self.geometry, "positions", None),
                      "initial.path": getattr(self.initial, "path", None),

@@ -182,13 +182,15 @@ def test_same_inputs_give_the_same_result():
 
 
 def test_truncated_search_brackets_the_exhaustive_answer():
-    """The paper's set-up on a 3x3 half-plane (one boundary ball moving inward): 6 to 70 collisions
-    over 91,484 states. Stopped early, the figures are bounds reached by real orders, and say so."""
+    """The paper's set-up on a 3x3 half-plane (one boundary ball moving inward): in exact arithmetic
+    5 to 21 collisions over 34,547 distinct states. Stopped early, the figures are bounds reached by
+    real orders, and say so."""
     geom = pb.HalfPlane(rows=3, cols=3)
     v = np.zeros((geom.n_balls, 2))
     v[geom.boundary_center()] = [0.0, math.sqrt(200.0)]
     full = pb.explore_orders(geom, v)
-    assert (full.min_collisions, full.max_collisions, full.states, full.exhaustive) == (6, 70, 91_484, True)
+    assert (full.min_collisions, full.max_collisions, full.states, full.exhaustive) == (5, 21, 34_547, True)
+    assert full.arithmetic == "exact"
     assert "at least" not in str(full) and "at most" not in str(full)
     for max_states in (1, 100, 5_000):
         part = pb.explore_orders(geom, v, max_states=max_states, restarts=20)
@@ -200,30 +202,36 @@ def test_truncated_search_brackets_the_exhaustive_answer():
         assert_replays(geom, v, part)
 
 
-def test_rounding_remnants_inflate_the_most_and_min_closing_speed_leaves_them_out():
-    """On the 3x3 half-plane the engine's most, 70, holds 54 collisions closing slower than 1e-12
-    (one contact colliding again and again as a remnant of 1e-17 halves); leaving out contacts
-    closing at or below any threshold from 1e-14 to 1e-3 gives the same 5 to 21: no closing
-    speed lies in between. The orders replay collision for collision."""
+def test_exact_and_float_searches_agree_on_the_fewest_and_the_most():
+    """On the 3x3 half-plane exact arithmetic finds 5 to 21 over 34,547 states. The float engine,
+    which leaves out closing speeds below its remnant threshold, finds the same 5 to 21, over 35,623
+    states: 1,076 exact states reached along different orders differ in their last bits. (The float
+    engine that counted every bit-changing pick as a collision made it 6 to 70 over 91,484, 54 of
+    the 70 rounding remnants.) Every closing speed of the exact most order is positive and above
+    1e-3, so leaving out contacts closing at or below any threshold from 1e-14 to 1e-3 changes
+    nothing; the orders replay collision for collision in either arithmetic."""
     geom = pb.HalfPlane(rows=3, cols=3)
     v = np.zeros((geom.n_balls, 2))
     v[geom.boundary_center()] = [0.0, math.sqrt(200.0)]
-    full = pb.explore_orders(geom, v)
-    twin = ReferenceSimulation.from_geometry(geom, v)
+    exact = pb.explore_orders(geom, v, arithmetic="exact")
+    floats = pb.explore_orders(geom, v, arithmetic="float")
+    assert (exact.min_collisions, exact.max_collisions, exact.states) == (5, 21, 34_547)
+    assert (floats.min_collisions, floats.max_collisions, floats.states) == (5, 21, 35_623)
+    assert floats.arithmetic == "float"
+    sim = pb.Simulation(geom, v, arithmetic="exact")
     speeds = []
-    for k in full.max_order:
-        speeds.append(twin.w(k))
-        i, j = twin.pairs[k]
-        assert collide(twin.v, i, j, *twin.units(k), 1.0, None)
-    assert len(speeds) == 70 and sum(w < 1e-12 for w in speeds) == 54 and min(speeds) > 0
+    for k in exact.max_order:
+        speeds.append(sim._exact.field.to_float(sim._exact.closing(k)))
+        assert sim._exact.collide(k)
+    assert min(speeds) > 1e-3
     for threshold in (1e-14, 1e-12, 1e-3):
         r = pb.explore_orders(geom, v, min_closing_speed=threshold)
         assert (r.min_collisions, r.max_collisions, r.exhaustive) == (5, 21, True)
-    for order in (r.min_order, r.max_order):
-        sim = pb.Simulation(geom, v, scheduler=pb.Replay(order))
-        sim.run(steps=len(order))
-        assert sim.collisions == len(order)
-        assert closing_speeds(geom, sim.velocities).max() <= 1e-3
+    for order in (exact.min_order, exact.max_order, floats.min_order, floats.max_order):
+        for arithmetic in ("exact", "float"):
+            sim = pb.Simulation(geom, v, scheduler=pb.Replay(order), arithmetic=arithmetic)
+            assert sim.run_until_frozen(max_steps=len(order))
+            assert sim.collisions == len(order) and sim.steps == len(order)
 
 
 @pytest.mark.parametrize("geometry, message", [
@@ -288,8 +296,8 @@ def test_order_kernels_equal_the_twin_bit_for_bit(kind):
     collide_fn, params = rule.kernel(kind != "masses")
     kernels = order_kernels(collide_fn, 2, True)
     c = geom.contacts
-    tables = (c.pairs, c.ends, c.units, m, params)
     twin = ReferenceSimulation.from_geometry(geom, v, r=rule.r, masses=m)
+    tables = (c.pairs, c.ends, c.units, m, np.append(params, twin.threshold))
     ks, ws = kernels.live(v, *tables, 0.0)
     assert ks.tolist() == [k for k in range(geom.n_contacts) if twin.live(k)]
     assert ws.tolist() == [twin.w(k) for k in ks]

@@ -102,7 +102,7 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
         v = np.array([[1.0, 0.0], [0.0, 0.0]])
         g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0]])
         counters = np.zeros(3, np.int64)
-        k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0]),
+        k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0, 0.0]),
           np.zeros(1, np.int64), np.zeros(0, np.int64), seed_state(0), counters, 1)
         print(repr(key), v[:, 0].tolist())
     """)
@@ -137,3 +137,36 @@ def test_parallel_colored_sweep_loop_is_loaded_from_disk_in_a_fresh_process(tmp_
     assert runs[0][:2] == ["0", "1"]  # compiled
     assert runs[1][:2] == ["1", "0"]  # loaded
     assert runs[0][2] == runs[1][2]
+
+
+def test_two_processes_filling_one_cache_never_swap_entries(tmp_path):
+    """Two writers that read the index before either saves (two test workers compiling at once),
+    then write in the order index B, index A, data A, data B: with numba's numbering both keys get
+    data file 1, and the index names key A while the file holds B's code: a loop compiled for one
+    rule loaded for another. Named after their keys, entries never share a file."""
+    from numba.core.caching import IndexDataCacheFile
+
+    from pinnedballs.engine.jitcache import _KeyedFiles
+
+    def interleaved(files_class):
+        path = tmp_path / files_class.__name__
+        path.mkdir()
+        a, b = (files_class(str(path), "loop", "stamp") for _ in range(2))
+        saves = {}
+        for files, key, code in ((a, ("sig", "rule A"), "code of A"), (b, ("sig", "rule B"), "code of B")):
+            written = []  # save() with its two writes held back, as if the other process ran between them
+            files._save_index = lambda overloads, w=written: w.append(("index", dict(overloads)))
+            files._save_data = lambda name, data, w=written: w.append(("data", name, data))
+            files.save(key, code)
+            del files._save_index, files._save_data
+            saves[key] = written
+        (_, index_a), (_, name_a, code_a) = saves[("sig", "rule A")]
+        (_, index_b), (_, name_b, code_b) = saves[("sig", "rule B")]
+        b._save_index(index_b)
+        a._save_index(index_a)
+        a._save_data(name_a, code_a)
+        b._save_data(name_b, code_b)
+        return a.load(("sig", "rule A"))
+
+    assert interleaved(IndexDataCacheFile) == "code of B"  # numba's own files: A's key, B's code
+    assert interleaved(_KeyedFiles) == "code of A"
