@@ -33,9 +33,9 @@ def movie_frames(res) -> list[tuple[str, np.ndarray]]:
     frames: list[tuple[int, int, np.ndarray]] = []
     snapshots = list(res.snapshots or ())
     initial = getattr(res, "initial_velocities", None)
-    if initial is not None and not any(int(s.step) == 0 for s in snapshots):
+    if initial is not None and not any(int(s.steps) == 0 for s in snapshots):
         frames.append((0, 0, np.asarray(initial, dtype=np.float64)))
-    frames += [(int(s.step), int(s.collisions), np.asarray(s.velocities, dtype=np.float64)) for s in snapshots]
+    frames += [(int(s.steps), int(s.collisions), np.asarray(s.velocities, dtype=np.float64)) for s in snapshots]
     if not frames or frames[-1][0] != int(res.steps):
         frames.append((int(res.steps), int(res.collisions), np.asarray(res.velocities, dtype=np.float64)))
     last = len(frames) - 1

@@ -36,7 +36,7 @@ def snapshot_counter(res) -> str:
 def snapshot_name(snap, counter: str) -> tuple[str, str]:
     """``(file name, title)`` of the state picture of ``snap``, named after the count ``counter`` the
     spec asked for: ``state_collisions_22579.png``, "after 22,579 collisions (89,335 steps)"."""
-    step, collisions = int(snap.step), int(snap.collisions)
+    step, collisions = int(snap.steps), int(snap.collisions)
     if step == 0:
         return "state_initial.png", "initial state"
     if counter == "collisions":
@@ -48,7 +48,7 @@ def write_figures(res, out_dir) -> list[Path]:
     """Write the figures of one run's results into ``out_dir``; return their paths.
 
     res: what `pinnedballs.load` returns (``positions (n, k)``, final
-    ``velocities (n, dim)``, ``snapshots`` with ``.step``, ``.collisions``,
+    ``velocities (n, dim)``, ``snapshots`` with ``.steps``, ``.collisions``,
     ``.velocities``, ``geometry``, ``masses`` or None, and ``initial_velocities`` if it
     has them). Writes ``state_initial.png`` (the initial velocities, or a snapshot at
     step 0), ``state_step_<N>.png`` or ``state_collisions_<C>.png`` (every other snapshot, named
@@ -73,7 +73,7 @@ def write_figures(res, out_dir) -> list[Path]:
     if draw is not None:
         snapshots = list(() if res.snapshots is None else res.snapshots)
         initial = getattr(res, "initial_velocities", None)
-        if initial is not None and not any(int(snap.step) == 0 for snap in snapshots):
+        if initial is not None and not any(int(snap.steps) == 0 for snap in snapshots):
             emit("state_initial.png", draw(np.asarray(initial, dtype=np.float64), "initial state"))
         counter = snapshot_counter(res)
         for snap in snapshots:

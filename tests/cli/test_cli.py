@@ -174,7 +174,7 @@ def test_run_writes_results_spec_and_figures(tmp_path):
     assert (code, err) == (0, "")
     res = pb.load(out)
     assert res.complete and res.frozen and res.stop_reason == "frozen"
-    assert [s.step for s in res.snapshots] == [0, 100]
+    assert [s.steps for s in res.snapshots] == [0, 100]
     assert json.loads((out / "spec.json").read_text()) == json.loads(res.spec.to_json())
     names = {p.name for p in out.iterdir()}
     assert {"results.h5", "spec.json"} <= names

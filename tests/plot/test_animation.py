@@ -67,7 +67,7 @@ def test_a_movie_of_a_sphere_shows_both_hemispheres_in_every_frame(tmp_path, dra
     assert all(len(fig.axes) == 2 for fig in drawn)
     scales = {c.scale for fig in drawn for ax in fig.axes for c in ax.collections if isinstance(c, Quiver)}
     assert len(scales) == 1
-    assert res.snapshots[-1].step == res.steps == 1_000
+    assert res.snapshots[-1].steps == res.steps == 1_000
 
 
 def test_a_movie_of_a_chain_keeps_one_vertical_scale(tmp_path, drawn):

@@ -191,7 +191,7 @@ def results(geometry, velocities, snapshots, masses=None):
 
 
 def snapshot(step, collisions, velocities):
-    return types.SimpleNamespace(step=step, collisions=collisions, velocities=velocities)
+    return types.SimpleNamespace(steps=step, collisions=collisions, velocities=velocities)
 
 
 def test_write_figures_for_a_half_plane_run(tmp_path):
