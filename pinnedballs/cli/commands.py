@@ -126,6 +126,21 @@ def animate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@subcommand("export", "the snapshots of a run as a GSD trajectory (HOOMD schema: OVITO, freud, MDAnalysis)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
+            arg("out", metavar="OUT.gsd", help="the trajectory to write: one frame per snapshot"),
+            arg("--force", action="store_true", help="replace OUT.gsd if it exists"))
+def export(args: argparse.Namespace) -> int:
+    from ..results.load import load
+    from ..results.trajectory import check_output, export as write_gsd
+
+    check_output(args.out, force=args.force, hint="use --force to replace it")  # before reading the run
+    res = load(args.dir)
+    path = write_gsd(res, args.out, force=args.force, hint="use --force to replace it")
+    print(f"{path}: {len(res.snapshots)} frames, {len(res.positions)} balls")
+    return EXIT_OK
+
+
 @subcommand("info", "summarise a results file",
             arg("dir", metavar="DIR", help="a run directory (or its results.h5)"))
 def info(args: argparse.Namespace) -> int:
