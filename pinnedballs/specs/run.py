@@ -38,7 +38,11 @@ def _known_observable(name: str) -> str:
 
 
 class RunSpec(_Spec):
-    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots."""
+    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots.
+
+    ``trajectory``: when to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
+    freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
+    """
 
     geometry: GeometrySpec
     initial: InitialSpec
@@ -48,6 +52,7 @@ class RunSpec(_Spec):
     seed: Count = 0
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
+    trajectory: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
     description: str = ""
@@ -67,14 +72,15 @@ class RunSpec(_Spec):
 
     @model_validator(mode="after")
     def _snapshots_before_stop(self) -> "RunSpec":
-        s = self.snapshots
-        if s is None:
-            return self
-        for name, listed, limit in (("at_steps", s.at_steps, self.stop.steps),
-                                    ("at_collisions", s.at_collisions, self.stop.collisions),
-                                    ("at_steps", s.at_steps, self.stop.max_steps)):
-            if listed and limit is not None and listed[-1] > limit:
-                raise ValueError(f"snapshots.{name}: {listed[-1]} is beyond the stop at {limit}")
+        for field in ("snapshots", "trajectory"):
+            s = getattr(self, field)
+            if s is None:
+                continue
+            for name, listed, limit in (("at_steps", s.at_steps, self.stop.steps),
+                                        ("at_collisions", s.at_collisions, self.stop.collisions),
+                                        ("at_steps", s.at_steps, self.stop.max_steps)):
+                if listed and limit is not None and listed[-1] > limit:
+                    raise ValueError(f"{field}.{name}: {listed[-1]} is beyond the stop at {limit}")
         return self
 
     # ------------------------------------------------------------ building
