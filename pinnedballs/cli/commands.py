@@ -159,7 +159,7 @@ def info(args: argparse.Namespace) -> int:
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
-        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.step for s in res.snapshots])}"
+        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.steps for s in res.snapshots])}"
                                                 if res.snapshots else ""),
         f"time:        {res.elapsed_seconds:.1f} s in {res.checkpoints} checkpoint(s); "
         f"written by pinnedballs {res.version}",
