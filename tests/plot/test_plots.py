@@ -326,3 +326,25 @@ def test_write_figures_draws_the_initial_state_from_the_results_without_a_step_0
     names = [p.name for p in plot_run.write_figures(res, tmp_path)]
     assert names[:3] == ["state_initial.png", "state_step_250.png", "state_final.png"]
     assert drawn[0] is v0 and drawn[1] is v1 and drawn[2] is v1
+
+
+def test_the_disk_holds_every_arrow_tip_and_its_key_lies_under_the_disk():
+    """A lone arrow at the centre stays inside the disk, the axes reach every tip (none clipped),
+    and the key lies in a strip under the disk, not across it."""
+    h = pb.HyperbolicPlane(q=7, layers=3)
+    v = np.zeros((h.n_balls, 2))
+    v[0] = [5.0, 0.0]
+    fig = states.poincare_disk(h.positions, np.einsum("nd,ndk->nk", v, h.frames()))
+    ax = fig.axes[0]
+    (arrows,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    tip = arrows.get_offsets()[0] + np.array([arrows.U[0], arrows.V[0]]) / arrows.scale
+    assert 0.5 < np.hypot(*tip) < 1.0                                     # inside the disk, and long enough to see
+    v[h.boundary_center()] = [-5.0, 0.0]                                  # and one at the rim, pointing out
+    fig = states.poincare_disk(h.positions, np.einsum("nd,ndk->nk", v, h.frames()))
+    ax = fig.axes[0]
+    (arrows,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    tips = arrows.get_offsets() + np.column_stack([arrows.U, arrows.V]) / arrows.scale
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert (tips[:, 0] > x0).all() and (tips[:, 0] < x1).all() and (tips[:, 1] > y0).all() and (tips[:, 1] < y1).all()
+    (key,) = [a for a in ax.artists if type(a).__name__ == "QuiverKey"]
+    assert y0 + key.Y * (y1 - y0) < -1.0
