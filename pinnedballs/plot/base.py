@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from ..results.files import write_bytes_atomic
 
-__all__ = ["new_figure", "save", "arrow_scale", "key_speed", "length_label", "DPI", "MOVIE_LONGEST"]
+__all__ = ["new_figure", "save", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
 
 DPI = 100
 BALL_COLOUR = "0.8"
@@ -35,12 +35,15 @@ def new_figure(figsize) -> Figure:
     return fig
 
 
+def length_unit(radius: float | None = None) -> str:
+    """The unit of flat lengths: ``"ball radii"`` for balls of radius 1 (or unknown), else the
+    positions' own units, naming the radius."""
+    return "ball radii" if radius is None or radius == 1.0 else f"ball radius {radius:g}"
+
+
 def length_label(name: str, radius: float | None = None) -> str:
-    """An axis label of a length: ``"x (ball radii)"`` for balls of radius 1 (or unknown), else in
-    the positions' own units with the radius named."""
-    if radius is None or radius == 1.0:
-        return f"{name} (ball radii)"
-    return f"{name} (ball radius {radius:g})"
+    """An axis label of a length: ``"x (ball radii)"``, see `length_unit`."""
+    return f"{name} ({length_unit(radius)})"
 
 
 def _new_axes(ax, figsize, title):

@@ -7,9 +7,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from .base import save
+from .base import length_label, length_unit, save
 from .figures import component_histograms, energy_by_distance
 from .states import state_picture
+
+#: the velocity histograms' range: this quantile of the absolute components (one outlier does not set it)
+ROBUST_RANGE = 0.99
 
 __all__ = ["write_figures", "figure_files", "snapshot_name", "snapshot_counter", "FIGURE_PATTERNS"]
 
@@ -81,15 +84,15 @@ def write_figures(res, out_dir) -> list[Path]:
             emit(name, draw(np.asarray(snap.velocities, dtype=np.float64), title))
         emit("state_final.png", draw(final, "final state"))
     if geometry.boundary is not None:
+        unit = "lengths on the surface" if geometry.curved else length_unit(geometry.radius)
         emit("energy_by_distance.png", energy_by_distance(geometry.boundary.distance, final, res.masses,
-                                                          title="energy by distance from the boundary, final state"))
+                                                          title="energy by distance from the boundary, final state",
+                                                          xlabel=f"distance from the boundary ({unit})"))
     if geometry.dim == 3 and positions.shape[1] == 3 and not geometry.curved:
-        fig = energy_by_distance(positions[:, 2] - positions[:, 2].min(), final, res.masses,
-                                 title="energy by height (z), final state")
-        fig.axes[0].set_xlabel("height z above the lowest layer")
-        for text in fig.axes[0].texts:
-            text.set_text(text.get_text().replace("boundary row", "lowest layer"))
-        emit("energy_by_height.png", fig)
+        emit("energy_by_height.png", energy_by_distance(
+            positions[:, 2] - positions[:, 2].min(), final, res.masses, title="energy by height (z), final state",
+            xlabel=length_label("height z above the lowest layer", geometry.radius), first="lowest layer"))
     if final.ndim == 2 and 1 <= final.shape[1] <= 3:
-        emit("velocity_histograms.png", component_histograms(final, title="velocity components, final state"))
+        emit("velocity_histograms.png", component_histograms(final, title="velocity components, final state",
+                                                             quantile=ROBUST_RANGE))
     return written

@@ -348,3 +348,37 @@ def test_the_disk_holds_every_arrow_tip_and_its_key_lies_under_the_disk():
     assert (tips[:, 0] > x0).all() and (tips[:, 0] < x1).all() and (tips[:, 1] > y0).all() and (tips[:, 1] < y1).all()
     (key,) = [a for a in ax.artists if type(a).__name__ == "QuiverKey"]
     assert y0 + key.Y * (y1 - y0) < -1.0
+
+
+def test_the_share_of_the_first_row_never_covers_a_bar():
+    """The tallest bar at the far side, under where the text sits: the text stays above every bar."""
+    half = pb.HalfPlane(rows=6, cols=5)
+    v = np.zeros((half.n_balls, 2))
+    far = half.boundary_distance() == half.boundary_distance().max()
+    v[far] = [3.0, 0.0]
+    v[half.boundary_center()] = [0.0, 1.0]
+    fig = figures.energy_by_distance(half.boundary_distance(), v, xlabel="distance from the boundary (ball radii)")
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    (text,) = ax.texts
+    box = text.get_window_extent()
+    assert not any(box.overlaps(bar.get_window_extent()) for bar in ax.patches)
+    assert text.get_text().startswith("boundary row: ") and ax.get_xlabel().endswith("(ball radii)")
+
+
+def test_velocity_histograms_of_a_run_are_not_stretched_by_one_outlier(tmp_path):
+    torus = pb.FlatTorus(rows=20, cols=20)
+    v = normal_state(torus.n_balls, seed=8)
+    v[17] = [40.0, -40.0]                                     # one ball far out
+    paths = plot_run.write_figures(results(torus, v, []), tmp_path)
+    assert [p.name for p in paths][-1] == "velocity_histograms.png"
+    fig = figures.component_histograms(v, quantile=plot_run.ROBUST_RANGE)
+    scale = np.quantile(np.abs(v), 0.99)
+    for ax in fig.axes:
+        assert ax.get_xlim() == pytest.approx((-scale, scale))
+    heights = [sum(b.get_height() for b in ax.patches) for ax in fig.axes]
+    beyond = [(np.abs(v[:, k]) > scale).sum() for k in range(2)]
+    assert [400 - h for h in heights] == beyond and min(beyond) >= 1
+    assert all(f"{b} of 400 beyond the range drawn" in ax.texts[0].get_text() for b, ax in zip(beyond, fig.axes))
+    paper = figures.component_histograms(v)                  # the paper's range: the largest component
+    assert paper.axes[0].get_xlim() == pytest.approx((-40.0, 40.0))
