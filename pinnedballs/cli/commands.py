@@ -95,14 +95,16 @@ def schema(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-@subcommand("plot", "draw the figures of a run again from its results file",
-            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"))
+@subcommand("plot", "draw the figures of a run again from its results file: the first and last states, a contact "
+                    "sheet of the snapshots, the energy and the velocity histograms",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
+            arg("--every-snapshot", action="store_true", help="also one picture per snapshot (state_step_N.png)"))
 def plot(args: argparse.Namespace) -> int:
     from ..results.load import load
     from ..run.execute import write_figures
 
     run_dir = load(args.dir).path.parent  # checks the file before drawing
-    paths = write_figures(run_dir)
+    paths = write_figures(run_dir, every_snapshot=args.every_snapshot)
     print("\n".join(map(str, paths)) if paths else f"{run_dir}: no figures fit this geometry; none written")
     return EXIT_OK
 

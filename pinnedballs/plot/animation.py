@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.errors import FieldError, FieldTypeError
+from .base import render
 from .states import state_picture
 
 __all__ = ["animate", "movie_frames", "MOVIE_NAME", "FORMATS"]
@@ -61,12 +62,6 @@ def _check(out, fps) -> tuple[Path, float]:
     return out, float(fps)
 
 
-def _rgb(fig) -> np.ndarray:
-    """The figure drawn by Agg, ``(height, width, 3)`` uint8."""
-    fig.canvas.draw()
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-
-
 def animate(res, out=None, fps: float = 4) -> Path:
     """Write a movie of the run ``res`` (its `Results`, from `pinnedballs.load`) to ``out`` (default ``<run dir>/movie.gif``; ``.gif`` or ``.mp4``) at ``fps`` frames per second;
     returns its path. Frames: see `movie_frames`; the state picture: `states.state_picture`, with
@@ -76,7 +71,7 @@ def animate(res, out=None, fps: float = 4) -> Path:
     frames = movie_frames(res)
     draw = state_picture(res.geometry)
     shared = [v for _, v in frames]
-    images = [_rgb(draw(v, title, shared=shared)) for title, v in frames]
+    images = [render(draw(v, title, shared=shared)) for title, v in frames]
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.{os.getpid()}.tmp{out.suffix}"  # beside out: the rename is atomic
     try:

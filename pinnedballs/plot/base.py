@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from ..results.files import write_bytes_atomic
 
-__all__ = ["new_figure", "save", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
+__all__ = ["new_figure", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
 
 DPI = 100
 BALL_COLOUR = "0.8"
@@ -65,6 +65,12 @@ def save(fig: Figure, path) -> Figure:
         fig.savefig(image, dpi=DPI, format="png")
         write_bytes_atomic(path, image.getvalue())
     return fig
+
+
+def render(fig: Figure) -> np.ndarray:
+    """The figure drawn by Agg, ``(height, width, 3)`` uint8."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
 
 def _spacing(p: np.ndarray) -> float:

@@ -221,14 +221,15 @@ def _progress_bar(stop: Stop, sim: Simulation, show: bool | None) -> Iterator[Ca
 # ---------------------------------------------------------------- figures
 
 
-def write_figures(run_dir: str | os.PathLike) -> list[Path]:
+def write_figures(run_dir: str | os.PathLike, every_snapshot: bool = False) -> list[Path]:
     """Draw the figures of the run in ``run_dir`` (PNG files beside its results), first removing
-    any figures an earlier run left there; the paths written."""
+    any figures an earlier run left there; the paths written. ``every_snapshot``: also a picture
+    of each snapshot (else the first and last states and a contact sheet of the snapshots)."""
     from ..plot.run import write_figures as draw
 
     res = load(run_dir)
     _remove_figures(Path(run_dir))
-    return list(draw(res, Path(run_dir)))
+    return list(draw(res, Path(run_dir), every_snapshot=every_snapshot))
 
 
 def _remove_figures(run_dir: Path) -> None:

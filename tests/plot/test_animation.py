@@ -28,8 +28,8 @@ def record(tmp_path, geometry, every=300, steps=1_500, name="run"):
 def drawn(monkeypatch):
     """The figures `animate` turns into frames, in order."""
     figures = []
-    rgb = animation._rgb
-    monkeypatch.setattr(animation, "_rgb", lambda fig: figures.append(fig) or rgb(fig))
+    rgb = animation.render
+    monkeypatch.setattr(animation, "render", lambda fig: figures.append(fig) or rgb(fig))
     return figures
 
 
