@@ -217,7 +217,7 @@ def test_validate_prints_one_line(tmp_path):
     code, out, err = call("validate", write(tmp_path / "s.json", TORUS))
     assert (code, err) == (0, "")
     assert out == ("ok: flat_torus 4x4: 16 balls, 48 contacts, dim 2; single_ball, energy 100; elastic, "
-                   "uniform_random_pair; stop at 1,000 steps; 3 snapshot(s); seed 1\n")
+                   "uniform_random_pair; stop at 1,000 steps; 3 snapshots; seed 1\n")
 
 
 def test_schema_is_the_json_schema():
