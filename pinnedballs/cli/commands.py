@@ -243,7 +243,7 @@ def _ensemble(args, status) -> int:
 
 @subcommand("reproduce", "every figure of the paper as PNG, and report.md comparing its numbers with ours",
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
-            arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about a minute)"),
+            arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about 10 seconds on 2 cores)"),
             arg("--extended", action="store_true",
                 help="then the studies beyond the paper (about 20 minutes; with --quick about 2)"),
             arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),

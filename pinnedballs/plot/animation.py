@@ -25,7 +25,8 @@ __all__ = ["animate", "movie_frames", "MOVIE_NAME", "FORMATS"]
 MOVIE_NAME = "movie.gif"
 #: the movie formats, by file suffix
 FORMATS = (".gif", ".mp4")
-MP4_MISSING = "writing MP4 needs ffmpeg: pip install 'pinnedballs[movies]' (imageio-ffmpeg), or write a .gif"
+MP4_MISSING = ("writing MP4 needs ffmpeg: python3 -m pip install \".[movies]\" in the pinnedballs checkout "
+               "(imageio-ffmpeg), or write a .gif")
 
 
 def movie_frames(res) -> list[tuple[str, np.ndarray]]:
