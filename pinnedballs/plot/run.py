@@ -57,9 +57,10 @@ def write_figures(res, out_dir, every_snapshot: bool = False) -> list[Path]:
     has them). Writes, in the geometry's view (see `state_picture`: the plane, both hemispheres of
     a sphere, the Poincare disk, the layers of a 3-D packing, a 1-D chain), ``state_initial.png``
     (the initial velocities, or a snapshot at step 0), ``state_snapshots.png`` (a contact sheet of
-    every snapshot after the start, `sheet.contact_sheet`) and ``state_final.png``; with
-    ``every_snapshot`` also ``state_step_<N>.png`` or ``state_collisions_<C>.png`` for each of them
-    (named after the counter the spec placed them by). Then ``energy_by_distance.png`` on any
+    the snapshots after the start, `sheet.contact_sheet`, when there are two or more) and
+    ``state_final.png``; with ``every_snapshot`` (or a single snapshot after the start) also
+    ``state_step_<N>.png`` or ``state_collisions_<C>.png`` for each of them (named after the counter
+    the spec placed them by). Then ``energy_by_distance.png`` on any
     geometry with a ``boundary``; ``energy_by_height.png`` in flat 3-D; ``velocity_histograms.png``
     (one panel per component, up to 3).
     """
@@ -83,11 +84,11 @@ def write_figures(res, out_dir, every_snapshot: bool = False) -> list[Path]:
     if initial is not None:
         emit("state_initial.png", draw(np.asarray(initial, dtype=np.float64), "initial state"))
     counter = snapshot_counter(res)
-    if later:
+    if len(later) > 1:
         tiles = [(snapshot_name(s, counter)[1].removeprefix("after "), np.asarray(s.velocities, dtype=np.float64))
                  for s in later]
         emit("state_snapshots.png", contact_sheet(draw, tiles, title=f"the {len(later)} snapshots after the start"))
-    if every_snapshot:
+    if every_snapshot or len(later) == 1:  # a sheet of one would be a small copy of its picture
         for snap in later:
             name, title = snapshot_name(snap, counter)
             emit(name, draw(np.asarray(snap.velocities, dtype=np.float64), title))

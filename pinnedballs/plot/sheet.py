@@ -18,7 +18,8 @@ __all__ = ["contact_sheet", "MAX_TILES"]
 #: at most this many snapshots get a tile (evenly spaced, the first and the last always among them)
 MAX_TILES = 48
 _COLUMNS = 6
-_TILE_INCHES = 2.6
+_SHEET_INCHES = 15.6  #: the width of a full row of tiles; a sheet of fewer columns has larger tiles, up to
+_LARGEST_TILE = 6.0
 
 
 def _chosen(n: int) -> np.ndarray:
@@ -39,8 +40,8 @@ def contact_sheet(draw, states: list[tuple[str, np.ndarray]], title: str | None 
     rows = -(-len(chosen) // columns)
     images = [render(draw(states[i][1], None, shared=shared)) for i in chosen]
     height, width = images[0].shape[:2]
-    tile_height = _TILE_INCHES * height / width
-    fig = new_figure((_TILE_INCHES * columns, (tile_height + 0.3) * rows + 0.5))
+    tile = min(_LARGEST_TILE, _SHEET_INCHES / columns)
+    fig = new_figure((tile * columns, (tile * height / width + 0.3) * rows + 0.5))
     axes = fig.subplots(rows, columns, squeeze=False)
     for ax, i, image in zip(axes.ravel(), chosen, images):
         ax.imshow(image, interpolation="antialiased")

@@ -95,6 +95,8 @@ def sphere_views(positions, velocities, title: str | None = None, path=None, sha
     fig = new_figure((11.0, 5.8))
     spacing = _spacing(x)
     k = _shared_scale(np.linalg.norm(V, axis=1), shared, spacing, lambda u: np.linalg.norm(u, axis=1))
+    frames = [V] if shared is None else [np.asarray(u, dtype=np.float64) for u in shared]
+    reach = max(1.25, *(float(np.abs(x[:, :2] + k * u[:, :2]).max()) + 0.05 for u in frames))  # every tip shows
     for ax, sign, name in zip(fig.subplots(1, 2), (1.0, -1.0), ("northern hemisphere (from +z)",
                                                                   "southern hemisphere (from -z)")):
         on = sign * x[:, 2] >= 0
@@ -109,9 +111,9 @@ def sphere_views(positions, velocities, title: str | None = None, path=None, sha
                                             edgecolors=BALL_EDGE, linewidths=0.5))
         arrows = _tangent_arrows(ax, p, v, k, spacing)
         if arrows is not None:
-            _key(ax, arrows, k, spacing, 2.5, y=0.04)
-        ax.set_xlim(-1.25, 1.25)
-        ax.set_ylim(-1.25, 1.25)
+            _key(ax, arrows, k, spacing, 2 * reach, y=0.04)
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
         ax.set_aspect("equal")
         ax.set_title(name)
         ax.set_xlabel(("x" if sign > 0 else "-x") + " (unit sphere)")

@@ -169,12 +169,12 @@ def test_usage_errors(tmp_path, monkeypatch, argv, words):
 
 def test_run_writes_results_spec_and_figures(tmp_path):
     out = tmp_path / "out"
-    code, stdout, err = call("run", write(tmp_path / "s.json", spec(HALF_PLANE, snapshots={"at_steps": [0, 100]})),
+    code, stdout, err = call("run", write(tmp_path / "s.json", spec(HALF_PLANE, snapshots={"at_steps": [0, 50, 100]})),
                              "--out", out, "--quiet")
     assert (code, err) == (0, "")
     res = pb.load(out)
     assert res.complete and res.frozen and res.stop_reason == "frozen"
-    assert [s.steps for s in res.snapshots] == [0, 100]
+    assert [s.steps for s in res.snapshots] == [0, 50, 100]
     assert json.loads((out / "spec.json").read_text()) == json.loads(res.spec.to_json())
     names = {p.name for p in out.iterdir()}
     assert {"results.h5", "spec.json"} <= names
@@ -280,7 +280,7 @@ def test_force_leaves_no_figure_of_the_replaced_run(tmp_path, figures):
     assert call("plot", out, "--every-snapshot")[0] == 0
     assert (out / "state_step_250.png").exists()
     flags = () if figures else ("--no-figures",)
-    b = spec(snapshots={"at_steps": [100]})
+    b = spec(snapshots={"at_steps": [100, 200]})
     assert call("run", write(tmp_path / "b.json", b), "--out", out, "--force", "--quiet", *flags)[0] == 0
     pngs = sorted(p.name for p in out.glob("*.png"))
     expected = ["state_final.png", "state_initial.png", "state_snapshots.png", "velocity_histograms.png"]

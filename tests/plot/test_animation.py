@@ -91,12 +91,12 @@ def test_an_mp4_has_one_frame_per_state(tmp_path):
 def test_mp4_without_ffmpeg_is_refused_with_what_to_install(tmp_path, monkeypatch, capsys):
     record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)    # as if not installed
-    with pytest.raises(ValueError, match=r"^out: writing MP4 needs ffmpeg: pip install 'pinnedballs\[movies\]'"):
+    with pytest.raises(ValueError, match=r'^out: writing MP4 needs ffmpeg: python3 -m pip install "\.\[movies\]"'):
         pb.load(tmp_path / "run").animate(tmp_path / "movie.mp4")
     assert cli.main(["animate", str(tmp_path / "run"), "--out", str(tmp_path / "movie.mp4")]) == 2
     err = capsys.readouterr().err
-    assert err == ("pinnedballs: error: animate: --out: writing MP4 needs ffmpeg: pip install 'pinnedballs[movies]' "
-                   "(imageio-ffmpeg), or write a .gif\n")
+    assert err == ("pinnedballs: error: animate: --out: writing MP4 needs ffmpeg: python3 -m pip install \".[movies]\" "
+                   "in the pinnedballs checkout (imageio-ffmpeg), or write a .gif\n")
     assert not (tmp_path / "movie.mp4").exists()
 
 

@@ -200,11 +200,15 @@ def test_write_figures_for_a_half_plane_run(tmp_path):
     res = results(half, v1, [snapshot(0, 0, v0), snapshot(250, 40, v1)], masses=np.ones(half.n_balls))
     paths = plot_run.write_figures(res, tmp_path / "figs")
     names = [p.name for p in paths]
-    assert names == ["state_initial.png", "state_snapshots.png", "state_final.png",
+    assert names == ["state_initial.png", "state_step_250.png", "state_final.png",  # one snapshot: its picture
+                     "energy_by_distance.png", "velocity_histograms.png"]
+    res.snapshots.append(snapshot(500, 90, v0))
+    names = [p.name for p in plot_run.write_figures(res, tmp_path / "two")]
+    assert names == ["state_initial.png", "state_snapshots.png", "state_final.png",  # more: a contact sheet
                      "energy_by_distance.png", "velocity_histograms.png"]
     every = [p.name for p in plot_run.write_figures(res, tmp_path / "every", every_snapshot=True)]
-    assert every == ["state_initial.png", "state_snapshots.png", "state_step_250.png", "state_final.png",
-                     "energy_by_distance.png", "velocity_histograms.png"]
+    assert every == ["state_initial.png", "state_snapshots.png", "state_step_250.png", "state_step_500.png",
+                     "state_final.png", "energy_by_distance.png", "velocity_histograms.png"]
     for p in paths:
         assert p.parent == tmp_path / "figs"
         assert matplotlib.image.imread(p).shape[2] in (3, 4)
@@ -214,7 +218,7 @@ def test_write_figures_for_a_torus_run_has_no_energy_bars(tmp_path):
     torus = pb.FlatTorus(rows=4, cols=4)
     v = normal_state(16)
     paths = plot_run.write_figures(results(torus, v, (snapshot(10, 3, v),)), tmp_path)
-    assert [p.name for p in paths] == ["state_snapshots.png", "state_final.png", "velocity_histograms.png"]
+    assert [p.name for p in paths] == ["state_step_10.png", "state_final.png", "velocity_histograms.png"]
 
 
 def test_write_figures_for_a_one_dimensional_chain_draws_each_velocity_at_its_ball(tmp_path):
@@ -245,8 +249,8 @@ def test_snapshots_the_spec_placed_by_collisions_are_named_after_the_collisions(
     v = normal_state(half.n_balls, seed=4)
     res = results(half, v, [snapshot(89335, 22579, v)])
     res.spec = types.SimpleNamespace(snapshots=types.SimpleNamespace(counter="collisions"))
-    names = [p.name for p in plot_run.write_figures(res, tmp_path, every_snapshot=True)]
-    assert names[:2] == ["state_snapshots.png", "state_collisions_22579.png"]
+    names = [p.name for p in plot_run.write_figures(res, tmp_path)]
+    assert names[0] == "state_collisions_22579.png"
     assert plot_run.snapshot_name(snapshot(89335, 22579, v), "collisions")[1] == "after 22,579 collisions (89,335 steps)"
     assert plot_run.snapshot_name(snapshot(89335, 22579, v), "steps")[0] == "state_step_89335.png"
     assert set(plot_run.figure_files(tmp_path)) == set(tmp_path / n for n in names)
@@ -327,7 +331,7 @@ def test_write_figures_draws_the_initial_state_from_the_results_without_a_step_0
     quiver = states.quiver
     monkeypatch.setitem(states.DRAWINGS, "plane", lambda p, v, **kw: drawn.append(v) or quiver(p, v, **kw))
     names = [p.name for p in plot_run.write_figures(res, tmp_path)]
-    assert names[:3] == ["state_initial.png", "state_snapshots.png", "state_final.png"]
+    assert names[:3] == ["state_initial.png", "state_step_250.png", "state_final.png"]
     assert drawn[0] is v0 and drawn[1] is v1 and drawn[2] is v1
 
 
