@@ -4,10 +4,8 @@ offline (no web fonts) with a 404 page whose links work under any path."""
 
 from __future__ import annotations
 
-import os
+import importlib.util
 import re
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -95,14 +93,17 @@ def test_the_site_uses_no_web_fonts_and_wraps_long_code_lines():
     assert css and any(re.search(r"pre > code \{[^}]*white-space: pre-wrap", text(c)) for c in css)
 
 
-@pytest.mark.slow
-def test_the_built_site_loads_nothing_from_other_hosts_and_its_404_links_are_relative(tmp_path):
-    site = tmp_path / "site"
-    subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--quiet", "--site-dir", str(site)],
-                   cwd=ROOT, check=True, env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
-    for page in (site / "404.html", site / "index.html", site / "trajectories" / "index.html"):
-        assert "fonts.googleapis" not in text(page) and "fonts.gstatic" not in text(page)
-    not_found = text(site / "404.html")
-    assert not re.findall(r'(?:href|src)="/(?!/)', not_found)
-    assert 'href="./assets/stylesheets/' in not_found and '"base": "."' in not_found
-    assert not (site / "_hooks").exists()
+def test_the_404_page_links_relative_to_the_site_root_like_every_other_page():
+    """mkdocs writes 404.html with root-absolute links; the hook in mkdocs.yml rewrites them (the built
+    page itself is checked by .ci/run after building the site, where mkdocs is installed)."""
+    assert "docs/_hooks/relative_404.py" in mkdocs() and "/_hooks/" in mkdocs()
+    spec_ = importlib.util.spec_from_file_location("relative_404", ROOT / "docs" / "_hooks" / "relative_404.py")
+    hook = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(hook)
+    page = ('<link href="/assets/stylesheets/main.css"><a href="/.">home</a><a href="/gallery/">'
+            '<script src="/assets/javascripts/bundle.js"></script><a href="https://x.org/">'
+            '<a href="//cdn.example/x"><script id="__config">{"base": "/", "features": []}</script>')
+    assert hook.relative(page) == (
+        '<link href="./assets/stylesheets/main.css"><a href="./.">home</a><a href="./gallery/">'
+        '<script src="./assets/javascripts/bundle.js"></script><a href="https://x.org/">'
+        '<a href="//cdn.example/x"><script id="__config">{"base": ".", "features": []}</script>')
