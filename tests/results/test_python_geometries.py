@@ -10,7 +10,7 @@ import pinnedballs as pb
 from pinnedballs.analysis import observables as obs
 from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
-from helpers import call
+from helpers import call, frames_of
 
 
 class Rod(pb.GraphGeometry):
@@ -43,11 +43,8 @@ def test_the_boundary_is_read_back_with_its_observables_and_figure(tmp_path, mak
     assert mine["boundary_share"] == theirs["boundary_share"]
     code, stdout, _ = call("plot", tmp_path / "run")
     assert code == 0 and str(tmp_path / "run" / "energy_by_distance.png") in stdout.split()
-    frames = trajectory.export(res, tmp_path / "t.gsd")
-    import gsd.hoomd
-
-    with gsd.hoomd.open(str(frames)) as t:
-        assert np.array_equal(t[0].particles.typeid, (geometry.boundary.distance == 0).astype(np.uint32))
+    first = frames_of(trajectory.export(res, tmp_path / "t.gsd"))[0]
+    assert np.array_equal(first.particles.typeid, (geometry.boundary.distance == 0).astype(np.uint32))
 
 
 def test_a_sphere_from_points_reads_back_with_its_frames_and_view(tmp_path):

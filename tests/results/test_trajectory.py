@@ -4,7 +4,6 @@ nothing written."""
 
 from __future__ import annotations
 
-import gsd.hoomd
 import numpy as np
 import pytest
 
@@ -14,14 +13,9 @@ from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
 from pinnedballs.run.execute import execute
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, TORUS, assert_input_error, call, spec
+from helpers import HALF_PLANE, TORUS, assert_input_error, call, frames_of, spec
 
 f32 = np.float32
-
-
-def frames_of(path) -> list:
-    with gsd.hoomd.open(str(path), "r") as t:
-        return list(t)
 
 
 def assert_frames_are_the_snapshots(frames: list, res, position: np.ndarray, velocities: list[np.ndarray]) -> None:

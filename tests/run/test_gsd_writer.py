@@ -10,7 +10,6 @@ import sys
 import time
 from pathlib import Path
 
-import gsd.hoomd
 import numpy as np
 import pytest
 
@@ -18,14 +17,9 @@ import pinnedballs as pb
 from pinnedballs.engine.errors import InputError
 from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
-from helpers import TORUS, call, reference, resume, spec, write
+from helpers import TORUS, call, frames_of, reference, resume, spec, write
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def frames_of(path) -> list:
-    with gsd.hoomd.open(str(path), "r") as t:
-        return list(t)
 
 
 def assert_same_frames(a: list, b: list) -> None:
