@@ -15,6 +15,7 @@ from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.driver import Stop, Writer
 from .run.ensemble import run_ensemble
+from .run.gsd_writer import GSDWriter
 from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
@@ -30,6 +31,6 @@ __all__ = [
     "Simulation", "RunState", "__version__",
     "load", "Results", "ResultsError", "RunSpec", "run_ensemble",
     "explore_orders", "OrdersResult",
-    "ResultsWriter", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
+    "ResultsWriter", "GSDWriter", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
     "register_observable", "InputError", "FieldError", "FieldTypeError", "SpecError",
 ]

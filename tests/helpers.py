@@ -270,6 +270,14 @@ def assert_identical(a, b) -> None:
         assert np.array_equal(a.observables[name], b.observables[name])
 
 
+def frames_of(path) -> list:
+    """Every frame of the GSD trajectory at ``path``, read with ``gsd.hoomd``."""
+    import gsd.hoomd
+
+    with gsd.hoomd.open(str(path), "r") as t:
+        return list(t)
+
+
 def resume(spec_path: Path, out: Path) -> int:
     return main(["run", str(spec_path), "--out", str(out), "--resume", "--quiet", "--no-figures"])
 

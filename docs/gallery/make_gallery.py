@@ -4,8 +4,9 @@ and write ``docs/gallery.md`` with each spec's JSON beside the figures it made.
     python3 docs/gallery/make_gallery.py
 
 Runs ``pinnedballs run`` on each spec (a few seconds each) in a temporary directory, so the
-page shows exactly what a user gets from the same command; the half-plane also gets its movie
-(``pinnedballs animate``).
+page shows exactly what a user gets from the same command (the first and last states, a contact
+sheet of the snapshots, the energy and the velocity histograms); the half-plane also gets its
+movie (``pinnedballs animate``).
 """
 
 from __future__ import annotations
@@ -35,8 +36,9 @@ GALLERY = (
      "The {3,7} tiling in the Poincare disk: balls and arrows at their hyperbolic sizes carried to the "
      "disk, so they shrink towards the rim. The outermost ring is the boundary.", False),
     ("fcc", "An FCC half-space", "gallery_fcc.json",
-     "A 3-D packing with its boundary at z = 0: the state pictures show the bottom layer's (v_x, v_y); "
-     "the energy is given by distance from the boundary and by height.", False),
+     "A 3-D packing with its boundary at z = 0, kicked straight up: the state pictures show every layer "
+     "seen from above, v_z as colour (red up, blue down) and (v_x, v_y) as arrows; the energy is given by "
+     "distance from the boundary and by height.", False),
 )
 
 
@@ -51,11 +53,8 @@ def make(name: str, spec_name: str, movie: bool, work: Path) -> list[str]:
     out = work / name
     run("run", str(ROOT / "examples" / spec_name), "--out", str(out), "--quiet")
     drawn = run("plot", str(out)).split()  # what plot says it wrote, in the order it drew them
-    snapshots = [p for p in drawn if Path(p).name.startswith(("state_step_", "state_collisions_"))]
     names = []
     for figure in map(Path, drawn):
-        if str(figure) in snapshots[1:]:
-            continue  # the first snapshot after the start stands for them all (the movie shows every one)
         target = f"{name}_{figure.name}"
         shutil.copyfile(figure, HERE / target)
         names.append(target)

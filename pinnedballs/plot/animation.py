@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.errors import FieldError, FieldTypeError
+from .base import render
 from .states import state_picture
 
 __all__ = ["animate", "movie_frames", "MOVIE_NAME", "FORMATS"]
@@ -24,7 +25,8 @@ __all__ = ["animate", "movie_frames", "MOVIE_NAME", "FORMATS"]
 MOVIE_NAME = "movie.gif"
 #: the movie formats, by file suffix
 FORMATS = (".gif", ".mp4")
-MP4_MISSING = "writing MP4 needs ffmpeg: pip install 'pinnedballs[movies]' (imageio-ffmpeg), or write a .gif"
+MP4_MISSING = ("writing MP4 needs ffmpeg: python3 -m pip install \".[movies]\" in the pinnedballs checkout "
+               "(imageio-ffmpeg), or write a .gif")
 
 
 def movie_frames(res) -> list[tuple[str, np.ndarray]]:
@@ -33,9 +35,9 @@ def movie_frames(res) -> list[tuple[str, np.ndarray]]:
     frames: list[tuple[int, int, np.ndarray]] = []
     snapshots = list(res.snapshots or ())
     initial = getattr(res, "initial_velocities", None)
-    if initial is not None and not any(int(s.step) == 0 for s in snapshots):
+    if initial is not None and not any(int(s.steps) == 0 for s in snapshots):
         frames.append((0, 0, np.asarray(initial, dtype=np.float64)))
-    frames += [(int(s.step), int(s.collisions), np.asarray(s.velocities, dtype=np.float64)) for s in snapshots]
+    frames += [(int(s.steps), int(s.collisions), np.asarray(s.velocities, dtype=np.float64)) for s in snapshots]
     if not frames or frames[-1][0] != int(res.steps):
         frames.append((int(res.steps), int(res.collisions), np.asarray(res.velocities, dtype=np.float64)))
     last = len(frames) - 1
@@ -61,12 +63,6 @@ def _check(out, fps) -> tuple[Path, float]:
     return out, float(fps)
 
 
-def _rgb(fig) -> np.ndarray:
-    """The figure drawn by Agg, ``(height, width, 3)`` uint8."""
-    fig.canvas.draw()
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-
-
 def animate(res, out=None, fps: float = 4) -> Path:
     """Write a movie of the run ``res`` (its `Results`, from `pinnedballs.load`) to ``out`` (default ``<run dir>/movie.gif``; ``.gif`` or ``.mp4``) at ``fps`` frames per second;
     returns its path. Frames: see `movie_frames`; the state picture: `states.state_picture`, with
@@ -76,7 +72,7 @@ def animate(res, out=None, fps: float = 4) -> Path:
     frames = movie_frames(res)
     draw = state_picture(res.geometry)
     shared = [v for _, v in frames]
-    images = [_rgb(draw(v, title, shared=shared)) for title, v in frames]
+    images = [render(draw(v, title, shared=shared)) for title, v in frames]
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.{os.getpid()}.tmp{out.suffix}"  # beside out: the rename is atomic
     try:

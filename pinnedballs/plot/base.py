@@ -18,11 +18,11 @@ from matplotlib.figure import Figure
 
 from ..results.files import write_bytes_atomic
 
-__all__ = ["new_figure", "save", "arrow_scale", "key_speed", "DPI", "MOVIE_LONGEST"]
+__all__ = ["new_figure", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
 
 DPI = 100
-BALL_COLOUR = "0.75"
-BALL_SIZE = 0.6  #: drawn diameter of a ball, in spacings between centres
+BALL_COLOUR = "0.8"
+BALL_EDGE = "white"  #: a thin line between touching balls, which are drawn at their true size
 ARROW_COLOUR = "tab:red"
 FIT_COLOUR = "tab:orange"
 COMPONENT_NAMES = "xyz"
@@ -33,6 +33,17 @@ def new_figure(figsize) -> Figure:
     fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
+
+
+def length_unit(radius: float | None = None) -> str:
+    """The unit of flat lengths: ``"ball radii"`` for balls of radius 1 (or unknown), else the
+    positions' own units, naming the radius."""
+    return "ball radii" if radius is None or radius == 1.0 else f"ball radius {radius:g}"
+
+
+def length_label(name: str, radius: float | None = None) -> str:
+    """An axis label of a length: ``"x (ball radii)"``, see `length_unit`."""
+    return f"{name} ({length_unit(radius)})"
 
 
 def _new_axes(ax, figsize, title):
@@ -54,6 +65,12 @@ def save(fig: Figure, path) -> Figure:
         fig.savefig(image, dpi=DPI, format="png")
         write_bytes_atomic(path, image.getvalue())
     return fig
+
+
+def render(fig: Figure) -> np.ndarray:
+    """The figure drawn by Agg, ``(height, width, 3)`` uint8."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
 
 def _spacing(p: np.ndarray) -> float:
@@ -84,13 +101,15 @@ def arrow_scale(speeds: np.ndarray, spacing: float, longest: float = 3.0) -> flo
 MOVIE_LONGEST = 10.0
 
 
-def _shared_scale(speeds: np.ndarray, shared, spacing: float, norm) -> float:
-    """`arrow_scale` of this state's ``speeds``, or of every frame's when ``shared`` (a movie) is given;
-    ``norm(v) -> (n,)`` turns one frame's velocities into speeds."""
+def _shared_scale(speeds: np.ndarray, shared, spacing: float, norm, longest: float = 3.0,
+                  movie_longest: float = MOVIE_LONGEST) -> float:
+    """`arrow_scale` of this state's ``speeds`` (no arrow beyond ``longest`` spacings), or of every
+    frame's when ``shared`` (a movie) is given (none beyond ``movie_longest``); ``norm(v) -> (n,)``
+    turns one frame's velocities into speeds."""
     if shared is None:
-        return arrow_scale(speeds, spacing)
+        return arrow_scale(speeds, spacing, longest)
     return arrow_scale(np.concatenate([norm(np.asarray(v, dtype=np.float64)) for v in shared]), spacing,
-                       longest=MOVIE_LONGEST)
+                       longest=movie_longest)
 
 
 def _key(ax, arrows, k: float, spacing: float, width: float, y: float = -0.07, drawn: float = 1.0,

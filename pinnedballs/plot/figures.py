@@ -18,23 +18,26 @@ __all__ = ["energy_by_distance", "energy_profiles", "component_histograms", "cor
 # ---------------------------------------------------------------- energy against distance from the boundary
 
 def energy_by_distance(distances, velocities, masses=None, bin_width: float | None = None, ax=None,
-                       title: str | None = None, path=None) -> Figure:
+                       title: str | None = None, path=None, xlabel: str = "distance from the boundary (ball radii)",
+                       first: str = "boundary row") -> Figure:
     """Bar plot of the energy profile (the paper's Figure 3): fraction of the energy per row.
 
     distances: ``(n_balls,)`` from the boundary; velocities: ``(n_balls, dim)``.
-    The bars are the only patches of the axes and sum to 1. See `observables.energy_profile`.
+    The bars are the only patches of the axes and sum to 1; the share of the ``first`` row is
+    written in a band above the tallest bar. See `observables.energy_profile`.
     """
     centres, fraction = obs.energy_profile(distances, velocities, masses, bin_width)
     fig, ax = _new_axes(ax, (8.0, 4.5), title)
     width = bin_width if bin_width is not None else (np.diff(centres).min() if len(centres) > 1 else 1.0)
     ax.bar(centres, fraction, width=0.8 * width, color="tab:blue")
     if len(fraction) and np.isfinite(fraction[0]):
-        where = "boundary row" if bin_width is None else "first bin"
-        ax.text(0.98, 0.95, f"{where}: {fraction[0]:.1%} of the energy", transform=ax.transAxes,
+        where = first if bin_width is None else "first bin"
+        ax.text(0.98, 0.97, f"{where}: {fraction[0]:.1%} of the energy", transform=ax.transAxes,
                 ha="right", va="top")
-    ax.set_xlabel("distance from the boundary")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("fraction of the energy")
-    ax.set_ylim(0, 1.05 * max(np.nanmax(fraction) if np.isfinite(fraction).any() else 1.0, 1e-12))
+    # the tallest bar reaches 4/5 of the height: the text above never covers a bar
+    ax.set_ylim(0, 1.25 * max(np.nanmax(fraction) if np.isfinite(fraction).any() else 1.0, 1e-12))
     return save(fig, path)
 
 
@@ -73,7 +76,8 @@ def _bars(ax, counts: np.ndarray, edges: np.ndarray) -> None:
 
 def _normal_panel(ax, values: np.ndarray, hist: obs.Histogram, bin_width: float) -> None:
     """Bars of ``hist`` in the values' own units; the fitted normal only where the
-    Anderson-Darling test (5 %) does not reject it, and the test's verdict either way."""
+    Anderson-Darling test (5 %) does not reject it, the test's verdict either way, and how
+    many values lie beyond the bars."""
     edges = hist.edges * hist.scale
     _bars(ax, hist.counts, edges)
     mean, sd = hist.mean * hist.scale, hist.std * hist.scale
@@ -86,22 +90,26 @@ def _normal_panel(ax, values: np.ndarray, hist: obs.Histogram, bin_width: float)
         x = np.linspace(edges[0], edges[-1], 801)
         ax.plot(x, len(values) * bin_width * hist.scale * stats.norm.pdf(x, mean, sd), color=FIT_COLOUR)
     verdict = "not rejected (orange: the fitted normal)" if fits else "rejected: no normal curve drawn"
+    beyond = len(values) - int(hist.counts.sum())
+    outside = f"\n{beyond} of {len(values)} beyond the range drawn" if beyond else ""
     ax.text(0.02, 0.97, f"mean {mean:.3g}, sd {sd:.3g}\nAnderson-Darling A\u00b2 = {a2:.3g} "
-            f"{'<=' if fits else '>'} {critical:.3g}\nnormality at 5 %: {verdict}",
+            f"{'<=' if fits else '>'} {critical:.3g}\nnormality at 5 %: {verdict}{outside}",
             transform=ax.transAxes, ha="left", va="top", fontsize="small",
             bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none"})
     ax.set_ylim(0, 1.4 * max(hist.counts.max(), 1))  # room for the text above the bars
 
 
 def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0), title: str | None = None,
-                         path=None) -> Figure:
+                         path=None, quantile: float | None = None) -> Figure:
     """Histograms of each velocity component, in the velocities' own units (the paper's Figure 6).
 
     velocities: ``(n_balls, dim)``; one panel per component. The bins are the paper's:
     ``bin_width`` (0.025) of the largest absolute component, over ``span`` times it, the
-    same bins for every panel. Each panel gives the mean, the sd and the Anderson-Darling
-    test of normality (fitted parameters, 5 %); the fitted normal (``n * bin * pdf``, the
-    histogram's area) is drawn only where the test does not reject it. See
+    same bins for every panel; with ``quantile`` (e.g. 0.99), of that quantile of the absolute
+    components instead, so that one outlier does not set the range (the panels say how many
+    values lie beyond it). Each panel gives the mean, the sd and the Anderson-Darling
+    test of normality (fitted parameters, 5 %, on every value); the fitted normal (``n * bin * pdf``,
+    the histogram's area) is drawn only where the test does not reject it. See
     `observables.component_histogram` and `observables.normality_tests`.
     """
     v = np.asarray(velocities, dtype=np.float64)
@@ -109,13 +117,15 @@ def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0),
         raise ValueError(f"velocities: must have shape (n_balls, dim), got {v.shape}")
     dim = v.shape[1]
     scale = float(np.abs(v).max()) if v.size else 0.0
+    if quantile is not None and v.size and np.quantile(np.abs(v), quantile) > 0:
+        scale = float(np.quantile(np.abs(v), quantile))
     fig = Figure(figsize=(5.0 * dim, 4.2), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     for k, ax in enumerate(fig.subplots(1, dim, squeeze=False)[0]):
         hist = obs.component_histogram(v[:, k], bin_width, span, scale=scale)
         name = COMPONENT_NAMES[k] if dim <= 3 else str(k)
         _normal_panel(ax, v[:, k], hist, bin_width)
-        ax.set_xlabel(f"{name}-component of velocity (bins of {bin_width * hist.scale:.3g})")
+        ax.set_xlabel(f"v_{name} (velocity units; bins of {bin_width * hist.scale:.3g})")
         ax.set_title(f"{name}-component")
     if title:
         fig.suptitle(title)

@@ -2,8 +2,9 @@
 
 `state_picture(geometry)` gives the drawing function of a geometry's view: arrows in the plane
 (`quiver`), both hemispheres of a sphere (`sphere_views`), the Poincare disk (`poincare_disk`),
-a 3-D packing (`layers`), a 1-D chain (`chain`), or each component against the ball index
-(`components_by_ball`).
+a 3-D packing layer by layer (`pinnedballs.plot.layers.layers`), a 1-D chain (`chain`), or each
+component against the ball index (`components_by_ball`). Balls are drawn at their true size
+(touching balls touch), with a thin white line between them.
 """
 
 from __future__ import annotations
@@ -14,17 +15,22 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from matplotlib.ticker import MaxNLocator
 
-from .base import (ARROW_COLOUR, BALL_COLOUR, BALL_SIZE, COMPONENT_NAMES, _key, _new_axes, _shared_scale, _spacing,
-                   new_figure, save)
+from .base import (ARROW_COLOUR, BALL_COLOUR, BALL_EDGE, COMPONENT_NAMES, _key, _new_axes, _shared_scale, _spacing,
+                   length_label, new_figure, save)
+from .layers import layers
+
+#: a lone arrow in the Poincare disk is at most this many spacings long (3 would run off the disk)
+DISK_LONGEST = 1.5
 
 __all__ = ["quiver", "sphere_views", "poincare_disk", "layers", "chain", "components_by_ball", "state_picture"]
 
 
-def quiver(positions, velocities, ax=None, title: str | None = None, path=None, shared=None) -> Figure:
+def quiver(positions, velocities, ax=None, title: str | None = None, path=None, shared=None,
+           radius: float | None = None) -> Figure:
     """The paper's state pictures: velocities as arrows over grey balls.
 
-    positions: ``(n_balls, 2)`` centres; velocities: ``(n_balls, 2)``. Balls are
-    grey dots (``BALL_SIZE`` of the typical spacing across); see `arrow_scale`
+    positions: ``(n_balls, 2)`` centres; velocities: ``(n_balls, 2)``. Balls are grey discs
+    of ``radius`` (None: half the typical spacing, so neighbours touch); see `arrow_scale`
     for arrow lengths, and the key below the bottom left corner for the scale. Balls at rest
     get no arrow; the axes reach every arrow's tip. ``shared``: the velocities ``[(n_balls, 2), ...]``
     of every frame of a movie, which get one arrow scale and one extent (the same figure size).
@@ -44,9 +50,10 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None, 
     width, height = hi - lo
     lines = 1 + (title or "").count("\n")  # room for every line of the title, and the key below
     fig, ax = _new_axes(ax, (8.0, float(np.clip(8.0 * height / width, 2.5, 10.0)) + 0.6 + 0.25 * lines), title)
+    diameter = 2.0 * radius if radius is not None else spacing
     ax.add_collection(EllipseCollection(
-        BALL_SIZE * spacing, BALL_SIZE * spacing, 0.0, units="xy", offsets=p, offset_transform=ax.transData,
-        facecolors=BALL_COLOUR, edgecolors="none"))
+        diameter, diameter, 0.0, units="xy", offsets=p, offset_transform=ax.transData,
+        facecolors=BALL_COLOUR, edgecolors=BALL_EDGE, linewidths=0.5))
     moving = speeds > 0
     if moving.any():
         arrows = ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1], color=ARROW_COLOUR,
@@ -56,8 +63,8 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None, 
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
+    ax.set_xlabel(length_label("x", radius))
+    ax.set_ylabel(length_label("y", radius))
     return save(fig, path)
 
 
@@ -88,6 +95,8 @@ def sphere_views(positions, velocities, title: str | None = None, path=None, sha
     fig = new_figure((11.0, 5.8))
     spacing = _spacing(x)
     k = _shared_scale(np.linalg.norm(V, axis=1), shared, spacing, lambda u: np.linalg.norm(u, axis=1))
+    frames = [V] if shared is None else [np.asarray(u, dtype=np.float64) for u in shared]
+    reach = max(1.25, *(float(np.abs(x[:, :2] + k * u[:, :2]).max()) + 0.05 for u in frames))  # every tip shows
     for ax, sign, name in zip(fig.subplots(1, 2), (1.0, -1.0), ("northern hemisphere (from +z)",
                                                                   "southern hemisphere (from -z)")):
         on = sign * x[:, 2] >= 0
@@ -95,20 +104,20 @@ def sphere_views(positions, velocities, title: str | None = None, path=None, sha
         p, v = x[on, :2] * flip, V[on, :2] * flip
         ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
         # a ball seen at a slant: its width along the rim kept, its depth towards the centre foreshortened by |z|
-        size = np.full(len(p), BALL_SIZE * spacing)
+        size = np.full(len(p), spacing)  # neighbours touch
         along_rim = np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90
         ax.add_collection(EllipseCollection(size, size * np.maximum(np.abs(x[on, 2]), 0.2), along_rim, units="xy",
                                             offsets=p, offset_transform=ax.transData, facecolors=BALL_COLOUR,
-                                            edgecolors="none"))
+                                            edgecolors=BALL_EDGE, linewidths=0.5))
         arrows = _tangent_arrows(ax, p, v, k, spacing)
         if arrows is not None:
-            _key(ax, arrows, k, spacing, 2.5, y=0.04)
-        ax.set_xlim(-1.25, 1.25)
-        ax.set_ylim(-1.25, 1.25)
+            _key(ax, arrows, k, spacing, 2 * reach, y=0.04)
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
         ax.set_aspect("equal")
         ax.set_title(name)
-        ax.set_xlabel("x" if sign > 0 else "-x")
-        ax.set_ylabel("y")
+        ax.set_xlabel(("x" if sign > 0 else "-x") + " (unit sphere)")
+        ax.set_ylabel("y (unit sphere)")
     if title:
         fig.suptitle(title)
     return save(fig, path)
@@ -121,16 +130,17 @@ def poincare_disk(positions, velocities, title: str | None = None, path=None, sh
     coordinates. Balls sit at ``p = (x1, x2) / (1 + x0)``; balls and arrows are drawn at their
     hyperbolic sizes carried to the disk by the same map (conformal: directions are true,
     lengths shrink by ``(1 - |p|^2) / 2`` towards the rim). Arrow lengths follow `arrow_scale`
-    in hyperbolic units, with the spacing of the ball nearest the centre (one scale for every
-    frame's velocities ``shared`` in a movie); the key gives the speed of an arrow at the centre.
+    in hyperbolic units, with the spacing of the ball nearest the centre, a lone arrow at most
+    `DISK_LONGEST` spacings long (one scale for every frame's velocities ``shared`` in a movie);
+    the axes reach every arrow's tip, and the key, in a strip under the disk, gives the speed of
+    an arrow at the centre.
     """
     x = np.asarray(positions, dtype=np.float64)
     V = np.asarray(velocities, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 3 or V.shape != x.shape:
         raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
-    one = 1.0 + x[:, :1]
-    p = x[:, 1:] / one
-    dp = (V[:, 1:] * one - x[:, 1:] * V[:, :1]) / one**2
+    p = x[:, 1:] / (1.0 + x[:, :1])
+    dp = _disk_velocities(x, V)
     shrink = (1.0 - np.einsum("nk,nk->n", p, p)) / 2.0
     def minkowski_speeds(u):
         return np.sqrt(np.maximum(np.einsum("nk,nk->n", u[:, 1:], u[:, 1:]) - u[:, 0] ** 2, 0.0))
@@ -140,24 +150,37 @@ def poincare_disk(positions, velocities, title: str | None = None, path=None, sh
     cosh = x[centre, 0] * x[:, 0] - x[:, 1:] @ x[centre, 1:]
     cosh[centre] = np.inf
     spacing = float(np.arccosh(cosh.min())) if len(x) > 1 else 1.0
-    k = _shared_scale(speeds, shared, spacing, minkowski_speeds)
-    fig, ax = _new_axes(None, (8.0, 8.0), title)
+    k = _shared_scale(speeds, shared, spacing, minkowski_speeds, longest=DISK_LONGEST,
+                      movie_longest=DISK_LONGEST)
+    tips = [p + k * dp] if shared is None else [p + k * _disk_velocities(x, np.asarray(u, float)) for u in shared]
+    lo = np.minimum(np.concatenate([*tips, [[-1.0, -1.0]]]).min(axis=0) - 0.05, -1.05)
+    hi = np.maximum(np.concatenate([*tips, [[1.0, 1.0]]]).max(axis=0) + 0.05, 1.05)
+    lo[1] -= 0.15  # a strip under the disk for the key
+    fig, ax = _new_axes(None, (8.0, float(np.clip(8.0 * (hi[1] - lo[1]) / (hi[0] - lo[0]), 6.0, 10.0))), title)
     ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
-    size = BALL_SIZE * spacing * shrink
+    size = spacing * shrink  # the contact length: neighbours touch
     ax.add_collection(EllipseCollection(size, size, np.zeros(len(p)), units="xy", offsets=p,
-                                        offset_transform=ax.transData, facecolors=BALL_COLOUR, edgecolors="none"))
+                                        offset_transform=ax.transData, facecolors=BALL_COLOUR, edgecolors=BALL_EDGE,
+                                        linewidths=0.5))
     moving = speeds > 0
     if moving.any():
         arrows = ax.quiver(p[moving, 0], p[moving, 1], dp[moving, 0], dp[moving, 1], color=ARROW_COLOUR,
                            angles="xy", scale_units="xy", scale=1.0 / k, units="dots", width=2.0, headwidth=3.5,
                            headlength=4.0, headaxislength=3.5, minlength=0.0)
-        _key(ax, arrows, k, spacing, 2.1, y=0.03, drawn=0.5, where=" at the centre")  # the disk halves lengths there
-    ax.set_xlim(-1.05, 1.05)
-    ax.set_ylim(-1.05, 1.05)
+        width, strip = hi[0] - lo[0], 0.08 / (hi[1] - lo[1])  # the key in the middle of the strip
+        _key(ax, arrows, k, spacing, width, y=strip, drawn=0.5, where=" at the centre")  # the disk halves lengths there
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
-    ax.set_xlabel("Poincare disk x")
-    ax.set_ylabel("Poincare disk y")
+    ax.set_xlabel("x in the Poincare disk (radius 1)")
+    ax.set_ylabel("y in the Poincare disk (radius 1)")
     return save(fig, path)
+
+
+def _disk_velocities(x: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """``(n, 2)``: velocities ``V (n, 3)`` on the hyperboloid at ``x (n, 3)`` carried to the Poincare disk."""
+    one = 1.0 + x[:, :1]
+    return (V[:, 1:] * one - x[:, 1:] * V[:, :1]) / one**2
 
 
 def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = None, path=None,
@@ -186,7 +209,7 @@ def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = 
             ax.scatter(x[moving], v[moving, k], s=10, color=ARROW_COLOUR)
         ax.set_ylim(-top, top)
         name = COMPONENT_NAMES[k] if v.shape[1] <= 3 else str(k)
-        ax.set_ylabel(f"{name}-component of velocity" if v.shape[1] > 1 else "velocity")
+        ax.set_ylabel(f"v_{name} (velocity units)" if v.shape[1] > 1 else "velocity (velocity units)")
     axes[-1].set_xlabel(xlabel if v.shape[1] <= 3 else f"{xlabel} (components 0-2 of {v.shape[1]} drawn)")
     if len(x) and np.all(np.diff(x) == 1):
         axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -200,19 +223,7 @@ def chain(positions, velocities, title: str | None = None, path=None, shared=Non
     p = np.asarray(positions, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 1:
         raise ValueError(f"positions: must have shape (n_balls, 1), got {p.shape}")
-    return components_by_ball(p[:, 0], velocities, xlabel="position x", title=title, path=path, shared=shared)
-
-
-def layers(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
-    """A state of a 3-D packing: the bottom layer's ``(v_x, v_y)`` as arrows over its balls.
-
-    positions: ``(n_balls, 3)``; velocities: ``(n_balls, 3)``; ``shared`` as in `quiver`.
-    """
-    p = np.asarray(positions, dtype=np.float64)
-    layer = np.flatnonzero(p[:, 2] <= p[:, 2].min() + 1e-9)
-    where = f"the bottom layer (z = {p[layer[0], 2]:g}), arrows (v_x, v_y)"
-    return quiver(p[layer, :2], np.asarray(velocities)[layer, :2], title=f"{title}: {where}" if title else where,
-                  path=path, shared=None if shared is None else [np.asarray(u)[layer, :2] for u in shared])
+    return components_by_ball(p[:, 0], velocities, xlabel="position x (ball radii)", title=title, path=path, shared=shared)
 
 
 def _embedded(draw, frames: np.ndarray):
@@ -243,4 +254,7 @@ def state_picture(geometry):
     if geometry.view in ("sphere", "poincare"):
         draw = _embedded(draw, geometry.frames())
     positions = np.asarray(geometry.positions, dtype=np.float64)
+    if geometry.view in ("plane", "layers"):  # flat: balls of the geometry's radius
+        radius = float(geometry.radius)
+        return lambda v, title, shared=None: draw(positions, v, title=title, shared=shared, radius=radius)
     return lambda v, title, shared=None: draw(positions, v, title=title, shared=shared)

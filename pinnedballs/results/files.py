@@ -9,7 +9,7 @@ from pathlib import Path
 
 import h5py
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "tmp_path", "remove"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "written_atomically", "tmp_path", "remove"]
 
 
 @contextlib.contextmanager
@@ -28,6 +28,20 @@ def h5_file(path: Path):
     finally:
         f.close()
     write_bytes_atomic(path, image)
+
+
+@contextlib.contextmanager
+def written_atomically(path: str | os.PathLike):
+    """A temporary path beside ``path`` for a library to write a whole file into; flushed and renamed
+    over ``path`` if the block succeeds, removed if it fails (so ``path`` is never half written)."""
+    path = Path(path)
+    tmp = tmp_path(path)
+    try:
+        yield tmp
+        _commit(tmp, path)
+    except BaseException:
+        remove(tmp)
+        raise
 
 
 def tmp_path(path: Path) -> Path:

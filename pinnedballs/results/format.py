@@ -39,6 +39,7 @@ a run converts it to format 2 first.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -68,11 +69,17 @@ class ResultsError(InputError):
 
 
 class Snapshot(NamedTuple):
-    """The velocities ``(n_balls, dim)`` after ``step`` steps and ``collisions`` collisions."""
+    """The velocities ``(n_balls, dim)`` after ``steps`` steps and ``collisions`` collisions."""
 
-    step: int
+    steps: int
     collisions: int
     velocities: np.ndarray
+
+    @property
+    def step(self) -> int:
+        """Deprecated name of `steps` (the name `Results.steps` and run specs use); still works."""
+        warnings.warn("Snapshot.step is deprecated: use Snapshot.steps", DeprecationWarning, stacklevel=2)
+        return self.steps
 
 
 @dataclass(frozen=True)

@@ -191,7 +191,7 @@ def _convert_v1(path: Path, f: h5py.File) -> "ResultsStore":
     initial = Record(start, res.initial_energy, f["initial/momentum"][()], int(f["initial"].attrs["approaching"]))
     geometry = StoredGeometry(res.positions, res.pairs, res.t_i, res.t_j)
     state = Record(res.state(), res.energy, res.momentum, res.approaching)
-    frames = [Record(RunState(s.velocities, s.step, s.collisions, res.rng_state, res.scheduler_state), 0.0,
+    frames = [Record(RunState(s.velocities, s.steps, s.collisions, res.rng_state, res.scheduler_state), 0.0,
                      None, 0, {k: res.observables[k][i] for k in names}) for i, s in enumerate(res.snapshots)]
     attrs = {k: scalar(v) for k, v in f.attrs.items()}
     f.close()

@@ -1,8 +1,9 @@
 """Carry out a run spec: the driver with a `ResultsWriter`, progress, signals, resuming, figures.
 
 `execute` runs a spec into a run directory (``spec.json``, ``results.h5`` (see
-`pinnedballs.results`) and the figures (``*.png``, `pinnedballs.plot`)) through the one
-driver (`driver.drive`) and the same `ResultsWriter` a Python run uses,
+`pinnedballs.results`), ``trajectory.gsd`` if the spec asks for one, and the figures
+(``*.png``, `pinnedballs.plot`)) through the one driver (`driver.drive`) and the same
+`ResultsWriter` and `GSDWriter` a Python run uses,
 adding a progress bar, SIGINT/SIGTERM handling and resuming. `run_to_stop` runs a
 spec's simulation to its stop with any writers (ensembles, the reproduction).
 The final state equals that of the plain calls ``sim.run(steps=S)``,
@@ -20,13 +21,15 @@ from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 from ..engine.errors import InputError
-from ..results.files import write_text_atomic
+from ..results.files import remove, write_text_atomic
 from ..results.format import RESULTS_NAME, Record
 from ..results.load import Results, load
 from ..results.rundir import DirLock
+from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec
 from .driver import Stop, Writer, drive
+from .gsd_writer import GSDWriter
 from .writers import OnSnapshot, ResultsWriter
 
 __all__ = ["Interrupted", "run_to_stop", "execute", "write_figures", "SILENT"]
@@ -89,15 +92,17 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
         writer = ResultsWriter(out, snapshots=snapshots, checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
                                force=force, resume=resume, lock=lock)
-        if sim is None:
+        fresh = sim is not None
+        if not fresh:
             status("reading the last checkpoint")
             sim = _resumed(spec, path)
         else:
             writer.attach(sim)      # takes the directory and writes the static data
             _remove_figures(out)    # a replaced run's pictures would pass for this one's
+            remove(out / TRAJECTORY_NAME)
             write_text_atomic(out / "spec.json", spec.to_json() + "\n")
         if sim is not None:         # None: that run had finished
-            _drive(sim, stop, writer, progress, status)
+            _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status)
     if figures:
         status("drawing figures")
         write_figures(out)
@@ -114,8 +119,18 @@ def _resumed(spec: RunSpec, path: Path) -> Simulation | None:
     return None if res.complete else res.simulation()
 
 
-def _drive(sim: Simulation, stop: Stop, writer: ResultsWriter, progress: bool | None, status) -> None:
-    """``sim`` to ``stop`` recording into ``writer``, with a progress bar; SIGINT/SIGTERM checkpoint and stop."""
+def _trajectory(spec: RunSpec, out: Path, fresh: bool) -> list[GSDWriter]:
+    """The writer of ``out/trajectory.gsd`` if ``spec`` asks for one: a new file for a ``fresh`` run,
+    else appended to (a resumed run skips the frames it holds)."""
+    if spec.trajectory is None:
+        return []
+    return [GSDWriter(out / TRAJECTORY_NAME, spec.trajectory.build(), spec.observables, force=fresh, resume=not fresh)]
+
+
+def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | None, status) -> None:
+    """``sim`` to ``stop`` recording into ``writers`` (the `ResultsWriter` last, so every other writer
+    has recorded a state before it is checkpointed), with a progress bar; SIGINT/SIGTERM checkpoint and stop."""
+    writer = writers[-1]
     status("compiling the loop (once: numba caches it on disk)")
     sim.run(steps=0, until_frozen=stop.until_frozen)  # compiles; changes no bit of the state
     status.clear()
@@ -127,7 +142,11 @@ def _drive(sim: Simulation, stop: Stop, writer: ResultsWriter, progress: bool | 
                 raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
                                   f"continue with --resume")
 
-        drive(sim, stop, [writer], after_chunk=after_chunk)
+        try:
+            drive(sim, stop, writers, after_chunk=after_chunk)
+        finally:
+            for other in writers[:-1]:
+                other.close()
         bar(sim)
 
 
@@ -202,14 +221,15 @@ def _progress_bar(stop: Stop, sim: Simulation, show: bool | None) -> Iterator[Ca
 # ---------------------------------------------------------------- figures
 
 
-def write_figures(run_dir: str | os.PathLike) -> list[Path]:
+def write_figures(run_dir: str | os.PathLike, every_snapshot: bool = False) -> list[Path]:
     """Draw the figures of the run in ``run_dir`` (PNG files beside its results), first removing
-    any figures an earlier run left there; the paths written."""
+    any figures an earlier run left there; the paths written. ``every_snapshot``: also a picture
+    of each snapshot (else the first and last states and a contact sheet of the snapshots)."""
     from ..plot.run import write_figures as draw
 
     res = load(run_dir)
     _remove_figures(Path(run_dir))
-    return list(draw(res, Path(run_dir)))
+    return list(draw(res, Path(run_dir), every_snapshot=every_snapshot))
 
 
 def _remove_figures(run_dir: Path) -> None:

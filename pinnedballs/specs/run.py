@@ -39,7 +39,11 @@ def _known_observable(name: str) -> str:
 
 class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, and the
-    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``)."""
+    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``).
+
+    ``trajectory``: when to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
+    freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
+    """
 
     geometry: GeometrySpec
     initial: InitialSpec
@@ -49,6 +53,7 @@ class RunSpec(_Spec):
     seed: Count = 0
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
+    trajectory: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
     arithmetic: Literal["float", "exact"] = "float"
@@ -69,14 +74,15 @@ class RunSpec(_Spec):
 
     @model_validator(mode="after")
     def _snapshots_before_stop(self) -> "RunSpec":
-        s = self.snapshots
-        if s is None:
-            return self
-        for name, listed, limit in (("at_steps", s.at_steps, self.stop.steps),
-                                    ("at_collisions", s.at_collisions, self.stop.collisions),
-                                    ("at_steps", s.at_steps, self.stop.max_steps)):
-            if listed and limit is not None and listed[-1] > limit:
-                raise ValueError(f"snapshots.{name}: {listed[-1]} is beyond the stop at {limit}")
+        for field in ("snapshots", "trajectory"):
+            s = getattr(self, field)
+            if s is None:
+                continue
+            for name, listed, limit in (("at_steps", s.at_steps, self.stop.steps),
+                                        ("at_collisions", s.at_collisions, self.stop.collisions),
+                                        ("at_steps", s.at_steps, self.stop.max_steps)):
+                if listed and limit is not None and listed[-1] > limit:
+                    raise ValueError(f"{field}.{name}: {listed[-1]} is beyond the stop at {limit}")
         return self
 
     # ------------------------------------------------------------ building
@@ -239,11 +245,13 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     stop = spec.stop
     until = {"steps": lambda: f"{stop.steps:,} steps", "collisions": lambda: f"{stop.collisions:,} collisions",
              "frozen": lambda: f"frozen (max {stop.max_steps:,} steps)"}[stop.kind]()
-    n_snap = _count_snapshots(spec)
+    snapshots = _how_many(spec.snapshots, spec.stop, "snapshot")
+    if spec.trajectory is not None:
+        snapshots += f", trajectory.gsd: {_how_many(spec.trajectory, spec.stop, 'frame')}"
     rule = spec.rule.kind + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {spec.initial.kind}, energy {sim.energy():.6g}; {rule}, {spec.scheduler.kind}; "
-            f"stop at {until}; {n_snap} snapshot(s); seed {spec.seed}")
+            f"stop at {until}; {snapshots}; seed {spec.seed}")
 
 
 def _shape(g: BaseModel, geometry: Geometry) -> str:
@@ -258,13 +266,14 @@ def _shape(g: BaseModel, geometry: Geometry) -> str:
     return " ".join(Path(v).name if isinstance(v, str) and os.sep in v else f"{k}={v}" for k, v in fields.items())
 
 
-def _count_snapshots(spec: RunSpec) -> str:
-    s = spec.snapshots
+def _how_many(s: SnapshotsSpec | None, stop: StopSpec, noun: str) -> str:
+    """``"3 snapshots"``, ``"1 snapshot"``, ``"no snapshots"`` or ``"a snapshot every 100 collisions"``."""
     if s is None:
-        return "no"
+        return f"no {noun}s"
     listed = s.at_steps if s.at_steps is not None else s.at_collisions
-    if listed is not None:
-        return str(len(listed))
     every = s.every_steps or s.every_collisions
-    limit = spec.stop.steps if s.every_steps else spec.stop.collisions
-    return str(limit // every) if limit is not None else f"every {every:,} {s.counter}"
+    limit = stop.steps if s.every_steps else stop.collisions
+    if listed is None and limit is None:
+        return f"a {noun} every {every:,} {s.counter}"
+    count = len(listed) if listed is not None else limit // every
+    return f"{count:,} {noun}{'' if count == 1 else 's'}"

@@ -169,19 +169,22 @@ def test_usage_errors(tmp_path, monkeypatch, argv, words):
 
 def test_run_writes_results_spec_and_figures(tmp_path):
     out = tmp_path / "out"
-    code, stdout, err = call("run", write(tmp_path / "s.json", spec(HALF_PLANE, snapshots={"at_steps": [0, 100]})),
+    code, stdout, err = call("run", write(tmp_path / "s.json", spec(HALF_PLANE, snapshots={"at_steps": [0, 50, 100]})),
                              "--out", out, "--quiet")
     assert (code, err) == (0, "")
     res = pb.load(out)
     assert res.complete and res.frozen and res.stop_reason == "frozen"
-    assert [s.step for s in res.snapshots] == [0, 100]
+    assert [s.steps for s in res.snapshots] == [0, 50, 100]
     assert json.loads((out / "spec.json").read_text()) == json.loads(res.spec.to_json())
     names = {p.name for p in out.iterdir()}
     assert {"results.h5", "spec.json"} <= names
-    assert {"state_initial.png", "state_step_100.png", "state_final.png", "energy_by_distance.png"} <= names
+    assert {"state_initial.png", "state_snapshots.png", "state_final.png", "energy_by_distance.png"} <= names
+    assert "state_step_100.png" not in names                 # one picture per snapshot only on request
     (out / "state_final.png").unlink()
     code, stdout, _ = call("plot", out)
     assert code == 0 and (out / "state_final.png").exists() and str(out / "state_final.png") in stdout
+    code, stdout, _ = call("plot", out, "--every-snapshot")
+    assert code == 0 and (out / "state_step_100.png").exists() and str(out / "state_step_100.png") in stdout
 
 
 def test_run_prints_summary_and_info(tmp_path):
@@ -214,7 +217,7 @@ def test_validate_prints_one_line(tmp_path):
     code, out, err = call("validate", write(tmp_path / "s.json", TORUS))
     assert (code, err) == (0, "")
     assert out == ("ok: flat_torus 4x4: 16 balls, 48 contacts, dim 2; single_ball, energy 100; elastic, "
-                   "uniform_random_pair; stop at 1,000 steps; 3 snapshot(s); seed 1\n")
+                   "uniform_random_pair; stop at 1,000 steps; 3 snapshots; seed 1\n")
 
 
 def test_schema_is_the_json_schema():
@@ -274,12 +277,13 @@ def test_process_run_is_quiet_off_a_terminal(tmp_path):
 def test_force_leaves_no_figure_of_the_replaced_run(tmp_path, figures):
     out = tmp_path / "out"
     assert call("run", write(tmp_path / "a.json", TORUS), "--out", out, "--quiet")[0] == 0
+    assert call("plot", out, "--every-snapshot")[0] == 0
     assert (out / "state_step_250.png").exists()
     flags = () if figures else ("--no-figures",)
-    b = spec(snapshots={"at_steps": [100]})
+    b = spec(snapshots={"at_steps": [100, 200]})
     assert call("run", write(tmp_path / "b.json", b), "--out", out, "--force", "--quiet", *flags)[0] == 0
     pngs = sorted(p.name for p in out.glob("*.png"))
-    expected = ["state_final.png", "state_initial.png", "state_step_100.png", "velocity_histograms.png"]
+    expected = ["state_final.png", "state_initial.png", "state_snapshots.png", "velocity_histograms.png"]
     assert pngs == (expected if figures else [])
 
 

@@ -28,8 +28,8 @@ def record(tmp_path, geometry, every=300, steps=1_500, name="run"):
 def drawn(monkeypatch):
     """The figures `animate` turns into frames, in order."""
     figures = []
-    rgb = animation._rgb
-    monkeypatch.setattr(animation, "_rgb", lambda fig: figures.append(fig) or rgb(fig))
+    rgb = animation.render
+    monkeypatch.setattr(animation, "render", lambda fig: figures.append(fig) or rgb(fig))
     return figures
 
 
@@ -67,7 +67,7 @@ def test_a_movie_of_a_sphere_shows_both_hemispheres_in_every_frame(tmp_path, dra
     assert all(len(fig.axes) == 2 for fig in drawn)
     scales = {c.scale for fig in drawn for ax in fig.axes for c in ax.collections if isinstance(c, Quiver)}
     assert len(scales) == 1
-    assert res.snapshots[-1].step == res.steps == 1_000
+    assert res.snapshots[-1].steps == res.steps == 1_000
 
 
 def test_a_movie_of_a_chain_keeps_one_vertical_scale(tmp_path, drawn):
@@ -91,12 +91,12 @@ def test_an_mp4_has_one_frame_per_state(tmp_path):
 def test_mp4_without_ffmpeg_is_refused_with_what_to_install(tmp_path, monkeypatch, capsys):
     record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)    # as if not installed
-    with pytest.raises(ValueError, match=r"^out: writing MP4 needs ffmpeg: pip install 'pinnedballs\[movies\]'"):
+    with pytest.raises(ValueError, match=r'^out: writing MP4 needs ffmpeg: python3 -m pip install "\.\[movies\]"'):
         pb.load(tmp_path / "run").animate(tmp_path / "movie.mp4")
     assert cli.main(["animate", str(tmp_path / "run"), "--out", str(tmp_path / "movie.mp4")]) == 2
     err = capsys.readouterr().err
-    assert err == ("pinnedballs: error: animate: --out: writing MP4 needs ffmpeg: pip install 'pinnedballs[movies]' "
-                   "(imageio-ffmpeg), or write a .gif\n")
+    assert err == ("pinnedballs: error: animate: --out: writing MP4 needs ffmpeg: python3 -m pip install \".[movies]\" "
+                   "in the pinnedballs checkout (imageio-ffmpeg), or write a .gif\n")
     assert not (tmp_path / "movie.mp4").exists()
 
 

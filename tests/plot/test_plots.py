@@ -191,7 +191,7 @@ def results(geometry, velocities, snapshots, masses=None):
 
 
 def snapshot(step, collisions, velocities):
-    return types.SimpleNamespace(step=step, collisions=collisions, velocities=velocities)
+    return types.SimpleNamespace(steps=step, collisions=collisions, velocities=velocities)
 
 
 def test_write_figures_for_a_half_plane_run(tmp_path):
@@ -200,8 +200,15 @@ def test_write_figures_for_a_half_plane_run(tmp_path):
     res = results(half, v1, [snapshot(0, 0, v0), snapshot(250, 40, v1)], masses=np.ones(half.n_balls))
     paths = plot_run.write_figures(res, tmp_path / "figs")
     names = [p.name for p in paths]
-    assert names == ["state_initial.png", "state_step_250.png", "state_final.png",
+    assert names == ["state_initial.png", "state_step_250.png", "state_final.png",  # one snapshot: its picture
                      "energy_by_distance.png", "velocity_histograms.png"]
+    res.snapshots.append(snapshot(500, 90, v0))
+    names = [p.name for p in plot_run.write_figures(res, tmp_path / "two")]
+    assert names == ["state_initial.png", "state_snapshots.png", "state_final.png",  # more: a contact sheet
+                     "energy_by_distance.png", "velocity_histograms.png"]
+    every = [p.name for p in plot_run.write_figures(res, tmp_path / "every", every_snapshot=True)]
+    assert every == ["state_initial.png", "state_snapshots.png", "state_step_250.png", "state_step_500.png",
+                     "state_final.png", "energy_by_distance.png", "velocity_histograms.png"]
     for p in paths:
         assert p.parent == tmp_path / "figs"
         assert matplotlib.image.imread(p).shape[2] in (3, 4)
@@ -326,3 +333,59 @@ def test_write_figures_draws_the_initial_state_from_the_results_without_a_step_0
     names = [p.name for p in plot_run.write_figures(res, tmp_path)]
     assert names[:3] == ["state_initial.png", "state_step_250.png", "state_final.png"]
     assert drawn[0] is v0 and drawn[1] is v1 and drawn[2] is v1
+
+
+def test_the_disk_holds_every_arrow_tip_and_its_key_lies_under_the_disk():
+    """A lone arrow at the centre stays inside the disk, the axes reach every tip (none clipped),
+    and the key lies in a strip under the disk, not across it."""
+    h = pb.HyperbolicPlane(q=7, layers=3)
+    v = np.zeros((h.n_balls, 2))
+    v[0] = [5.0, 0.0]
+    fig = states.poincare_disk(h.positions, np.einsum("nd,ndk->nk", v, h.frames()))
+    ax = fig.axes[0]
+    (arrows,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    tip = arrows.get_offsets()[0] + np.array([arrows.U[0], arrows.V[0]]) / arrows.scale
+    assert 0.5 < np.hypot(*tip) < 1.0                                     # inside the disk, and long enough to see
+    v[h.boundary_center()] = [-5.0, 0.0]                                  # and one at the rim, pointing out
+    fig = states.poincare_disk(h.positions, np.einsum("nd,ndk->nk", v, h.frames()))
+    ax = fig.axes[0]
+    (arrows,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    tips = arrows.get_offsets() + np.column_stack([arrows.U, arrows.V]) / arrows.scale
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert (tips[:, 0] > x0).all() and (tips[:, 0] < x1).all() and (tips[:, 1] > y0).all() and (tips[:, 1] < y1).all()
+    (key,) = [a for a in ax.artists if type(a).__name__ == "QuiverKey"]
+    assert y0 + key.Y * (y1 - y0) < -1.0
+
+
+def test_the_share_of_the_first_row_never_covers_a_bar():
+    """The tallest bar at the far side, under where the text sits: the text stays above every bar."""
+    half = pb.HalfPlane(rows=6, cols=5)
+    v = np.zeros((half.n_balls, 2))
+    far = half.boundary_distance() == half.boundary_distance().max()
+    v[far] = [3.0, 0.0]
+    v[half.boundary_center()] = [0.0, 1.0]
+    fig = figures.energy_by_distance(half.boundary_distance(), v, xlabel="distance from the boundary (ball radii)")
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    (text,) = ax.texts
+    box = text.get_window_extent()
+    assert not any(box.overlaps(bar.get_window_extent()) for bar in ax.patches)
+    assert text.get_text().startswith("boundary row: ") and ax.get_xlabel().endswith("(ball radii)")
+
+
+def test_velocity_histograms_of_a_run_are_not_stretched_by_one_outlier(tmp_path):
+    torus = pb.FlatTorus(rows=20, cols=20)
+    v = normal_state(torus.n_balls, seed=8)
+    v[17] = [40.0, -40.0]                                     # one ball far out
+    paths = plot_run.write_figures(results(torus, v, []), tmp_path)
+    assert [p.name for p in paths][-1] == "velocity_histograms.png"
+    fig = figures.component_histograms(v, quantile=plot_run.ROBUST_RANGE)
+    scale = np.quantile(np.abs(v), 0.99)
+    for ax in fig.axes:
+        assert ax.get_xlim() == pytest.approx((-scale, scale))
+    heights = [sum(b.get_height() for b in ax.patches) for ax in fig.axes]
+    beyond = [(np.abs(v[:, k]) > scale).sum() for k in range(2)]
+    assert [400 - h for h in heights] == beyond and min(beyond) >= 1
+    assert all(f"{b} of 400 beyond the range drawn" in ax.texts[0].get_text() for b, ax in zip(beyond, fig.axes))
+    paper = figures.component_histograms(v)                  # the paper's range: the largest component
+    assert paper.axes[0].get_xlim() == pytest.approx((-40.0, 40.0))

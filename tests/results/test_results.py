@@ -87,14 +87,14 @@ def test_snapshots_at_exact_counts(tmp_path, data):
         assert res.snapshots == []
         return
     for n, snap in enumerate(res.snapshots):
-        count = snap.step if snaps.counter == "steps" else snap.collisions
+        count = snap.steps if snaps.counter == "steps" else snap.collisions
         assert count == snaps.target(n)
         again = parse_spec(data).build()
         if snaps.counter == "steps":
-            again.run(steps=snap.step)
+            again.run(steps=snap.steps)
         else:
             again.run(collisions=snap.collisions)
-        assert (again.steps, again.collisions) == (snap.step, snap.collisions)
+        assert (again.steps, again.collisions) == (snap.steps, snap.collisions)
         assert np.array_equal(again.velocities, snap.velocities)
     # every target up to where the run ended was taken, none beyond
     reached = res.steps if snaps.counter == "steps" else res.collisions
@@ -224,3 +224,13 @@ def test_load_damaged(tmp_path):
         del f["state"]
     with pytest.raises(ResultsError, match=r"results\.h5: damaged results file"):
         load(res.path)
+
+
+def test_a_snapshot_counts_steps_like_the_results_and_step_still_works():
+    """``Snapshot.steps`` is the name ``Results.steps`` and the spec use; ``step`` is a deprecated alias."""
+    from pinnedballs.results.format import Snapshot
+
+    snap = Snapshot(250, 40, np.zeros((3, 2)))
+    assert (snap.steps, snap.collisions) == (250, 40) and snap._fields == ("steps", "collisions", "velocities")
+    with pytest.warns(DeprecationWarning, match="Snapshot.steps"):
+        assert snap.step == 250

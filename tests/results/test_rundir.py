@@ -202,7 +202,7 @@ def test_two_concurrent_runs_one_is_refused_and_a_killed_run_resumes(tmp_path):
     assert (out / LOCK_NAME).exists()  # left by the kill, and harmless:
     assert resume(s, out) == 0
     res = load(out)
-    assert len(res.snapshots) == 10 and [x.step for x in res.snapshots] == list(range(500, 5_001, 500))
+    assert len(res.snapshots) == 10 and [x.steps for x in res.snapshots] == list(range(500, 5_001, 500))
     assert_identical(res, reference(tmp_path, RUN))
     assert not (out / LOCK_NAME).exists()
 
@@ -229,7 +229,7 @@ def test_python_writers_take_the_lock_and_release_it_at_the_stop(tmp_path):
     sim.run(steps=10, writers=[w])
     assert not (out / LOCK_NAME).exists()  # released at the stop ...
     sim.run(steps=10, writers=[w])         # ... and taken again by the next run
-    assert [x.step for x in load(out).snapshots] == [5, 10, 15, 20]
+    assert [x.steps for x in load(out).snapshots] == [5, 10, 15, 20]
     with DirLock(out):  # a second writer, in this process or another, waits its turn
         with pytest.raises(InputError, match="in use by another run"):
             sim.run(steps=10, writers=[pb.ResultsWriter(out, resume=True)])

@@ -104,7 +104,7 @@ def test_a_run_that_fills_the_disk_stops_cleanly_and_resumes_bit_identical(tmp_p
         assert leftovers(disk) == []
         res = pb.load(out)  # the last good checkpoint, checked
         assert res.status == "running" and 0 < res.steps < 20_000
-        assert [x.step for x in res.snapshots] == list(range(100, res.steps + 1, 100))
+        assert [x.steps for x in res.snapshots] == list(range(100, res.steps + 1, 100))
         saved = tmp_path / "saved"
         shutil.copytree(out, saved)  # room to go on: the same files on a large disk
     assert resume(s, saved) == 0

@@ -64,8 +64,8 @@ def test_run_with_writers_ends_where_a_plain_run_ends(tmp_path, chunk, call, geo
     # every snapshot is the state a plain run reaches at that count
     for snap in res.snapshots:
         again = pb.Simulation(geometry, v, scheduler=pb.RandomSweep(), seed=9)
-        if snap.step % 1_000 == 0 and snap.step > 0:
-            again.run(steps=snap.step)
+        if snap.steps % 1_000 == 0 and snap.steps > 0:
+            again.run(steps=snap.steps)
         else:
             again.run(collisions=snap.collisions)
         assert (again.steps, again.collisions) == snap[:2] and np.array_equal(again.velocities, snap.velocities)
@@ -244,7 +244,7 @@ def test_format_1_file_loads_and_continues(tmp_path):
     fresh = old.spec.build()
     fresh.run(steps=1_000)
     assert np.array_equal(old.velocities, fresh.velocities) and old.steps == 1_000
-    assert [s.step for s in old.snapshots] == [0, 250, 1_000]
+    assert [s.steps for s in old.snapshots] == [0, 250, 1_000]
     assert list(old.observables) == ["steps", "collisions", "energy", "momentum", "approaching"]
     # continuing it converts it to format 2, snapshots and state unchanged
     run_dir = tmp_path / "old"

@@ -177,7 +177,22 @@ def test_describe_is_one_line():
     line = describe(s, s.build())
     assert "\n" not in line
     assert line.startswith("flat_torus 4x4: 16 balls, 48 contacts, dim 2; single_ball, energy 100;")
-    assert "stop at 1,000 steps; 3 snapshot(s); seed 1" in line
+    assert "stop at 1,000 steps; 3 snapshots; seed 1" in line
+
+
+@pytest.mark.parametrize("snapshots, trajectory, said", [
+    ({"at_steps": [500]}, None, "1 snapshot;"),
+    (..., None, "no snapshots;"),
+    ({"every_steps": 100}, {"every_steps": 250}, "10 snapshots, trajectory.gsd: 4 frames;"),
+])
+def test_describe_counts_snapshots_in_words(snapshots, trajectory, said):
+    s = parse_spec(spec(TORUS, snapshots=snapshots, trajectory=trajectory if trajectory else ...))
+    assert said in describe(s, s.build())
+
+
+def test_describe_says_every_so_many_collisions_when_it_cannot_count():
+    s = parse_spec(spec(HALF_PLANE, snapshots={"every_collisions": 100}))
+    assert "stop at frozen (max 10,000,000 steps); a snapshot every 100 collisions; seed 3" in describe(s, s.build())
 
 
 # ---------------------------------------------------------------- what invalid specs say

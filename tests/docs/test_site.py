@@ -1,0 +1,109 @@
+"""The documentation a new user meets: every extra it advises exists, the first command can run twice,
+the home page lists every page, one time for ``reproduce --quick`` everywhere, and a site that works
+offline (no web fonts) with a 404 page whose links work under any path."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from pinnedballs.cli.commands import COMMANDS
+from pinnedballs.plot.animation import MP4_MISSING
+from helpers import HALF_PLANE, call, spec, write
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def text(path: Path) -> str:
+    return path.read_text(encoding="utf-8")
+
+
+def mkdocs() -> str:
+    return text(ROOT / "mkdocs.yml")
+
+
+# ---------------------------------------------------------------- 5.2: the extras the docs advise
+
+
+def test_every_extra_the_docs_advise_is_in_pyproject_and_installs_from_the_checkout():
+    extras = tomllib.loads(text(ROOT / "pyproject.toml"))["project"]["optional-dependencies"]
+    advised = []
+    for source in [*PAGES, *ROOT.glob("pinnedballs/**/*.py")]:
+        for package, extra in re.findall(r"pip install \\?[\"']?([\w.-]*)\[(\w+)\]", text(source)):
+            advised.append((source.name, package, extra))
+    assert {extra for _, _, extra in advised} == {"test", "docs", "movies"}
+    for name, package, extra in advised:
+        assert extra in extras, (name, extra)
+        assert package == ".", f"{name}: pip install {package}[{extra}] (pinnedballs is installed from its checkout)"
+    assert any(r.startswith("imageio-ffmpeg") for r in extras["movies"])   # what writing MP4 imports
+    assert 'pip install ".[movies]"' in MP4_MISSING
+
+
+# ---------------------------------------------------------------- 5.3: the first command, the home page
+
+
+def first_command(page: Path) -> list[str]:
+    line = re.search(r"^python3 -m pinnedballs run .*$", text(page), flags=re.M).group(0)
+    return line.split()[3:]                                             # after "python3 -m pinnedballs"
+
+
+@pytest.mark.parametrize("page", ["getting-started.md", "index.md"])
+def test_the_first_command_runs_twice(tmp_path, page):
+    """The page's first command, on a small spec and directory of its own, with all its flags."""
+    argv = first_command(ROOT / "docs" / page)
+    assert argv[0] == "run" and "--force" in argv
+    small = write(tmp_path / "small.json", spec(HALF_PLANE))
+    argv = [str(small) if a.endswith(".json") else str(tmp_path / "out") if a.startswith("results/") else a
+            for a in argv]
+    for _ in range(2):
+        code, _, err = call(*argv, "--quiet", "--no-figures")
+        assert code == 0, err
+
+
+def test_the_home_page_lists_every_page_of_the_site():
+    nav = re.findall(r"^\s+- [^:]+: (\S+\.md)$", mkdocs(), flags=re.M)
+    assert len(nav) >= 11 and "gallery.md" in nav and "orders.md" in nav and "trajectories.md" in nav
+    listed = set(re.findall(r"\]\((\S+\.md)\)", text(ROOT / "docs" / "index.md")))
+    assert listed == set(nav) - {"index.md"}
+
+
+# ---------------------------------------------------------------- 5.8: one time for reproduce --quick
+
+
+def test_reproduce_quick_takes_the_same_time_in_the_help_the_readme_and_the_docs():
+    said = "about 10 seconds on 2 cores"
+    (quick,) = [o for flags, o in COMMANDS["reproduce"].arguments if "--quick" in flags]
+    assert said in quick["help"]
+    for page in (ROOT / "README.md", ROOT / "docs" / "reproduce.md"):
+        lines = [line for line in text(page).splitlines() if "--quick" in line and re.search(r"\d+ ?s\b|second|minute", line)]
+        assert lines and all(said in line for line in lines), (page.name, lines)
+
+
+# ---------------------------------------------------------------- 5.10: a site that works offline
+
+
+def test_the_site_uses_no_web_fonts_and_wraps_long_code_lines():
+    assert re.search(r"^  font: false", mkdocs(), flags=re.M)
+    css = [ROOT / "docs" / c for c in re.findall(r"^  - (stylesheets/\S+\.css)", mkdocs(), flags=re.M)]
+    assert css and any(re.search(r"pre > code \{[^}]*white-space: pre-wrap", text(c)) for c in css)
+
+
+def test_the_404_page_links_relative_to_the_site_root_like_every_other_page():
+    """mkdocs writes 404.html with root-absolute links; the hook in mkdocs.yml rewrites them (the built
+    page itself is checked by .ci/run after building the site, where mkdocs is installed)."""
+    assert "docs/_hooks/relative_404.py" in mkdocs() and "/_hooks/" in mkdocs()
+    spec_ = importlib.util.spec_from_file_location("relative_404", ROOT / "docs" / "_hooks" / "relative_404.py")
+    hook = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(hook)
+    page = ('<link href="/assets/stylesheets/main.css"><a href="/.">home</a><a href="/gallery/">'
+            '<script src="/assets/javascripts/bundle.js"></script><a href="https://x.org/">'
+            '<a href="//cdn.example/x"><script id="__config">{"base": "/", "features": []}</script>')
+    assert hook.relative(page) == (
+        '<link href="./assets/stylesheets/main.css"><a href="./.">home</a><a href="./gallery/">'
+        '<script src="./assets/javascripts/bundle.js"></script><a href="https://x.org/">'
+        '<a href="//cdn.example/x"><script id="__config">{"base": ".", "features": []}</script>')
