@@ -352,7 +352,7 @@ class Simulation:
                                       f"got {np.shape(state.exact)}")
         try:
             exact = self._exact.parse(state.exact)
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, ZeroDivisionError) as exc:
             raise FieldError("exact", f"a coefficient is not a rational number ({exc})") from None
         F = self._exact.field
         rounded = np.array([[F.to_float(x) for x in row] for row in exact])
