@@ -50,7 +50,7 @@ from .intrinsics import fixed_width, prefetch
 from .jitcache import jit_cached_if_possible
 from .random import load, store
 
-__all__ = ["Selector", "Loops", "loops", "pick_selector", "contact_kernels", "live_kernel", "fixed_rows",
+__all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel", "fixed_rows",
            "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN"]
 
 #: picks drawn ahead, and how far ahead the velocity rows are fetched, in the prefetching loops
@@ -67,8 +67,6 @@ FREEZE_CHUNK_PER_CONTACT = 4
 
 #: ``counters[LIVE]`` when no loop counted the live contacts
 UNKNOWN = -1
-
-_FEW = 1 << 32  #: at most this many contacts: a bounded pick needs no wide path
 
 
 class Selector(NamedTuple):
@@ -221,12 +219,34 @@ def live_kernel(collide: Callable, dim: int, flat: bool) -> tuple[Callable, Call
 
 
 @functools.cache
+def selector_picks(select: Callable, begin: Callable) -> Callable:
+    """``picks(state, aux, rng_words, n_contacts, out)``: the next ``len(out)`` picks of one selector
+    into ``out`` (int64), the stream and the state advanced as a loop would advance them. Compiled
+    once per selector, whatever the rule: a run in exact arithmetic follows it, and the limited
+    loops replay a chunk's picks with it."""
+
+    @jit_cached_if_possible
+    def picks(state, aux, rng_words, n, out):
+        rng = load(rng_words)
+        begin(state, aux, np.empty(0, dtype=np.uint8))
+        taken = 0
+        while taken < out.shape[0]:
+            k, g, rng = select(state, aux, rng, n, out.shape[0] - taken)
+            out[taken] = k
+            taken += g
+        store(rng_words, rng)
+
+    return picks
+
+
+@functools.cache
 def loops(collide: Callable, select: Callable, begin: Callable, changed: Callable, skips: bool, dim: int,
           flat: bool) -> Loops:
     """The compiled `Loops` for one rule's ``collide``, one selector's functions (see `Selector`),
     ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
     _, any_live = live_kernel(collide, dim, flat)
+    picks = selector_picks(select, begin)
     shaped = fixed_rows(dim)
     SKIPS = skips
 
@@ -276,15 +296,6 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     break
         return taken, made, last, rng
 
-    @njit(inline="always")
-    def replay(state, aux, rng, n, count):
-        """The stream after ``count`` more picks (``state`` advanced with it)."""
-        taken = 0
-        while taken < count:
-            _, g, rng = select(state, aux, rng, n, count - taken)
-            taken += g
-        return rng
-
     def make_steps(PREFETCH):
         @jit_cached_if_possible
         def run(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps):
@@ -294,8 +305,6 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             if PREFETCH:
                 _, made, _, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n,
                                                    max_steps, -1)
-            elif n <= _FEW:  # the same loop; knowing n's bound lets the compiler drop a test per pick
-                _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1)
             else:
                 _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1)
             store(rng_words, rng)
@@ -311,7 +320,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 max_steps, max_collisions, until_frozen, chunk_steps, saved):
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
-            flags = np.empty(0, dtype=np.uint8)
+            flags, words = np.empty(0, dtype=np.uint8), np.empty(4, dtype=np.uint64)
             begin(state, aux, flags)
             taken, collisions, frozen = 0, counters[COLLISIONS], False
             if until_frozen and not any_live(v, pairs, ends, units, masses, params):
@@ -331,8 +340,9 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     frozen, used = True, last + 1  # the run ends right after its last collision
                 if used < count and (PREFETCH or frozen):  # picks drawn past the end: replay up to it
                     state[:] = saved
-                    begin(state, aux, flags)
-                    rng = replay(state, aux, start, n, used)
+                    store(words, start)
+                    picks(state, aux, words, n, np.empty(used, dtype=np.int64))
+                    rng = load(words)
                 taken += used
             store(rng_words, rng)
             counters[STEPS] += taken
@@ -364,14 +374,5 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         counters[STEPS] += taken
         counters[COLLISIONS], counters[LIVE] = collisions, live
         return taken
-
-    @jit_cached_if_possible
-    def picks(state, aux, rng_words, n, out):
-        rng = load(rng_words)
-        begin(state, aux, np.empty(0, dtype=np.uint8))
-        for t in range(out.shape[0]):
-            k, _, rng = select(state, aux, rng, n, 1)
-            out[t] = k
-        store(rng_words, rng)
 
     return Loops(make_steps(False), make_steps(True), make_limited(False), make_limited(True), tracked, picks)
