@@ -13,6 +13,7 @@ from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphG
 from .results.format import ResultsError
 from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
+from .run.collision_log import CollisionLog
 from .run.driver import Stop, Writer
 from .run.ensemble import run_ensemble
 from .run.gsd_writer import GSDWriter
@@ -31,6 +32,6 @@ __all__ = [
     "Simulation", "RunState", "__version__",
     "load", "Results", "ResultsError", "RunSpec", "run_ensemble",
     "explore_orders", "OrdersResult",
-    "ResultsWriter", "GSDWriter", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
+    "ResultsWriter", "GSDWriter", "CollisionLog", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
     "register_observable", "InputError", "FieldError", "FieldTypeError", "SpecError",
 ]

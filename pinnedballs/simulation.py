@@ -16,6 +16,10 @@ from .engine.exact import ExactChain
 from .engine.fields import NotExact
 from .engine.limits import check_speeds
 from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, live_kernel, loops
+
+#: collisions a logging loop records before handing them to the listeners
+LOG_CAPACITY = 1 << 16
+_NO_LOG = np.empty((0, 2), dtype=np.int64)
 from .engine.random import seed_state
 from .geometry.base import Geometry
 from .rules import CollisionRule, Elastic, threshold
@@ -155,6 +159,10 @@ class Simulation:
         self._rng = seed_state(seed)
         self._counters = np.zeros(3, dtype=np.int64)
         self._live = None  # the LiveSet, built when a tracked run first needs it
+        #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
+        #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
+        #: record them run a little slower
+        self.collision_listeners: list = []
         self.arithmetic = checks.choice("arithmetic", arithmetic, ("float", "exact"))
         self._exact = _exact_chain(self) if self.arithmetic == "exact" else None
         if self._exact is not None:
@@ -223,17 +231,45 @@ class Simulation:
         max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
         if self._exact is not None:
             return self._run_exact(max_steps, max_collisions, until_frozen)
+        if self.collision_listeners:
+            return self._run_logged(max_steps, max_collisions, until_frozen)
         chain, s, loops_ = self._chain(), self._selector, self._loops
         tables = (self._sched_state, s.aux, self._rng, self._counters)
         if s.tracks:
-            return loops_.tracked(*chain, *tables, max_steps, max_collisions, until_frozen, *self._refresh_live())
+            return loops_.tracked(*chain, *tables, max_steps, max_collisions, until_frozen, *self._refresh_live(),
+                                  _NO_LOG)
         large = chain.pairs.nbytes + chain.ends.nbytes + chain.v.nbytes > LOOKAHEAD_BYTES and not s.skips
         if not until_frozen and max_collisions == NO_LIMIT:
             plain = self._own_steps or (loops_.steps_prefetched if large else loops_.steps)
             return plain(*chain, *tables, max_steps)
         chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
         limited = loops_.limited_prefetched if large else loops_.limited
-        return limited(*chain, *tables, max_steps, max_collisions, until_frozen, chunk, np.empty_like(self._sched_state))
+        return limited(*chain, *tables, max_steps, max_collisions, until_frozen, chunk, np.empty_like(self._sched_state),
+                       _NO_LOG)
+
+    def _run_logged(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        """`_run` telling `collision_listeners` of every collision: the engine's logging loops
+        (sequential: the same bits as the others), a log of `LOG_CAPACITY` collisions at a time."""
+        chain, s, loops_ = self._chain(), self._selector, self._loops
+        tables = (self._sched_state, s.aux, self._rng, self._counters)
+        log, taken = np.empty((LOG_CAPACITY, 2), dtype=np.int64), 0
+        while True:
+            before = self.collisions
+            if s.tracks:
+                taken += loops_.tracked_logged(*chain, *tables, max_steps - taken, max_collisions, until_frozen,
+                                               *self._refresh_live(), log)
+            else:
+                large = chain.pairs.nbytes + chain.ends.nbytes + chain.v.nbytes > LOOKAHEAD_BYTES and not s.skips
+                limited = loops_.limited_prefetched_logged if large else loops_.limited_logged
+                chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
+                taken += limited(*chain, *tables, max_steps - taken, max_collisions, until_frozen, chunk,
+                                 np.empty_like(self._sched_state), log)
+            made = self.collisions - before
+            if made:
+                for listener in self.collision_listeners:
+                    listener(log[:made, 0].copy(), log[:made, 1].copy())
+            if made < len(log) or taken >= max_steps or self.collisions >= max_collisions:
+                return taken
 
     def _run_exact(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         """`_run` in exact arithmetic: the compiled selector's picks in blocks, each tried exactly
@@ -248,7 +284,12 @@ class Simulation:
             rng, state = self._rng.copy(), self._sched_state.copy()
             picks = np.empty(block, dtype=np.int64)
             self._loops.picks(self._sched_state, s.aux, self._rng, n, picks)
-            used, made = ex.run(picks.tolist(), max_collisions - collisions, until_frozen)
+            used, made, at = ex.run(picks.tolist(), max_collisions - collisions, until_frozen)
+            if made and self.collision_listeners:
+                steps = self.steps + taken + 1 + np.asarray(at, dtype=np.int64)
+                contacts = picks[np.asarray(at, dtype=np.int64)]
+                for listener in self.collision_listeners:
+                    listener(steps, contacts)
             if used < block:
                 self._rng[:], self._sched_state[:] = rng, state
                 self._loops.picks(self._sched_state, s.aux, self._rng, n, np.empty(used, dtype=np.int64))

@@ -139,20 +139,21 @@ class ExactChain:
                 flags[c] = now
 
     # ------------------------------------------------------------ a run
-    def run(self, picks: list[int], collisions_left: int, until_frozen: bool) -> tuple[int, int]:
+    def run(self, picks: list[int], collisions_left: int, until_frozen: bool) -> tuple[int, int, list[int]]:
         """Try the contacts ``picks`` in turn, stopping right after the ``collisions_left``-th
         collision or, with ``until_frozen``, right after the one that leaves no live contact:
-        ``(picks used, collisions)``. The live set must be known (`count_live`)."""
-        made = 0
+        ``(picks used, collisions, the index in picks of each collision)``. The live set must be
+        known (`count_live`)."""
+        at = []
         for t, k in enumerate(picks):
             if self.collide(k):
-                made += 1
+                at.append(t)
                 i, j = self.pairs[k]
                 self._retest(i, -1)
                 self._retest(j, k)
-                if made == collisions_left or (until_frozen and self.live == 0):
-                    return t + 1, made
-        return len(picks), made
+                if len(at) == collisions_left or (until_frozen and self.live == 0):
+                    return t + 1, len(at), at
+        return len(picks), len(at), at
 
     # ------------------------------------------------------------ state
     def set_velocities(self, exact: list[list[tuple]]) -> None:

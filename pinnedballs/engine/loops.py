@@ -119,11 +119,15 @@ class Loops(NamedTuple):
 
     steps, steps_prefetched(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps)
     limited, limited_prefetched(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
-                                max_steps, max_collisions, until_frozen, chunk, saved)
+                                max_steps, max_collisions, until_frozen, chunk, saved, log)
         ``chunk``: steps between scans; ``saved``: scratch as long as ``state``;
     tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
-            max_steps, max_collisions, until_frozen, ptr, inc, flags)
+            max_steps, max_collisions, until_frozen, ptr, inc, flags, log)
         ``counters[LIVE]`` and ``flags`` must hold the live contacts of ``v`` on entry;
+    limited_logged, limited_prefetched_logged, tracked_logged(... the same ...)
+        the same loops writing each collision to ``log (capacity, 2) int64`` as ``(step, contact)``
+        (the step counted as ``counters[STEPS]`` counts it) and stopping when it is full; the others
+        take an empty ``log``;
     picks(state, aux, rng_words, n_contacts, out) -> None
         the next ``len(out)`` picks into ``out`` (int64), advancing the stream and the state as a
         loop would: what a run in exact arithmetic follows.
@@ -135,6 +139,9 @@ class Loops(NamedTuple):
     limited_prefetched: Callable
     tracked: Callable
     picks: Callable
+    limited_logged: Callable
+    limited_prefetched_logged: Callable
+    tracked_logged: Callable
 
 
 @functools.cache
@@ -251,9 +258,11 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     SKIPS = skips
 
     @njit(inline="always")
-    def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left):
+    def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base):
         """Up to ``count`` steps, stopping right after the ``collisions_left``-th collision:
-        ``(steps taken, collisions, step index of the last collision or -1, rng)``."""
+        ``(steps taken, collisions, step index of the last collision or -1, rng)``. With ``LOG``
+        (a compile-time constant), collision ``c`` is written to ``log[c] = (step, contact)``,
+        its step counted from ``base``."""
         taken, made, last = 0, 0, -1
         while taken < count:
             k, g, rng = select(state, aux, rng, n, count - taken)
@@ -261,6 +270,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             if SKIPS and k < 0:
                 break
             if attempt(v, pairs, ends, units, masses, params, k, True):
+                if LOG:
+                    log[made, 0], log[made, 1] = base + taken, k
                 made += 1
                 last = taken - 1
                 if made == collisions_left:
@@ -268,7 +279,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         return taken, made, last, rng
 
     @njit(inline="always")
-    def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left):
+    def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log,
+                         base):
         """`chunk`, fetching ahead the rows of picks drawn `LOOKAHEAD` steps early (one step per pick).
         A chunk that stops early leaves the stream past picks it drew: the caller rewinds."""
         made, last, taken = 0, -1, count
@@ -288,7 +300,10 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 k = ring[(t + HALFWAY) % _RING]
                 prefetch(v, pairs[k, 0])
                 prefetch(v, pairs[k, 1])
-            if attempt(v, pairs, ends, units, masses, params, ring[t % _RING], True):
+            k = ring[t % _RING]
+            if attempt(v, pairs, ends, units, masses, params, k, True):
+                if LOG:
+                    log[made, 0], log[made, 1] = base + t + 1, k
                 made += 1
                 last = t
                 if made == collisions_left:
@@ -302,11 +317,13 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
             begin(state, aux, np.empty(0, dtype=np.uint8))
+            log = np.empty((0, 2), dtype=np.int64)
             if PREFETCH:
                 _, made, _, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n,
-                                                   max_steps, -1)
+                                                   max_steps, -1, False, log, 0)
             else:
-                _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1)
+                _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1,
+                                        False, log, 0)
             store(rng_words, rng)
             counters[STEPS] += max_steps
             counters[COLLISIONS] += made
@@ -314,27 +331,32 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             return max_steps
         return run
 
-    def make_limited(PREFETCH):
+    def make_limited(PREFETCH, LOG):
         @jit_cached_if_possible
         def run(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
-                max_steps, max_collisions, until_frozen, chunk_steps, saved):
+                max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
             flags, words = np.empty(0, dtype=np.uint8), np.empty(4, dtype=np.uint64)
             begin(state, aux, flags)
             taken, collisions, frozen = 0, counters[COLLISIONS], False
+            start_collisions, base = collisions, counters[STEPS]
+            if LOG:  # no more collisions in this call than the log holds
+                max_collisions = min(max_collisions, collisions + log.shape[0])
             if until_frozen and not any_live(v, pairs, ends, units, masses, params):
                 frozen = True
             while not frozen and taken < max_steps and collisions < max_collisions:
                 count = min(chunk_steps, max_steps - taken)
                 start = rng
                 saved[:] = state
+                at = log[collisions - start_collisions:]
                 if PREFETCH:
                     used, made, last, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng,
-                                                             n, count, max_collisions - collisions)
+                                                             n, count, max_collisions - collisions, LOG, at,
+                                                             base + taken)
                 else:
                     used, made, last, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count,
-                                                  max_collisions - collisions)
+                                                  max_collisions - collisions, LOG, at, base + taken)
                 collisions += made
                 if until_frozen and last >= 0 and not any_live(v, pairs, ends, units, masses, params):
                     frozen, used = True, last + 1  # the run ends right after its last collision
@@ -351,28 +373,36 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             return taken
         return run
 
-    @jit_cached_if_possible
-    def tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
-                max_steps, max_collisions, until_frozen, ptr, inc, flags):
-        v, pairs, ends, units = shaped(v, pairs, ends, units)
-        n, rng = pairs.shape[0], load(rng_words)
-        begin(state, aux, flags)
-        taken, collisions, live = 0, counters[COLLISIONS], counters[LIVE]
-        while taken < max_steps and collisions < max_collisions and not (until_frozen and live == 0):
-            k, g, rng = select(state, aux, rng, n, max_steps - taken)
-            taken += g
-            if SKIPS and k < 0:
-                break
-            if attempt(v, pairs, ends, units, masses, params, k, True):
-                collisions += 1
-                # contact k is re-tested once, with ball i's contacts: ball j's pass would find the same
-                live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0], -1,
-                                changed, state, aux)
-                live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1], k,
-                                changed, state, aux)
-        store(rng_words, rng)
-        counters[STEPS] += taken
-        counters[COLLISIONS], counters[LIVE] = collisions, live
-        return taken
+    def make_tracked(LOG):
+        @jit_cached_if_possible
+        def tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+                    max_steps, max_collisions, until_frozen, ptr, inc, flags, log):
+            v, pairs, ends, units = shaped(v, pairs, ends, units)
+            n, rng = pairs.shape[0], load(rng_words)
+            begin(state, aux, flags)
+            taken, collisions, live = 0, counters[COLLISIONS], counters[LIVE]
+            start_collisions, base = collisions, counters[STEPS]
+            if LOG:
+                max_collisions = min(max_collisions, collisions + log.shape[0])
+            while taken < max_steps and collisions < max_collisions and not (until_frozen and live == 0):
+                k, g, rng = select(state, aux, rng, n, max_steps - taken)
+                taken += g
+                if SKIPS and k < 0:
+                    break
+                if attempt(v, pairs, ends, units, masses, params, k, True):
+                    if LOG:
+                        log[collisions - start_collisions, 0], log[collisions - start_collisions, 1] = base + taken, k
+                    collisions += 1
+                    # contact k is re-tested once, with ball i's contacts: ball j's pass would find the same
+                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0], -1,
+                                    changed, state, aux)
+                    live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1], k,
+                                    changed, state, aux)
+            store(rng_words, rng)
+            counters[STEPS] += taken
+            counters[COLLISIONS], counters[LIVE] = collisions, live
+            return taken
+        return tracked
 
-    return Loops(make_steps(False), make_steps(True), make_limited(False), make_limited(True), tracked, picks)
+    return Loops(make_steps(False), make_steps(True), make_limited(False, False), make_limited(True, False),
+                 make_tracked(False), picks, make_limited(False, True), make_limited(True, True), make_tracked(True))

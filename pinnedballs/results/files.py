@@ -8,8 +8,9 @@ import os
 from pathlib import Path
 
 import h5py
+import numpy as np
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "written_atomically", "tmp_path", "remove"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "written_atomically", "tmp_path", "remove", "virtual_rows"]
 
 
 @contextlib.contextmanager
@@ -91,3 +92,16 @@ def _commit(tmp: Path, path: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def virtual_rows(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: tuple, segments: list, rel: str) -> None:
+    """``where`` in ``f``: the rows ``source`` of every segment ``[file, first, count]`` (files named
+    relative to ``rel``), one after another, as one virtual dataset of rows ``shape`` and ``dtype``."""
+    total = sum(s[2] for s in segments)
+    if total == 0:
+        f.create_dataset(where, shape=(0, *shape), dtype=dtype)
+        return
+    layout = h5py.VirtualLayout(shape=(total, *shape), dtype=dtype)
+    for name, first, count in segments:
+        layout[first:first + count] = h5py.VirtualSource(rel + name, source, shape=(count, *shape), dtype=dtype)
+    f.create_virtual_dataset(where, layout)

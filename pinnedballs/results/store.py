@@ -16,7 +16,7 @@ from ..analysis import observables
 from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
 from ..simulation import RunState
-from .files import h5_file, remove, tmp_path
+from .files import h5_file, remove, tmp_path, virtual_rows
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, V1_OBSERVABLES, Record, data_dir, results_path
 from .load import open_checked, read, scalar
 
@@ -105,9 +105,9 @@ class ResultsStore:
             f.attrs["segments"] = json.dumps(self.segments)
             f["geometry"] = h5py.ExternalLink(rel + STATIC_NAME, "/geometry")
             f["initial"] = h5py.ExternalLink(rel + STATIC_NAME, "/initial")
-            _virtual(f, "snapshots/velocities", "velocities", np.dtype(np.float64), (n, d), self.segments, rel)
+            virtual_rows(f, "snapshots/velocities", "velocities", np.dtype(np.float64), (n, d), self.segments, rel)
             for name, (dtype, shape) in self.columns.items():
-                _virtual(f, f"observables/{name}", f"observables/{name}", np.dtype(dtype), tuple(shape),
+                virtual_rows(f, f"observables/{name}", f"observables/{name}", np.dtype(dtype), tuple(shape),
                          self.segments, rel)
             for name in observables.ALWAYS:
                 f["snapshots"][name] = h5py.SoftLink(f"/observables/{name}")
@@ -152,18 +152,6 @@ def _write_segment(path: Path, frames: list[Record], names: list[str]) -> None:
         f["velocities"] = np.stack([r.state.velocities for r in frames])
         for name in names:
             f[f"observables/{name}"] = np.stack([np.asarray(r.values[name]) for r in frames])
-
-
-def _virtual(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: tuple, segments: list, rel: str) -> None:
-    """``where`` in ``f``: the rows ``source`` of every segment, one after another."""
-    total = sum(s[2] for s in segments)
-    if total == 0:
-        f.create_dataset(where, shape=(0, *shape), dtype=dtype)
-        return
-    layout = h5py.VirtualLayout(shape=(total, *shape), dtype=dtype)
-    for name, first, count in segments:
-        layout[first:first + count] = h5py.VirtualSource(rel + name, source, shape=(count, *shape), dtype=dtype)
-    f.create_virtual_dataset(where, layout)
 
 
 def _write_state(f: h5py.File, record: Record) -> None:
