@@ -166,34 +166,59 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
         profiles[f"{length:g}x{depth:g}"] = _profile(res, "decile_")
     fits = {what: fit_exponent([r["balls"] for r in rows], [r[f"{what}_mean"] for r in rows],
                                [r[f"{what}_se"] for r in rows]) for what in ("collisions", "steps")}
-    n = np.log([r["balls"] for r in rows])
     for what in ("collisions", "steps"):  # slopes between consecutive sizes: does one power law hold?
-        fits[what]["local_exponents"] = (np.diff(np.log([r[f"{what}_mean"] for r in rows])) / np.diff(n)).tolist()
+        fits[what].update(local_exponents(rows, what))
     figures = [_scaling_figure(rows, fits, out / "extended_scaling.png"),
                _profiles_figure(profiles, out / "extended_scaling_profiles.png")]
     return {"rows": rows, "fit": fits, "profiles": profiles, "figures": figures}
 
 
+def local_exponents(rows: list[dict], what: str) -> dict[str, list[float]]:
+    """The slope of ``log(mean of what)`` against ``log(balls)`` between consecutive sizes, each with its
+    standard error from the replicas (``se/mean`` is the error of a log; the two sizes' errors add in
+    quadrature), and ``local_z_2``: how many standard errors each lies below 2."""
+    n = np.log([r["balls"] for r in rows])
+    y = np.log([r[f"{what}_mean"] for r in rows])
+    e = np.array([r[f"{what}_se"] / r[f"{what}_mean"] for r in rows])
+    slope = np.diff(y) / np.diff(n)
+    se = np.sqrt(e[1:] ** 2 + e[:-1] ** 2) / np.diff(n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(se > 0, (2.0 - slope) / se, np.nan)
+    return {"local_exponents": slope.tolist(), "local_exponents_se": se.tolist(), "local_z_2": z.tolist(),
+            "local_at_balls": np.sqrt(np.exp(n[1:] + n[:-1])).tolist()}
+
+
 def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
+    """Left: collisions and steps until frozen against balls, with the fitted power laws. Right: the
+    local exponents between consecutive sizes, ± their standard errors, against 2."""
     from ..plot import base as plots
 
-    fig = plots.new_figure((8.0, 5.0))
-    ax = fig.add_subplot()
+    fig = plots.new_figure((12.0, 5.0))
+    left, right = fig.subplots(1, 2)
     n = np.array([r["balls"] for r in rows], dtype=float)
     for what, colour in (("collisions", "tab:blue"), ("steps", "tab:orange")):
         mean = np.array([r[f"{what}_mean"] for r in rows])
         se = np.array([r[f"{what}_se"] for r in rows])
         f = fits[what]
-        ax.errorbar(n, mean, yerr=np.nan_to_num(se), fmt="o", color=colour, capsize=3,
-                    label=f"{what} until frozen (mean ± se)")
-        ax.plot(n, f["prefactor"] * n ** f["exponent"], color=colour, linestyle="--",
-                label=f"fit: {f['prefactor']:.3g} N^({f['exponent']:.3f} ± {f['exponent_se']:.3f})")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("balls N")
-    ax.set_ylabel("count until frozen")
-    ax.set_title("half-plane, one boundary ball moving inward: until frozen (RejectionFree)")
-    ax.legend(fontsize="small")
+        left.errorbar(n, mean, yerr=np.nan_to_num(se), fmt="o", color=colour, capsize=3,
+                      label=f"{what} until frozen (mean ± se)")
+        left.plot(n, f["prefactor"] * n ** f["exponent"], color=colour, linestyle="--",
+                  label=f"one power law: {f['prefactor']:.3g} N^({f['exponent']:.3f} ± {f['exponent_se']:.3f})")
+        right.errorbar(f["local_at_balls"], f["local_exponents"], yerr=np.nan_to_num(f["local_exponents_se"]),
+                       fmt="o-", color=colour, capsize=3, label=f"{what}")
+    left.set_xscale("log")
+    left.set_yscale("log")
+    left.set_xlabel("balls N")
+    left.set_ylabel("count until frozen")
+    left.set_title("until frozen against the number of balls")
+    left.legend(fontsize="small")
+    right.axhline(2.0, color="k", linestyle=":", linewidth=1, label="slope 2")
+    right.set_xscale("log")
+    right.set_xlabel("balls N (geometric mean of the two sizes)")
+    right.set_ylabel("local exponent d log(count) / d log N")
+    right.set_title("local exponents between consecutive sizes (± se from the replicas)")
+    right.legend(fontsize="small")
+    fig.suptitle("half-plane, one boundary ball sent inward with energy 100, run until frozen")
     plots.save(fig, path)
     return path.name
 

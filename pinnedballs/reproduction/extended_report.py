@@ -45,8 +45,8 @@ def _scaling(x: dict) -> list[str]:
             f"Fitted: {fit_text}. Method: weighted least squares of log(mean) on log(N), each size weighted by "
             "1/(relative standard error of its mean)², se = sd/sqrt(replicas); the exponent's standard error is "
             "the fit's, scaled up by sqrt(chi²/dof) when the sizes scatter more than their errors.", "",
-            *[f"Local exponents of {what} between consecutive sizes: "
-              + ", ".join(f"{a:.2f}" for a in f["local_exponents"])
+            *[f"Local exponents of {what} between consecutive sizes (± se from the replicas): "
+              + ", ".join(f"{a:.3f} ± {e:.3f}" for a, e in zip(f["local_exponents"], f["local_exponents_se"]))
               + (" (chi²/dof > 3: the sizes do not lie on one power law; the fitted exponent is an average)."
                  if f["chi2_per_dof"] > 3 else ".") for what, f in fits.items()], ""]
 

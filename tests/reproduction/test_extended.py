@@ -67,13 +67,15 @@ def test_scaling_rows_match_their_replicas(tiny):
     again = rp.fit_exponent([r["balls"] for r in rows], [r["collisions_mean"] for r in rows],
                             [r["collisions_sd"] / math.sqrt(r["replicas"]) for r in rows])
     local = fit.pop("local_exponents")
+    for key in ("local_exponents_se", "local_z_2", "local_at_balls"):
+        assert len(fit.pop(key)) == len(rows) - 1
     assert fit == again and fit["exponent_se"] > 0
 
     def slope(a, b):
         return math.log(b["collisions_mean"] / a["collisions_mean"]) / math.log(b["balls"] / a["balls"])
 
     assert local == pytest.approx([slope(a, b) for a, b in zip(rows, rows[1:])], rel=1e-12)
-    assert f"Local exponents of collisions between consecutive sizes: {local[0]:.2f}" in text
+    assert f"Local exponents of collisions between consecutive sizes (± se from the replicas): {local[0]:.3f} ±" in text
 
 
 def test_torus_sphere_and_frozen_studies(tiny):
@@ -163,6 +165,19 @@ def test_fit_recovers_an_exact_power_law():
     # equal relative errors 1 %: the slope's se is 0.01 / sqrt(sum (log n - mean)^2)
     x = np.log(n)
     assert f["exponent_se"] == pytest.approx(0.01 / math.sqrt(((x - x.mean()) ** 2).sum()), rel=1e-10)
+
+
+def test_local_exponents_of_an_exact_power_law():
+    """Counts 3 N^1.8 with 2 % relative errors: every local slope is 1.8, its se is
+    sqrt(2) * 0.02 / log(N2/N1), and it lies 0.2/se standard errors below 2."""
+    balls = [50, 200, 800]
+    rows = [{"balls": n, "collisions_mean": 3.0 * n**1.8, "collisions_se": 0.06 * n**1.8} for n in balls]
+    local = ext.local_exponents(rows, "collisions")
+    se = math.sqrt(2) * 0.02 / math.log(4)
+    assert local["local_exponents"] == pytest.approx([1.8, 1.8], rel=1e-12)
+    assert local["local_exponents_se"] == pytest.approx([se, se], rel=1e-12)
+    assert local["local_z_2"] == pytest.approx([0.2 / se, 0.2 / se], rel=1e-10)
+    assert local["local_at_balls"] == pytest.approx([100.0, 400.0], rel=1e-12)
 
 
 def test_fit_error_bars_cover_the_true_exponent():
