@@ -17,6 +17,7 @@ in ``state`` and ``rng``, so a checkpoint of the two resumes it exactly; `check_
 
 from __future__ import annotations
 
+import re
 from abc import ABC
 from typing import Callable
 
@@ -25,7 +26,10 @@ import numpy as np
 from ..engine.errors import FieldError, FieldTypeError, check_jitted
 from ..engine.loops import Selector, pick_selector
 
-__all__ = ["Scheduler"]
+__all__ = ["Scheduler", "check_pick"]
+
+#: what a pick must return, said in the errors
+PICK_RETURNS = "(k, rng): the contact's index (an integer) and the random stream (the 4-tuple of uint64 it was given)"
 
 
 class Scheduler(ABC):
@@ -39,7 +43,11 @@ class Scheduler(ABC):
     def selector(self, geometry) -> Selector:
         """What the engine runs for this scheduler on ``geometry``; built once per `Simulation`.
         Default: `kernel`'s pick, one contact per step."""
-        return pick_selector(check_jitted(self.kernel(), "scheduler", f"{type(self).__name__}.kernel()'s pick"))
+        pick = check_jitted(self.kernel(), "scheduler", f"{type(self).__name__}.kernel()'s pick")
+        if not (getattr(pick, "__module__", None) or "").startswith("pinnedballs."):
+            check_pick(pick, f"{type(self).__name__}.kernel()'s pick {getattr(pick, '__name__', pick)!r}",
+                       self.initial_state(geometry.n_contacts), geometry.n_contacts)
+        return pick_selector(pick)
 
     def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:
         """Raise a `FieldError` unless ``state`` (already through `check_state`) fits the tables of
@@ -77,3 +85,37 @@ class Scheduler(ABC):
 
     def __hash__(self) -> int:
         return hash(type(self))
+
+
+def check_pick(pick: Callable, name: str, state: np.ndarray, n_contacts: int) -> None:
+    """Raise a `FieldTypeError` on ``scheduler``, naming ``name``, unless ``pick(state, rng, n_contacts)``
+    compiles for the engine's argument types and returns `PICK_RETURNS` (the loop would otherwise fail
+    with numba's TypingError from deep inside the engine). With ``NUMBA_DISABLE_JIT=1`` the pick is
+    called once, on copies, and its result checked."""
+    from numba import config, types
+    from numba.core.errors import TypingError
+
+    from ..engine.random import load, seed_state
+
+    if config.DISABLE_JIT:
+        try:
+            out = pick(state.copy(), load(seed_state(0)), n_contacts)
+        except Exception as error:
+            raise FieldTypeError("scheduler", f"{name} failed on a fresh state: {type(error).__name__}: {error}") from None
+        if (isinstance(out, tuple) and len(out) == 2 and isinstance(out[0], (int, np.integer))
+                and isinstance(out[1], tuple) and len(out[1]) == 4):
+            return
+        raise FieldTypeError("scheduler", f"{name} must return {PICK_RETURNS}; it returned {out!r}")
+    rng = types.UniTuple(types.uint64, 4)
+    signature = (types.Array(types.int64, 1, "C"), rng, types.int64)
+    try:
+        pick.compile(signature)
+    except TypingError as error:
+        lines = [line.strip() for line in re.sub(r"\x1b\[[0-9;]*m", "", str(error)).splitlines()]
+        said = " ".join(line for line in lines[1:4] if line) or lines[0]
+        raise FieldTypeError("scheduler", f"{name} does not compile for (state: int64 array, rng: 4-tuple of "
+                                          f"uint64, n_contacts: int64): {said}") from None
+    returned = pick.overloads[signature].signature.return_type
+    if not (isinstance(returned, types.BaseTuple) and len(returned) == 2 and isinstance(returned[0], types.Integer)
+            and returned[1] == rng):
+        raise FieldTypeError("scheduler", f"{name} must return {PICK_RETURNS}; it returns {returned}")

@@ -227,3 +227,51 @@ def test_a_scheduler_written_for_the_old_loop_protocol_is_refused_with_what_to_d
     with pytest.raises(TypeError, match=r"^scheduler: OwnLoop defines advance\(\) or loops\(\), which the engine "
                                         r"no longer calls: give it kernel\(\) \(a pick\) or selector\(\) instead"):
         pb.Simulation(geom, np.zeros((16, 2)), scheduler=OwnLoop())
+
+
+# ---------------------------------------------------------------- a user's pick that cannot work
+
+
+def _user_picks():
+    from numba import njit
+
+    from pinnedballs.engine.random import bounded
+
+    @njit
+    def index_only(state, rng, n_contacts):
+        return 0
+
+    @njit
+    def swapped(state, rng, n_contacts):
+        k, rng = bounded(rng, n_contacts)
+        return rng, k
+
+    @njit
+    def float_index(state, rng, n_contacts):
+        return state[0.5], rng
+
+    return index_only, swapped, float_index
+
+
+class _UserScheduler(pb.Scheduler):
+    def __init__(self, pick):
+        self.pick = pick
+
+    def kernel(self):
+        return self.pick
+
+
+@pytest.mark.parametrize("which,said", [
+    (0, r"must return \(k, rng\): the contact's index \(an integer\) and the random stream "
+        r"\(the 4-tuple of uint64 it was given\); it return"),
+    (1, r"must return \(k, rng\)"),
+    (2, r"(does not compile for \(state: int64 array, rng: 4-tuple of uint64, n_contacts: int64\): "
+        r"No implementation of function .*getitem.* found|failed on a fresh state: IndexError)"),
+])
+def test_a_pick_of_the_wrong_type_is_named_before_the_loop_compiles(which, said):
+    """Not numba's TypingError from inside the engine's loop: the scheduler, the function's name and
+    what it must return, when the Simulation is built."""
+    pick = _user_picks()[which]
+    geom = pb.FlatTorus(4, 4)
+    with pytest.raises(pb.FieldTypeError, match=rf"^scheduler: _UserScheduler.kernel\(\)'s pick '{pick.__name__}' {said}"):
+        pb.Simulation(geom, np.ones((geom.n_balls, 2)), scheduler=_UserScheduler(pick))
