@@ -3,6 +3,7 @@ cache for the loops, and the checks that keep every input inside what the machin
 
 One module per idea: `errors` (errors naming the argument at fault), `checks` (the one helper
 that validates arguments), `limits` (memory and the float64 range), `random` (xoshiro256**),
-`jitcache` (the loops' disk cache), `intrinsics` (LLVM hints for the hot loop), `chain` (the
+`jitcache` (the loops' disk cache), `threads` (how the parallel sweep's threads wait, and how
+many), `intrinsics` (LLVM hints for the hot loop), `chain` (the
 data every loop reads) and `loops` (the compiled loops).
 """

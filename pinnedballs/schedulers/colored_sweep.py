@@ -36,6 +36,7 @@ from ..engine.errors import FieldError
 from ..engine.jitcache import jit_cached_if_possible
 from ..engine.loops import Selector, contact_kernels, no_change
 from ..engine.random import bounded, load, store
+from ..engine.threads import ThreadTuner, check_threads, using
 from .base import Scheduler
 
 __all__ = ["ColoredSweep", "colour_classes", "sweep_selector", "sweep_steps"]
@@ -177,11 +178,15 @@ def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Calla
 
 class ColoredSweep(Scheduler):
     """Every contact once per sweep, colour class by colour class (`classes`); each class runs in
-    parallel on all numba threads, with the same bits on any number of threads. With ``shuffle``,
-    a fresh random order of the classes each sweep (the order within a class does not matter)."""
+    parallel, with the same bits on any number of threads. With ``shuffle``, a fresh random order
+    of the classes each sweep (the order within a class does not matter).
 
-    def __init__(self, shuffle: bool = False):
+    ``threads``: how many of numba's threads a run uses; None (the default) uses as many as numba
+    is set to (``NUMBA_NUM_THREADS``, every core unless set; see `pinnedballs.engine.threads`)."""
+
+    def __init__(self, shuffle: bool = False, threads: int | None = None):
         self.shuffle = checks.flag("shuffle", shuffle)
+        self.threads = None if threads is None else checks.integer("threads", threads, minimum=1)
 
     @staticmethod
     def classes(geometry) -> list[np.ndarray]:
@@ -198,8 +203,9 @@ class ColoredSweep(Scheduler):
         np.cumsum([len(c) for c in classes], out=starts[1:])
         aux = (np.concatenate(classes), starts, np.arange(len(classes), dtype=np.int64))
         select, begin = sweep_selector(self.shuffle)
+        check_threads(self.threads)
         return Selector(select, begin, no_change, aux,
-                        steps=functools.partial(sweep_steps, shuffle=self.shuffle))
+                        steps=functools.partial(_threaded_steps, shuffle=self.shuffle, threads=self.threads))
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
         """``[-1, 0, 0, 0, 0, 0]``: start a sweep before the first contact."""
@@ -227,10 +233,33 @@ class ColoredSweep(Scheduler):
                 raise FieldError("scheduler_state", f"offset {state[1]} is beyond the {size} contacts of its class")
 
     def to_spec(self) -> dict:
-        return {"kind": "colored_sweep", "shuffle": self.shuffle}
+        return {"kind": "colored_sweep", "shuffle": self.shuffle,
+                **({} if self.threads is None else {"threads": self.threads})}
 
     def __repr__(self) -> str:
-        return f"ColoredSweep(shuffle={self.shuffle})"
+        return f"ColoredSweep(shuffle={self.shuffle}{'' if self.threads is None else f', threads={self.threads}'})"
 
     def __hash__(self) -> int:
-        return hash((type(self), self.shuffle))
+        return hash((type(self), self.shuffle, self.threads))
+
+
+#: steps of one segment of a long run whose thread count `ThreadTuner` chooses (about 20-40 ms)
+TUNED_SEGMENT = 1 << 23
+
+
+def _threaded_steps(collide: Callable, dim: int, flat: bool, shuffle: bool, threads: int | None) -> Callable:
+    """`sweep_steps` on ``threads`` of numba's threads; None: a run of at least 4 segments of
+    `TUNED_SEGMENT` steps in segments, each on the count a `ThreadTuner` chooses (the same bits)."""
+    loop = sweep_steps(collide, dim, flat, shuffle)
+    tuner = ThreadTuner() if threads is None else None
+
+    def steps(*args):
+        *chain, max_steps = args
+        if tuner is None or len(tuner.candidates) == 1 or max_steps < 4 * TUNED_SEGMENT:
+            with using(threads):
+                return loop(*args)
+        for start in range(0, max_steps, TUNED_SEGMENT):
+            tuner.run(lambda n: loop(*chain, n), min(TUNED_SEGMENT, max_steps - start))
+        return max_steps
+
+    return steps

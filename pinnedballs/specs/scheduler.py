@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, Optional, Union
 
 from pydantic import Field
 
@@ -58,9 +58,11 @@ class ColoredSweepSpec(_Spec):
 
     kind: Literal["colored_sweep"] = "colored_sweep"
     shuffle: bool = False
+    #: numba threads a run uses (None: ``NUMBA_NUM_THREADS``, every core); the results do not depend on it
+    threads: Optional[Annotated[int, Field(ge=1)]] = None
 
     def build(self) -> Scheduler:
-        return ColoredSweep(shuffle=self.shuffle)
+        return ColoredSweep(shuffle=self.shuffle, threads=self.threads)
 
 
 SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec, RejectionFreeSpec, ColoredSweepSpec,

@@ -108,6 +108,9 @@ v = np.random.default_rng(5).normal(size=(geom.n_balls, 2))
 sim = pb.Simulation(geom, v, scheduler=pb.ColoredSweep(shuffle=sys.argv[1] == "shuffle"), seed=3)
 sim.run(steps=10 * geom.n_contacts + 12_345)
 sim.run(collisions=sim.collisions + 1000)
+from pinnedballs.schedulers import colored_sweep
+colored_sweep.TUNED_SEGMENT = 20_011                    # a tuned run: segments on 2 threads and on 1
+sim.run(steps=50 * colored_sweep.TUNED_SEGMENT)
 print(json.dumps(dict(threads=numba.get_num_threads(), steps=sim.steps, collisions=sim.collisions,
                       v=sim.velocities.view(np.uint64).tolist())))
 """
@@ -123,8 +126,9 @@ def run_with_threads(threads: int, shuffle: str) -> dict:
 @pytest.mark.slow
 @pytest.mark.parametrize("shuffle", ["fixed", "shuffle"])
 def test_same_bits_on_one_and_two_threads(shuffle):
-    """A 30,000-ball torus, 10 sweeps and a bit, then 1,000 more collisions: the same bits of
-    every velocity with NUMBA_NUM_THREADS=1 and 2."""
+    """A 30,000-ball torus, 10 sweeps and a bit, then 1,000 more collisions, then a run whose
+    segments the thread tuner runs on 2 threads and on 1: the same bits of every velocity with
+    NUMBA_NUM_THREADS=1 and 2."""
     one, two = run_with_threads(1, shuffle), run_with_threads(2, shuffle)
     assert (one["threads"], two["threads"]) == (1, 2)
     assert one["collisions"] > 100_000
@@ -172,3 +176,8 @@ def test_spec_kind_builds_it():
     assert parse_spec(spec(TORUS, scheduler={"kind": "colored_sweep"})).build().scheduler == pb.ColoredSweep()
     built = parse_spec(spec(TORUS, scheduler={"kind": "colored_sweep", "shuffle": True})).build().scheduler
     assert built == pb.ColoredSweep(shuffle=True) and built != pb.ColoredSweep()
+    built = parse_spec(spec(TORUS, scheduler={"kind": "colored_sweep", "threads": 1})).build().scheduler
+    assert built == pb.ColoredSweep(threads=1) and built.to_spec() == {"kind": "colored_sweep", "shuffle": False,
+                                                                       "threads": 1}
+    with pytest.raises(pb.SpecError, match=r"scheduler\.threads"):
+        parse_spec(spec(TORUS, scheduler={"kind": "colored_sweep", "threads": 0}))

@@ -1,0 +1,106 @@
+"""The threads of the parallel sweep (`pinnedballs.ColoredSweep`): how they wait, and how many.
+
+A sweep runs each colour class on all of numba's threads, and a class ends at a barrier: every
+thread waits there for the last. numba's OpenMP layer (GNU libgomp) waits by spinning. On a busy
+machine the OS deschedules one of our threads for another process's time slice, and the thread
+that spins at the barrier holds a core the late thread needs: with one busy process on 2 cores,
+2 threads ran at 0.84x of 1 (``benchmarks/bench_parallel.py``, ``docs/performance.md``). Dynamic
+chunks do not help (the wait is at the barrier, not in the split); sleeping at the barrier does:
+2 threads then run at least as fast as 1 under load, and 1.9x faster on an idle machine.
+
+So importing pinnedballs sets ``OMP_WAIT_POLICY=passive`` unless the environment already says
+otherwise; libgomp reads it when numba first starts its threads (later settings are ignored, so
+set it before any parallel numba code runs in the process).
+
+Sleeping at the barrier gives the core to the other process, so beside one busy process 2
+threads still use about one core and only match 1 thread. A long run therefore lets `ThreadTuner`
+choose, as HOOMD-blue's autotuner chooses block sizes: it times a segment on each thread count
+now and then and runs the rest on the faster. The bits never depend on the count.
+
+How many threads: ``NUMBA_NUM_THREADS`` (default: every core) caps them for the process and must
+be set before Python starts; `ColoredSweep(threads=k)` fixes the count for its runs (no tuning).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+
+from .errors import FieldError
+
+__all__ = ["WAIT_POLICY", "ThreadTuner", "most_threads", "using"]
+
+#: the wait policy pinnedballs asks libgomp for, unless the environment chose one
+WAIT_POLICY = "passive"
+os.environ.setdefault("OMP_WAIT_POLICY", WAIT_POLICY)
+
+
+def most_threads() -> int:
+    """The most threads a run may use: ``NUMBA_NUM_THREADS`` (every core unless set)."""
+    from numba import config
+
+    return int(config.NUMBA_NUM_THREADS)
+
+
+def check_threads(threads: int | None) -> None:
+    """Raise a `FieldError` on ``threads`` if it is more than `most_threads` allows."""
+    if threads is not None and threads > most_threads():
+        raise FieldError("threads", f"must be at most NUMBA_NUM_THREADS = {most_threads()}; set that environment "
+                                    f"variable before starting Python to use more, got {threads}")
+
+
+@contextlib.contextmanager
+def using(threads: int | None):
+    """Run the body on ``threads`` of numba's threads (None: as many as numba is set to use), then
+    restore the count numba had."""
+    if threads is None:
+        yield
+        return
+    import numba
+
+    check_threads(threads)
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+class ThreadTuner:
+    """Chooses how many threads each segment of a long parallel run uses: every `PERIOD` segments
+    it times one segment on each candidate (all threads, and 1), then runs on the faster.
+
+    ``candidates``: the thread counts to try (default: `most_threads` and 1).
+    """
+
+    #: segments run on the chosen count between two rounds of timing
+    PERIOD = 24
+
+    def __init__(self, candidates: tuple[int, ...] | None = None):
+        most = most_threads()
+        self.candidates = candidates or ((most, 1) if most > 1 else (1,))
+        self.rates: dict[int, float] = {}  # steps per second of the latest round of timing
+        self.since = 0  # segments since that round
+
+    def choose(self) -> int:
+        """The thread count for the next segment: an untimed candidate, else the fastest."""
+        if self.since >= self.PERIOD:
+            self.rates, self.since = {}, 0
+        for count in self.candidates:
+            if count not in self.rates:
+                return count
+        return max(self.rates, key=self.rates.get)
+
+    def run(self, segment, steps: int) -> None:
+        """``segment(steps)`` on the chosen count, timed if it is a round of timing."""
+        count = self.choose()
+        timed = count not in self.rates
+        start = time.perf_counter()
+        with using(count):
+            segment(steps)
+        if timed:
+            self.rates[count] = steps / max(time.perf_counter() - start, 1e-9)
+        else:
+            self.since += 1

@@ -1,0 +1,98 @@
+"""The parallel sweep's threads: the wait policy pinnedballs asks for, the thread count a run
+uses, and the tuner that chooses it (the bits never depend on it: test_colored_sweep.py)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numba
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.engine import threads
+from pinnedballs.engine.threads import ThreadTuner
+
+
+@pytest.mark.parametrize("given,expected", [(None, "passive"), ("active", "active")])
+def test_import_asks_for_passive_waiting_unless_the_environment_chose(given, expected):
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    if given:
+        env["OMP_WAIT_POLICY"] = given
+    out = subprocess.run([sys.executable, "-c", "import os, pinnedballs; print(os.environ['OMP_WAIT_POLICY'])"],
+                         env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == expected
+
+
+def test_using_sets_the_count_and_restores_it():
+    before = numba.get_num_threads()
+    with threads.using(1):
+        assert numba.get_num_threads() == 1
+    assert numba.get_num_threads() == before
+    with threads.using(None):
+        assert numba.get_num_threads() == before
+
+
+def test_more_threads_than_numba_has_is_refused():
+    most = threads.most_threads()
+    with pytest.raises(pb.FieldError, match=rf"^threads: must be at most NUMBA_NUM_THREADS = {most}; set that "
+                                            rf"environment variable before starting Python to use more, got {most + 1}"):
+        pb.Simulation(pb.FlatTorus(4, 4), np.ones((16, 2)), scheduler=pb.ColoredSweep(threads=most + 1))
+    with pytest.raises(pb.FieldError, match="^threads: must be an integer >= 1, got 0"):
+        pb.ColoredSweep(threads=0)
+
+
+class _Clock:
+    """A fake ``time.perf_counter`` whose segments take ``seconds[count]`` on ``count`` threads."""
+
+    def __init__(self, seconds):
+        self.now, self.seconds, self.count = 0.0, seconds, None
+
+    def __call__(self):
+        return self.now
+
+    def segment(self, steps):
+        self.count = numba.get_num_threads()
+        self.now += self.seconds[self.count]
+
+
+def test_tuner_times_each_count_then_runs_on_the_faster_and_times_again(monkeypatch):
+    clock = _Clock({2: 1.0, 1: 3.0})
+    monkeypatch.setattr(threads.time, "perf_counter", clock)
+    monkeypatch.setattr(threads, "using", _pretend_using(clock))
+    tuner = ThreadTuner(candidates=(2, 1))
+    used = []
+    for _ in range(2 + ThreadTuner.PERIOD + 2 + 3):
+        tuner.run(clock.segment, 100)
+        used.append(clock.count)
+    p = ThreadTuner.PERIOD
+    assert used[:2] == [2, 1] and used[2:2 + p] == [2] * p  # timed both, then the faster
+    assert used[2 + p:4 + p] == [2, 1]                      # timed again after PERIOD segments
+    assert tuner.rates == {2: 100.0, 1: 100 / 3.0}
+    clock.seconds = {2: 5.0, 1: 3.0}                         # the machine got busy: 1 thread is faster now
+    for _ in range(ThreadTuner.PERIOD + 3):
+        tuner.run(clock.segment, 100)
+    assert clock.count == 1
+
+
+def _pretend_using(clock):
+    """``threads.using`` that only records the count (the fake clock's segment reads it)."""
+    import contextlib
+
+    @contextlib.contextmanager
+    def using(count):
+        before = numba.get_num_threads
+        numba.get_num_threads = lambda: count
+        try:
+            yield
+        finally:
+            numba.get_num_threads = before
+
+    return using
+
+
+def test_one_candidate_means_no_timing():
+    tuner = ThreadTuner(candidates=(1,))
+    assert [tuner.choose() for _ in range(3)] == [1, 1, 1]
