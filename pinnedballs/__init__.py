@@ -5,6 +5,7 @@ balls approach and collide. See ``docs/`` and the README for a tour.
 """
 
 from ._version import __version__
+from .analysis.maxima import MaxCollisionsResult, search_max_collisions
 from .analysis.observables import register as register_observable
 from .analysis.orders import OrdersResult, explore_orders
 from .engine.errors import FieldError, FieldTypeError, InputError
@@ -31,6 +32,7 @@ __all__ = [
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep", "Replay",
     "Simulation", "RunState", "__version__",
     "load", "Results", "ResultsError", "RunSpec", "run_ensemble",
+    "search_max_collisions", "MaxCollisionsResult",
     "explore_orders", "OrdersResult",
     "ResultsWriter", "GSDWriter", "CollisionLog", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
     "register_observable", "InputError", "FieldError", "FieldTypeError", "SpecError",

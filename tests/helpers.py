@@ -92,6 +92,31 @@ def chain(n: int) -> pb.GraphGeometry:
     return pb.GraphGeometry.from_positions(2.0 * np.arange(n))
 
 
+def chain_along(n: int, direction) -> pb.GraphGeometry:
+    """``n`` balls on a line along the 2-D unit vector ``direction``, centres 2 apart (dim 2)."""
+    return pb.GraphGeometry.from_positions(2.0 * np.arange(n)[:, None] * np.asarray(direction, float))
+
+
+SQRT3 = float(np.sqrt(3.0))
+
+
+def triangle() -> pb.GraphGeometry:
+    """Three mutually touching balls A (0, 0), B (2, 0), C (1, sqrt 3): contacts AB = 0, AC = 1, BC = 2."""
+    return pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [1.0, SQRT3]])
+
+
+def rhombus() -> pb.GraphGeometry:
+    """The paper's 4-ball rhombus: two triangles sharing the short diagonal BC.
+
+    Balls A (0, 0), B (2, 0), C (1, sqrt 3), D (3, sqrt 3); contacts AB, AC, BC, BD, CD = 0..4.
+    """
+    return pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [1.0, SQRT3], [3.0, SQRT3]])
+
+
+#: A moves right into B, B moves up and left: 2 to 6 collisions depending on the order
+RHOMBUS_V = np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])
+
+
 def fcc_cluster(k: int = 2) -> pb.GraphGeometry:
     """Face-centred cubic cluster (dim 3): points of ``Z^3`` with even coordinate sum, scaled to touch."""
     pts = [p for p in itertools.product(range(k + 1), repeat=3) if sum(p) % 2 == 0]

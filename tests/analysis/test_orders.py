@@ -18,29 +18,12 @@ import pytest
 from scipy import stats
 
 import pinnedballs as pb
-from helpers import chain, closing_speeds, energy, icosahedron_sphere, momentum, tangent_velocities
+from helpers import (RHOMBUS_V, SQRT3, chain, closing_speeds, energy, icosahedron_sphere, momentum, rhombus,
+                     tangent_velocities, triangle)
 from pinnedballs.analysis.orders import order_kernels, orders_against_random
 from reference import OrderTree, ReferenceSimulation, ReplayPicker, collide
 
-SQRT3 = math.sqrt(3.0)
 P_MIN = 1e-3  # fixed seeds, so the statistical tests are deterministic
-
-
-def triangle() -> pb.GraphGeometry:
-    """Three mutually touching balls A (0, 0), B (2, 0), C (1, sqrt 3): contacts AB = 0, AC = 1, BC = 2."""
-    return pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [1.0, SQRT3]])
-
-
-def rhombus() -> pb.GraphGeometry:
-    """The paper's 4-ball rhombus: two triangles sharing the short diagonal BC.
-
-    Balls A (0, 0), B (2, 0), C (1, sqrt 3), D (3, sqrt 3); contacts AB, AC, BC, BD, CD = 0..4.
-    """
-    return pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [1.0, SQRT3], [3.0, SQRT3]])
-
-
-#: A moves right into B, B moves up and left: 2 to 6 collisions depending on the order
-RHOMBUS_V = np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])
 
 
 def inversions(values) -> int:
