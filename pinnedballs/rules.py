@@ -44,8 +44,8 @@ from abc import ABC, abstractmethod
 from typing import Callable
 
 import numpy as np
-from numba import njit
 
+from .engine.jitcache import njit_cached
 from .engine import checks
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
@@ -62,7 +62,7 @@ def threshold(velocities: np.ndarray, masses: np.ndarray) -> float:
     return THRESHOLD_ULPS * 2.0**-53 * float(np.sqrt(2.0 * energy / float(masses.mean())))
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def remnant_threshold(params):
     """The engine's threshold, ``params[-1]`` (>= 0): a rule collides only if ``w`` exceeds it.
 
@@ -72,13 +72,13 @@ def remnant_threshold(params):
     return params[params.shape[0] - 1]
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def _t_j(units, a, b, k, flat):
     """Component ``k`` of ``t_j``: ``-t_i`` in flat space, else ``units[b]``."""
     return -units[a, k] if flat else units[b, k]
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def closing_speed(v, units, i, j, a, b, dim, flat):
     """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching.
 
@@ -90,7 +90,7 @@ def closing_speed(v, units, i, j, a, b, dim, flat):
     return w
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def _impulse(v, units, i, j, a, b, ci, cj, dim, flat, write):
     """``v_i -= ci t_i``, ``v_j -= cj t_j`` (only if ``write``); True if any component changes."""
     changed = False
@@ -104,7 +104,7 @@ def _impulse(v, units, i, j, a, b, ci, cj, dim, flat, write):
     return changed
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
     """Equal masses, ``params = [(1 + r) / 2, threshold]``: 1 for elastic, the paper's exchange
     ``v_i -= w t_i``, ``v_j -= w t_j`` (``w * 1.0`` is ``w``, bit for bit)."""
@@ -116,7 +116,7 @@ def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
     return _impulse(v, units, i, j, a, b, c, c, dim, flat, write)
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def collide_elastic(v, units, i, j, a, b, masses, params, dim, flat, write):
     """Equal masses, elastic: the paper's exchange ``v_i -= w t_i``, ``v_j -= w t_j``.
     `collide_equal` with ``params[0] = 1`` gives the same bits, with a load and a multiply more."""
@@ -127,7 +127,7 @@ def collide_elastic(v, units, i, j, a, b, masses, params, dim, flat, write):
     return _impulse(v, units, i, j, a, b, w, w, dim, flat, write)
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
     """General masses, ``params = [1 + r, threshold]``."""
     factor, tau = params[0], params[1]

@@ -19,10 +19,19 @@ from numba import njit
 from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
 
-__all__ = ["jit_cached_if_possible"]
+__all__ = ["jit_cached_if_possible", "njit_cached"]
 
 
-class _ClosureCache(FunctionCache):
+class _KeyedCache(FunctionCache):
+    """numba's on-disk cache with `_KeyedFiles`: safe when processes fill it at once."""
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = _KeyedFiles(self._cache_path, self._impl.filename_base,
+                                       self._impl.locator.get_source_stamp())
+
+
+class _ClosureCache(_KeyedCache):
     """numba's on-disk cache, keyed so that closures over jitted functions hit across processes.
 
     numba keys a closure on a pickle of its captured values, and a pickled
@@ -32,11 +41,6 @@ class _ClosureCache(FunctionCache):
     source file and of the engine's files, so an edit to a rule, a scheduler or a
     helper they call, in any module, invalidates the entry.
     """
-
-    def __init__(self, py_func):
-        super().__init__(py_func)
-        self._cache_file = _KeyedFiles(self._cache_path, self._impl.filename_base,
-                                       self._impl.locator.get_source_stamp())
 
     def _index_key(self, sig, codegen):
         parts = [self._py_func.__code__.co_code, *map(_constant, _cells(self._py_func))]
@@ -113,6 +117,17 @@ def _source_digest(path: str) -> bytes:
     for name in sorted({path, *_ENGINE_FILES}):
         h.update(Path(name).read_bytes())
     return h.hexdigest().encode()
+
+
+def njit_cached(py_func: Callable | None = None, **options) -> Callable:
+    """``njit(cache=True, **options)``, its disk cache safe when processes fill it at once
+    (`_KeyedFiles`): numba's own numbers two signatures compiled at once in two processes alike,
+    and one process then loads the other's machine code."""
+    if py_func is None:
+        return functools.partial(njit_cached, **options)
+    dispatcher = njit(py_func, **options)
+    dispatcher._cache = _KeyedCache(py_func)
+    return dispatcher
 
 
 def jit_cached_if_possible(py_func: Callable | None = None, *, parallel: bool = False) -> Callable:

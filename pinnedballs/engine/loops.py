@@ -47,7 +47,7 @@ from numba import njit
 
 from .chain import COLLISIONS, LIVE, STEPS
 from .intrinsics import fixed_width, prefetch
-from .jitcache import jit_cached_if_possible
+from .jitcache import jit_cached_if_possible, njit_cached
 from .random import load, store
 
 __all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel", "fixed_rows",
@@ -88,12 +88,12 @@ class Selector(NamedTuple):
     steps: Callable | None = None
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def no_begin(state, aux, flags):
     """Nothing to prepare."""
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def no_change(state, aux, c, live):
     """Nothing to hear."""
 

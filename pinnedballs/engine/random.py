@@ -11,8 +11,8 @@ Bounded integers use Lemire's unbiased multiply-and-reject method.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .jitcache import njit_cached
 from . import checks
 
 __all__ = ["seed_state", "load", "store", "next_uint64", "bounded", "random_float"]
@@ -34,24 +34,24 @@ def seed_state(seed: int | np.random.SeedSequence | None) -> np.ndarray:
     return state
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def _rotl(x, k):
     return (x << np.uint64(k)) | (x >> np.uint64(64 - k))
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def load(words):
     """The ``(4,) uint64`` state array as the 4-tuple the compiled code threads through."""
     return (words[0], words[1], words[2], words[3])
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def store(words, s):
     """Write the 4-tuple ``s`` back into the ``(4,) uint64`` state array."""
     words[0], words[1], words[2], words[3] = s
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def next_uint64(s):
     """``(bits, s')``: the next 64 random bits and the advanced 4-tuple state.
 
@@ -69,7 +69,7 @@ def next_uint64(s):
     return result, (s0, s1, s2, s3)
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def bounded(s, n):
     """``(k, s')``: ``k`` uniform in ``[0, n)`` as uint64, without bias (Lemire 2019); ``1 <= n``."""
     n64 = np.uint64(n)
@@ -96,7 +96,7 @@ def bounded(s, n):
     return x, s
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def random_float(s):
     """``(u, s')``: ``u`` uniform in ``[0, 1)`` with 53 random bits."""
     x, s = next_uint64(s)

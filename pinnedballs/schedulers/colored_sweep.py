@@ -33,7 +33,7 @@ from numba import njit, prange
 from ..engine import checks
 from ..engine.chain import COLLISIONS, LIVE, STEPS
 from ..engine.errors import FieldError
-from ..engine.jitcache import jit_cached_if_possible
+from ..engine.jitcache import jit_cached_if_possible, njit_cached
 from ..engine.loops import Selector, contact_kernels, no_change
 from ..engine.random import bounded, load, store
 from ..engine.threads import ThreadTuner, check_threads, using
@@ -44,7 +44,7 @@ __all__ = ["ColoredSweep", "colour_classes", "sweep_selector", "sweep_steps"]
 _STATE = 6  #: length of the state array
 
 
-@njit(cache=True)
+@njit_cached
 def _greedy_colours(pairs, order, n_balls, max_colours):
     """``(E,) int64`` colours: contacts in ``order`` take the smallest colour free at both balls."""
     used = np.zeros((n_balls, max_colours), dtype=np.uint8)
@@ -77,7 +77,7 @@ def colour_classes(pairs: np.ndarray, ends: np.ndarray, n_balls: int) -> list[np
     return [by_class[bounds[c]:bounds[c + 1]] for c in range(colour.max() + 1)]
 
 
-@njit(cache=True)
+@njit_cached
 def class_order(state, n_classes, shuffle):
     """``(C,) int64``: the order of classes in the sweep under way, replayed from ``state``."""
     order = np.arange(n_classes)
@@ -86,7 +86,7 @@ def class_order(state, n_classes, shuffle):
     return order
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def _shuffle(order, rng):
     """Fisher-Yates on ``order`` in place, as `simple.pick_random_sweep`; the advanced stream."""
     for m in range(order.shape[0] - 1, 0, -1):
@@ -95,7 +95,7 @@ def _shuffle(order, rng):
     return rng
 
 
-@njit(cache=True)
+@njit_cached
 def start_sweep(state, order, rng, shuffle):
     """Begin a sweep: the order of classes (with ``shuffle`` drawn, and the stream as it began
     remembered in ``state[2:6]``); returns the advanced stream. Not inlined: ``view`` defeats
@@ -109,7 +109,7 @@ def start_sweep(state, order, rng, shuffle):
     return rng
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def _move_on(state, starts, order, tried):
     """``tried`` more contacts of the current class; to the next class at its end."""
     c = order[state[0]]
@@ -262,4 +262,5 @@ def _threaded_steps(collide: Callable, dim: int, flat: bool, shuffle: bool, thre
             tuner.run(lambda n: loop(*chain, n), min(TUNED_SEGMENT, max_steps - start))
         return max_steps
 
+    steps.loop = loop  # the compiled loop (its cache statistics, its signatures)
     return steps

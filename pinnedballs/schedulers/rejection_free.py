@@ -40,8 +40,8 @@ from the array at each call (`begin`, O(M), like the live flags).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..engine.jitcache import njit_cached
 from ..engine.errors import FieldError
 from ..engine.loops import Selector
 from ..engine.random import bounded, random_float
@@ -52,7 +52,7 @@ __all__ = ["RejectionFree", "picks_until_live"]
 _CAP = float(2**62)  #: picks beyond this are as good as never
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def picks_until_live(rng, n_live, n_contacts):
     """``(G, rng)``: the paper's picks up to and including the next live one, as a float64
     (an integer >= 1); geometric with ``p = n_live / n_contacts``, ``1 <= n_live <= n_contacts``."""
@@ -61,14 +61,14 @@ def picks_until_live(rng, n_live, n_contacts):
     return _picks(rng, np.log1p(-(n_live / n_contacts)))
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def _picks(rng, log_q):
     """``(G, rng)``: ``1 + floor(ln(1 - u) / log_q)``, with ``log_q = ln(1 - p) < 0``."""
     u, rng = random_float(rng)
     return 1.0 + np.floor(np.log(1.0 - u) / log_q), rng
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def select(state, aux, rng, n, left):
     """The next live contact and the picks up to it (at most ``left``; ``k = -1`` beyond them, the
     rest kept in ``state[1]``). ``aux = (pos (M,), log_q (M + 1,))``: ``log_q[L]`` caches
@@ -95,7 +95,7 @@ def select(state, aux, rng, n, left):
     return state[2 + np.int64(r)], g, rng
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def changed(state, aux, c, live):
     """Contact ``c`` became live (``live = 1``: appended) or not (swapped with the last entry)."""
     pos, n_live = aux[0], state[0]
@@ -114,7 +114,7 @@ def changed(state, aux, c, live):
         state[0] = n_live
 
 
-@njit(cache=True)
+@njit_cached
 def begin(state, aux, flags):
     """Fill the position map from ``state``'s live array, or rebuild both from ``flags`` (in contact
     order, the rest reset) when the array does not hold exactly the live contacts of ``flags``."""

@@ -6,14 +6,14 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from numba import njit
 
+from ..engine.jitcache import njit_cached
 from .base import Scheduler
 
 __all__ = ["Replay", "pick_replay"]
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def pick_replay(state, rng, n_contacts):
     """Contacts ``state[1], state[2], ...`` in turn; ``state[0]`` counts the picks made."""
     p = state[0]

@@ -6,8 +6,8 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from numba import njit
 
+from ..engine.jitcache import njit_cached
 from ..engine.errors import FieldError
 from ..engine.random import bounded
 from .base import Scheduler
@@ -15,13 +15,13 @@ from .base import Scheduler
 __all__ = ["UniformRandomPair", "Sweep", "RandomSweep", "pick_uniform", "pick_sweep", "pick_random_sweep"]
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def pick_uniform(state, rng, n_contacts):
     """The paper's Algorithm 2: a contact uniformly at random."""
     return bounded(rng, n_contacts)
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def pick_sweep(state, rng, n_contacts):
     """Contacts ``0, 1, ..., n-1, 0, 1, ...``; ``state[0]`` is the next one."""
     k = state[0]
@@ -29,7 +29,7 @@ def pick_sweep(state, rng, n_contacts):
     return np.uint64(k), rng
 
 
-@njit(cache=True, inline="always")
+@njit_cached(inline="always")
 def pick_random_sweep(state, rng, n_contacts):
     """Every contact once per sweep in a fresh random order (Fisher-Yates).
 
