@@ -116,8 +116,9 @@ def expand_entry_points(data: Any, builtin: dict[str, set[str]]) -> Any:
     out = dict(data)
     for slot, group in ENTRY_POINT_GROUPS.items():
         component = out.get(slot)
-        if not isinstance(component, dict) or component.get("kind") in builtin.get(slot, set()) | {"python", None}:
-            continue
+        kind = component.get("kind") if isinstance(component, dict) else None
+        if not isinstance(kind, str) or kind in builtin.get(slot, set()) | {"python"}:
+            continue  # not a registered name: pydantic names what is wrong with it
         found = [ep for ep in importlib.metadata.entry_points(group=group) if ep.name == component["kind"]]
         if found:
             args = {k: v for k, v in component.items() if k != "kind"}
