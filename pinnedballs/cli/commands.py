@@ -146,11 +146,24 @@ def info(args: argparse.Namespace) -> int:
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.step for s in res.snapshots])}"
                                                 if res.snapshots else ""),
-        f"time:        {res.elapsed_seconds:.1f} s in {res.checkpoints} checkpoint(s); "
+        f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
         f"written by pinnedballs {res.version}",
     ]
     print("\n".join(lines))
     return EXIT_OK
+
+
+def _duration(seconds: float) -> str:
+    """Wall time to three significant figures: ``"5.29 ms"``, ``"12.3 s"``, ``"2 min 05 s"``, ``"3 h 07 min"``."""
+    milliseconds = float(f"{seconds * 1000:.3g}")
+    if milliseconds < 1000:
+        return f"{milliseconds:g} ms"
+    if seconds < 60:
+        return f"{seconds:.3g} s"
+    minutes = int(seconds // 60)
+    if minutes < 60:
+        return f"{minutes} min {int(seconds % 60):02d} s"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
 
 
 def _few(values: list[int]) -> str:

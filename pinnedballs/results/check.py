@@ -18,10 +18,12 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from pydantic import ValidationError
 
 from ..engine.errors import FieldError
 from ..specs.geometry import geometry_from_stored, parse_geometry
-from ..specs.run import RunSpec
+from ..specs.errors import first_error
+from ..specs.run import RunSpec, stored_spec
 from .format import STATIC_NAME, ResultsError
 
 __all__ = ["check_results"]
@@ -151,16 +153,31 @@ def _open_source(path: Path, check) -> None:
         raise _Damage(str(path), f"not a readable HDF5 file (truncated?): {' '.join(str(exc).split())}") from None
 
 
-def _check_against_spec(f: h5py.File, n: int, d: int, pairs: np.ndarray) -> None:
-    """The stored contacts are those of the geometry the stored spec (or Python description) builds."""
+def _stored_spec(f: h5py.File) -> RunSpec | None:
+    """The run's stored spec (None for a run built in Python), validated without importing user code."""
     text = f.attrs.get("spec", "")
-    if text:
-        spec = RunSpec.model_validate_json(text).geometry
+    if not text:
+        return None
+    try:
+        return stored_spec(text)
+    except ValidationError as exc:
+        raise _Damage("/ (attribute spec)", f"not a valid spec for this version of pinnedballs "
+                                            f"({first_error(exc, RunSpec)})") from None
+
+
+def _check_against_spec(f: h5py.File, n: int, d: int, pairs: np.ndarray) -> None:
+    """The stored contacts are those of the geometry the stored spec (or Python description) builds;
+    a user's own geometry (``"kind": "python"``) is not built: reading a run runs no user code."""
+    run = _stored_spec(f)
+    if run is not None:
+        spec = run.geometry
     else:
         described = json.loads(f.attrs.get("run", "") or "{}").get("geometry", {})
         if "kind" not in described:
             return
         spec = parse_geometry(described)
+    if spec.kind == "python":
+        return
     geometry = geometry_from_stored(spec, f["geometry/positions"][()])
     if geometry.n_balls != n:
         raise _Damage("geometry/positions", f"must hold the spec's {geometry.n_balls} balls, got {n}")
@@ -172,10 +189,10 @@ def _check_against_spec(f: h5py.File, n: int, d: int, pairs: np.ndarray) -> None
 
 def _check_scheduler_state(f: h5py.File, sched: np.ndarray, e: int) -> None:
     """``sched`` as the run's scheduler would check it before resuming (when it has a spec)."""
-    text = f.attrs.get("spec", "")
-    if not text:
+    run = _stored_spec(f)
+    if run is None or run.scheduler.kind == "python":
         return
-    scheduler = RunSpec.model_validate_json(text).scheduler.build()
+    scheduler = run.scheduler.build()
     try:
         scheduler.check_state(sched, e)
     except FieldError as exc:

@@ -16,7 +16,10 @@ from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
 from ..simulation import RunState, Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
-from ..specs.run import RunSpec
+from ..engine.errors import InputError
+from ..specs.errors import SpecError
+from ..specs.python import IMPORT_FACTORIES, label
+from ..specs.run import RunSpec, stored_spec
 from .check import check_results
 from .format import (FORMAT, FORMAT_VERSION, RESULTS_NAME, STATIC_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
                      data_dir, results_path)
@@ -111,10 +114,12 @@ class Results:
 
     @property
     def kinds(self) -> dict[str, str]:
-        """``geometry``, ``initial``, ``rule``, ``scheduler``: the kind of each component (or its class)."""
+        """``geometry``, ``initial``, ``rule``, ``scheduler``: what each component is: its kind, the
+        factory (``module:callable``) of a user's own, or the class of one built in Python without a spec."""
         if self.spec is not None:
-            return {k: getattr(self.spec, k).kind for k in ("geometry", "initial", "rule", "scheduler")}
-        return {k: v.get("kind") or v.get("class", "?") for k, v in self.run.items() if isinstance(v, dict)}
+            return {k: label(getattr(self.spec, k)) for k in ("geometry", "initial", "rule", "scheduler")}
+        return {k: (v.get("factory") if v.get("kind") == "python" else v.get("kind")) or v.get("class", "?")
+                for k in ("geometry", "rule", "scheduler") if isinstance(v := self.run.get(k), dict)}
 
     @functools.cached_property
     def geometry(self) -> Geometry:
@@ -132,20 +137,29 @@ class Results:
     def simulation(self, *, rule=None, scheduler=None) -> Simulation:
         """A `Simulation` at the latest state, ready to go on exactly where this run stopped.
 
-        A run built in Python with a rule or scheduler that has no spec needs them given.
+        A run built in Python with a rule or scheduler that has no spec needs them given. A run
+        whose spec names a user's factory (``"kind": "python"``) needs its module importable: an
+        `InputError` names the module and how otherwise.
         """
-        if self.spec is not None:
-            sim = self.spec.build_with(self.geometry, self.initial_velocities, self.masses)
-        else:
-            from ..specs import RuleSpec, SchedulerSpec
-
-            rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
-            scheduler = scheduler if scheduler is not None else \
-                _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
-            sim = Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
-                             masses=self.masses, seed=0)
+        try:
+            sim = self._build(rule, scheduler)
+        except SpecError as exc:
+            if not exc.path.endswith(".factory"):
+                raise
+            raise InputError(f"{self.run_dir}: continuing this run needs the code its spec names: {exc}") from None
         sim.set_state(self.state())
         return sim
+
+    def _build(self, rule, scheduler) -> Simulation:
+        if self.spec is not None:
+            return self.spec.build_with(self.geometry, self.initial_velocities, self.masses)
+        from ..specs import RuleSpec, SchedulerSpec
+
+        rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
+        scheduler = scheduler if scheduler is not None else \
+            _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
+        return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
+                          masses=self.masses, seed=0)
 
     def animate(self, out=None, fps: float = 4) -> Path:
         """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`."""
@@ -165,7 +179,7 @@ def _component(described: dict, slot, name: str):
     if "kind" not in described:
         raise ValueError(f"{name}: this run used {described.get('class', 'a component')}, which has no spec; "
                          f"pass {name}= to simulation()")
-    return TypeAdapter(slot).validate_python(described).build()
+    return TypeAdapter(slot).validate_python(described, context={IMPORT_FACTORIES: False}).build()
 
 
 def load(path: str | os.PathLike) -> Results:
@@ -220,10 +234,7 @@ def open_checked(p: Path) -> h5py.File:
 
 def read(p: Path, f: h5py.File) -> Results:
     """The `Results` in the open results file ``f`` (at ``p``), already checked."""
-    try:
-        spec = RunSpec.model_validate_json(f.attrs["spec"]) if f.attrs["spec"] else None
-    except ValueError as exc:
-        raise ResultsError(f"{p}: its stored spec is not valid for this version of pinnedballs ({exc})") from None
+    spec = stored_spec(f.attrs["spec"]) if f.attrs["spec"] else None  # checked by check_results
     version = int(f.attrs["format_version"])
     s, o = f["state"], f["observables"]
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
