@@ -21,8 +21,8 @@ from ..specs.errors import SpecError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
 from .check import check_results
-from .format import (FORMAT, FORMAT_VERSION, RESULTS_NAME, STATIC_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
-                     data_dir, results_path)
+from .format import (FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
+                     results_path)
 
 __all__ = ["Results", "load", "open_checked", "read"]
 
@@ -195,8 +195,8 @@ def load(path: str | os.PathLike) -> Results:
     with open_checked(p) as f:
         try:
             return read(p, f)
-        except (KeyError, OSError) as exc:
-            raise ResultsError(f"{p}: damaged results file ({exc})") from None
+        except (KeyError, OSError, ValueError, TypeError) as exc:  # what the checks cannot foresee
+            raise ResultsError(f"{p}: damaged results file ({' '.join(str(exc).split())})") from None
 
 
 def open_checked(p: Path) -> h5py.File:
@@ -208,24 +208,7 @@ def open_checked(p: Path) -> h5py.File:
     except OSError as exc:
         raise ResultsError(f"{p}: not a readable HDF5 file (truncated or not HDF5): {exc}") from None
     try:
-        if f.attrs.get("format") != FORMAT:
-            raise ResultsError(f"{p}: not a pinnedballs results file (no format={FORMAT!r} attribute)")
-        version = int(f.attrs.get("format_version", -1))
-        if version > FORMAT_VERSION:
-            raise ResultsError(f"{p}: written by a newer pinnedballs (format {f.attrs['format_version']}); upgrade")
-        if version < 1:
-            raise ResultsError(f"{p}: damaged results file: / (attribute format_version): must be 1 or 2, "
-                               f"got {f.attrs.get('format_version')!r}")
-        if version >= 2:
-            data = data_dir(p)
-            try:
-                needed = [STATIC_NAME, *(s[0] for s in json.loads(f.attrs["segments"]))]
-            except (KeyError, ValueError, TypeError) as exc:
-                raise ResultsError(f"{p}: damaged results file (no segment list: {exc})") from None
-            missing = [name for name in needed if not (data / name).is_file()]
-            if missing:
-                raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
-        check_results(p, f, data_dir(p) if version >= 2 else None)
+        check_results(p, f)
     except BaseException:
         f.close()
         raise

@@ -1,11 +1,12 @@
 """Damaged results files (issue 10, item 5): each class of damage, made by editing a good run
 with h5py, is refused by `pb.load` (`ResultsError` naming the file and the dataset) and by
-``info``, ``plot`` and ``run --resume`` (exit 2, one line), and ``--resume`` leaves the damaged
+``info``, ``plot``, ``animate`` and ``run --resume`` (exit 2, one line), and ``--resume`` leaves the damaged
 files exactly as they were instead of finishing them as "done"."""
 
 from __future__ import annotations
 
 import hashlib
+import json
 import shutil
 from pathlib import Path
 
@@ -88,6 +89,28 @@ def _roll_pairs(r: Path) -> None:
     _set(_static(r), "geometry/pairs", lambda x: x.__setitem__(slice(None), np.roll(x, 1, axis=0)))
 
 
+def _segments(run: Path, change) -> None:
+    with h5py.File(_index(run), "r+") as f:
+        listed = json.loads(f.attrs["segments"])
+        f.attrs["segments"] = json.dumps(change(listed))
+
+
+def _map_first_segment_twice(run: Path) -> None:
+    """The snapshots' virtual dataset reads the first segment's frame twice (the index's list is intact)."""
+    with h5py.File(_index(run), "r+") as f:
+        first = f"results.data/{_segment(run).name}"
+        rows = f["snapshots/velocities"].shape[0]
+        layout = h5py.VirtualLayout(shape=(rows, N, 2), dtype=np.float64)
+        for row in range(rows):
+            layout[row:row + 1] = h5py.VirtualSource(first, "velocities", shape=(1, N, 2))
+        del f["snapshots/velocities"]
+        f.create_virtual_dataset("snapshots/velocities", layout)
+
+
+def _repeat_a_step(x):
+    x[-1] = x[-2]
+
+
 #: name: (damage done to the run directory, the file named, words of the message)
 DAMAGE = {
     "format": (lambda r: _attr(_index(r), "/", format="something-else"), _index, "not a pinnedballs results file"),
@@ -128,6 +151,31 @@ DAMAGE = {
     "truncated segment": (lambda r: _truncate(_segment(r)), _segment, "not a readable HDF5 file (truncated?)"),
     "short segment": (lambda r: _replace(_last_segment(r), "velocities", np.zeros((1, N, 2))), _index,
                       "frames_000000001.h5: velocities: must have 2 rows"),
+    # issue 20, item 4: attributes that are not what they say, and frames passed off twice
+    "format_version text": (lambda r: _attr(_index(r), "/", format_version="abc"), _index,
+                            "/ (attribute format_version): must be an integer from 1 to"),
+    "state keys not JSON": (lambda r: _attr(_index(r), "state", keys="[velocities"), _index,
+                            "state/keys: must be a JSON list (text), got '[velocities'"),
+    "state keys other": (lambda r: _attr(_index(r), "state", keys='["velocities"]'), _index,
+                         "state/keys: must list ['velocities', 'steps', 'collisions', 'rng_state', "
+                         "'scheduler_state']"),
+    "elapsed time text": (lambda r: _attr(_index(r), "/", elapsed_seconds="fast"), _index,
+                          "/ (attribute elapsed_seconds): must be a number, got 'fast'"),
+    "checkpoints fraction": (lambda r: _attr(_index(r), "/", checkpoints=2.5), _index,
+                             "/ (attribute checkpoints): must be an integer, got 2.5"),
+    "observables not JSON": (lambda r: _attr(_index(r), "/", observables="steps, collisions"), _index,
+                             "/ (attribute observables): must be a JSON list (text)"),
+    "frozen but approaching": (lambda r: _attr(_index(r), "state", frozen=True), _index,
+                               "state/frozen: is True with"),
+    "segment listed twice": (lambda r: _segments(r, lambda s: [s[0], s[0], *s[1:]]), _index,
+                             "/ (attribute segments): ['frames_000000000.h5', 0, 1] does not follow the 1 frames "
+                             "before it (a segment listed twice"),
+    "segment listed out of order": (lambda r: _segments(r, lambda s: s[::-1]), _index,
+                                    "/ (attribute segments): ['frames_000000001.h5', 1, 2] does not follow the 0"),
+    "a segment mapped twice": (_map_first_segment_twice, _index,
+                               "snapshots/velocities: does not map the segments the index lists, each once and in order"),
+    "a step listed twice": (lambda r: _set(_last_segment(r), "observables/steps", _repeat_a_step), _index,
+                            "observables/steps: lists the same step twice (duplicated snapshots)"),
 }
 
 
@@ -149,7 +197,8 @@ def test_damage_is_named_and_never_resumed(good, tmp_path, name):
         pb.load(run)
     message = str(caught.value)
     assert message.startswith(f"{_index(run)}: ") and str(named) in message and words in message, message
-    for argv in (["info", run], ["plot", run], ["run", s, "--out", run, "--resume", "--quiet", "--no-figures"]):
+    for argv in (["info", run], ["plot", run], ["animate", run],
+                 ["run", s, "--out", run, "--resume", "--quiet", "--no-figures"]):
         code, stdout, err = call(*argv)
         assert_input_error(code, err, str(named), words)
         assert stdout == ""
