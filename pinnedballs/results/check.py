@@ -26,22 +26,28 @@ from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error
 from ..specs.run import RunSpec, stored_spec
 from .format import STATIC_NAME, ResultsError, data_dir as data_dir_of
-from .index import Damage, check_attributes, check_format, check_initial, check_links, segment_list
+from .index import Damage, check_attributes, check_digests, check_format, check_initial, check_links, segment_list
 
 __all__ = ["check_results"]
 
 
-def check_results(p: Path, f: h5py.File) -> int:
+def check_results(p: Path, f: h5py.File, sealed: bool) -> int:
     """The format version of the open results file ``f`` (at ``p``); a `ResultsError` naming ``p`` and
-    the dataset unless it is a sound results file this version reads."""
+    the dataset unless it is a sound results file this version reads. ``sealed``: the index carried
+    a digest, which its bytes matched (`digest.unseal`): format 3 must, earlier formats cannot."""
     try:
         version = check_format(p, f)
+        if sealed != (version >= 3):
+            raise Damage("/ (attribute format_version)", f"is {version}, but the index {'has' if sealed else 'lacks'} "
+                                                         f"the digest of format 3")
         check_attributes(f, version)
         if version >= 2:
             data, segments = data_dir_of(p), segment_list(f)
             missing = [name for name in [STATIC_NAME, *(s[0] for s in segments)] if not (data / name).is_file()]
             if missing:
                 raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
+            if version >= 3:
+                check_digests(f, data, [STATIC_NAME, *(s[0] for s in segments)])
             _check_sources(segments, data)
             check_links(f, data, segments, json.loads(f.attrs["observables"]))
         check_initial(f)

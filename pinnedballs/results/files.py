@@ -5,29 +5,29 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 from pathlib import Path
+from typing import Callable
 
 import h5py
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "tmp_path", "remove"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_image", "tmp_path", "remove"]
 
 
-@contextlib.contextmanager
-def h5_file(path: Path):
-    """An HDF5 file built in memory, then written to ``path`` (`write_bytes_atomic`) if the block succeeds.
+def h5_image(fill: Callable[[h5py.File], None]) -> bytes:
+    """The bytes of an HDF5 file built in memory by ``fill(f)``, to be written with `write_bytes_atomic`.
 
     HDF5 never writes to disk itself: a full disk is a plain OSError from our own write,
     never a file HDF5 cannot close (h5py issue 2160: a native crash on closing a file
     whose write failed), and no partial file is left behind.
     """
-    f = h5py.File(f"{path.name}.{id(path)}", "w", driver="core", backing_store=False)
+    f = h5py.File(f"image.{threading.get_ident()}.{id(fill)}", "w", driver="core", backing_store=False)
     try:
-        yield f
+        fill(f)
         f.flush()
-        image = f.id.get_file_image()
+        return f.id.get_file_image()
     finally:
         f.close()
-    write_bytes_atomic(path, image)
 
 
 def tmp_path(path: Path) -> Path:

@@ -18,9 +18,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from .digest import file_digest
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, ResultsError
 
-__all__ = ["Damage", "check_format", "check_attributes", "check_initial", "segment_list", "check_links", "STATUSES"]
+__all__ = ["Damage", "check_format", "check_attributes", "check_initial", "segment_list", "check_digests", "check_links",
+           "STATUSES"]
 
 #: what ``status`` may say: "interrupted" since format 3
 STATUSES = {1: ("running", "done"), 2: ("running", "done"), 3: ("running", "done", "interrupted")}
@@ -56,6 +58,7 @@ def check_format(p: Path, f: h5py.File) -> int:
 _ROOT = {"version": str, "spec": str, "status": str, "stop_reason": str, "created": str, "updated": str,
          "elapsed_seconds": float, "checkpoints": int}
 _ROOT_2 = {"run": "json-object", "checked": bool, "observables": "json-list", "segments": "json-list"}
+_ROOT_3 = {"digests": "json-object"}
 _STATE = {"steps": int, "collisions": int, "energy": float, "approaching": int, "frozen": bool, "keys": "json-list"}
 _INITIAL = {"energy": float, "approaching": int}
 
@@ -64,7 +67,8 @@ def check_attributes(f: h5py.File, version: int) -> None:
     """Every attribute of the index the reader uses is there, of its type, and sane (counts >= 0,
     finite numbers, a known status, ``frozen`` exactly when nothing approaches, the state's ``keys``);
     those of ``/initial`` (in the static file) are `check_initial`'s."""
-    for group, table in (("/", {**_ROOT, **(_ROOT_2 if version >= 2 else {})}), ("state", _STATE)):
+    root = {**_ROOT, **(_ROOT_2 if version >= 2 else {}), **(_ROOT_3 if version >= 3 else {})}
+    for group, table in (("/", root), ("state", _STATE)):
         for name, kind in table.items():
             _attribute(group, name, f[group].attrs.get(name), kind)
     where = "/ (attribute status)"
@@ -148,6 +152,18 @@ def segment_list(f: h5py.File) -> list[tuple[str, int, int]]:
         out.append((name, first, count))
         total += count
     return out
+
+
+def check_digests(f: h5py.File, data_dir: Path, names: list[str]) -> None:
+    """Each of the files ``names`` in ``data_dir`` (the static file and the segments) has the digest the
+    index lists for it, before anything opens it (format 3)."""
+    digests = json.loads(f.attrs["digests"])
+    if sorted(digests) != sorted(names):
+        raise Damage("/ (attribute digests)", f"must list the digests of {', '.join(names)}, got {_short(digests)}")
+    for name in names:
+        if file_digest(data_dir / name) != digests[name]:
+            raise Damage(f"{data_dir / name}", "its bytes differ from the digest the index holds for it (changed "
+                                               "or cut short since pinnedballs wrote it)")
 
 
 def check_links(f: h5py.File, data_dir: Path, segments: list, observables: list[str]) -> None:

@@ -21,6 +21,7 @@ from ..specs.errors import SpecError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
 from .check import check_results
+from .digest import unseal
 from .format import (FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
                      results_path)
 
@@ -200,19 +201,35 @@ def load(path: str | os.PathLike) -> Results:
 
 
 def open_checked(p: Path) -> h5py.File:
-    """The results file ``p`` opened for reading, after checking it is one this version reads,
-    that every file it refers to is there, and its structure (`check_results`): the one place
-    results files are opened."""
+    """The results file ``p`` opened for reading, after checking it is one this version reads:
+    its digests (format 3, `digest`) before HDF5 parses anything, then its structure
+    (`check_results`). The one place results files are opened."""
+    for _ in range(_ATTEMPTS):
+        try:
+            with open(p, "rb") as raw:
+                sealed, inode = unseal(p, raw), _inode(os.fstat(raw.fileno()))
+            f = h5py.File(p, "r")
+        except OSError as exc:
+            raise ResultsError(f"{p}: not a readable HDF5 file (truncated or not HDF5): {exc}") from None
+        if _inode(os.stat(p)) == inode:  # the file checked is the one opened (a run replaces its index)
+            break
+        f.close()
+    else:
+        raise ResultsError(f"{p}: replaced by its run faster than it could be read; try again")
     try:
-        f = h5py.File(p, "r")
-    except OSError as exc:
-        raise ResultsError(f"{p}: not a readable HDF5 file (truncated or not HDF5): {exc}") from None
-    try:
-        check_results(p, f)
+        check_results(p, f, sealed)
     except BaseException:
         f.close()
         raise
     return f
+
+
+#: times `open_checked` reads an index that its run keeps replacing
+_ATTEMPTS = 5
+
+
+def _inode(st: os.stat_result) -> tuple[int, int]:
+    return st.st_dev, st.st_ino
 
 
 def read(p: Path, f: h5py.File) -> Results:

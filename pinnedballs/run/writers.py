@@ -126,7 +126,7 @@ class ResultsWriter(Writer):
 
     def finish(self, sim, reason: str) -> None:
         self._checked = (sim.steps, sim.collisions)
-        self._checkpoint(Record.of(sim, self.names), done=True, reason=reason)
+        self._checkpoint(Record.of(sim, self.names), status="done", reason=reason)
         self._elapsed0 = self.elapsed()
         self.close()
 
@@ -146,9 +146,9 @@ class ResultsWriter(Writer):
         self._checked = (sim.steps, sim.collisions)
         self._checkpoint(Record.of(sim, self.names))
 
-    def _checkpoint(self, state: Record, done: bool = False, reason: str = "") -> None:
+    def _checkpoint(self, state: Record, status: str = "running", reason: str = "") -> None:
         t = time.monotonic()
-        self.store.checkpoint(self.pending, state, done=done, stop_reason=reason, elapsed_seconds=self.elapsed())
+        self.store.checkpoint(self.pending, state, status=status, stop_reason=reason, elapsed_seconds=self.elapsed())
         self.pending = []
         self._saved = (state.state.steps, state.state.collisions)
         self._last = time.monotonic()
