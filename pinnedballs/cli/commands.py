@@ -136,7 +136,7 @@ def info(args: argparse.Namespace) -> int:
     made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
     lines = [
         f"results:     {res.path}",
-        f"status:      {res.status}" + (f" ({res.stop_reason})" if res.stop_reason else " (last checkpoint)"),
+        f"status:      {_status(res)}",
         f"geometry:    {kinds['geometry']}: {len(res.positions)} balls, {len(res.pairs)} contacts, "
         f"dim {res.velocities.shape[1]}",
         f"run:         {kinds.get('initial', 'given velocities')}, {kinds['rule']}, {kinds['scheduler']}, {made}",
@@ -151,6 +151,22 @@ def info(args: argparse.Namespace) -> int:
     ]
     print("\n".join(lines))
     return EXIT_OK
+
+
+def _status(res) -> str:
+    """What a run is doing: done (and why), interrupted, running (and who writes it), or stopped
+    without a word (killed: no process holds its directory)."""
+    if res.complete:
+        return f"done ({res.stop_reason})"
+    how = "--resume" if res.spec is not None else "pb.load(DIR).simulation()"
+    if res.status == "interrupted":
+        return f"interrupted (continue with {how})"
+    from ..results.rundir import holder
+
+    pid = holder(res.run_dir)
+    if pid is not None:
+        return f"running (pid {pid}; this is its last checkpoint)"
+    return f"stopped (killed: no process is writing it; this is its last checkpoint: continue with {how})"
 
 
 def _duration(seconds: float) -> str:

@@ -1,17 +1,19 @@
-"""Files written so that a kill or a full disk never leaves half of one: through a temporary file,
-flushed and renamed; HDF5 files built in memory first."""
+"""Files written so that a kill, a Ctrl-C or a full disk never leaves half of one: through a
+temporary file, flushed and renamed; HDF5 files built in memory first; signals held while a
+checkpoint is written (`held_signals`)."""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import threading
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 import h5py
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_image", "tmp_path", "remove"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_image", "tmp_path", "remove", "held_signals"]
 
 
 def h5_image(fill: Callable[[h5py.File], None]) -> bytes:
@@ -28,6 +30,26 @@ def h5_image(fill: Callable[[h5py.File], None]) -> bytes:
         return f.id.get_file_image()
     finally:
         f.close()
+
+
+@contextlib.contextmanager
+def held_signals() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends, then deliver them to the handlers they would have
+    reached: a Ctrl-C lands right after a checkpoint, never in the middle of one. Only the main
+    thread receives signals, so elsewhere this does nothing; a handler not set from Python is left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    held = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not None]
+    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(got):
+            signal.raise_signal(s)
 
 
 def tmp_path(path: Path) -> Path:

@@ -106,7 +106,9 @@ class Results:
 
     @property
     def complete(self) -> bool:
-        """True once the run reached its stop (False for a checkpoint of a run still going or killed)."""
+        """True once the run reached its stop (``status`` "done"); False for a checkpoint of a run still
+        going ("running"), killed ("running" too: its last checkpoint) or stopped by an exception or a
+        signal ("interrupted": the state it stopped in)."""
         return self.status == "done"
 
     @property

@@ -19,7 +19,7 @@ from ..engine.errors import InputError
 from .files import remove, tmp_path
 from .format import DATA_DIR, RESULTS_NAME
 
-__all__ = ["LOCK_NAME", "DirLock", "check_writable", "take_run_dir", "check_out_dir"]
+__all__ = ["LOCK_NAME", "DirLock", "holder", "check_writable", "take_run_dir", "check_out_dir"]
 
 #: the lock file in a locked directory (removed when the lock is released)
 LOCK_NAME = ".pinnedballs.lock"
@@ -122,6 +122,22 @@ class DirLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def holder(out: str | os.PathLike) -> int | None:
+    """The pid of the live process that holds the lock on the directory ``out``, or None (no lock file:
+    released; a lock file whose process is gone: left by a kill). Reads only, and takes no lock."""
+    try:
+        pid = int((Path(out) / LOCK_NAME).read_text(encoding="ascii").strip())
+    except (OSError, ValueError):
+        return None
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return None
+    except PermissionError:  # alive, another user's
+        pass
+    return pid
 
 
 def _same_file(f, path: Path) -> bool:

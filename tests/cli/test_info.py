@@ -3,12 +3,19 @@ took, what its components are, and whether it is done, interrupted or still runn
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
+
+import h5py
 import numpy as np
 import pytest
 
 import pinnedballs as pb
 from pinnedballs.cli.commands import _duration
-from helpers import TORUS, call, chain, write
+from pinnedballs.results.rundir import LOCK_NAME, DirLock
+from helpers import ROOT, TORUS, call, chain, write
 
 
 @pytest.mark.parametrize("seconds,text", [(0.0052913, "5.29 ms"), (0.0208, "20.8 ms"), (0.9996, "1 s"),
@@ -40,3 +47,26 @@ def test_info_names_the_components_of_a_run_built_in_python(tmp_path):
     assert (code, err) == (0, "")
     assert "geometry:    pinnedballs.geometry.graph.GraphGeometry: 5 balls, 4 contacts, dim 1\n" in stdout
     assert "run:         given velocities, restitution, sweep, built in Python\n" in stdout
+
+
+@pytest.fixture
+def running(tmp_path):
+    """A run whose file says "running" (the format-2 run of tests/data, marked so)."""
+    run = tmp_path / "run"
+    shutil.copytree(ROOT / "tests" / "data" / "format2", run)
+    with h5py.File(run / "results.h5", "r+") as f:
+        f.attrs["status"], f.attrs["stop_reason"] = "running", ""
+    return run
+
+
+def test_info_tells_a_running_run_from_one_killed(running):
+    """"running" with the pid of the live process holding the directory; "stopped" when none does."""
+    code, out, _ = call("info", running)
+    assert code == 0 and ("status:      stopped (killed: no process is writing it; this is its last checkpoint: "
+                          "continue with --resume)\n") in out
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (running / LOCK_NAME).write_text(dead.stdout)  # what a killed run leaves
+    assert "status:      stopped (killed: " in call("info", running)[1]
+    with DirLock(running):
+        code, out, _ = call("info", running)
+    assert code == 0 and f"status:      running (pid {os.getpid()}; this is its last checkpoint)\n" in out
