@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
@@ -55,18 +56,32 @@ class UsageError(Exception):
             arg("--quiet", action="store_true", help="no progress bar, no summary"),
             arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"))
 def run(args: argparse.Namespace) -> int:
-    from .status import Status
+    """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
+    (`interrupts.exit_status`)."""
+    from ..run.execute import Interrupted
+    from .interrupts import exit_status, fingerprint, sigint_ignored
 
     if args.force and args.resume:
         raise UsageError("run: give --force or --resume, not both")
+    before = fingerprint(Path(args.out))
+    try:
+        return _run(args)
+    except (KeyboardInterrupt, Interrupted):
+        with sigint_ignored():
+            return exit_status(Path(args.out), before, new_run=not args.resume,
+                               figures=not args.no_figures and _plots_available())
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ..run.execute import execute
+    from .status import Status
+
     with Status(show=False if args.quiet else None) as status:
         status("reading the spec")
-        from ..run.execute import execute
         from ..specs.run import load_spec
 
         spec = load_spec(args.spec)
-        path = execute(spec, args.out, force=args.force, resume=args.resume,
-                       progress=False if args.quiet else None,
+        path = execute(spec, args.out, force=args.force, resume=args.resume, progress=False if args.quiet else None,
                        figures=not args.no_figures and _plots_available(), status=status)
     if not args.quiet:
         from ..results.load import load

@@ -48,7 +48,7 @@ def held_signals() -> Iterator[None]:
     finally:
         for s, handler in old.items():
             signal.signal(s, handler)
-        for s in dict.fromkeys(got):
+        for s in got:  # each, in order (a second Ctrl-C may mean "now")
             signal.raise_signal(s)
 
 

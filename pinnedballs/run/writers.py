@@ -108,18 +108,19 @@ class ResultsWriter(Writer):
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
-        if self._own_lock and self._lock is None:
-            self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
-        if self.store is None:
-            try:
-                self.store = self._open(sim)
-            except BaseException:
-                self.close()
-                raise
-        elif (sim.steps, sim.collisions) != self._checked:
-            self._checked = None  # the simulation moved on without us: check its state afresh
-        self._start = self._last = time.monotonic()
-        self._running = True
+        with held_signals():  # a Ctrl-C lands once the store is open and the run is ours to save
+            if self._own_lock and self._lock is None:
+                self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
+            if self.store is None:
+                try:
+                    self.store = self._open(sim)
+                except BaseException:
+                    self.close()
+                    raise
+            elif (sim.steps, sim.collisions) != self._checked:
+                self._checked = None  # the simulation moved on without us: check its state afresh
+            self._start = self._last = time.monotonic()
+            self._running = True
         return self._checked
 
     def write(self, sim) -> None:
@@ -192,6 +193,7 @@ class ResultsWriter(Writer):
                                   status=status, stop_reason=reason, elapsed_seconds=self.elapsed(), checked=checked)
             self.pending = [r for r in self.pending if r.state.steps > state.state.steps]
             self._saved = (state.state.steps, state.state.collisions)
+            self._running = status == "running"  # a run saved as done or interrupted is never saved again
         self._last = time.monotonic()
         self._cost = self._last - t
 
