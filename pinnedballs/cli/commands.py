@@ -73,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ..results.format import RESULTS_NAME
+    from ..results.rundir import check_resumable
     from ..run.execute import execute
     from .status import Status
 
@@ -81,6 +83,11 @@ def _run(args: argparse.Namespace) -> int:
         from ..specs.run import load_spec
 
         spec = load_spec(args.spec)
+        if args.resume and not (Path(args.out) / RESULTS_NAME).exists():
+            check_resumable(args.out)  # a missing or empty directory is refused; else that run starts again:
+            status.clear()
+            print(f"{PROG}: {args.out} holds no checkpoint yet (its run stopped before writing one): starting "
+                  f"it from the beginning", file=sys.stderr)
         path = execute(spec, args.out, force=args.force, resume=args.resume, progress=False if args.quiet else None,
                        figures=not args.no_figures and _plots_available(), status=status)
     if not args.quiet:

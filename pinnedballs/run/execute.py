@@ -23,7 +23,7 @@ from ..engine.errors import InputError
 from ..results.files import write_text_atomic
 from ..results.format import RESULTS_NAME, Record
 from ..results.load import Results, load
-from ..results.rundir import DirLock
+from ..results.rundir import DirLock, check_resumable
 from ..simulation import Simulation
 from ..specs.run import RunSpec
 from .driver import Stop, Writer, drive
@@ -75,7 +75,8 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     The spec is built once into what runs it (the simulation, its stop, the writer's trigger),
     before anything is written: bad input fails first. A non-empty ``out_dir`` is refused
     (`InputError`) unless ``force`` (which replaces our files) or ``resume`` (which continues
-    from the last checkpoint of the same spec; a finished run is left as it is). ``progress``: a
+    from the last checkpoint of the same spec; a finished run is left as it is; a missing or empty
+    ``out_dir`` is refused, `check_resumable`). ``progress``: a
     tqdm bar on stderr; None means only if stderr is a terminal. ``status``: a callable told each
     stage (building, compiling, drawing).
 
@@ -86,6 +87,8 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
+    if resume and not path.exists():
+        check_resumable(out)
     stop = spec.stop.build()
     snapshots = spec.snapshots.build() if spec.snapshots else None
     with _deferred_signals() as stop_requested:

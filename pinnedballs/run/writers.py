@@ -32,7 +32,7 @@ from ..engine import checks
 from ..analysis import observables as named
 from ..results.files import held_signals
 from ..results.format import DATA_DIR, RESULTS_NAME, Record
-from ..results.rundir import DirLock, take_run_dir
+from ..results.rundir import DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from .driver import Writer
 from .triggers import Counts, Trigger
@@ -108,6 +108,8 @@ class ResultsWriter(Writer):
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
+        if self.resume and self.store is None and not self.path.exists() and self._own_lock:
+            check_resumable(self.out_dir, "out_dir", "check the path, or pass resume=False to start one")
         with held_signals():  # a Ctrl-C lands once the store is open and the run is ours to save
             if self._own_lock and self._lock is None:
                 self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
