@@ -266,9 +266,11 @@ def _ensemble(args, status) -> int:
             _remove_old_outputs(out)
         write_outputs(result, out)
         status.clear()
-    for row in result.failures:
+    for row in result.failures:  # its rows depend on the spec and its index only: it can be run alone
         print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
-              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)
+              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}; rerun it alone with pinnedballs.run.ensemble."
+              f"run_replica(pinnedballs.specs.load_spec({args.spec!r}), {row['replica']}), which gives the rows it "
+              f"would have had", file=sys.stderr)
     if not args.quiet:
         print(f"{replicas - len(result.failures)} of {replicas} replicas done in {result.wall_seconds:.1f} s "
               f"({result.where}); wrote {out}")
