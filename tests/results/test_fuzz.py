@@ -107,8 +107,9 @@ def damage(run: Path, changes: list[tuple]) -> None:
         path = run / file
         if kind in ("flip", "truncate", "copy file"):
             data = bytearray(path.read_bytes())
-            if kind == "flip" and data:  # (a file truncated to nothing has no byte to flip)
-                data[int(args[0] * len(data))] ^= args[1]
+            if kind == "flip":
+                if data:  # (a file truncated to nothing has no byte to flip)
+                    data[int(args[0] * len(data))] ^= args[1]
             elif kind == "truncate":
                 data = data[:int(args[0] * len(data))]
             else:
