@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
@@ -55,18 +56,39 @@ class UsageError(Exception):
             arg("--quiet", action="store_true", help="no progress bar, no summary"),
             arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"))
 def run(args: argparse.Namespace) -> int:
-    from .status import Status
+    """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
+    (`interrupts.exit_status`)."""
+    from ..run.execute import Interrupted
+    from .interrupts import exit_status, fingerprint, sigint_ignored
 
     if args.force and args.resume:
         raise UsageError("run: give --force or --resume, not both")
+    before = fingerprint(Path(args.out))
+    try:
+        return _run(args)
+    except (KeyboardInterrupt, Interrupted):
+        with sigint_ignored():
+            return exit_status(Path(args.out), before, new_run=not args.resume,
+                               figures=not args.no_figures and _plots_available())
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ..results.format import RESULTS_NAME
+    from ..results.rundir import check_resumable
+    from ..run.execute import execute
+    from .status import Status
+
     with Status(show=False if args.quiet else None) as status:
         status("reading the spec")
-        from ..run.execute import execute
         from ..specs.run import load_spec
 
         spec = load_spec(args.spec)
-        path = execute(spec, args.out, force=args.force, resume=args.resume,
-                       progress=False if args.quiet else None,
+        if args.resume and not (Path(args.out) / RESULTS_NAME).exists():
+            check_resumable(args.out)  # a missing or empty directory is refused; else that run starts again:
+            status.clear()
+            print(f"{PROG}: {args.out} holds no checkpoint yet (its run stopped before writing one): starting "
+                  f"it from the beginning", file=sys.stderr)
+        path = execute(spec, args.out, force=args.force, resume=args.resume, progress=False if args.quiet else None,
                        figures=not args.no_figures and _plots_available(), status=status)
     if not args.quiet:
         from ..results.load import load
@@ -153,7 +175,7 @@ def info(args: argparse.Namespace) -> int:
     made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
     lines = [
         f"results:     {res.path}",
-        f"status:      {res.status}" + (f" ({res.stop_reason})" if res.stop_reason else " (last checkpoint)"),
+        f"status:      {_status(res)}",
         f"geometry:    {kinds['geometry']}: {len(res.positions)} balls, {len(res.pairs)} contacts, "
         f"dim {res.velocities.shape[1]}",
         f"run:         {kinds.get('initial', 'given velocities')}, {kinds['rule']}, {kinds['scheduler']}, {made}",
@@ -163,11 +185,40 @@ def info(args: argparse.Namespace) -> int:
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.steps for s in res.snapshots])}"
                                                 if res.snapshots else ""),
-        f"time:        {res.elapsed_seconds:.1f} s in {res.checkpoints} checkpoint(s); "
+        f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
         f"written by pinnedballs {res.version}",
     ]
     print("\n".join(lines))
     return EXIT_OK
+
+
+def _status(res) -> str:
+    """What a run is doing: done (and why), interrupted, running (and who writes it), or stopped
+    without a word (killed: no process holds its directory)."""
+    if res.complete:
+        return f"done ({res.stop_reason})"
+    how = "--resume" if res.spec is not None else "pb.load(DIR).simulation()"
+    if res.status == "interrupted":
+        return f"interrupted (continue with {how})"
+    from ..results.rundir import holder
+
+    pid = holder(res.run_dir)
+    if pid is not None:
+        return f"running (pid {pid}; this is its last checkpoint)"
+    return f"stopped (killed: no process is writing it; this is its last checkpoint: continue with {how})"
+
+
+def _duration(seconds: float) -> str:
+    """Wall time to three significant figures: ``"5.29 ms"``, ``"12.3 s"``, ``"2 min 05 s"``, ``"3 h 07 min"``."""
+    milliseconds = float(f"{seconds * 1000:.3g}")
+    if milliseconds < 1000:
+        return f"{milliseconds:g} ms"
+    if seconds < 60:
+        return f"{seconds:.3g} s"
+    minutes = int(seconds // 60)
+    if minutes < 60:
+        return f"{minutes} min {int(seconds % 60):02d} s"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
 
 
 def _few(values: list[int]) -> str:
@@ -232,9 +283,11 @@ def _ensemble(args, status) -> int:
             _remove_old_outputs(out)
         write_outputs(result, out)
         status.clear()
-    for row in result.failures:
+    for row in result.failures:  # its rows depend on the spec and its index only: it can be run alone
         print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
-              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}", file=sys.stderr)
+              f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}; rerun it alone with pinnedballs.run.ensemble."
+              f"run_replica(pinnedballs.specs.load_spec({args.spec!r}), {row['replica']}), which gives the rows it "
+              f"would have had", file=sys.stderr)
     if not args.quiet:
         print(f"{replicas - len(result.failures)} of {replicas} replicas done in {result.wall_seconds:.1f} s "
               f"({result.where}); wrote {out}")

@@ -8,10 +8,15 @@ Exit status: 0 done; 2 bad input (one line on stderr naming the field or file);
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import os
+import signal
 import sys
+import threading
 import traceback
+from pathlib import Path
+from typing import Iterator
 
 from .._version import __version__
 from ..engine.errors import InputError
@@ -40,10 +45,20 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``: the program itself, which from
+    then on ignores Ctrl-C: one that comes as it exits must not change its status); return the exit status."""
+    try:
+        return _main(argv)
+    finally:
+        if argv is None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         args = _parser().parse_args(argv)
-        return COMMANDS[args.command].run(args)
+        with _user_modules(getattr(args, "spec", None)):
+            return COMMANDS[args.command].run(args)
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else EXIT_OK
     except (UsageError, InputError, FileNotFoundError) as exc:
@@ -65,6 +80,26 @@ def main(argv: list[str] | None = None) -> int:
         traceback.print_exc(file=sys.stderr)
         _say(f"error: {type(exc).__name__}: {_one_line(exc)}")
         return EXIT_ERROR
+
+
+@contextlib.contextmanager
+def _user_modules(spec: str | None) -> Iterator[None]:
+    """Let a spec's ``"kind": "python"`` factory live in a module beside the spec file or in the
+    working directory, as ``python -m pinnedballs`` finds one in the working directory.
+
+    Both directories go at the end of ``sys.path`` (``python -m`` puts the working directory
+    first): a user's module is found, but a stray file in the working directory never shadows
+    a library pinnedballs imports later. They are removed again when the command ends.
+    """
+    wanted = [str(Path(spec).resolve().parent)] if spec else []
+    added = [d for d in dict.fromkeys([*wanted, os.getcwd()]) if d not in sys.path]
+    sys.path.extend(added)
+    try:
+        yield
+    finally:
+        for d in added:
+            if d in sys.path:
+                sys.path.remove(d)
 
 
 #: errors of a full disk or quota: one line, not a traceback

@@ -2,7 +2,8 @@
 ``plot``, ``--resume``): a file edited or damaged by hand or by another program is refused
 with one message naming the file and the dataset, never read as a run.
 
-What is checked (``n`` balls, ``d`` velocity components, ``E`` contacts, ``F`` snapshots):
+First what the index says of itself (`index`: format and version, attributes, the segment list
+and the links to the data files), then the data. What is checked (``n`` balls, ``d`` velocity components, ``E`` contacts, ``F`` snapshots):
 shapes and dtypes of the geometry, the initial and latest velocities, the snapshots and their
 observables; the contacts against the geometry the stored spec builds; finite numbers; the
 counters (``0 <= collisions <= steps``, snapshots in order and not past the state); the random
@@ -18,42 +19,55 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from pydantic import ValidationError
 
 from ..engine.errors import FieldError
 from ..specs.geometry import geometry_from_stored, parse_geometry
-from ..specs.run import RunSpec
-from .format import STATIC_NAME, ResultsError
+from ..specs.errors import first_error
+from ..specs.run import RunSpec, stored_spec
+from .format import STATIC_NAME, ResultsError, data_dir as data_dir_of
+from .index import Damage, check_attributes, check_digests, check_format, check_initial, check_links, segment_list
 
 __all__ = ["check_results"]
 
 
-class _Damage(Exception):
-    """One fault: ``dataset`` and what is wrong with it."""
-
-    def __init__(self, dataset: str, problem: str):
-        super().__init__(f"{dataset}: {problem}")
-
-
-def check_results(p: Path, f: h5py.File, data_dir: Path | None) -> None:
-    """Raise `ResultsError` naming ``p`` and the dataset unless the open results file ``f`` is sound.
-
-    data_dir: the directory of the static file and segments (format 2), None for format 1.
-    """
+def check_results(p: Path, f: h5py.File, sealed: bool) -> int:
+    """The format version of the open results file ``f`` (at ``p``); a `ResultsError` naming ``p`` and
+    the dataset unless it is a sound results file this version reads. ``sealed``: the index carried
+    a digest, which its bytes matched (`digest.unseal`): format 3 must, earlier formats cannot."""
     try:
-        _check(f, data_dir)
-    except _Damage as exc:
+        version = check_format(p, f)
+        if sealed != (version >= 3):
+            raise Damage("/ (attribute format_version)", f"is {version}, but the index {'has' if sealed else 'lacks'} "
+                                                         f"the digest of format 3")
+        check_attributes(f, version)
+        if version >= 2:
+            data, segments = data_dir_of(p), segment_list(f)
+            missing = [name for name in [STATIC_NAME, *(s[0] for s in segments)] if not (data / name).is_file()]
+            if missing:
+                raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
+            if version >= 3:
+                check_digests(f, data, [STATIC_NAME, *(s[0] for s in segments)])
+            _check_sources(segments, data)
+            check_links(f, data, segments, json.loads(f.attrs["observables"]))
+        check_initial(f)
+        _check(f)
+    except ResultsError:
+        raise
+    except Damage as exc:
         raise ResultsError(f"{p}: damaged results file: {exc}") from None
     except (KeyError, OSError, ValueError, TypeError) as exc:
         raise ResultsError(f"{p}: damaged results file ({' '.join(str(exc).split())})") from None
+    return version
 
 
 def _dataset(f: h5py.File, name: str) -> h5py.Dataset:
     try:
         obj = f[name]
     except (KeyError, OSError) as exc:
-        raise _Damage(name, f"missing or unreadable ({' '.join(str(exc).split())})") from None
+        raise Damage(name, f"missing or unreadable ({' '.join(str(exc).split())})") from None
     if not isinstance(obj, h5py.Dataset):
-        raise _Damage(name, "is not a dataset")
+        raise Damage(name, "is not a dataset")
     return obj
 
 
@@ -62,13 +76,13 @@ def _array(f: h5py.File, name: str, kind: str, shape: tuple) -> np.ndarray:
     ``shape`` (None: any length on that axis); floats finite."""
     ds = _dataset(f, name)
     if not _kind_ok(ds.dtype, kind):
-        raise _Damage(name, f"must be {_KINDS[kind]}, got {ds.dtype}")
+        raise Damage(name, f"must be {_KINDS[kind]}, got {ds.dtype}")
     if len(ds.shape) != len(shape) or any(s is not None and s != t for s, t in zip(shape, ds.shape)):
         want = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
-        raise _Damage(name, f"must have shape {want}, got {ds.shape}")
+        raise Damage(name, f"must have shape {want}, got {ds.shape}")
     value = ds[()]
     if kind == "f" and not np.isfinite(value).all():
-        raise _Damage(name, f"holds {np.count_nonzero(~np.isfinite(value))} non-finite values (NaN or inf)")
+        raise Damage(name, f"holds {np.count_nonzero(~np.isfinite(value))} non-finite values (NaN or inf)")
     return value
 
 
@@ -83,65 +97,45 @@ def _kind_ok(dtype: np.dtype, kind: str) -> bool:
     return dtype.kind == "f"
 
 
-def _count(f: h5py.File, name: str) -> int:
-    """The integer attribute ``state/<name>`` (``steps`` or ``collisions``), >= 0."""
-    value = f["state"].attrs.get(name)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise _Damage(f"state/{name}", f"must be an integer, got {value!r}")
-    if value < 0:
-        raise _Damage(f"state/{name}", f"must be >= 0, got {value}")
-    return int(value)
-
-
-def _check(f: h5py.File, data_dir: Path | None) -> None:
-    if str(f.attrs.get("status")) not in ("running", "done"):
-        raise _Damage("/ (attribute status)", f"must be 'running' or 'done', got {f.attrs.get('status')!r}")
-    if data_dir is not None:
-        _check_sources(f, data_dir)
+def _check(f: h5py.File) -> None:
     positions = _array(f, "geometry/positions", "f", (None, None))
     n = len(positions)
     pairs = _array(f, "geometry/pairs", "i", (None, 2))
     e = len(pairs)
     if e and (pairs.min() < 0 or pairs.max() >= n or (pairs[:, 0] == pairs[:, 1]).any()):
-        raise _Damage("geometry/pairs", f"must be pairs of distinct balls in [0, {n})")
+        raise Damage("geometry/pairs", f"must be pairs of distinct balls in [0, {n})")
     d = _array(f, "geometry/t_i", "f", (e, None)).shape[1]
     _array(f, "geometry/t_j", "f", (e, d))
     if "masses" in f["geometry"]:
         masses = _array(f, "geometry/masses", "f", (n,))
         if not (masses > 0).all():
-            raise _Damage("geometry/masses", "must be > 0")
+            raise Damage("geometry/masses", "must be > 0")
     _array(f, "initial/velocities", "f", (n, d))
     _array(f, "state/velocities", "f", (n, d))
     _check_against_spec(f, n, d, pairs)
-    steps, collisions = _count(f, "steps"), _count(f, "collisions")
+    steps, collisions = int(f["state"].attrs["steps"]), int(f["state"].attrs["collisions"])
     if collisions > steps:
-        raise _Damage("state/collisions", f"{collisions} is more than the {steps} steps taken")
+        raise Damage("state/collisions", f"{collisions} is more than the {steps} steps taken")
     rng = _array(f, "state/rng_state", "u", (4,))
     if not rng.any():
-        raise _Damage("state/rng_state", "is all zero (not a state of the random generator)")
+        raise Damage("state/rng_state", "is all zero (not a state of the random generator)")
     sched = _array(f, "state/scheduler_state", "i", (None,))
     if sched.dtype != np.int64:
-        raise _Damage("state/scheduler_state", f"must be int64, got {sched.dtype}")
+        raise Damage("state/scheduler_state", f"must be int64, got {sched.dtype}")
     _check_scheduler_state(f, sched, e)
     if "exact" in f["state"]:
         _check_exact(f, n, d)
     _check_snapshots(f, n, d, steps, collisions)
 
 
-def _check_sources(f: h5py.File, data_dir: Path) -> None:
-    """The static file and each segment open, and hold what the index says they hold."""
+def _check_sources(segments: list, data_dir: Path) -> None:
+    """The static file and each segment open, and hold the rows the index says."""
     _open_source(data_dir / STATIC_NAME, lambda g: None)
-    for entry in json.loads(f.attrs["segments"]):
-        try:
-            name, first, count = entry
-            count = int(count)
-        except (TypeError, ValueError):
-            raise _Damage("/ (attribute segments)", f"entries must be [file, first, count], got {entry!r}") from None
-
+    for name, _, count in segments:
         def measure(g, name=name, count=count):
             rows = _dataset(g, "velocities").shape[:1]
             if rows != (count,):
-                raise _Damage(f"{data_dir.name}/{name}: velocities", f"must have {count} rows, got {rows}")
+                raise Damage(f"{data_dir.name}/{name}: velocities", f"must have {count} rows, got {rows}")
         _open_source(data_dir / name, measure)
 
 
@@ -150,74 +144,91 @@ def _open_source(path: Path, check) -> None:
         with h5py.File(path, "r") as g:
             check(g)
     except OSError as exc:
-        raise _Damage(str(path), f"not a readable HDF5 file (truncated?): {' '.join(str(exc).split())}") from None
+        raise Damage(str(path), f"not a readable HDF5 file (truncated?): {' '.join(str(exc).split())}") from None
+
+
+def _stored_spec(f: h5py.File) -> RunSpec | None:
+    """The run's stored spec (None for a run built in Python), validated without importing user code."""
+    text = f.attrs.get("spec", "")
+    if not text:
+        return None
+    try:
+        return stored_spec(text)
+    except ValidationError as exc:
+        raise Damage("/ (attribute spec)", f"not a valid spec for this version of pinnedballs "
+                                            f"({first_error(exc, RunSpec)})") from None
 
 
 def _check_against_spec(f: h5py.File, n: int, d: int, pairs: np.ndarray) -> None:
-    """The stored contacts are those of the geometry the stored spec (or Python description) builds."""
-    text = f.attrs.get("spec", "")
-    if text:
-        spec = RunSpec.model_validate_json(text).geometry
+    """The stored contacts are those of the geometry the stored spec (or Python description) builds;
+    a user's own geometry (``"kind": "python"``) is not built: reading a run runs no user code."""
+    run = _stored_spec(f)
+    if run is not None:
+        spec = run.geometry
     else:
         described = json.loads(f.attrs.get("run", "") or "{}").get("geometry", {})
         if "kind" not in described:
             return
         spec = parse_geometry(described)
+    if spec.kind == "python":
+        return
     geometry = geometry_from_stored(spec, f["geometry/positions"][()])
     if geometry.n_balls != n:
-        raise _Damage("geometry/positions", f"must hold the spec's {geometry.n_balls} balls, got {n}")
+        raise Damage("geometry/positions", f"must hold the spec's {geometry.n_balls} balls, got {n}")
     if geometry.dim != d:
-        raise _Damage("initial/velocities", f"must have the spec's {geometry.dim} components, got {d}")
+        raise Damage("initial/velocities", f"must have the spec's {geometry.dim} components, got {d}")
     if not np.array_equal(np.asarray(geometry.contacts.pairs), pairs):
-        raise _Damage("geometry/pairs", f"differ from the {geometry.n_contacts} contacts of the spec's geometry")
+        raise Damage("geometry/pairs", f"differ from the {geometry.n_contacts} contacts of the spec's geometry")
 
 
 def _check_scheduler_state(f: h5py.File, sched: np.ndarray, e: int) -> None:
     """``sched`` as the run's scheduler would check it before resuming (when it has a spec)."""
-    text = f.attrs.get("spec", "")
-    if not text:
+    run = _stored_spec(f)
+    if run is None or run.scheduler.kind == "python":
         return
-    scheduler = RunSpec.model_validate_json(text).scheduler.build()
+    scheduler = run.scheduler.build()
     try:
         scheduler.check_state(sched, e)
     except FieldError as exc:
-        raise _Damage("state/scheduler_state", exc.problem) from None
+        raise Damage("state/scheduler_state", exc.problem) from None
 
 
 def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int) -> None:
     """Snapshot velocities ``(F, n, d)``, finite; counters ``(F,)`` in order, within the state's."""
     frames = _dataset(f, "snapshots/velocities")
     if frames.ndim != 3 or frames.shape[1:] != (n, d) or frames.dtype.kind != "f":
-        raise _Damage("snapshots/velocities", f"must be floating point of shape (F, {n}, {d}), got "
+        raise Damage("snapshots/velocities", f"must be floating point of shape (F, {n}, {d}), got "
                                               f"{frames.dtype} {frames.shape}")
     count = frames.shape[0]
     for start in range(0, count, 64):  # a few frames at a time: bounded memory
         block = frames[start:start + 64]
         if not np.isfinite(block).all():
-            raise _Damage("snapshots/velocities", "holds non-finite values (NaN or inf)")
+            raise Damage("snapshots/velocities", "holds non-finite values (NaN or inf)")
     at = {}
     for name, last in (("steps", steps), ("collisions", collisions)):
         x = _array(f, f"observables/{name}", "i", (count,))
         if count and (x.min() < 0 or (np.diff(x) < 0).any() or x.max() > last):
-            raise _Damage(f"observables/{name}", f"must be >= 0, in order and at most the state's {last:,}")
+            raise Damage(f"observables/{name}", f"must be >= 0, in order and at most the state's {last:,}")
         at[name] = x
+    if (np.diff(at["steps"]) == 0).any():  # a snapshot is taken once at a state: these are copies
+        raise Damage("observables/steps", "lists the same step twice (duplicated snapshots)")
     if count and (at["collisions"] > at["steps"]).any():
-        raise _Damage("observables/collisions", "more collisions than steps in a snapshot")
+        raise Damage("observables/collisions", "more collisions than steps in a snapshot")
     for name in f["observables"]:
         ds = _dataset(f, f"observables/{name}")
         if ds.shape[:1] != (count,):
-            raise _Damage(f"observables/{name}", f"must have {count} rows, got shape {ds.shape}")
+            raise Damage(f"observables/{name}", f"must have {count} rows, got shape {ds.shape}")
 
 
 def _check_exact(f: h5py.File, n: int, d: int) -> None:
     """The exact velocities of a run in exact arithmetic: ``(n, d, m)`` texts of rational numbers."""
     ds = _dataset(f, "state/exact")
     if ds.ndim != 3 or ds.shape[:2] != (n, d) or ds.dtype.kind != "O":
-        raise _Damage("state/exact", f"must be text of shape ({n}, {d}, m), got {ds.dtype} {ds.shape}")
+        raise Damage("state/exact", f"must be text of shape ({n}, {d}, m), got {ds.dtype} {ds.shape}")
     from gmpy2 import mpq
 
     for text in ds.asstr()[()].ravel():
         try:
             mpq(text)
         except (ValueError, TypeError, ZeroDivisionError):
-            raise _Damage("state/exact", f"holds {text[:40]!r}, not a rational number") from None
+            raise Damage("state/exact", f"holds {text[:40]!r}, not a rational number") from None

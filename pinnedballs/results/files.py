@@ -1,34 +1,57 @@
-"""Files written so that a kill or a full disk never leaves half of one: through a temporary file,
-flushed and renamed; HDF5 files built in memory first."""
+"""Files written so that a kill, a Ctrl-C or a full disk never leaves half of one: through a
+temporary file, flushed and renamed; HDF5 files built in memory first; signals held while a
+checkpoint is written (`held_signals`)."""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import signal
+import threading
 from pathlib import Path
+from typing import Callable, Iterator
 
 import h5py
 import numpy as np
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_file", "written_atomically", "tmp_path", "remove", "virtual_rows"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_image", "written_atomically", "tmp_path", "remove",
+           "virtual_rows", "held_signals"]
 
 
-@contextlib.contextmanager
-def h5_file(path: Path):
-    """An HDF5 file built in memory, then written to ``path`` (`write_bytes_atomic`) if the block succeeds.
+def h5_image(fill: Callable[[h5py.File], None]) -> bytes:
+    """The bytes of an HDF5 file built in memory by ``fill(f)``, to be written with `write_bytes_atomic`.
 
     HDF5 never writes to disk itself: a full disk is a plain OSError from our own write,
     never a file HDF5 cannot close (h5py issue 2160: a native crash on closing a file
     whose write failed), and no partial file is left behind.
     """
-    f = h5py.File(f"{path.name}.{id(path)}", "w", driver="core", backing_store=False)
+    f = h5py.File(f"image.{threading.get_ident()}.{id(fill)}", "w", driver="core", backing_store=False)
     try:
-        yield f
+        fill(f)
         f.flush()
-        image = f.id.get_file_image()
+        return f.id.get_file_image()
     finally:
         f.close()
-    write_bytes_atomic(path, image)
+
+
+@contextlib.contextmanager
+def held_signals() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends, then deliver them to the handlers they would have
+    reached: a Ctrl-C lands right after a checkpoint, never in the middle of one. Only the main
+    thread receives signals, so elsewhere this does nothing; a handler not set from Python is left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    held = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) is not None]
+    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for s in got:  # each, in order (a second Ctrl-C may mean "now")
+            signal.raise_signal(s)
 
 
 @contextlib.contextmanager

@@ -4,13 +4,17 @@
 A run directory holds ``results.h5``, a small *index*, and ``results.data/``:
 ``static.h5`` (written once) and one *segment* ``frames_<first>.h5`` per checkpoint
 that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity components,
-``E`` contacts, ``F`` snapshots), format 2::
+``E`` contacts, ``F`` snapshots), format 3::
 
+    (512 bytes)       the digest of the rest of the file (`digest`: an HDF5 user block)
     /                 attrs: format, format_version, version (package), spec (JSON, "" for a run
                              built in Python), run (JSON: what a Python run was built from),
-                             status ("running" | "done"), stop_reason, created, updated,
-                             elapsed_seconds, checkpoints, checked, observables (JSON names),
-                             segments (JSON [[file, first, count], ...])
+                             status ("running" | "done" | "interrupted": stopped by an exception
+                             or a signal, at the state saved here), stop_reason, created, updated,
+                             elapsed_seconds, checkpoints, checked (the snapshot trigger was
+                             checked at the state's counts), observables (JSON names),
+                             segments (JSON [[file, first, count], ...]),
+                             digests (JSON {file: SHA-256} of static.h5 and every segment)
     /geometry         -> static.h5: positions (n, k), pairs (E, 2) int32, t_i (E, d), t_j (E, d),
                          masses (n,) [only if given], boundary_distance (n,) and boundary_outward
                          (n, d) [with a boundary], frames (n, d, k) [curved]; attrs radius, view
@@ -32,8 +36,9 @@ whose segments all exist. A segment the index does not list (a kill between the 
 renames) is removed when the run continues. An HDF5 file appended in place would be
 smaller to describe but can be left unreadable by a kill in the middle of a write.
 
-Format 1 (a single file, copied whole at each checkpoint) still loads; continuing such
-a run converts it to format 2 first.
+Format 2 is format 3 without the digests and the status "interrupted"; format 1 is a single
+file, copied whole at each checkpoint. Both still load; continuing such a run converts it to
+format 3 first.
 """
 
 from __future__ import annotations
@@ -54,7 +59,7 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME"
            "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES"]
 
 FORMAT = "pinnedballs-results"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 RESULTS_NAME = "results.h5"
 #: the directory beside the index holding ``static.h5`` and the segments
 DATA_DIR = "results.data"

@@ -16,10 +16,14 @@ from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
 from ..simulation import RunState, Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
-from ..specs.run import RunSpec
+from ..engine.errors import InputError
+from ..specs.errors import SpecError
+from ..specs.python import IMPORT_FACTORIES, label
+from ..specs.run import RunSpec, stored_spec
 from .check import check_results
-from .format import (FORMAT, FORMAT_VERSION, RESULTS_NAME, STATIC_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
-                     data_dir, results_path)
+from .digest import unseal
+from .format import (FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
+                     results_path)
 
 __all__ = ["Results", "load", "open_checked", "read"]
 
@@ -102,7 +106,9 @@ class Results:
 
     @property
     def complete(self) -> bool:
-        """True once the run reached its stop (False for a checkpoint of a run still going or killed)."""
+        """True once the run reached its stop (``status`` "done"); False for a checkpoint of a run still
+        going ("running"), killed ("running" too: its last checkpoint) or stopped by an exception or a
+        signal ("interrupted": the state it stopped in)."""
         return self.status == "done"
 
     @property
@@ -111,10 +117,12 @@ class Results:
 
     @property
     def kinds(self) -> dict[str, str]:
-        """``geometry``, ``initial``, ``rule``, ``scheduler``: the kind of each component (or its class)."""
+        """``geometry``, ``initial``, ``rule``, ``scheduler``: what each component is: its kind, the
+        factory (``module:callable``) of a user's own, or the class of one built in Python without a spec."""
         if self.spec is not None:
-            return {k: getattr(self.spec, k).kind for k in ("geometry", "initial", "rule", "scheduler")}
-        return {k: v.get("kind") or v.get("class", "?") for k, v in self.run.items() if isinstance(v, dict)}
+            return {k: label(getattr(self.spec, k)) for k in ("geometry", "initial", "rule", "scheduler")}
+        return {k: (v.get("factory") if v.get("kind") == "python" else v.get("kind")) or v.get("class", "?")
+                for k in ("geometry", "rule", "scheduler") if isinstance(v := self.run.get(k), dict)}
 
     @functools.cached_property
     def geometry(self) -> Geometry:
@@ -132,20 +140,29 @@ class Results:
     def simulation(self, *, rule=None, scheduler=None) -> Simulation:
         """A `Simulation` at the latest state, ready to go on exactly where this run stopped.
 
-        A run built in Python with a rule or scheduler that has no spec needs them given.
+        A run built in Python with a rule or scheduler that has no spec needs them given. A run
+        whose spec names a user's factory (``"kind": "python"``) needs its module importable: an
+        `InputError` names the module and how otherwise.
         """
-        if self.spec is not None:
-            sim = self.spec.build_with(self.geometry, self.initial_velocities, self.masses)
-        else:
-            from ..specs import RuleSpec, SchedulerSpec
-
-            rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
-            scheduler = scheduler if scheduler is not None else \
-                _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
-            sim = Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
-                             masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
+        try:
+            sim = self._build(rule, scheduler)
+        except SpecError as exc:
+            if not exc.path.endswith(".factory"):
+                raise
+            raise InputError(f"{self.run_dir}: continuing this run needs the code its spec names: {exc}") from None
         sim.set_state(self.state())
         return sim
+
+    def _build(self, rule, scheduler) -> Simulation:
+        if self.spec is not None:
+            return self.spec.build_with(self.geometry, self.initial_velocities, self.masses)
+        from ..specs import RuleSpec, SchedulerSpec
+
+        rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
+        scheduler = scheduler if scheduler is not None else \
+            _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
+        return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
+                          masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
 
     def animate(self, out=None, fps: float = 4) -> Path:
         """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`."""
@@ -165,7 +182,7 @@ def _component(described: dict, slot, name: str):
     if "kind" not in described:
         raise ValueError(f"{name}: this run used {described.get('class', 'a component')}, which has no spec; "
                          f"pass {name}= to simulation()")
-    return TypeAdapter(slot).validate_python(described).build()
+    return TypeAdapter(slot).validate_python(described, context={IMPORT_FACTORIES: False}).build()
 
 
 def load(path: str | os.PathLike) -> Results:
@@ -181,49 +198,45 @@ def load(path: str | os.PathLike) -> Results:
     with open_checked(p) as f:
         try:
             return read(p, f)
-        except (KeyError, OSError) as exc:
-            raise ResultsError(f"{p}: damaged results file ({exc})") from None
+        except (KeyError, OSError, ValueError, TypeError) as exc:  # what the checks cannot foresee
+            raise ResultsError(f"{p}: damaged results file ({' '.join(str(exc).split())})") from None
 
 
 def open_checked(p: Path) -> h5py.File:
-    """The results file ``p`` opened for reading, after checking it is one this version reads,
-    that every file it refers to is there, and its structure (`check_results`): the one place
-    results files are opened."""
+    """The results file ``p`` opened for reading, after checking it is one this version reads:
+    its digests (format 3, `digest`) before HDF5 parses anything, then its structure
+    (`check_results`). The one place results files are opened."""
+    for _ in range(_ATTEMPTS):
+        try:
+            with open(p, "rb") as raw:
+                sealed, inode = unseal(p, raw), _inode(os.fstat(raw.fileno()))
+            f = h5py.File(p, "r")
+        except OSError as exc:
+            raise ResultsError(f"{p}: not a readable HDF5 file (truncated or not HDF5): {exc}") from None
+        if _inode(os.stat(p)) == inode:  # the file checked is the one opened (a run replaces its index)
+            break
+        f.close()
+    else:
+        raise ResultsError(f"{p}: replaced by its run faster than it could be read; try again")
     try:
-        f = h5py.File(p, "r")
-    except OSError as exc:
-        raise ResultsError(f"{p}: not a readable HDF5 file (truncated or not HDF5): {exc}") from None
-    try:
-        if f.attrs.get("format") != FORMAT:
-            raise ResultsError(f"{p}: not a pinnedballs results file (no format={FORMAT!r} attribute)")
-        version = int(f.attrs.get("format_version", -1))
-        if version > FORMAT_VERSION:
-            raise ResultsError(f"{p}: written by a newer pinnedballs (format {f.attrs['format_version']}); upgrade")
-        if version < 1:
-            raise ResultsError(f"{p}: damaged results file: / (attribute format_version): must be 1 or 2, "
-                               f"got {f.attrs.get('format_version')!r}")
-        if version >= 2:
-            data = data_dir(p)
-            try:
-                needed = [STATIC_NAME, *(s[0] for s in json.loads(f.attrs["segments"]))]
-            except (KeyError, ValueError, TypeError) as exc:
-                raise ResultsError(f"{p}: damaged results file (no segment list: {exc})") from None
-            missing = [name for name in needed if not (data / name).is_file()]
-            if missing:
-                raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
-        check_results(p, f, data_dir(p) if version >= 2 else None)
+        check_results(p, f, sealed)
     except BaseException:
         f.close()
         raise
     return f
 
 
+#: times `open_checked` reads an index that its run keeps replacing
+_ATTEMPTS = 5
+
+
+def _inode(st: os.stat_result) -> tuple[int, int]:
+    return st.st_dev, st.st_ino
+
+
 def read(p: Path, f: h5py.File) -> Results:
     """The `Results` in the open results file ``f`` (at ``p``), already checked."""
-    try:
-        spec = RunSpec.model_validate_json(f.attrs["spec"]) if f.attrs["spec"] else None
-    except ValueError as exc:
-        raise ResultsError(f"{p}: its stored spec is not valid for this version of pinnedballs ({exc})") from None
+    spec = stored_spec(f.attrs["spec"]) if f.attrs["spec"] else None  # checked by check_results
     version = int(f.attrs["format_version"])
     s, o = f["state"], f["observables"]
     exact = s["exact"].asstr()[()] if "exact" in s else None

@@ -19,7 +19,7 @@ from ..engine.errors import InputError
 from .files import remove, tmp_path
 from .format import DATA_DIR, RESULTS_NAME
 
-__all__ = ["LOCK_NAME", "DirLock", "check_writable", "take_run_dir", "check_out_dir"]
+__all__ = ["LOCK_NAME", "DirLock", "holder", "check_writable", "check_resumable", "take_run_dir", "check_out_dir"]
 
 #: the lock file in a locked directory (removed when the lock is released)
 LOCK_NAME = ".pinnedballs.lock"
@@ -124,6 +124,22 @@ class DirLock:
         self.release()
 
 
+def holder(out: str | os.PathLike) -> int | None:
+    """The pid of the live process that holds the lock on the directory ``out``, or None (no lock file:
+    released; a lock file whose process is gone: left by a kill). Reads only, and takes no lock."""
+    try:
+        pid = int((Path(out) / LOCK_NAME).read_text(encoding="ascii").strip())
+    except (OSError, ValueError):
+        return None
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return None
+    except PermissionError:  # alive, another user's
+        pass
+    return pid
+
+
 def _same_file(f, path: Path) -> bool:
     try:
         a, b = os.fstat(f.fileno()), os.stat(path)
@@ -132,6 +148,21 @@ def _same_file(f, path: Path) -> bool:
             return False
         raise
     return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def check_resumable(out: str | os.PathLike, option: str = "--out",
+                    hint: str = "check the path, or start a run without --resume") -> Path:
+    """``out`` as a Path if it may hold a run to continue; an `InputError` naming ``option`` if it is
+    missing or empty: continuing nothing would start hours of computation somewhere unintended (a
+    mistyped path) while the user believes a run goes on. A directory holding only what a run killed
+    before its first checkpoint leaves (a lock file, ``results.data/``, ``spec.json``) passes: that run
+    starts again from the beginning."""
+    out = Path(out)
+    if not out.is_dir():
+        raise InputError(f"{option} {out}: no such directory, so no run to continue; {hint}")
+    if not any(out.iterdir()):
+        raise InputError(f"{option} {out}: an empty directory, so no run to continue; {hint}")
+    return out
 
 
 def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: frozenset[str] = frozenset(), hint: str = "use --force to overwrite or --resume to continue",

@@ -16,7 +16,8 @@ from ..analysis import observables
 from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
 from ..simulation import RunState
-from .files import h5_file, remove, tmp_path, virtual_rows
+from .digest import bytes_digest, file_digest, seal
+from .files import h5_image, remove, tmp_path, virtual_rows, write_bytes_atomic
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, V1_OBSERVABLES, Record, data_dir, results_path
 from .load import open_checked, read, scalar
 
@@ -32,7 +33,9 @@ class ResultsStore:
     """A results file open for appending: what the index lists, and how to add to it.
 
     `create` starts one, `reopen` continues one (removing what a kill left half-written);
-    `checkpoint` appends frames as a new segment and replaces the index.
+    `checkpoint` appends frames as a new segment and replaces the index. A checkpoint changes
+    this object only once both are on disk, and never stores a frame twice, so one that failed
+    (a full disk, a signal) can simply be made again.
     """
 
     path: Path
@@ -41,6 +44,9 @@ class ResultsStore:
     columns: dict                    #: name -> (dtype str, shape) of each observable
     segments: list = field(default_factory=list)  #: [file, first, count]
     frames: int = 0
+    digests: dict = field(default_factory=dict)   #: file -> SHA-256 of static.h5 and each segment
+    last_step: int = -1              #: the step of the last frame stored (-1: none)
+    state: Record | None = None      #: the state the index holds
 
     @property
     def data_dir(self) -> Path:
@@ -54,64 +60,83 @@ class ResultsStore:
         path = Path(path)
         data = data_dir(path)
         data.mkdir(parents=True, exist_ok=True)
-        _write_static(data / STATIC_NAME, geometry, masses, initial)
+        static = _write_static(data / STATIC_NAME, geometry, masses, initial)
         n, d = initial.state.velocities.shape
         now = _now()
         attrs = dict(format=FORMAT, format_version=FORMAT_VERSION, version=version, spec=spec, run=run,
                      status="running", stop_reason="", created=now, updated=now, elapsed_seconds=0.0,
                      checkpoints=0, checked=False, observables=json.dumps(list(initial.values)))
         columns = {k: (v.dtype.str, v.shape) for k, v in initial.values.items()}
-        store = cls(path, attrs, (n, d), columns)
-        store._write_index(initial)
+        store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static})
+        store._write_index(initial, attrs, store.segments, store.digests)
+        store.state = initial
         return store
 
     @classmethod
     def reopen(cls, path: str | os.PathLike) -> "ResultsStore":
-        """The store of an existing results file, ready to append; a format-1 file is converted."""
+        """The store of an existing results file, ready to append; a format-1 file is converted, a
+        format-2 file gets the digests of its files (`digest`) with its next index."""
         path = results_path(path)
         with open_checked(path) as f:
             version = int(f.attrs["format_version"])
             if version == 1:
                 return _convert_v1(path, f)
+            res = read(path, f)
             attrs = {k: scalar(v) for k, v in f.attrs.items()}
             segments = json.loads(f.attrs["segments"])
             columns = {name: (f["observables"][name].dtype.str, f["observables"][name].shape[1:])
                        for name in json.loads(f.attrs["observables"])}
-            shape = f["state/velocities"].shape
-        store = cls(path, attrs, tuple(shape), columns, segments, sum(s[2] for s in segments))
+        data = data_dir(path)
+        digests = json.loads(attrs.pop("digests")) if version >= 3 else \
+            {name: file_digest(data / name) for name in [STATIC_NAME, *(s[0] for s in segments)]}
+        attrs["format_version"] = FORMAT_VERSION
+        state = Record(res.state(), res.energy, res.momentum, res.approaching)
+        store = cls(path, attrs, res.velocities.shape, columns, segments, sum(s[2] for s in segments), digests,
+                    res.snapshots[-1].steps if res.snapshots else -1, state)
         store._remove_strays()
         return store
 
-    def checkpoint(self, frames: list[Record], state: Record, *, done: bool = False, stop_reason: str = "",
-                   elapsed_seconds: float | None = None) -> None:
-        """Append ``frames`` (as one new segment) and replace the state: the new index is renamed
-        over the old one only once the segment is on disk."""
+    def checkpoint(self, frames: list[Record], state: Record, *, status: str = "running", stop_reason: str = "",
+                   elapsed_seconds: float | None = None, checked: bool = True) -> None:
+        """Append ``frames`` (as one new segment; those already stored are skipped) and replace the
+        state: the new index is renamed over the old one only once the segment is on disk.
+        ``status``: "running", "done" or "interrupted"; ``checked``: the snapshot trigger was
+        checked at the state's counts."""
+        frames = [r for r in frames if r.state.steps > self.last_step]
+        segments, digests, count = list(self.segments), dict(self.digests), self.frames
         if frames:
-            name = f"frames_{self.frames:09d}.h5"
-            _write_segment(self.data_dir / name, frames, list(self.columns))
-            self.segments.append([name, self.frames, len(frames)])
-            self.frames += len(frames)
-        self.attrs.update(status="done" if done else "running", stop_reason=stop_reason, updated=_now(),
-                          checkpoints=int(self.attrs["checkpoints"]) + 1, checked=True)
+            name = f"frames_{count:09d}.h5"
+            digests[name] = _write_segment(self.data_dir / name, frames, list(self.columns))
+            segments.append([name, count, len(frames)])
+            count += len(frames)
+        attrs = {**self.attrs, "status": status, "stop_reason": stop_reason, "updated": _now(),
+                 "checkpoints": int(self.attrs["checkpoints"]) + 1, "checked": checked}
         if elapsed_seconds is not None:
-            self.attrs["elapsed_seconds"] = float(elapsed_seconds)
-        self._write_index(state)
+            attrs["elapsed_seconds"] = float(elapsed_seconds)
+        self._write_index(state, attrs, segments, digests)
+        self.attrs, self.segments, self.digests, self.frames, self.state = attrs, segments, digests, count, state
+        if frames:
+            self.last_step = frames[-1].state.steps
 
-    def _write_index(self, state: Record) -> None:
+    def _write_index(self, state: Record, attrs: dict, segments: list, digests: dict) -> None:
         n, d = self.shape
         rel = f"{self.data_dir.name}/"
-        with h5_file(self.path) as f:
-            f.attrs.update(self.attrs)
-            f.attrs["segments"] = json.dumps(self.segments)
+
+        def fill(f: h5py.File) -> None:
+            f.attrs.update(attrs)
+            f.attrs["segments"] = json.dumps(segments)
+            f.attrs["digests"] = json.dumps(digests)
             f["geometry"] = h5py.ExternalLink(rel + STATIC_NAME, "/geometry")
             f["initial"] = h5py.ExternalLink(rel + STATIC_NAME, "/initial")
-            virtual_rows(f, "snapshots/velocities", "velocities", np.dtype(np.float64), (n, d), self.segments, rel)
+            virtual_rows(f, "snapshots/velocities", "velocities", np.dtype(np.float64), (n, d), segments, rel)
             for name, (dtype, shape) in self.columns.items():
                 virtual_rows(f, f"observables/{name}", f"observables/{name}", np.dtype(dtype), tuple(shape),
-                         self.segments, rel)
+                             segments, rel)
             for name in observables.ALWAYS:
                 f["snapshots"][name] = h5py.SoftLink(f"/observables/{name}")
             _write_state(f, state)
+
+        write_bytes_atomic(self.path, seal(h5_image(fill)))
 
     def _remove_strays(self) -> None:
         """Remove temporary files and segments the index does not list (left by a kill)."""
@@ -122,11 +147,12 @@ class ResultsStore:
         remove(tmp_path(self.path))
 
 
-def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> None:
+def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> str:
     """The geometry (with its boundary, frames and view: all that reading the run needs) and the
-    initial state."""
+    initial state; the digest of the file."""
     n = geometry.n_balls
-    with h5_file(path) as f:
+
+    def fill(f: h5py.File) -> None:
         g = f.create_group("geometry")
         c = geometry.contacts
         g["positions"] = geometry.positions
@@ -146,18 +172,26 @@ def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> No
         i["momentum"] = initial.momentum
         i.attrs.update(energy=initial.energy, approaching=initial.approaching)
 
+    return _write(path, h5_image(fill))
 
-def _write_segment(path: Path, frames: list[Record], names: list[str]) -> None:
-    with h5_file(path) as f:
+
+def _write_segment(path: Path, frames: list[Record], names: list[str]) -> str:
+    """``frames`` as one segment; the digest of the file."""
+    def fill(f: h5py.File) -> None:
         f["velocities"] = np.stack([r.state.velocities for r in frames])
         for name in names:
             f[f"observables/{name}"] = np.stack([np.asarray(r.values[name]) for r in frames])
 
+    return _write(path, h5_image(fill))
+
+
+def _write(path: Path, image: bytes) -> str:
+    write_bytes_atomic(path, image)
+    return bytes_digest(image)
+
 
 def _write_state(f: h5py.File, record: Record) -> None:
-    """Replace ``/state`` by ``record``: arrays as datasets, counts as attributes."""
-    if "state" in f:
-        del f["state"]
+    """``/state``: ``record``'s arrays as datasets, its counts as attributes."""
     s = f.create_group("state")
     state = record.state
     for name in RunState.ARRAYS:
@@ -171,7 +205,7 @@ def _write_state(f: h5py.File, record: Record) -> None:
 
 
 def _convert_v1(path: Path, f: h5py.File) -> "ResultsStore":
-    """A format-1 file rewritten as format 2 (static data, one segment of its frames, the index)."""
+    """A format-1 file rewritten as format 3 (static data, one segment of its frames, the index)."""
     res = read(path, f)
     n, d = res.velocities.shape
     names = list(V1_OBSERVABLES)
@@ -185,14 +219,14 @@ def _convert_v1(path: Path, f: h5py.File) -> "ResultsStore":
     f.close()
     data = data_dir(path)
     data.mkdir(exist_ok=True)
-    _write_static(data / STATIC_NAME, geometry, res.masses, initial)
+    digests = {STATIC_NAME: _write_static(data / STATIC_NAME, geometry, res.masses, initial)}
     columns = {k: (res.observables[k].dtype.str, res.observables[k].shape[1:]) for k in names}
     attrs.update(format_version=FORMAT_VERSION, run="", checked=True, observables=json.dumps(names))
-    store = ResultsStore(path, attrs, (n, d), columns)
+    store = ResultsStore(path, attrs, (n, d), columns, digests=digests, state=state)
     store._remove_strays()
     if frames:
         name = f"frames_{0:09d}.h5"
-        _write_segment(data / name, frames, names)
-        store.segments, store.frames = [[name, 0, len(frames)]], len(frames)
-    store._write_index(state)
+        digests[name] = _write_segment(data / name, frames, names)
+        store.segments, store.frames, store.last_step = [[name, 0, len(frames)]], len(frames), frames[-1].state.steps
+    store._write_index(state, attrs, store.segments, digests)
     return store

@@ -26,7 +26,7 @@ import h5py
 import numpy as np
 
 from ..engine.errors import FieldError, InputError
-from ..results.files import h5_file, remove, tmp_path, virtual_rows
+from ..results.files import h5_image, remove, tmp_path, virtual_rows, write_bytes_atomic
 from .driver import Writer
 
 __all__ = ["CollisionLog", "FORMAT"]
@@ -167,14 +167,19 @@ class CollisionLog(Writer):
         self._write_index()
 
     def _write_segment(self, name: str, steps: np.ndarray, contacts: np.ndarray) -> None:
-        with h5_file(self.data / name) as f:
+        def fill(f: h5py.File) -> None:
             f["step"], f["contact"] = steps.astype(np.int64), contacts.astype(np.int64)
+
+        write_bytes_atomic(self.data / name, h5_image(fill))
 
     def _write_index(self) -> None:
         rel = f"{self.data.name}/"
-        with h5_file(self.path) as f:
+
+        def fill(f: h5py.File) -> None:
             f.attrs.update(format=FORMAT, format_version=1, segments=json.dumps(self.segments),
                            complete_to=self.complete_to)
             for name in ("step", "contact"):
                 virtual_rows(f, name, name, np.dtype(np.int64), (), self.segments, rel)
+
+        write_bytes_atomic(self.path, h5_image(fill))
         remove(tmp_path(self.path))

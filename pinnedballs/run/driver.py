@@ -12,6 +12,12 @@ the paper's reproduction all use. Each pass of its loop, in this order:
 4. every writer may checkpoint (`Writer.after_chunk`), then ``after_chunk(sim)`` is called.
    A checkpoint is thus always of a state whose snapshots are recorded.
 
+If anything raises on the way (Ctrl-C's KeyboardInterrupt, a writer's error, ...), every writer
+already attached is told (`Writer.abort`, with the counts at which the driver last checked its
+trigger) before the exception goes on: a `ResultsWriter` saves the state the simulation stopped
+in. The compiled loop changes the state only inside one call, so the state is always one the
+chain passed through; a snapshot due at it that was not yet recorded is recorded by the writer.
+
 The engine carries all state, so the result is bit-identical however the run is split:
 a driven run ends on exactly the state of the plain ``sim.run(steps=, collisions=)`` or
 ``sim.run_until_frozen(max_steps=)``.
@@ -78,6 +84,10 @@ class Writer:
     def finish(self, sim, reason: str) -> None:
         """The run reached its stop for ``reason``."""
 
+    def abort(self, sim, checked: Counts | None) -> None:
+        """The run stopped on an exception (which goes on after this): save what is consistent.
+        ``checked``: the counts at which the driver last finished checking the trigger (None: never)."""
+
 
 def advance(sim, steps: int, collisions: int | None = None, until_frozen: bool = False) -> bool:
     """Run at most ``steps`` more steps, stopping at ``collisions`` in total if given, and
@@ -115,7 +125,17 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *,
           after_chunk: Callable[[object], None] | None = None) -> str:
     """Run ``sim`` to ``stop``, firing ``writers``; returns the stop reason (see the module's docstring)."""
     chunk = max(CHUNK_STEPS, CHUNK_PER_CONTACT * sim.geometry.n_contacts)
-    checked = [w.attach(sim) for w in writers]
+    checked: list[Counts | None] = []
+    try:
+        for w in writers:
+            checked.append(w.attach(sim))
+        return _loop(sim, stop, writers, checked, chunk, after_chunk)
+    except BaseException:
+        _abort(sim, writers[:len(checked)], checked)
+        raise
+
+
+def _loop(sim, stop: Stop, writers: Sequence[Writer], checked: list, chunk: int, after_chunk) -> str:
     triggers = [w.trigger for w in writers if w.trigger is not None]
     frozen = False
     _fire(sim, writers, checked)
@@ -132,6 +152,19 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *,
             w.after_chunk(sim)
         if after_chunk is not None:
             after_chunk(sim)
+
+
+def _abort(sim, writers: Sequence[Writer], checked: list) -> None:
+    """Tell each writer the run stopped; the first writer's own failure (after all were told) is raised
+    instead of the exception that stopped the run, which becomes its context."""
+    failed = None
+    for w, counts in zip(writers, checked):
+        try:
+            w.abort(sim, counts)
+        except BaseException as exc:  # noqa: BLE001 - the others must still be told
+            failed = failed or exc
+    if failed is not None:
+        raise failed
 
 
 def _fire(sim, writers: Sequence[Writer], checked: list[Counts | None]) -> None:

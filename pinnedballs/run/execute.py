@@ -24,7 +24,7 @@ from ..engine.errors import InputError
 from ..results.files import remove, write_text_atomic
 from ..results.format import RESULTS_NAME, Record
 from ..results.load import Results, load
-from ..results.rundir import DirLock
+from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec
@@ -50,7 +50,8 @@ SILENT = _Silent()
 
 
 class Interrupted(RuntimeError):
-    """The run was stopped by SIGINT/SIGTERM after writing a complete checkpoint."""
+    """The run was stopped by SIGINT/SIGTERM after writing a complete checkpoint (marked "interrupted",
+    or "done" if the run had finished)."""
 
 
 def _counter(sim: Simulation, name: str) -> int:
@@ -77,32 +78,49 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     The spec is built once into what runs it (the simulation, its stop, the writer's trigger),
     before anything is written: bad input fails first. A non-empty ``out_dir`` is refused
     (`InputError`) unless ``force`` (which replaces our files) or ``resume`` (which continues
-    from the last checkpoint of the same spec; a finished run is left as it is). ``progress``: a
+    from the last checkpoint of the same spec; a finished run is left as it is; a missing or empty
+    ``out_dir`` is refused, `check_resumable`). ``progress``: a
     tqdm bar on stderr; None means only if stderr is a terminal. ``status``: a callable told each
-    stage (building, compiling, drawing). SIGINT/SIGTERM write a checkpoint and raise `Interrupted`.
+    stage (building, compiling, drawing).
+
+    SIGINT/SIGTERM (main thread) ask the run to stop at the end of its chunk: the state is saved,
+    marked "interrupted", and `Interrupted` raised. A second SIGINT raises KeyboardInterrupt at once,
+    and the state the simulation is in is saved the same way. A request that comes as the run
+    finishes leaves it done, without its figures (``pinnedballs plot`` draws them).
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
+    if resume and not path.exists():
+        check_resumable(out)
     stop = spec.stop.build()
     snapshots = spec.snapshots.build() if spec.snapshots else None
-    sim = None
-    if not (resume and path.exists()):
-        status("building the geometry")
-        sim = spec.build()
-    with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
-        writer = ResultsWriter(out, snapshots=snapshots, checkpoint_seconds=spec.checkpoint.every_seconds, spec=spec,
-                               force=force, resume=resume, lock=lock)
-        fresh = sim is not None
-        if not fresh:
-            status("reading the last checkpoint")
-            sim = _resumed(spec, path)
-        else:
-            writer.attach(sim)      # takes the directory and writes the static data
-            _remove_figures(out)    # a replaced run's pictures would pass for this one's
-            remove(out / TRAJECTORY_NAME)
-            write_text_atomic(out / "spec.json", spec.to_json() + "\n")
-        if sim is not None:         # None: that run had finished
-            _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status)
+    with _deferred_signals() as stop_requested:
+        sim, fresh = None, not (resume and path.exists())
+        if fresh:
+            status("building the geometry")
+            sim = spec.build()
+        with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
+            writer = ResultsWriter(out, snapshots=snapshots, checkpoint_seconds=spec.checkpoint.every_seconds,
+                                   spec=spec, force=force, resume=resume, lock=lock)
+            try:
+                if fresh:
+                    writer.attach(sim)      # takes the directory and writes the static data
+                    _remove_figures(out)    # a replaced run's pictures would pass for this one's
+                    remove(out / TRAJECTORY_NAME)
+                    write_text_atomic(out / "spec.json", spec.to_json() + "\n")
+                else:
+                    status("reading the last checkpoint")
+                    sim = _resumed(spec, path)
+                if sim is not None:         # None: that run had finished
+                    _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status,
+                           stop_requested)
+            except BaseException:
+                writer.abort(sim, None)  # once attached, before the loop (the loop's own abort makes it a no-op)
+                raise
+        stopping = stop_requested()
+    if figures and stopping:
+        raise Interrupted(f"the run in {out} is done; interrupted before its figures: draw them with "
+                          f"pinnedballs plot {out}")
     if figures:
         status("drawing figures")
         write_figures(out)
@@ -127,18 +145,19 @@ def _trajectory(spec: RunSpec, out: Path, fresh: bool) -> list[GSDWriter]:
     return [GSDWriter(out / TRAJECTORY_NAME, spec.trajectory.build(), spec.observables, force=fresh, resume=not fresh)]
 
 
-def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | None, status) -> None:
+def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | None, status,
+           stop_requested: Callable[[], bool]) -> None:
     """``sim`` to ``stop`` recording into ``writers`` (the `ResultsWriter` last, so every other writer
-    has recorded a state before it is checkpointed), with a progress bar; SIGINT/SIGTERM checkpoint and stop."""
+    has recorded a state before it is checkpointed), with a progress bar; a stop requested by a signal
+    raises `Interrupted` between chunks (the driver has the writers save the state first)."""
     writer = writers[-1]
     status("compiling the loop (once: numba caches it on disk)")
     sim.run(steps=0, until_frozen=stop.until_frozen)  # compiles; changes no bit of the state
     status.clear()
-    with _progress_bar(stop, sim, progress) as bar, _deferred_signals() as stop_requested:
+    with _progress_bar(stop, sim, progress) as bar:
         def after_chunk(s: Simulation) -> None:
             bar(s)
             if stop_requested():
-                writer.checkpoint(s)
                 raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
                                   f"continue with --resume")
 

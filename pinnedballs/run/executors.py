@@ -4,6 +4,13 @@ A job is ``(fn, *args)``; each executor returns ``{index: fn(*args)}`` for the j
 ``{index: job}``, calling ``tick()`` as each ends. A job whose worker failed (a process that died,
 a Dask worker lost) gives ``on_error(index, exc)`` instead of its result, and the others go on.
 
+A worker that dies (killed, out of memory) takes no other job down with it. Dask reschedules
+the jobs of a lost worker itself, and gives up on one whose workers died `MAX_DEATHS` + 1
+times (``KilledWorker``). A local pool breaks as a whole when one of its processes dies, failing
+every job still in it: `on_processes` runs again those that had not started, and runs each one
+that was running alone, so that a death there is its own; a job whose process dies `MAX_DEATHS`
+times is reported (`WorkerDied`). Jobs are deterministic, so a job run again gives the same bits.
+
 Before Dask connects to a ``tcp://`` address, `check_scheduler` reads the server's greeting itself.
 A Dask listener speaks first: on every new connection it sends its handshake, one
 message framed as ``8 bytes (native uint64) n`` + ``n bytes`` of frames, holding a
@@ -19,16 +26,23 @@ Only plain ``tcp://`` addresses are probed (TLS and other transports are left to
 
 from __future__ import annotations
 
+import os
 import socket
 import struct
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Callable
 
 from ..engine.errors import InputError
 
-__all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "MAX_GREETING",
-           "CONNECT_TIMEOUT"]
+__all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "WorkerDied", "MAX_DEATHS",
+           "MAX_GREETING", "CONNECT_TIMEOUT"]
+
+#: deaths of the process running a job, alone, after which the job is reported instead of run again
+MAX_DEATHS = 3
 
 #: largest handshake accepted, in bytes (a real one is about 100)
 MAX_GREETING = 1 << 16
@@ -65,14 +79,72 @@ def _collect(finished, futures: dict, tick, on_error: OnError) -> dict:
     return results
 
 
+class WorkerDied(RuntimeError):
+    """The process running a job died (killed, or out of memory?) each time the job ran, alone."""
+
+
 def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: OnError) -> dict:
-    """Run the jobs on ``workers`` local processes."""
+    """Run the jobs on ``workers`` local processes; a process that dies costs only its own job (see
+    the module's docstring)."""
+    results: dict = {}
+    with tempfile.TemporaryDirectory(prefix="pinnedballs-jobs-") as marks:
+        todo = dict(jobs)
+        while todo:
+            running = _pool(todo, workers, Path(marks), results, tick, on_error)
+            for k in running:  # alone: a death is then its own
+                for _ in range(MAX_DEATHS):
+                    if not _pool({k: todo[k]}, 1, Path(marks), results, tick, on_error):
+                        break
+                else:
+                    results[k] = on_error(k, WorkerDied(f"the process running it died {MAX_DEATHS} times (killed, or "
+                                                        f"out of memory?)"))
+                    tick()
+            todo = {k: job for k, job in todo.items() if k not in results}
+    return results
+
+
+def _pool(jobs: dict, workers: int, marks: Path, results: dict, tick, on_error: OnError) -> list:
+    """Run ``jobs`` on a pool of ``workers`` processes, adding to ``results``; if a process died, the
+    jobs that were running then (each marks the file ``<index>`` in ``marks`` while it runs), else []."""
     pool = ProcessPoolExecutor(max_workers=workers)
     try:
-        futures = {pool.submit(*job): k for k, job in jobs.items()}
-        return _collect(as_completed(futures), futures, tick, on_error)
+        futures = {pool.submit(_marked, marks / str(k), *job): k for k, job in jobs.items()}
+        finished = as_completed(futures)
+        for future in finished:
+            k = futures[future]
+            try:
+                results[k] = future.result()
+            except BrokenProcessPool:
+                pool.shutdown(wait=True, cancel_futures=True)
+                return _after_break(futures, marks, results, tick)
+            except Exception as exc:  # noqa: BLE001 - reported by on_error, the others kept
+                results[k] = on_error(k, exc)
+            tick()
+        return []
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _after_break(futures: dict, marks: Path, results: dict, tick) -> list:
+    """The results of the jobs that ended before the pool broke, added to ``results``; the jobs that
+    were running when it broke (their marks are removed)."""
+    for future, k in futures.items():
+        if k not in results and future.done() and not future.cancelled() and future.exception() is None:
+            results[k] = future.result()
+            tick()
+    running = [k for k in futures.values() if k not in results and (marks / str(k)).exists()]
+    for k in running:
+        (marks / str(k)).unlink()
+    return running
+
+
+def _marked(mark: Path, fn, *args):
+    """``fn(*args)``, with the file ``mark`` there while it runs (run on the worker)."""
+    mark.touch()
+    try:
+        return fn(*args)
+    finally:
+        os.unlink(mark)
 
 
 def on_dask(client, jobs: dict, tick: Callable[[], None], on_error: OnError) -> dict:

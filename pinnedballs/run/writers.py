@@ -11,6 +11,11 @@ the snapshots with their observables, and the latest state, checkpointed every
 ``checkpoint_seconds`` and after snapshots. ``pinnedballs info`` and ``plot`` and `pb.load`
 read it; ``pb.load("DIR").simulation()`` continues the run bit for bit, and
 ``ResultsWriter("DIR", resume=True, ...)`` goes on recording into the same directory.
+
+A run stopped by Ctrl-C (KeyboardInterrupt) or by any other exception is saved as it stopped:
+the writer checkpoints the state the simulation is in, with every snapshot due at it, marks
+the results "interrupted", releases the directory and lets the exception go on. A Ctrl-C
+during a checkpoint is held until the checkpoint is written (`held_signals`).
 """
 
 from __future__ import annotations
@@ -25,8 +30,9 @@ import numpy as np
 from .._version import __version__
 from ..engine import checks
 from ..analysis import observables as named
+from ..results.files import held_signals
 from ..results.format import DATA_DIR, RESULTS_NAME, Record
-from ..results.rundir import DirLock, take_run_dir
+from ..results.rundir import DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from .driver import Writer
 from .triggers import Counts, Trigger
@@ -83,6 +89,7 @@ class ResultsWriter(Writer):
         self.names = named.check_names(observables)
         self.force, self.resume, self.spec = force, resume, spec
         self.store: ResultsStore | None = None
+        self._running = False  #: between attach and finish or abort
         self._lock, self._own_lock = lock, lock is None
         self.pending: list[Record] = []
         self._checked: Counts | None = None
@@ -101,17 +108,21 @@ class ResultsWriter(Writer):
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
-        if self._own_lock and self._lock is None:
-            self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
-        if self.store is None:
-            try:
-                self.store = self._open(sim)
-            except BaseException:
-                self.close()
-                raise
-        elif (sim.steps, sim.collisions) != self._checked:
-            self._checked = None  # the simulation moved on without us: check its state afresh
-        self._start = self._last = time.monotonic()
+        if self.resume and self.store is None and not self.path.exists() and self._own_lock:
+            check_resumable(self.out_dir, "out_dir", "check the path, or pass resume=False to start one")
+        with held_signals():  # a Ctrl-C lands once the store is open and the run is ours to save
+            if self._own_lock and self._lock is None:
+                self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
+            if self.store is None:
+                try:
+                    self.store = self._open(sim)
+                except BaseException:
+                    self.close()
+                    raise
+            elif (sim.steps, sim.collisions) != self._checked:
+                self._checked = None  # the simulation moved on without us: check its state afresh
+            self._start = self._last = time.monotonic()
+            self._running = True
         return self._checked
 
     def write(self, sim) -> None:
@@ -126,7 +137,38 @@ class ResultsWriter(Writer):
 
     def finish(self, sim, reason: str) -> None:
         self._checked = (sim.steps, sim.collisions)
-        self._checkpoint(Record.of(sim, self.names), done=True, reason=reason)
+        self._checkpoint(Record.of(sim, self.names), status="done", reason=reason)
+        self._stopped()
+
+    def abort(self, sim, checked: Counts | None) -> None:
+        """Checkpoint the state ``sim`` stopped in, marked "interrupted", with the snapshot due at it
+        if the driver had not recorded it yet; release the directory (see the module's docstring)."""
+        if not self._running:
+            self.close()
+            return
+        try:
+            with held_signals():
+                state, was_checked = self._stopped_state(sim, checked)
+                self._checkpoint(state, status="interrupted", checked=was_checked)
+                self._checked = (state.state.steps, state.state.collisions) if was_checked else None
+        finally:
+            self._stopped()
+
+    def _stopped_state(self, sim, checked: Counts | None) -> tuple[Record, bool]:
+        """The state to save when the run stopped, and whether the trigger was checked at its counts:
+        ``sim``'s own, once any snapshot due at it is recorded; if that snapshot cannot be taken (the
+        error that stopped the run?), the last state whose snapshots all are."""
+        now = (sim.steps, sim.collisions)
+        last = self.pending[-1].state.steps if self.pending else self.store.last_step
+        if self.trigger is not None and checked != now and last != now[0] and self.trigger.fires(checked, now):
+            try:
+                self.pending.append(Record.of(sim, self.names))
+            except Exception:  # noqa: BLE001 - saving what is sound comes first
+                return (self.pending[-1], True) if self.pending else (self.store.state, bool(self.store.attrs["checked"]))
+        return Record.of(sim, ()), True
+
+    def _stopped(self) -> None:
+        self._running = False
         self._elapsed0 = self.elapsed()
         self.close()
 
@@ -146,11 +188,14 @@ class ResultsWriter(Writer):
         self._checked = (sim.steps, sim.collisions)
         self._checkpoint(Record.of(sim, self.names))
 
-    def _checkpoint(self, state: Record, done: bool = False, reason: str = "") -> None:
+    def _checkpoint(self, state: Record, status: str = "running", reason: str = "", checked: bool = True) -> None:
         t = time.monotonic()
-        self.store.checkpoint(self.pending, state, done=done, stop_reason=reason, elapsed_seconds=self.elapsed())
-        self.pending = []
-        self._saved = (state.state.steps, state.state.collisions)
+        with held_signals():  # a Ctrl-C lands after the checkpoint, never inside it
+            self.store.checkpoint([r for r in self.pending if r.state.steps <= state.state.steps], state,
+                                  status=status, stop_reason=reason, elapsed_seconds=self.elapsed(), checked=checked)
+            self.pending = [r for r in self.pending if r.state.steps > state.state.steps]
+            self._saved = (state.state.steps, state.state.collisions)
+            self._running = status == "running"  # a run saved as done or interrupted is never saved again
         self._last = time.monotonic()
         self._cost = self._last - t
 

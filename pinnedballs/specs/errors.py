@@ -41,6 +41,9 @@ def first_error(exc: ValidationError, root: type[BaseModel]) -> SpecError:
     if e["type"] == "union_tag_not_found":
         return SpecError(_dot(path, "kind"), f"missing; one of: {', '.join(tags)}")
     if e["type"] == "union_tag_invalid":
+        given = e["input"].get("kind", "") if isinstance(e.get("input"), dict) else ""
+        if not isinstance(given, str):
+            return SpecError(_dot(path, "kind"), f"must be a string, one of: {', '.join(tags)}; got {_short(given)}")
         tag = str(e["ctx"]["tag"])
         return SpecError(_dot(path, "kind"), f"unknown kind {tag!r}{_suggest(tag, list(tags))} "
                                              f"(valid kinds: {', '.join(tags)})")

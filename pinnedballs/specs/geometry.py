@@ -12,7 +12,7 @@ from pydantic import Field, field_validator, model_validator
 from .errors import SpecError
 from ..geometry import FCC, HCP, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 from .base import FilePath, Positive, _fields, _in_file, _load_npy, _Spec, engine_errors
-from .python import PythonGeometrySpec
+from .python import IMPORT_FACTORIES, PythonGeometrySpec
 
 __all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "SphereSpec", "HyperbolicPlaneSpec", "FCCSpec",
            "HCPSpec", "GeometrySpec", "geometry_from_stored", "parse_geometry"]
@@ -169,8 +169,11 @@ def geometry_from_stored(spec, positions: np.ndarray):
 
 
 def parse_geometry(described: dict):
-    """The `GeometrySpec` of a dict with a ``"kind"`` (a geometry's own `Geometry.to_spec`), or None
-    for a dict without one (a geometry that has no spec)."""
+    """The `GeometrySpec` of a dict with a ``"kind"`` (a geometry's own `Geometry.to_spec`, as a run
+    built in Python stores it), or None for a dict without one (a geometry that has no spec).
+    A user's factory it names is not imported (`IMPORT_FACTORIES`)."""
     from pydantic import TypeAdapter
 
-    return TypeAdapter(GeometrySpec).validate_python(described) if "kind" in described else None
+    if "kind" not in described:
+        return None
+    return TypeAdapter(GeometrySpec).validate_python(described, context={IMPORT_FACTORIES: False})

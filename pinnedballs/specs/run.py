@@ -20,12 +20,12 @@ from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _loa
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
 from .errors import SpecError, _dot, _models_of, _short, first_error
-from .python import ENTRY_POINT_GROUPS, expand_entry_points
+from .python import ENTRY_POINT_GROUPS, IMPORT_FACTORIES, expand_entry_points, label
 from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
 
-__all__ = ["RunSpec", "parse_spec", "load_spec", "describe"]
+__all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe"]
 
 
 MassesField = Union[Positive, FilePath]
@@ -230,6 +230,12 @@ def load_spec(path: str | os.PathLike) -> RunSpec:
         raise SpecError(str(path), exc.problem) from None
 
 
+def stored_spec(text: str) -> RunSpec:
+    """The spec stored with a run (JSON), validated without importing the user's factories it names:
+    reading a run needs no user code. A ValueError if it is not a valid spec."""
+    return RunSpec.model_validate_json(text, context={IMPORT_FACTORIES: False})
+
+
 def _join(a: str, b: str) -> str:
     return f"{a}: {b}" if a and b else a or b
 
@@ -248,9 +254,9 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     snapshots = _how_many(spec.snapshots, spec.stop, "snapshot")
     if spec.trajectory is not None:
         snapshots += f", trajectory.gsd: {_how_many(spec.trajectory, spec.stop, 'frame')}"
-    rule = spec.rule.kind + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
+    rule = label(spec.rule) + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
-            f"{sim.geometry.dim}; {spec.initial.kind}, energy {sim.energy():.6g}; {rule}, {spec.scheduler.kind}; "
+            f"{sim.geometry.dim}; {label(spec.initial)}, energy {sim.energy():.6g}; {rule}, {label(spec.scheduler)}; "
             f"stop at {until}; {snapshots}; seed {spec.seed}")
 
 

@@ -110,7 +110,8 @@ BAD_FILES = {
     "missing directory": (lambda d: d / "nowhere", ["nowhere: no such file"]),
     "directory without results": (lambda d: d, ["no results.h5 in this directory"]),
     "foreign HDF5": (_foreign, ["results.h5: not a pinnedballs results file"]),
-    "truncated HDF5": (_truncated, ["results.h5: not a readable HDF5 file (truncated or not HDF5)"]),
+    "truncated HDF5": (_truncated, ["results.h5: damaged results file: its bytes differ from the digest written with "
+                                    "them (changed or cut short since pinnedballs wrote it)"]),
     "not HDF5": (_garbage, ["results.h5: not a readable HDF5 file"]),
 }
 

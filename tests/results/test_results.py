@@ -7,6 +7,8 @@ each snapshot at exactly its step or collision count, however it is chunked.
 
 from __future__ import annotations
 
+import json
+
 import h5py
 import numpy as np
 import pytest
@@ -139,7 +141,9 @@ def test_file_layout_and_physics(tmp_path):
     with h5py.File(res.path) as f:
         assert f.attrs["format"] == "pinnedballs-results"
         assert f["snapshots/velocities"].shape == (4, 64, 2)
-        assert f.attrs["format_version"] == 2 and f["snapshots/velocities"].is_virtual  # over the segments
+        assert f.attrs["format_version"] == 3 and f["snapshots/velocities"].is_virtual  # over the segments
+        listed = [s[0] for s in json.loads(f.attrs["segments"])]
+        assert f.userblock_size == 512 and sorted(json.loads(f.attrs["digests"])) == sorted([*listed, "static.h5"])
         assert f["state/rng_state"].dtype == np.uint64 and f["state/scheduler_state"].dtype == np.int64
         assert set(f) == {"geometry", "initial", "snapshots", "observables", "state"}
     assert sorted(p.name for p in res.path.parent.iterdir()) == ["results.data", "results.h5", "spec.json"]

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import pinnedballs as pb
+from pinnedballs.cli.main import main
 from helpers import TORUS, spec, write
 from helpers import assert_identical, reference, resume
 
@@ -114,7 +115,7 @@ def test_a_run_that_fills_the_disk_stops_cleanly_and_resumes_bit_identical(tmp_p
 def test_figures_that_do_not_fit_leave_no_partial_png(tmp_path):
     s = write(tmp_path / "s.json", spec(TORUS, geometry__rows=10, geometry__cols=10))
     done = tmp_path / "done"
-    assert resume(s, done) == 0  # a fresh run, no figures
+    assert main(["run", str(s), "--out", str(done), "--quiet", "--no-figures"]) == 0  # a fresh run, no figures
     with small_disk(tmp_path / "disk", 1024 * 1024) as (disk, env):
         out = disk / "run"
         shutil.copytree(done, out)

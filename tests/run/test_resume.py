@@ -17,7 +17,10 @@ from pinnedballs.run import driver
 from pinnedballs.run import execute as runner
 from pinnedballs.results.load import load
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, TORUS, assert_identical, reference, resume, spec, write
+import pinnedballs as pb
+from pinnedballs.engine.errors import InputError
+from pinnedballs.results.rundir import LOCK_NAME
+from helpers import HALF_PLANE, TORUS, assert_identical, assert_input_error, call, reference, resume, spec, write
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -169,10 +172,39 @@ def test_resume_after_a_kill_mid_write(tmp_path, monkeypatch):
     assert_identical(load(out), reference(tmp_path, data))
 
 
-def test_resume_without_a_run_starts_one(tmp_path):
+@pytest.mark.parametrize("empty", [False, True], ids=["missing", "empty"])
+def test_resume_refuses_a_directory_without_a_run(tmp_path, empty):
+    """Issue 20, item 6: --resume of nothing (a mistyped path, most likely) is refused rather than
+    starting, somewhere unintended, a run the user believes is going on; from Python too."""
     spec_path = write(tmp_path / "s.json", TORUS)
-    assert resume(spec_path, tmp_path / "fresh") == 0
-    assert_identical(load(tmp_path / "fresh"), reference(tmp_path, TORUS))
+    out = tmp_path / "fresh"
+    if empty:
+        out.mkdir()
+    what = "an empty directory" if empty else "no such directory"
+    code, stdout, err = call("run", spec_path, "--out", out, "--resume", "--quiet", "--no-figures")
+    assert_input_error(code, err, f"--out {out}: {what}, so no run to continue; check the path, or start a run "
+                                  f"without --resume")
+    assert stdout == "" and (list(out.iterdir()) == [] if empty else not out.exists())
+    sim = parse_spec(TORUS).build()
+    with pytest.raises(InputError, match=rf"^out_dir {out}: {what}, so no run to continue; check the path, or pass "
+                                         rf"resume=False to start one$"):
+        sim.run(steps=10, writers=[pb.ResultsWriter(out, resume=True)])
+    assert sim.steps == 0 and (list(out.iterdir()) == [] if empty else not out.exists())
+
+
+def test_resume_starts_over_a_run_killed_before_its_first_checkpoint(tmp_path):
+    """What such a run leaves (its lock file, results.data/ with a half-written static file) is its own:
+    --resume starts it again, and says so."""
+    spec_path = write(tmp_path / "s.json", TORUS)
+    out = tmp_path / "born"
+    (out / "results.data").mkdir(parents=True)
+    (out / "results.data" / "static.h5.tmp").write_bytes(b"\x89HDF")
+    (out / LOCK_NAME).write_text("999999999\n")
+    code, stdout, err = call("run", spec_path, "--out", out, "--resume", "--quiet", "--no-figures")
+    assert (code, stdout) == (0, "")
+    assert err == f"pinnedballs: {out} holds no checkpoint yet (its run stopped before writing one): starting it " \
+                  f"from the beginning\n"
+    assert_identical(load(out), reference(tmp_path, TORUS))
 
 
 def test_resume_may_change_checkpoint_and_description(tmp_path, monkeypatch):

@@ -246,13 +246,13 @@ def test_format_1_file_loads_and_continues(tmp_path):
     assert np.array_equal(old.velocities, fresh.velocities) and old.steps == 1_000
     assert [s.steps for s in old.snapshots] == [0, 250, 1_000]
     assert list(old.observables) == ["steps", "collisions", "energy", "momentum", "approaching"]
-    # continuing it converts it to format 2, snapshots and state unchanged
+    # continuing it converts it to format 3, snapshots and state unchanged
     run_dir = tmp_path / "old"
     run_dir.mkdir()
     shutil.copy(DATA / "results_v1.h5", run_dir / "results.h5")
     ResultsStore.reopen(run_dir)
     new = load(run_dir)
-    assert new.format_version == 2 and new.complete
+    assert new.format_version == 3 and new.complete
     assert [s[:2] for s in new.snapshots] == [s[:2] for s in old.snapshots]
     assert all(np.array_equal(a.velocities, b.velocities) for a, b in zip(new.snapshots, old.snapshots))
     assert np.array_equal(new.velocities, old.velocities) and np.array_equal(new.rng_state, old.rng_state)
@@ -290,7 +290,7 @@ def test_resume_of_a_format_1_run_converts_it_and_is_bit_identical(tmp_path):
     assert cli.main(["run", str(spec_path), "--out", str(out), "--resume", "--quiet", "--no-figures"]) == 0
     runner.execute(parse_spec(data), tmp_path / "ref", figures=False, progress=False)
     a, b = load(out), load(tmp_path / "ref")
-    assert a.format_version == 2 and a.complete
+    assert a.format_version == 3 and a.complete
     assert [s[:2] for s in a.snapshots] == [s[:2] for s in b.snapshots] and len(a.snapshots) == 3
     assert all(np.array_equal(x.velocities, y.velocities) for x, y in zip(a.snapshots, b.snapshots))
     assert np.array_equal(a.velocities, b.velocities) and np.array_equal(a.rng_state, b.rng_state)

@@ -1,0 +1,72 @@
+"""``pinnedballs info``: what it says of a run (issue 19 item 5.7, given to issue 20): the time a run
+took, what its components are, and whether it is done, interrupted or still running."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.cli.commands import _duration
+from pinnedballs.results.rundir import LOCK_NAME, DirLock
+from helpers import ROOT, TORUS, call, chain, write
+
+
+@pytest.mark.parametrize("seconds,text", [(0.0052913, "5.29 ms"), (0.0208, "20.8 ms"), (0.9996, "1 s"),
+                                          (1.0, "1 s"), (12.345, "12.3 s"), (125.2, "2 min 05 s"),
+                                          (11_220.0, "3 h 07 min")])
+def test_durations_keep_three_significant_figures(seconds, text):
+    assert _duration(seconds) == text
+
+
+def test_info_of_a_short_run_says_how_long_it_took(tmp_path):
+    out = tmp_path / "out"
+    assert call("run", write(tmp_path / "s.json", TORUS), "--out", out, "--quiet", "--no-figures")[0] == 0
+    res = pb.load(out)
+    code, stdout, err = call("info", out)
+    assert (code, err) == (0, "") and 0 < res.elapsed_seconds < 60
+    assert f"time:        {_duration(res.elapsed_seconds)} in 2 checkpoint(s); written by pinnedballs" in stdout
+    assert "time:        0.0 s" not in stdout
+
+
+def test_info_names_the_components_of_a_run_built_in_python(tmp_path):
+    """A component without a spec is named by its class, the others by their kind (a user's factory:
+    `test_user_components.test_a_run_of_a_users_module_reads_without_it_and_continues_with_it`)."""
+    g = chain(5)
+    v = np.zeros((5, 1))
+    v[0] = 1.0
+    sim = pb.Simulation(g, v, rule=pb.Restitution(0.5), scheduler=pb.Sweep())
+    sim.run_until_frozen(1000, writers=[pb.ResultsWriter(tmp_path / "r")])
+    code, stdout, err = call("info", tmp_path / "r")
+    assert (code, err) == (0, "")
+    assert "geometry:    pinnedballs.geometry.graph.GraphGeometry: 5 balls, 4 contacts, dim 1\n" in stdout
+    assert "run:         given velocities, restitution, sweep, built in Python\n" in stdout
+
+
+@pytest.fixture
+def running(tmp_path):
+    """A run whose file says "running" (the format-2 run of tests/data, marked so)."""
+    run = tmp_path / "run"
+    shutil.copytree(ROOT / "tests" / "data" / "format2", run)
+    with h5py.File(run / "results.h5", "r+") as f:
+        f.attrs["status"], f.attrs["stop_reason"] = "running", ""
+    return run
+
+
+def test_info_tells_a_running_run_from_one_killed(running):
+    """"running" with the pid of the live process holding the directory; "stopped" when none does."""
+    code, out, _ = call("info", running)
+    assert code == 0 and ("status:      stopped (killed: no process is writing it; this is its last checkpoint: "
+                          "continue with --resume)\n") in out
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (running / LOCK_NAME).write_text(dead.stdout)  # what a killed run leaves
+    assert "status:      stopped (killed: " in call("info", running)[1]
+    with DirLock(running):
+        code, out, _ = call("info", running)
+    assert code == 0 and f"status:      running (pid {os.getpid()}; this is its last checkpoint)\n" in out
