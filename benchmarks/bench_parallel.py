@@ -60,7 +60,7 @@ def measure(threads: int, steps: int, policy: str, chunk: int = 0) -> dict:
     env = {**os.environ, "NUMBA_NUM_THREADS": str(threads), "BENCH_CHUNK": str(chunk or "")}
     env.pop("OMP_WAIT_POLICY", None)
     env.pop("GOMP_SPINCOUNT", None)
-    env.update(POLICIES.get(policy) or dict(kv.split("=", 1) for kv in policy.split(",")))
+    env.update(POLICIES[policy] if policy in POLICIES else dict(kv.split("=", 1) for kv in policy.split(",")))
     out = subprocess.run([sys.executable, "-c", _CHILD, str(steps)], capture_output=True, text=True, check=True,
                          cwd=ROOT, env=env)
     return json.loads(out.stdout.strip().splitlines()[-1])

@@ -69,38 +69,46 @@ def using(threads: int | None):
 
 
 class ThreadTuner:
-    """Chooses how many threads each segment of a long parallel run uses: every `PERIOD` segments
-    it times one segment on each candidate (all threads, and 1), then runs on the faster.
+    """Chooses how many threads each segment of a long parallel run uses: it times every segment,
+    runs on the count with the best rate, and every ``period`` segments tries each other count once
+    more. The period starts at `PERIOD` and doubles (to `MAX_PERIOD`) each time the same count wins
+    again, so a settled choice pays for few trials; a change of winner resets it. The running
+    count's rate is always fresh: if the machine gets busy and it drops below another count's
+    latest rate, the tuner moves to that count at once.
 
     ``candidates``: the thread counts to try (default: `most_threads` and 1).
     """
 
-    #: segments run on the chosen count between two rounds of timing
+    #: segments between two trials of the other counts, at first and after a change of winner
     PERIOD = 24
+    #: the longest such interval (about 10 s of `TUNED_SEGMENT` segments)
+    MAX_PERIOD = 384
 
     def __init__(self, candidates: tuple[int, ...] | None = None):
         most = most_threads()
         self.candidates = candidates or ((most, 1) if most > 1 else (1,))
-        self.rates: dict[int, float] = {}  # steps per second of the latest round of timing
-        self.since = 0  # segments since that round
+        self.rates: dict[int, float] = {}  # the latest steps per second on each count
+        self.since = 0  # segments since the latest trial
+        self.period = self.PERIOD
+        self.winner: int | None = None  # the best count at the latest trial
 
     def choose(self) -> int:
         """The thread count for the next segment: an untimed candidate, else the fastest."""
-        if self.since >= self.PERIOD:
-            self.rates, self.since = {}, 0
         for count in self.candidates:
             if count not in self.rates:
                 return count
         return max(self.rates, key=self.rates.get)
 
     def run(self, segment, steps: int) -> None:
-        """``segment(steps)`` on the chosen count, timed if it is a round of timing."""
+        """``segment(steps)`` on the chosen count, timed."""
         count = self.choose()
-        timed = count not in self.rates
         start = time.perf_counter()
         with using(count):
             segment(steps)
-        if timed:
-            self.rates[count] = steps / max(time.perf_counter() - start, 1e-9)
-        else:
-            self.since += 1
+        self.rates[count] = steps / max(time.perf_counter() - start, 1e-9)
+        self.since += 1
+        if self.since >= self.period and len(self.rates) == len(self.candidates):
+            best = self.choose()
+            self.period = min(2 * self.period, self.MAX_PERIOD) if best == self.winner else self.PERIOD
+            self.winner, self.since = best, 0
+            self.rates = {best: self.rates[best]}  # the others are tried again

@@ -58,23 +58,44 @@ class _Clock:
         self.now += self.seconds[self.count]
 
 
-def test_tuner_times_each_count_then_runs_on_the_faster_and_times_again(monkeypatch):
+def _tune(tuner, clock, segments: int) -> list[int]:
+    used = []
+    for _ in range(segments):
+        tuner.run(clock.segment, 100)
+        used.append(clock.count)
+    return used
+
+
+def test_tuner_times_each_count_then_runs_on_the_faster_and_tries_again(monkeypatch):
     clock = _Clock({2: 1.0, 1: 3.0})
     monkeypatch.setattr(threads.time, "perf_counter", clock)
     monkeypatch.setattr(threads, "using", _pretend_using(clock))
     tuner = ThreadTuner(candidates=(2, 1))
-    used = []
-    for _ in range(2 + ThreadTuner.PERIOD + 2 + 3):
-        tuner.run(clock.segment, 100)
-        used.append(clock.count)
     p = ThreadTuner.PERIOD
-    assert used[:2] == [2, 1] and used[2:2 + p] == [2] * p  # timed both, then the faster
-    assert used[2 + p:4 + p] == [2, 1]                      # timed again after PERIOD segments
-    assert tuner.rates == {2: 100.0, 1: 100 / 3.0}
-    clock.seconds = {2: 5.0, 1: 3.0}                         # the machine got busy: 1 thread is faster now
-    for _ in range(ThreadTuner.PERIOD + 3):
-        tuner.run(clock.segment, 100)
-    assert clock.count == 1
+    used = _tune(tuner, clock, p)
+    assert used == [2, 1] + [2] * (p - 2)  # timed both, then the faster until the period ends
+    assert tuner.rates == {2: 100.0} and tuner.winner == 2 and tuner.period == p
+    used = _tune(tuner, clock, p)
+    assert used == [1] + [2] * (p - 1)  # 1 thread tried once more, then 2; 2 won again: a longer period
+    assert tuner.period == 2 * p
+    assert _tune(tuner, clock, 2 * p) == [1] + [2] * (2 * p - 1)
+
+
+def test_tuner_backs_off_to_its_longest_period_and_resets_on_a_new_winner(monkeypatch):
+    clock = _Clock({2: 1.0, 1: 3.0})
+    monkeypatch.setattr(threads.time, "perf_counter", clock)
+    monkeypatch.setattr(threads, "using", _pretend_using(clock))
+    tuner = ThreadTuner(candidates=(2, 1))
+    used = _tune(tuner, clock, 4000)
+    assert tuner.period == ThreadTuner.MAX_PERIOD
+    assert used.count(1) <= 1 + 4000 // ThreadTuner.PERIOD  # few trials of the slower count
+    assert used[-ThreadTuner.MAX_PERIOD // 2:].count(1) <= 1
+    clock.seconds = {2: 5.0, 1: 3.0}  # the machine got busy: 1 thread is faster now
+    used = _tune(tuner, clock, 3)
+    assert used[1:] == [1, 1]  # the running count's fresh rate fell below 1 thread's: moved at once
+    while tuner.since:  # to the end of this period
+        _tune(tuner, clock, 1)
+    assert tuner.winner == 1 and tuner.period == ThreadTuner.PERIOD  # a new winner: short periods again
 
 
 def _pretend_using(clock):
