@@ -246,6 +246,22 @@ def selector_picks(select: Callable, begin: Callable) -> Callable:
     return picks
 
 
+def selector_replay(select: Callable) -> Callable:
+    """``replay(state, aux, rng, n_contacts, count) -> rng``: the next ``count`` picks of one selector
+    drawn and dropped, inlined into a loop (a limited loop rewinding a chunk to its last collision),
+    so that loop needs no separately compiled `selector_picks`."""
+
+    @njit(inline="always")
+    def replay(state, aux, rng, n, count):
+        taken = 0
+        while taken < count:
+            _, g, rng = select(state, aux, rng, n, count - taken)
+            taken += g
+        return rng
+
+    return replay
+
+
 @functools.cache
 def loops(collide: Callable, select: Callable, begin: Callable, changed: Callable, skips: bool, dim: int,
           flat: bool) -> Loops:
@@ -254,6 +270,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     attempt, refresh = contact_kernels(collide, dim, flat)
     _, any_live = live_kernel(collide, dim, flat)
     picks = selector_picks(select, begin)
+    replay = selector_replay(select)
     shaped = fixed_rows(dim)
     SKIPS = skips
 
@@ -337,7 +354,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
-            flags, words = np.empty(0, dtype=np.uint8), np.empty(4, dtype=np.uint64)
+            flags = np.empty(0, dtype=np.uint8)
             begin(state, aux, flags)
             taken, collisions, frozen = 0, counters[COLLISIONS], False
             start_collisions, base = collisions, counters[STEPS]
@@ -362,9 +379,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     frozen, used = True, last + 1  # the run ends right after its last collision
                 if used < count and (PREFETCH or frozen):  # picks drawn past the end: replay up to it
                     state[:] = saved
-                    store(words, start)
-                    picks(state, aux, words, n, np.empty(used, dtype=np.int64))
-                    rng = load(words)
+                    begin(state, aux, flags)
+                    rng = replay(state, aux, start, n, used)
                 taken += used
             store(rng_words, rng)
             counters[STEPS] += taken
