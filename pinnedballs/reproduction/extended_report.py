@@ -39,7 +39,7 @@ def _scaling(x: dict) -> list[str]:
                          f"(chi²/dof {f['chi2_per_dof']:.2f}, {f['points']} sizes)" for what, f in fits.items())
     return ["### Scaling: until frozen against the number of balls", "",
             "Half-plane `HalfPlane.from_size(L, D)`, the boundary-centre ball moving inward with energy 100, "
-            "`RejectionFree` (the paper's law of steps and collisions), run until frozen.", "",
+            "`UniformRandomPair` (the paper's chain), run until frozen.", "",
             *_table(["L x D", "rows x cols", "balls N", "replicas", "frozen", "collisions (mean)", "collisions (sd)",
                      "steps (mean)", "boundary share", "far-half share", "wall s"], rows),
             f"Fitted: {fit_text}. Method: weighted least squares of log(mean) on log(N), each size weighted by "

@@ -212,8 +212,9 @@ def test_fit_refuses_bad_input(args, message):
 
 def test_plans_fit_the_issue():
     full = rp.EXTENDED_FULL.scaling
-    assert len(full) >= 8 and full[0][:2] == (10, 5) and full[-1][:2] == (1000, 500)
+    assert len(full) >= 8 and full[0][:2] == (10, 5) and full[-1][:2] == (2000, 1000)
     assert all(s[2] >= 2 for s in full)
+    assert all(s[2] >= 8 for s in full if s[0] >= 500)  # issue 17: at least 8 replicas at the large sizes
     for plan in (rp.EXTENDED_FULL, rp.EXTENDED_QUICK):
         ext.check_extended_plan(plan)
 
