@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
     (`interrupts.exit_status`)."""
     from ..run.execute import Interrupted
-    from .interrupts import exit_status, fingerprint, sigint_ignored
+    from .interrupts import exit_status, fingerprint, interrupted_by, sigint_ignored
 
     if args.force and args.resume:
         raise UsageError("run: give --force or --resume, not both")
@@ -67,9 +67,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         return _run(args)
     except (KeyboardInterrupt, Interrupted):
-        with sigint_ignored():
-            return exit_status(Path(args.out), before, new_run=not args.resume,
-                               figures=not args.no_figures and _plots_available())
+        pass
+    except Exception as exc:
+        if not interrupted_by(exc):
+            raise
+    with sigint_ignored():
+        return exit_status(Path(args.out), before, new_run=not args.resume,
+                           figures=not args.no_figures and _plots_available())
 
 
 def _run(args: argparse.Namespace) -> int:

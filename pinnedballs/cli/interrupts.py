@@ -15,7 +15,7 @@ from typing import Iterator
 
 from ..results.format import RESULTS_NAME, ResultsError
 
-__all__ = ["fingerprint", "exit_status", "sigint_ignored", "EXIT_OK", "EXIT_INTERRUPTED"]
+__all__ = ["fingerprint", "exit_status", "interrupted_by", "sigint_ignored", "EXIT_OK", "EXIT_INTERRUPTED"]
 
 EXIT_OK, EXIT_INTERRUPTED = 0, 130
 
@@ -56,6 +56,19 @@ def exit_status(out: Path, before: tuple | None, new_run: bool, figures: bool) -
     else:
         _say(f"interrupted before the run went on; {out} is as it was (step {res.steps:,}): continue with --resume")
     return EXIT_INTERRUPTED
+
+
+def interrupted_by(exc: BaseException) -> bool:
+    """Whether ``exc`` stands for a Ctrl-C: a KeyboardInterrupt that code it interrupted turned into
+    another exception (e.g. Python's RuntimeError "Error calling __set_name__" when the Ctrl-C lands
+    in the middle of importing a module), found in its chain of causes and contexts."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 @contextlib.contextmanager

@@ -8,6 +8,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .base import length_label, length_unit, save
+from .names import FIGURE_PATTERNS, figure_files
 from .figures import component_histograms, energy_by_distance
 from .sheet import contact_sheet
 from .states import state_picture
@@ -19,16 +20,6 @@ __all__ = ["write_figures", "figure_files", "snapshot_name", "snapshot_counter",
 
 
 # ---------------------------------------------------------------- one run
-
-#: the names `write_figures` gives its files
-FIGURE_PATTERNS = ("state_initial.png", "state_snapshots.png", "state_step_*.png", "state_collisions_*.png",
-                   "state_final.png", "energy_by_distance.png", "energy_by_height.png", "velocity_histograms.png")
-
-
-def figure_files(out_dir) -> list[Path]:
-    """The files in ``out_dir`` that `write_figures` may have written (to clear a stale run's)."""
-    out = Path(out_dir)
-    return sorted({p for pattern in FIGURE_PATTERNS for p in out.glob(pattern)})
 
 
 def snapshot_counter(res) -> str:

@@ -252,7 +252,7 @@ def write_figures(run_dir: str | os.PathLike, every_snapshot: bool = False) -> l
 
 
 def _remove_figures(run_dir: Path) -> None:
-    from ..plot.run import figure_files
+    from ..plot.names import figure_files  # names only: a run without figures never imports matplotlib
 
     for old in figure_files(run_dir):
         old.unlink()

@@ -109,3 +109,35 @@ def test_a_finished_run_never_exits_130(tmp_path, ref, when, figures):
         assert not list(out.glob("*.png"))
     else:
         assert err == f"pinnedballs: the run in {out} is done (steps); the interrupt came as it finished\n"
+
+
+def test_a_ctrl_c_turned_into_another_exception_is_still_a_ctrl_c(tmp_path, monkeypatch):
+    """A Ctrl-C in the middle of an import comes out as RuntimeError("Error calling __set_name__")
+    from the KeyboardInterrupt (seen in CI): the command still exits 130 with its one line."""
+    from helpers import call
+
+    import pinnedballs.run.execute as execute
+    from pinnedballs.cli.interrupts import interrupted_by
+
+    def interrupted_import(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise RuntimeError("Error calling __set_name__ on '_axis_method_wrapper' instance") from exc
+
+    monkeypatch.setattr(execute, "execute", interrupted_import)
+    code, _, err = call("run", write(tmp_path / "s.json", RUN), "--out", tmp_path / "out", "--quiet")
+    assert (code, err) == (130, f"pinnedballs: interrupted before the run wrote anything in {tmp_path / 'out'}\n")
+    assert not interrupted_by(RuntimeError("a plain error")) and interrupted_by(KeyboardInterrupt())
+
+
+def test_a_run_without_figures_never_imports_matplotlib(tmp_path):
+    """A second Ctrl-C can land anywhere in a run; a run that draws nothing gives it no
+    matplotlib import to land in (and starts 0.5-1 s sooner)."""
+    spec_path = write(tmp_path / "s.json", RUN)
+    code = ("import sys; from pinnedballs.cli import main as cli; "
+            f"code = cli.main(['run', {str(spec_path)!r}, '--out', {str(tmp_path / 'out')!r}, '--quiet', "
+            "'--no-figures']); print(code, 'matplotlib' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.stdout.split() == ["0", "False"], done.stderr
