@@ -218,7 +218,7 @@ def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
     right.set_xscale("log")
     right.set_xlabel("balls N (geometric mean of the two sizes)")
     right.set_ylabel("local exponent d log(count) / d log N")
-    right.set_title("local exponents between consecutive sizes (± se from the replicas)")
+    right.set_title("local exponents, consecutive sizes (± se, replicas)")
     right.legend(fontsize="small")
     fig.suptitle("half-plane, one boundary ball sent inward with energy 100, run until frozen")
     plots.save(fig, path)
