@@ -37,3 +37,15 @@ def test_getting_started_example_runs_and_freezes():
     assert abs(sim.energy() - 100.0) < 1e-12 * 100
     steps, collisions, energy = out.getvalue().split()
     assert (int(steps), int(collisions), float(energy)) == (sim.steps, sim.collisions, 100.0)
+
+
+def test_the_collision_log_example_prints_its_comments(tmp_path, monkeypatch):
+    """docs/trajectories.md's collision log: logged, read back, replayed to the same bits, each
+    print's output as its comment says."""
+    (block,) = [b for b in _blocks(ROOT / "docs" / "trajectories.md") if "CollisionLog.read" in b]
+    expected = [line.partition("#")[2].strip() for line in block.splitlines() if line.startswith("print(")]
+    monkeypatch.chdir(tmp_path)  # it writes events.h5 where it runs
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(block, "trajectories.md", "exec"), {})
+    assert [line.strip() for line in out.getvalue().splitlines()] == [e.split(":")[0] for e in expected]
