@@ -307,3 +307,16 @@ def resume(spec_path: Path, out: Path) -> int:
     return main(["run", str(spec_path), "--out", str(out), "--resume", "--quiet", "--no-figures"])
 
 
+
+
+@contextlib.contextmanager
+def pickled_by_value(module):
+    """Send ``module``'s functions to Dask workers by value (the workers cannot import a test module)."""
+    import pytest
+
+    cloudpickle = pytest.importorskip("cloudpickle")
+    cloudpickle.register_pickle_by_value(module)
+    try:
+        yield
+    finally:
+        cloudpickle.unregister_pickle_by_value(module)

@@ -26,7 +26,7 @@ import h5py
 import numpy as np
 
 from ..engine.errors import FieldError, InputError
-from ..results.files import h5_image, remove, tmp_path, virtual_rows, write_bytes_atomic
+from ..results.files import h5_image, virtual_rows, write_bytes_atomic
 from .driver import Writer
 
 __all__ = ["CollisionLog", "FORMAT"]
@@ -182,4 +182,3 @@ class CollisionLog(Writer):
                 virtual_rows(f, name, name, np.dtype(np.int64), (), self.segments, rel)
 
         write_bytes_atomic(self.path, h5_image(fill))
-        remove(tmp_path(self.path))

@@ -136,13 +136,20 @@ def damage(run: Path, changes: list[tuple]) -> None:
 # ---------------------------------------------------------------- the properties
 
 
-@FUZZ
-@given(data=st.data())
-def test_load_gives_the_run_written_or_results_error(written, tmp_path_factory, data):
-    _, source, expected, structure = written
+def _damaged_copy(written, tmp_path_factory, data) -> Path:
+    """A copy of the written run with one drawn set of damages applied."""
+    _, source, _, structure = written
     run = tmp_path_factory.mktemp("damaged") / "run"
     shutil.copytree(source, run)
     damage(run, data.draw(damages(structure)))
+    return run
+
+
+@FUZZ
+@given(data=st.data())
+def test_load_gives_the_run_written_or_results_error(written, tmp_path_factory, data):
+    _, _, expected, _ = written
+    run = _damaged_copy(written, tmp_path_factory, data)
     try:
         got = pb.load(run)
     except ResultsError as exc:
@@ -156,10 +163,8 @@ def test_load_gives_the_run_written_or_results_error(written, tmp_path_factory, 
 @FUZZ_CLI
 @given(data=st.data())
 def test_info_plot_and_resume_say_it_with_their_exit_status(written, tmp_path_factory, data):
-    s, source, expected, structure = written
-    run = tmp_path_factory.mktemp("damaged") / "run"
-    shutil.copytree(source, run)
-    damage(run, data.draw(damages(structure)))
+    s, _, expected, _ = written
+    run = _damaged_copy(written, tmp_path_factory, data)
     sound = _loads(run)
     event("loads" if sound else "refused")
     for argv in (["info", run], ["plot", run], ["run", s, "--out", run, "--resume", "--quiet", "--no-figures"]):

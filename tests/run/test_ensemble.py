@@ -14,6 +14,7 @@ from pinnedballs.analysis import observables as obs
 from pinnedballs.reproduction import torus_row
 from pinnedballs.engine.errors import InputError
 from pinnedballs.specs import parse_spec
+from helpers import pickled_by_value
 
 TORUS = {"geometry": {"kind": "flat_torus", "rows": 8, "cols": 8},
          "initial": {"kind": "single_ball", "ball": 0, "direction": [1.0, 0.0], "energy": 100.0},
@@ -123,13 +124,8 @@ def test_a_failing_replica_is_reported_with_its_seed_and_the_others_kept(workers
 
 
 def test_a_failing_replica_on_dask_is_reported_too(cluster):
-    cloudpickle = pytest.importorskip("cloudpickle")
-    module = sys.modules[__name__]
-    cloudpickle.register_pickle_by_value(module)  # the workers cannot import the test module
-    try:
+    with pickled_by_value(sys.modules[__name__]):
         result = ens.run_ensemble(parse_spec(TORUS), 4, cluster=cluster, task=fail_at_two)
-    finally:
-        cloudpickle.unregister_pickle_by_value(module)
     assert [r["replica"] for r in result.failures] == [2]
     assert sorted({r["replica"] for r in result.rows}) == [0, 1, 2, 3]
     assert len(result.rows) == 3 * 2 + 1

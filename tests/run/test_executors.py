@@ -19,6 +19,7 @@ from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import executors
 from pinnedballs.specs import parse_spec
+from helpers import pickled_by_value
 
 pytestmark = pytest.mark.slow  # clusters, processes killed
 
@@ -122,13 +123,8 @@ def test_a_dask_worker_killed_mid_run_costs_nothing(cluster):
 
 
 def test_a_replica_whose_dask_worker_always_dies_is_the_only_one_reported(cluster):
-    cloudpickle = pytest.importorskip("cloudpickle")
-    module = sys.modules[__name__]
-    cloudpickle.register_pickle_by_value(module)  # the workers cannot import the test module
-    try:
+    with pickled_by_value(sys.modules[__name__]):
         result = ens.run_ensemble(parse_spec(SHORT), 4, cluster=cluster, task=die)
-    finally:
-        cloudpickle.unregister_pickle_by_value(module)
     failed, = result.failures
     assert (failed["replica"], failed["spawn_key"]) == (2, "[2]")
     assert failed[ens.ERROR_COLUMN].startswith("KilledWorker: Attempted to run task")
