@@ -10,6 +10,7 @@ returns the `Figure`.
 from __future__ import annotations
 
 import io
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +52,15 @@ def _new_axes(ax, figsize, title):
     if ax is None:
         ax = new_figure(figsize).add_subplot()
     if title:
-        ax.set_title(title)
+        ax.set_title(wrapped(title, ax.figure))
     return ax.figure, ax
+
+
+def wrapped(title: str, fig: Figure) -> str:
+    """``title`` broken into lines that fit ``fig``'s width at the default title size (about 10
+    characters per inch), so a long title is never cut off at the figure's edges."""
+    width = max(30, int(10 * fig.get_figwidth()))
+    return "\n".join(textwrap.fill(line, width) for line in title.split("\n"))
 
 
 def save(fig: Figure, path) -> Figure:

@@ -389,3 +389,18 @@ def test_velocity_histograms_of_a_run_are_not_stretched_by_one_outlier(tmp_path)
     assert all(f"{b} of 400 beyond the range drawn" in ax.texts[0].get_text() for b, ax in zip(beyond, fig.axes))
     paper = figures.component_histograms(v)                  # the paper's range: the largest component
     assert paper.axes[0].get_xlim() == pytest.approx((-40.0, 40.0))
+
+
+def test_a_long_title_is_wrapped_inside_the_figure(tmp_path):
+    """The reproduction's long titles were cut off at both edges: drawn, every line of the title
+    lies inside the figure."""
+    from pinnedballs.plot.figures import energy_by_distance
+
+    title = ("paper orientation (1,425 balls, rows perpendicular to the boundary): frozen after 46,451 collisions "
+             "(266,938 steps)")
+    fig = energy_by_distance(np.arange(6.0), np.ones((6, 2)), title=title, path=tmp_path / "e.png")
+    (ax,) = fig.axes
+    text = ax.title
+    assert "\n" in text.get_text() and text.get_text().replace("\n", " ") == title
+    box = text.get_window_extent(renderer=fig.canvas.get_renderer())
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width
