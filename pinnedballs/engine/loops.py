@@ -229,8 +229,8 @@ def live_kernel(collide: Callable, dim: int, flat: bool) -> tuple[Callable, Call
 def selector_picks(select: Callable, begin: Callable) -> Callable:
     """``picks(state, aux, rng_words, n_contacts, out)``: the next ``len(out)`` picks of one selector
     into ``out`` (int64), the stream and the state advanced as a loop would advance them. Compiled
-    once per selector, whatever the rule: a run in exact arithmetic follows it, and the limited
-    loops replay a chunk's picks with it."""
+    once per selector, whatever the rule: a run in exact arithmetic draws its picks and rewinds
+    its blocks with it (the compiled loops rewind with `selector_replay`, inlined)."""
 
     @jit_cached_if_possible
     def picks(state, aux, rng_words, n, out):
