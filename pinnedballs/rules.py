@@ -47,19 +47,37 @@ import numpy as np
 
 from .engine.jitcache import njit_cached
 from .engine import checks
+from .engine.errors import FieldError
+from .engine.closing import closing_speed, register_closing_form, t_j as _t_j
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
+           "DEFAULT_RESOLUTION", "check_resolution",
            "collide_elastic", "collide_equal", "collide_masses"]
 
 #: the remnant threshold in units of ``2^-53 V`` (see the module docstring)
 THRESHOLD_ULPS = 4.0
+#: the default resolution ``e``: a pick collides when its closing speed exceeds ``e V``
+DEFAULT_RESOLUTION = THRESHOLD_ULPS * 2.0**-53
 
 
-def threshold(velocities: np.ndarray, masses: np.ndarray) -> float:
-    """``THRESHOLD_ULPS * 2^-53 * sqrt(2 E / m_mean)`` for velocities ``(n_balls, dim)`` and masses
-    ``(n_balls,)``: closing speeds at or below it are rounding remnants, not approaches."""
+def threshold(velocities: np.ndarray, masses: np.ndarray, resolution: float = DEFAULT_RESOLUTION) -> float:
+    """``resolution * sqrt(2 E / m_mean)`` for velocities ``(n_balls, dim)`` and masses ``(n_balls,)``:
+    closing speeds at or below it do not collide. The default resolution, ``4 * 2^-53``, sets aside
+    exactly the rounding remnants on every case measured (the module docstring); another resolution
+    ``e`` defines a model of its own, whose counts ``N_e`` are those of a criterion ``w > e V``."""
     energy = 0.5 * float(masses @ np.einsum("ij,ij->i", velocities, velocities))
-    return THRESHOLD_ULPS * 2.0**-53 * float(np.sqrt(2.0 * energy / float(masses.mean())))
+    return resolution * float(np.sqrt(2.0 * energy / float(masses.mean())))
+
+
+def check_resolution(value) -> float:
+    """``value`` (None: `DEFAULT_RESOLUTION`) as a float in (0, 1), else a `FieldError` on ``resolution``."""
+    if value is None:
+        return DEFAULT_RESOLUTION
+    number = checks.number("resolution", value)
+    if not 0.0 < number < 1.0:
+        raise FieldError("resolution", f"must be a number in (0, 1): a pick collides when its closing speed exceeds "
+                                       f"resolution * V (V the system's speed scale), got {value}")
+    return number
 
 
 @njit_cached(inline="always")
@@ -70,24 +88,6 @@ def remnant_threshold(params):
     array read on an early-return path of the inlined loop keeps numba from pruning its reference
     counting, which costs 4x in the paper's chain."""
     return params[params.shape[0] - 1]
-
-
-@njit_cached(inline="always")
-def _t_j(units, a, b, k, flat):
-    """Component ``k`` of ``t_j``: ``-t_i`` in flat space, else ``units[b]``."""
-    return -units[a, k] if flat else units[b, k]
-
-
-@njit_cached(inline="always")
-def closing_speed(v, units, i, j, a, b, dim, flat):
-    """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching.
-
-    The sum is ``(v_i0 t_i0 + v_j0 t_j0) + (v_i1 t_i1 + v_j1 t_j1) + ...``, left to right.
-    """
-    w = v[i, 0] * units[a, 0] + v[j, 0] * _t_j(units, a, b, 0, flat)
-    for k in range(1, dim):
-        w += v[i, k] * units[a, k] + v[j, k] * _t_j(units, a, b, k, flat)
-    return w
 
 
 @njit_cached(inline="always")
@@ -105,11 +105,9 @@ def _impulse(v, units, i, j, a, b, ci, cj, dim, flat, write):
 
 
 @njit_cached(inline="always")
-def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
-    """Equal masses, ``params = [(1 + r) / 2, threshold]``: 1 for elastic, the paper's exchange
-    ``v_i -= w t_i``, ``v_j -= w t_j`` (``w * 1.0`` is ``w``, bit for bit)."""
+def equal_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
+    """`collide_equal` for a closing speed ``w`` already computed (`engine.closing.given_closing_speed`)."""
     factor, tau = params[0], params[1]  # read before any branch (`remnant_threshold`)
-    w = closing_speed(v, units, i, j, a, b, dim, flat)
     if w <= tau:  # an early return: `w > tau and _impulse(...)` compiles to a slower loop
         return False
     c = w * factor
@@ -117,25 +115,49 @@ def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
 
 
 @njit_cached(inline="always")
-def collide_elastic(v, units, i, j, a, b, masses, params, dim, flat, write):
-    """Equal masses, elastic: the paper's exchange ``v_i -= w t_i``, ``v_j -= w t_j``.
-    `collide_equal` with ``params[0] = 1`` gives the same bits, with a load and a multiply more."""
+def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
+    """Equal masses, ``params = [(1 + r) / 2, threshold]``: 1 for elastic, the paper's exchange
+    ``v_i -= w t_i``, ``v_j -= w t_j`` (``w * 1.0`` is ``w``, bit for bit)."""
+    return equal_at(v, units, i, j, a, b, masses, params, dim, flat, write,
+                    closing_speed(v, units, i, j, a, b, dim, flat))
+
+
+@njit_cached(inline="always")
+def elastic_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
+    """`collide_elastic` for a closing speed ``w`` already computed."""
     tau = params[1]
-    w = closing_speed(v, units, i, j, a, b, dim, flat)
     if w <= tau:
         return False
     return _impulse(v, units, i, j, a, b, w, w, dim, flat, write)
 
 
 @njit_cached(inline="always")
-def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
-    """General masses, ``params = [1 + r, threshold]``."""
+def collide_elastic(v, units, i, j, a, b, masses, params, dim, flat, write):
+    """Equal masses, elastic: the paper's exchange ``v_i -= w t_i``, ``v_j -= w t_j``.
+    `collide_equal` with ``params[0] = 1`` gives the same bits, with a load and a multiply more."""
+    return elastic_at(v, units, i, j, a, b, masses, params, dim, flat, write,
+                      closing_speed(v, units, i, j, a, b, dim, flat))
+
+
+@njit_cached(inline="always")
+def masses_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
+    """`collide_masses` for a closing speed ``w`` already computed."""
     factor, tau = params[0], params[1]
-    w = closing_speed(v, units, i, j, a, b, dim, flat)
     if w <= tau:
         return False
     s = factor * w / (masses[i] + masses[j])
     return _impulse(v, units, i, j, a, b, s * masses[j], s * masses[i], dim, flat, write)
+
+
+@njit_cached(inline="always")
+def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
+    """General masses, ``params = [1 + r, threshold]``."""
+    return masses_at(v, units, i, j, a, b, masses, params, dim, flat, write,
+                     closing_speed(v, units, i, j, a, b, dim, flat))
+
+
+for _collide, _at in ((collide_equal, equal_at), (collide_elastic, elastic_at), (collide_masses, masses_at)):
+    register_closing_form(_collide, _at)
 
 
 class CollisionRule(ABC):

@@ -4,6 +4,7 @@ it that changes during a run, as one record."""
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,14 +16,15 @@ from .engine.exact import BLOCK as EXACT_BLOCK
 from .engine.exact import ExactChain
 from .engine.fields import NotExact
 from .engine.limits import check_speeds
-from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, live_kernel, loops
+from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
+from .engine.margin import ClosingMargin, MarginWarning, new_margin
 
 #: collisions a logging loop records before handing them to the listeners
 LOG_CAPACITY = 1 << 16
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
 from .engine.random import seed_state
 from .geometry.base import Geometry
-from .rules import CollisionRule, Elastic, threshold
+from .rules import CollisionRule, Elastic, check_resolution, threshold
 from .schedulers.base import Scheduler
 from .schedulers.simple import UniformRandomPair
 
@@ -108,9 +110,13 @@ class Simulation:
     velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
     masses: ``(n_balls,)`` positive masses, or None for all equal.
     seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream.
-    A contact collides only if its closing speed exceeds ``threshold`` (`pinnedballs.rules.threshold`,
-    about 4 units in the last place of the largest speed the velocities given can give a ball):
-    closing speeds below it are rounding remnants, which exact arithmetic shows are no approach.
+    A contact collides only if its closing speed exceeds ``threshold = resolution * V``
+    (`pinnedballs.rules.threshold`, ``V`` the largest speed the velocities given can give a ball of
+    the mean mass). The default resolution, ``4 * 2^-53`` (4 units in the last place of ``V``), sets
+    aside rounding remnants, which exact arithmetic shows are no approach; another resolution ``e``
+    in (0, 1) is a model of its own (counts ``N_e``). `closing_margin` says how near the threshold
+    the run's picks came; a float run at the default resolution whose margin is thin warns once
+    (`engine.margin.MarginWarning`).
 
     arithmetic: ``"float"`` (float64, the compiled loop) or ``"exact"``: the same chain, the same
     picks from the same stream, with every velocity exact in the number field of the contact
@@ -130,7 +136,8 @@ class Simulation:
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
-                 scheduler: Scheduler | None = None, masses=None, seed=0, arithmetic: str = "float"):
+                 scheduler: Scheduler | None = None, masses=None, seed=0, arithmetic: str = "float",
+                 resolution: float | None = None):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -147,7 +154,10 @@ class Simulation:
         self.masses = None if masses is None else self._mass_array
         self.velocities = self._check_velocities(velocities)
         self._collide, params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
-        self.threshold = threshold(self.velocities, self._mass_array)
+        #: the collision criterion's resolution ``e``: a pick collides when its closing speed exceeds ``e V``
+        self.resolution = check_resolution(resolution)
+        self._default_resolution = resolution is None  # a chosen resolution is the model: no warning
+        self.threshold = threshold(self.velocities, self._mass_array, self.resolution)
         self._params = np.append(np.asarray(params, dtype=np.float64), self.threshold)  # params[-1]: `approaching`
         check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
         self._selector = _selector(scheduler, geometry)
@@ -158,6 +168,8 @@ class Simulation:
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
         self._rng = seed_state(seed)
         self._counters = np.zeros(3, dtype=np.int64)
+        self._margin = new_margin()  # every pick's closing speed against the threshold (`closing_margin`)
+        self._margin_warned = False
         self._live = None  # the LiveSet, built when a tracked run first needs it
         #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
         #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
@@ -227,31 +239,51 @@ class Simulation:
         return bool(self._counters[LIVE] == 0)
 
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
-        """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken."""
+        """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken. A
+        float run whose margin has become thin says so (once)."""
+        taken = self._run_engine(max_steps, max_collisions, until_frozen)
+        self._warn_if_thin()
+        return taken
+
+    def _run_engine(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
         if self._exact is not None:
             return self._run_exact(max_steps, max_collisions, until_frozen)
         if self.collision_listeners:
             return self._run_logged(max_steps, max_collisions, until_frozen)
-        chain, s, loops_ = self._chain(), self._selector, self._loops
-        tables = (self._sched_state, s.aux, self._rng, self._counters)
+        chain, s = self._chain(), self._selector
+        tables = (self._sched_state, s.aux, self._rng, self._counters, self._margin)
         if s.tracks:
-            return loops_.tracked(*chain, *tables, max_steps, max_collisions, until_frozen, *self._refresh_live(),
-                                  _NO_LOG)
-        large = chain.pairs.nbytes + chain.ends.nbytes + chain.v.nbytes > LOOKAHEAD_BYTES and not s.skips
-        if not until_frozen and max_collisions == NO_LIMIT:
-            plain = self._own_steps or (loops_.steps_prefetched if large else loops_.steps)
-            return plain(*chain, *tables, max_steps)
-        chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
-        limited = loops_.limited_prefetched if large else loops_.limited
-        return limited(*chain, *tables, max_steps, max_collisions, until_frozen, chunk, np.empty_like(self._sched_state),
-                       _NO_LOG)
+            return self._loops.tracked(*chain, *tables, max_steps, max_collisions, until_frozen,
+                                       *self._refresh_live(), _NO_LOG)
+        plain = not until_frozen and max_collisions == NO_LIMIT
+        if plain and self._own_steps is not None:
+            return self._own_steps(*chain, *tables, max_steps)
+        limited, pattern = self._limited(logged=False)
+        return limited(*chain, pattern, *tables, max_steps, max_collisions, until_frozen,
+                       max_steps if plain else self._freeze_chunk(), np.empty_like(self._sched_state), _NO_LOG)
+
+    def _limited(self, logged: bool):
+        """``(loop, pattern)``: the engine's limited loop for this system's size, and the row pattern it
+        reads (`engine.rows`): the tables when they fit in cache, the tables prefetched, or the lattice's
+        row pattern prefetched when the tables do not."""
+        loops_, s, c = self._loops, self._selector, self.geometry.contacts
+        if c.pairs.nbytes + c.ends.nbytes + self.velocities.nbytes <= LOOKAHEAD_BYTES or s.skips:
+            return (loops_.limited_logged if logged else loops_.limited), NO_PATTERN
+        pattern = self.geometry.row_pattern
+        if pattern is None:
+            return (loops_.limited_prefetched_logged if logged else loops_.limited_prefetched), NO_PATTERN
+        return (loops_.limited_rows_logged if logged else loops_.limited_rows), pattern
+
+    def _freeze_chunk(self) -> int:
+        """Steps between two scans for the freeze in an untracked loop (`engine.loops`)."""
+        return max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
 
     def _run_logged(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         """`_run` telling `collision_listeners` of every collision: the engine's logging loops
         (sequential: the same bits as the others), a log of `LOG_CAPACITY` collisions at a time."""
         chain, s, loops_ = self._chain(), self._selector, self._loops
-        tables = (self._sched_state, s.aux, self._rng, self._counters)
+        tables = (self._sched_state, s.aux, self._rng, self._counters, self._margin)
         log, taken = np.empty((LOG_CAPACITY, 2), dtype=np.int64), 0
         while True:
             before = self.collisions
@@ -259,11 +291,9 @@ class Simulation:
                 taken += loops_.tracked_logged(*chain, *tables, max_steps - taken, max_collisions, until_frozen,
                                                *self._refresh_live(), log)
             else:
-                large = chain.pairs.nbytes + chain.ends.nbytes + chain.v.nbytes > LOOKAHEAD_BYTES and not s.skips
-                limited = loops_.limited_prefetched_logged if large else loops_.limited_logged
-                chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
-                taken += limited(*chain, *tables, max_steps - taken, max_collisions, until_frozen, chunk,
-                                 np.empty_like(self._sched_state), log)
+                limited, pattern = self._limited(logged=True)
+                taken += limited(*chain, pattern, *tables, max_steps - taken, max_collisions, until_frozen,
+                                 self._freeze_chunk(), np.empty_like(self._sched_state), log)
             made = self.collisions - before
             if made:
                 for listener in self.collision_listeners:
@@ -327,6 +357,23 @@ class Simulation:
         if self._exact is not None:
             return self.approaching() == 0
         return not self._any_live(*self._chain())
+
+    def closing_margin(self) -> ClosingMargin:
+        """How near the collision criterion this run's picks came (`engine.margin.ClosingMargin`): the
+        smallest closing speed counted as a collision and the largest positive one set aside, in units
+        of ``threshold``, and the picks within a factor 10^4 of it on each side. In exact arithmetic
+        every sign is exact; the margin is then the float criterion's on the same picks, unknown (None)
+        until the exact engine keeps it."""
+        return ClosingMargin.of(self._margin, self.threshold, self.resolution)
+
+    def _warn_if_thin(self) -> None:
+        """Say once, as a `MarginWarning`, that this float run's count depends on its criterion."""
+        if self._margin_warned or self._exact is not None or not self._default_resolution:
+            return
+        margin = self.closing_margin()
+        if margin.thin:
+            self._margin_warned = True
+            warnings.warn(margin.warning(), MarginWarning, stacklevel=_outside_the_package())
 
     @property
     def exact_velocities(self) -> np.ndarray | None:
@@ -404,6 +451,17 @@ class Simulation:
     def __repr__(self) -> str:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
                 f"steps={self.steps}, collisions={self.collisions})")
+
+
+def _outside_the_package() -> int:
+    """The ``stacklevel`` of the first caller outside pinnedballs: where a warning is about."""
+    import sys
+    from pathlib import Path
+
+    package, frame, level = str(Path(__file__).resolve().parent), sys._getframe(1), 1
+    while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def _selector(scheduler: Scheduler, geometry: Geometry):

@@ -8,10 +8,13 @@ the selector's functions are inlined, and ``dim`` and ``flat`` are compile-time 
 **The loops.** Every loop picks a contact (``select``), tries to collide it (``collide``) and counts:
 a *step* is a pick, a *collision* a pick that changed velocities.
 
-* ``steps`` takes exactly ``max_steps`` steps (``steps_prefetched``: the same bits, fetching the
-  rows of picks drawn a few steps early, for tables larger than the cache).
-* ``limited`` (and ``limited_prefetched``) also stops at a total of ``max_collisions`` and, with
-  ``until_frozen``, right after the collision that leaves no live contact. It tracks nothing per
+* ``limited`` takes at most ``max_steps`` steps, stops at a total of ``max_collisions`` and, with
+  ``until_frozen``, right after the collision that leaves no live contact (plain steps are the same
+  loop without the last two limits, so a rule's first ``run(steps=...)`` and first
+  ``run_until_frozen`` share one compiled loop). ``limited_prefetched`` gives the same bits, drawing
+  picks a few steps early and fetching their rows into cache (tables larger than the cache);
+  ``limited_rows`` also reads each contact from the lattice's row pattern (`engine.rows`) instead of
+  the ``(E, 2)`` tables, so a step touches only the two velocity rows. It tracks nothing per
   collision: it runs *chunks* of steps untracked, then asks `any_live` (a scan of the contacts that
   stops at the first live one). A contact live at the start of a chunk stays live until a collision
   touches one of its balls, so a chunk without a collision cannot freeze the system; a chunk whose
@@ -31,6 +34,9 @@ flags)`` prepares ``aux`` from ``state`` at the start of each call (and after a 
 scratch), rebuilt from the geometry and ``state``. A scheduler that only picks gives
 ``pick(state, rng, n_contacts) -> (k, rng)`` and `pick_selector` wraps it.
 
+Every loop also keeps the run's closing margin (`engine.margin`): ``margin (4,) float64`` is updated
+with the closing speed of every pick it tries (a colliding loop computes it anyway: the same bits).
+
 Shapes: v ``(n_balls, dim)``; pairs, ends ``(E, 2)``; units ``(K, dim)``; rng_words ``(4,) uint64``;
 counters ``(3,) int64``, totals ``[steps, collisions, live]`` (live: the number of live contacts
 after a tracked loop, 0 after a loop that found the system frozen, -1 when not known); flags
@@ -46,16 +52,24 @@ import numpy as np
 from numba import njit
 
 from .chain import COLLISIONS, LIVE, STEPS
+from .closing import closing_form, closing_speed
 from .intrinsics import fixed_width, prefetch
 from .jitcache import jit_cached_if_possible, njit_cached
+from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
 from .random import load, store
+from .rows import decode
 
 __all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel", "fixed_rows",
-           "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN"]
+           "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN", "NO_PATTERN"]
 
 #: picks drawn ahead, and how far ahead the velocity rows are fetched, in the prefetching loops
 LOOKAHEAD, HALFWAY = 8, 4
-_RING = 16  # ring buffer of drawn picks: a power of two > LOOKAHEAD
+#: picks drawn (and decoded, their velocity rows fetched) ahead in the row-pattern loop
+ROWS_AHEAD = 16
+_RING = 32  # ring buffer of drawn picks: a power of two > LOOKAHEAD, ROWS_AHEAD
+
+#: the row pattern a loop that reads the tables is handed (`engine.rows`; never decoded)
+NO_PATTERN = (np.zeros(1, dtype=np.int64), np.int64(1), np.int64(1), np.int64(1), 1.0)
 
 #: above this many bytes of tables and velocities the loops prefetch (they no longer fit in cache)
 LOOKAHEAD_BYTES = 4 << 20
@@ -76,7 +90,8 @@ class Selector(NamedTuple):
     tracks: it needs the live set kept up to date after every collision (the ``tracked`` loop).
     skips: ``select`` may take more than one step per pick, or return no contact (``k < 0``).
     steps: None, or ``steps(collide, dim, flat) -> loop``: its own compiled loop for plain steps
-    (`ColoredSweep` runs a class in parallel), called as the `Loops` ``steps`` are.
+    (`ColoredSweep` runs a class in parallel), called as ``loop(v, pairs, ends, units, masses, params,
+    state, aux, rng_words, counters, margin, max_steps) -> steps``.
     """
 
     select: Callable
@@ -117,30 +132,33 @@ def pick_selector(pick: Callable) -> Selector:
 class Loops(NamedTuple):
     """The compiled loops of one (rule, selector, dim, flat); see the module docstring.
 
-    steps, steps_prefetched(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps)
-    limited, limited_prefetched(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
-                                max_steps, max_collisions, until_frozen, chunk, saved, log)
-        ``chunk``: steps between scans; ``saved``: scratch as long as ``state``;
-    tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+    limited, limited_prefetched, limited_rows(v, pairs, ends, units, masses, params, pattern, state, aux,
+                                              rng_words, counters, margin, max_steps, max_collisions,
+                                              until_frozen, chunk, saved, log)
+        ``pattern``: the row pattern (`engine.rows`; `NO_PATTERN` for the first two); ``chunk``: steps
+        between scans for the freeze; ``saved``: scratch as long as ``state``; plain steps are
+        ``max_collisions = NO_LIMIT``, ``until_frozen = False``, ``chunk = max_steps``;
+    tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, margin,
             max_steps, max_collisions, until_frozen, ptr, inc, flags, log)
         ``counters[LIVE]`` and ``flags`` must hold the live contacts of ``v`` on entry;
-    limited_logged, limited_prefetched_logged, tracked_logged(... the same ...)
+    limited_logged, limited_prefetched_logged, limited_rows_logged, tracked_logged(... the same ...)
         the same loops writing each collision to ``log (capacity, 2) int64`` as ``(step, contact)``
         (the step counted as ``counters[STEPS]`` counts it) and stopping when it is full; the others
         take an empty ``log``;
     picks(state, aux, rng_words, n_contacts, out) -> None
         the next ``len(out)`` picks into ``out`` (int64), advancing the stream and the state as a
         loop would: what a run in exact arithmetic follows.
+    Each is compiled on first use.
     """
 
-    steps: Callable
-    steps_prefetched: Callable
     limited: Callable
     limited_prefetched: Callable
+    limited_rows: Callable
     tracked: Callable
     picks: Callable
     limited_logged: Callable
     limited_prefetched_logged: Callable
+    limited_rows_logged: Callable
     tracked_logged: Callable
 
 
@@ -269,16 +287,26 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
     _, any_live = live_kernel(collide, dim, flat)
+    collide_at = closing_form(collide)
     picks = selector_picks(select, begin)
     replay = selector_replay(select)
     shaped = fixed_rows(dim)
-    SKIPS = skips
+    SKIPS, D, FLAT = skips, dim, flat
 
     @njit(inline="always")
-    def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base):
+    def tried(v, units, masses, params, i, j, a, b, tau, m):
+        """Collide the contact ``(i, j, a, b)`` if it approaches; True if it did. ``m``, the running
+        margin ``(smallest, largest, near_hits, near_rest)``, is returned updated beside it."""
+        w = closing_speed(v, units, i, j, a, b, D, FLAT)
+        hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
+        return hit, track(hit, w, tau, m[0], m[1], m[2], m[3])
+
+    @njit(inline="always")
+    def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
+              tau, m):
         """Up to ``count`` steps, stopping right after the ``collisions_left``-th collision:
-        ``(steps taken, collisions, step index of the last collision or -1, rng)``. With ``LOG``
-        (a compile-time constant), collision ``c`` is written to ``log[c] = (step, contact)``,
+        ``(steps taken, collisions, step index of the last collision or -1, rng, margin)``. With
+        ``LOG`` (a compile-time constant), collision ``c`` is written to ``log[c] = (step, contact)``,
         its step counted from ``base``."""
         taken, made, last = 0, 0, -1
         while taken < count:
@@ -286,18 +314,19 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             taken += g
             if SKIPS and k < 0:
                 break
-            if attempt(v, pairs, ends, units, masses, params, k, True):
+            hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
+            if hit:
                 if LOG:
                     log[made, 0], log[made, 1] = base + taken, k
                 made += 1
                 last = taken - 1
                 if made == collisions_left:
                     break
-        return taken, made, last, rng
+        return taken, made, last, rng, m
 
     @njit(inline="always")
     def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log,
-                         base):
+                         base, tau, m):
         """`chunk`, fetching ahead the rows of picks drawn `LOOKAHEAD` steps early (one step per pick).
         A chunk that stops early leaves the stream past picks it drew: the caller rewinds."""
         made, last, taken = 0, -1, count
@@ -318,7 +347,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 prefetch(v, pairs[k, 0])
                 prefetch(v, pairs[k, 1])
             k = ring[t % _RING]
-            if attempt(v, pairs, ends, units, masses, params, k, True):
+            hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
+            if hit:
                 if LOG:
                     log[made, 0], log[made, 1] = base + t + 1, k
                 made += 1
@@ -326,34 +356,52 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 if made == collisions_left:
                     taken = t + 1
                     break
-        return taken, made, last, rng
+        return taken, made, last, rng, m
 
-    def make_steps(PREFETCH):
-        @jit_cached_if_possible
-        def run(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps):
-            v, pairs, ends, units = shaped(v, pairs, ends, units)
-            n, rng = pairs.shape[0], load(rng_words)
-            begin(state, aux, np.empty(0, dtype=np.uint8))
-            log = np.empty((0, 2), dtype=np.int64)
-            if PREFETCH:
-                _, made, _, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n,
-                                                   max_steps, -1, False, log, 0)
-            else:
-                _, made, _, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps, -1,
-                                        False, log, 0)
-            store(rng_words, rng)
-            counters[STEPS] += max_steps
-            counters[COLLISIONS] += made
-            counters[LIVE] = UNKNOWN
-            return max_steps
-        return run
+    @njit(inline="always")
+    def chunk_rows(v, pattern, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
+                   tau, m):
+        """`chunk_prefetched` reading each contact from the row ``pattern``: picks drawn and decoded
+        `ROWS_AHEAD` steps early, their two velocity rows fetched then."""
+        made, last, taken = 0, -1, count
+        ring = np.empty((_RING, 5), dtype=np.int64)  # (k, i, j, a, b) of the picks drawn ahead
+        for t in range(min(ROWS_AHEAD, count)):
+            k, _, rng = select(state, aux, rng, n, 1)
+            i, j, a, b = decode(pattern, np.int64(k))
+            ring[t, 0], ring[t, 1], ring[t, 2], ring[t, 3], ring[t, 4] = k, i, j, a, b
+            prefetch(v, i)
+            prefetch(v, j)
+        for t in range(count):
+            if t + ROWS_AHEAD < count:
+                k, _, rng = select(state, aux, rng, n, 1)
+                i, j, a, b = decode(pattern, np.int64(k))
+                s = (t + ROWS_AHEAD) % _RING
+                ring[s, 0], ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4] = k, i, j, a, b
+                prefetch(v, i)
+                prefetch(v, j)
+            s = t % _RING
+            hit, m = tried(v, units, masses, params, ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4], tau, m)
+            if hit:
+                if LOG:
+                    log[made, 0], log[made, 1] = base + t + 1, ring[s, 0]
+                made += 1
+                last = t
+                if made == collisions_left:
+                    taken = t + 1
+                    break
+        return taken, made, last, rng, m
 
-    def make_limited(PREFETCH, LOG):
+    def make_limited(MODE, LOG):
+        """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched."""
+        AHEAD = MODE > 0
+
         @jit_cached_if_possible
-        def run(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+        def run(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
                 max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
+            tau = params[params.shape[0] - 1]
+            m = (margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS])
             flags = np.empty(0, dtype=np.uint8)
             begin(state, aux, flags)
             taken, collisions, frozen = 0, counters[COLLISIONS], False
@@ -362,27 +410,36 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 max_collisions = min(max_collisions, collisions + log.shape[0])
             if until_frozen and not any_live(v, pairs, ends, units, masses, params):
                 frozen = True
+            if not until_frozen and max_collisions - collisions >= max_steps and not AHEAD and not LOG:
+                # plain steps: the loop without a collision target (the same picks; no count to stop at)
+                taken, made, _, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps,
+                                               -1, False, log, base, tau, m)
+                collisions += made
             while not frozen and taken < max_steps and collisions < max_collisions:
                 count = min(chunk_steps, max_steps - taken)
                 start = rng
                 saved[:] = state
                 at = log[collisions - start_collisions:]
-                if PREFETCH:
-                    used, made, last, rng = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng,
-                                                             n, count, max_collisions - collisions, LOG, at,
-                                                             base + taken)
+                left = max_collisions - collisions
+                if MODE == 2:
+                    used, made, last, rng, m = chunk_rows(v, pattern, units, masses, params, state, aux, rng, n, count,
+                                                          left, LOG, at, base + taken, tau, m)
+                elif MODE == 1:
+                    used, made, last, rng, m = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng,
+                                                                n, count, left, LOG, at, base + taken, tau, m)
                 else:
-                    used, made, last, rng = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count,
-                                                  max_collisions - collisions, LOG, at, base + taken)
+                    used, made, last, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count,
+                                                     left, LOG, at, base + taken, tau, m)
                 collisions += made
                 if until_frozen and last >= 0 and not any_live(v, pairs, ends, units, masses, params):
                     frozen, used = True, last + 1  # the run ends right after its last collision
-                if used < count and (PREFETCH or frozen):  # picks drawn past the end: replay up to it
+                if used < count and (AHEAD or frozen):  # picks drawn past the end: replay up to it
                     state[:] = saved
                     begin(state, aux, flags)
                     rng = replay(state, aux, start, n, used)
                 taken += used
             store(rng_words, rng)
+            margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS] = m
             counters[STEPS] += taken
             counters[COLLISIONS] = collisions
             counters[LIVE] = 0 if frozen else UNKNOWN
@@ -391,10 +448,12 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
 
     def make_tracked(LOG):
         @jit_cached_if_possible
-        def tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters,
+        def tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, margin,
                     max_steps, max_collisions, until_frozen, ptr, inc, flags, log):
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
+            tau = params[params.shape[0] - 1]
+            m = (margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS])
             begin(state, aux, flags)
             taken, collisions, live = 0, counters[COLLISIONS], counters[LIVE]
             start_collisions, base = collisions, counters[STEPS]
@@ -405,7 +464,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 taken += g
                 if SKIPS and k < 0:
                     break
-                if attempt(v, pairs, ends, units, masses, params, k, True):
+                hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
+                if hit:
                     if LOG:
                         log[collisions - start_collisions, 0], log[collisions - start_collisions, 1] = base + taken, k
                     collisions += 1
@@ -415,10 +475,11 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 1], k,
                                     changed, state, aux)
             store(rng_words, rng)
+            margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS] = m
             counters[STEPS] += taken
             counters[COLLISIONS], counters[LIVE] = collisions, live
             return taken
         return tracked
 
-    return Loops(make_steps(False), make_steps(True), make_limited(False, False), make_limited(True, False),
-                 make_tracked(False), picks, make_limited(False, True), make_limited(True, True), make_tracked(True))
+    return Loops(make_limited(0, False), make_limited(1, False), make_limited(2, False), make_tracked(False), picks,
+                 make_limited(0, True), make_limited(1, True), make_limited(2, True), make_tracked(True))

@@ -17,6 +17,7 @@ import networkx as nx
 import numpy as np
 
 from ..engine.errors import FieldError
+from ..engine.rows import row_pattern
 
 __all__ = ["Contacts", "Geometry", "Boundary", "tangent_contacts", "VIEWS"]
 
@@ -156,6 +157,21 @@ class Geometry(ABC):
     def contacts(self) -> Contacts:
         """The contacts as compact arrays (built on first use, then kept)."""
         return self._build_contacts()
+
+    def row_shape(self) -> tuple[int, int] | None:
+        """``(rows, cols)`` when the balls are numbered row by row, ``cols`` to a row, and the
+        contacts ball by ball (the lattices), else None."""
+        return None
+
+    @functools.cached_property
+    def row_pattern(self) -> tuple | None:
+        """The contacts' row pattern (`pinnedballs.engine.rows`), checked against every contact, or
+        None: what the engine's loops read instead of the tables on a large lattice."""
+        shape = self.row_shape()
+        if shape is None:
+            return None
+        c = self.contacts
+        return row_pattern(c.pairs, c.ends, *shape)
 
     @property
     def n_balls(self) -> int:

@@ -81,6 +81,9 @@ class FlatTorus(Geometry):
         """``(2,)`` side lengths of the periodic box."""
         return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
 
+    def row_shape(self) -> tuple[int, int]:
+        return self.rows, self.cols
+
     def to_spec(self) -> dict:
         return {"kind": "flat_torus", "rows": self.rows, "cols": self.cols, "radius": self.radius}
 
@@ -131,6 +134,9 @@ class HalfPlane(Geometry):
         cols = int(np.floor(length / 2 + 1e-9))
         rows = int(np.floor((depth - 1) / SQRT3 + 1e-9)) + 1
         return cls(rows=rows, cols=cols, radius=radius)
+
+    def row_shape(self) -> tuple[int, int]:
+        return self.rows, self.cols
 
     def to_spec(self) -> dict:
         return {"kind": "half_plane", "rows": self.rows, "cols": self.cols, "radius": self.radius,

@@ -32,9 +32,11 @@ from numba import njit, prange
 
 from ..engine import checks
 from ..engine.chain import COLLISIONS, LIVE, STEPS
+from ..engine.closing import closing_speed
 from ..engine.errors import FieldError
 from ..engine.jitcache import jit_cached_if_possible, njit_cached
 from ..engine.loops import Selector, contact_kernels, no_change
+from ..engine.margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
 from ..engine.random import bounded, load, store
 from ..engine.threads import ThreadTuner, check_threads, using
 from .base import Scheduler
@@ -145,16 +147,19 @@ def sweep_selector(shuffle: bool) -> tuple[Callable, Callable]:
 @functools.cache
 def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Callable:
     """The parallel loop of plain steps for one rule's ``collide``, ``dim``, ``flat`` and ``shuffle``:
-    ``steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps)`` tries
+    ``steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, margin, max_steps)`` tries
     ``max_steps`` contacts, each class (or the part of it within the limit) on all numba threads."""
     attempt, _ = contact_kernels(collide, dim, flat)
-    SHUFFLE = shuffle
+    SHUFFLE, D, FLAT = shuffle, dim, flat
 
     @jit_cached_if_possible(parallel=True)
-    def steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, max_steps):
+    def steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, margin, max_steps):
         classes, starts, order = aux
         order[:] = class_order(state, order.shape[0], SHUFFLE)
         taken, made, rng = 0, 0, load(rng_words)
+        tau = params[params.shape[0] - 1]
+        smallest, largest = margin[SMALLEST], margin[LARGEST]
+        near_hits, near_rest = 0.0, 0.0
         while taken < max_steps:
             if state[0] < 0:
                 rng = start_sweep(state, order, rng, SHUFFLE)
@@ -163,11 +168,22 @@ def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Calla
             hi = min(starts[c + 1], lo + (max_steps - taken))
             part = 0
             for m in prange(lo, hi):  # a matching: no two iterations touch the same ball
-                part += 1 if attempt(v, pairs, ends, units, masses, params, classes[m], True) else 0
+                k = classes[m]
+                w = closing_speed(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], D, FLAT)
+                if attempt(v, pairs, ends, units, masses, params, k, True):
+                    part += 1
+                    smallest = min(smallest, w)  # the margin (engine.margin.track), as reductions
+                    near_hits += 1.0 if w <= NEAR * tau else 0.0
+                elif w > 0.0:
+                    largest = max(largest, w)
+                    near_rest += 1.0 if w * NEAR > tau else 0.0
             made += part
             taken += hi - lo
             _move_on(state, starts, order, hi - lo)
         store(rng_words, rng)
+        margin[SMALLEST], margin[LARGEST] = smallest, largest
+        margin[NEAR_COLLISIONS] += near_hits
+        margin[NEAR_REMNANTS] += near_rest
         counters[STEPS] += max_steps
         counters[COLLISIONS] += made
         counters[LIVE] = -1

@@ -7,7 +7,9 @@ from numba import njit
 
 import pinnedballs as pb
 from pinnedballs.engine.intrinsics import fixed_width
-from pinnedballs.engine.loops import NO_AUX
+from pinnedballs.engine.chain import NO_LIMIT
+from pinnedballs.engine.loops import NO_AUX, NO_PATTERN
+from pinnedballs.engine.margin import new_margin
 from pinnedballs.rules import collide_elastic
 from pinnedballs.schedulers.simple import pick_uniform
 from helpers import pick_loops
@@ -46,6 +48,7 @@ def test_loop_refuses_tables_of_another_row_length():
     v3 = np.zeros((geom.n_balls, 3))  # three components for a loop built for two
     rng, counters = np.array([1, 2, 3, 4], dtype=np.uint64), np.zeros(3, dtype=np.int64)
     with pytest.raises(ValueError, match="^the loop's tables do not have the row lengths it was built for$"):
-        loops.steps(v3, c.pairs, c.ends, c.units, np.ones(geom.n_balls), np.array([1.0]),
-                    np.zeros(1, dtype=np.int64), NO_AUX, rng, counters, 10)
+        loops.limited(v3, c.pairs, c.ends, c.units, np.ones(geom.n_balls), np.array([1.0]), NO_PATTERN,
+                      np.zeros(1, dtype=np.int64), NO_AUX, rng, counters, new_margin(), 10, NO_LIMIT, False, 10,
+                      np.zeros(1, dtype=np.int64), np.empty((0, 2), dtype=np.int64))
     assert counters.tolist() == [0, 0, 0]

@@ -49,7 +49,7 @@ def test_function_without_source_file_is_not_disk_cached():
     ns = {}
     exec("def f(v, units, i, j, a, b, masses, params, dim, flat):\n    return False", ns)
     loops = pick_loops(njit(ns["f"]), pick_uniform, 2, True)
-    colliding = [loops.steps, loops.steps_prefetched, loops.limited, loops.limited_prefetched, loops.tracked]
+    colliding = [loops.limited, loops.limited_prefetched, loops.limited_rows, loops.tracked]
     assert not any(isinstance(kernel._cache, _ClosureCache) for kernel in colliding)
     assert isinstance(loops.picks._cache, _ClosureCache)  # it never calls the rule
 
@@ -91,19 +91,22 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
     code = textwrap.dedent("""
         import numpy as np, pinnedballs as pb
         from pinnedballs.engine.jitcache import _ClosureCache
-        from pinnedballs.engine.loops import loops as make_loops, pick_selector
+        from pinnedballs.engine.chain import NO_LIMIT
+        from pinnedballs.engine.loops import NO_PATTERN, loops as make_loops, pick_selector
+        from pinnedballs.engine.margin import new_margin
         from pinnedballs.engine.random import seed_state
         from pinnedballs.schedulers.simple import pick_sweep
         import myrule
         s = pick_selector(pick_sweep)
         loops = make_loops(myrule.collide, s.select, s.begin, s.changed, s.skips, 2, True)
-        k = loops.steps
+        k = loops.limited
         key = _ClosureCache(k.py_func)._index_key(("sig",), k.targetctx.codegen())
         v = np.array([[1.0, 0.0], [0.0, 0.0]])
         g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0]])
         counters = np.zeros(3, np.int64)
-        k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0, 0.0]),
-          np.zeros(1, np.int64), np.zeros(0, np.int64), seed_state(0), counters, 1)
+        k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0, 0.0]), NO_PATTERN,
+          np.zeros(1, np.int64), np.zeros(0, np.int64), seed_state(0), counters, new_margin(), 1, NO_LIMIT, False, 1,
+          np.zeros(1, np.int64), np.empty((0, 2), np.int64))
         print(repr(key), v[:, 0].tolist())
     """)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))

@@ -1,0 +1,121 @@
+"""The closing margin of a run: how far from the collision criterion its picks came.
+
+A float run counts a pick as a collision when its closing speed ``w`` exceeds the threshold
+``tau = resolution * V`` (`pinnedballs.rules`). The count is a clean fact only where no pick came
+near ``tau``: a genuine approach closing below it is left out, a rounding remnant above it
+would be counted. Every loop therefore keeps four numbers of every pick it tries, in a
+``(4,) float64`` array, ``margin``:
+
+* ``margin[SMALLEST]``: the smallest ``w`` of a collision (``inf`` before the first);
+* ``margin[LARGEST]``: the largest positive ``w`` set aside (0 before the first);
+* ``margin[NEAR_COLLISIONS]``: collisions with ``w <= NEAR * tau``;
+* ``margin[NEAR_REMNANTS]``: picks set aside with ``tau / NEAR < w``.
+
+`ClosingMargin` says them in units of ``tau``. A run is *thin* when a collision closed within
+a factor `NEAR` of ``tau``: its genuine closing speeds reach down towards the criterion, so some
+may lie below it. (Picks set aside close below ``tau`` by definition; rounding remnants reach
+about half of it, measured against exact arithmetic, so they say nothing of the genuine ones.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .jitcache import njit_cached
+
+__all__ = ["ClosingMargin", "MarginWarning", "new_margin", "merge_margin", "track", "SMALLEST", "LARGEST",
+           "NEAR_COLLISIONS", "NEAR_REMNANTS", "NEAR"]
+
+SMALLEST, LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS = 0, 1, 2, 3
+#: a pick within this factor of the threshold, on either side, is *near* it
+NEAR = 1e4
+
+
+class MarginWarning(UserWarning):
+    """A float run's count depends on its collision criterion: picks came near the threshold."""
+
+
+def new_margin() -> np.ndarray:
+    """``(4,) float64``: the margin of a run that has tried nothing yet."""
+    return np.array([np.inf, 0.0, 0.0, 0.0])
+
+
+def merge_margin(into: np.ndarray, other: np.ndarray) -> None:
+    """Fold the margin ``other`` (of later picks) into ``into``, in place."""
+    into[SMALLEST] = min(into[SMALLEST], other[SMALLEST])
+    into[LARGEST] = max(into[LARGEST], other[LARGEST])
+    into[NEAR_COLLISIONS] += other[NEAR_COLLISIONS]
+    into[NEAR_REMNANTS] += other[NEAR_REMNANTS]
+
+
+@njit_cached(inline="always")
+def track(hit, w, tau, smallest, largest, near_hits, near_rest):
+    """One pick's closing speed ``w`` (collided when ``hit``) folded into the running margin:
+    ``(smallest, largest, near_hits, near_rest)`` updated. A collision costs a ``min`` and a compare;
+    the other branches (a collision near the threshold, a positive ``w`` set aside) are rare."""
+    if hit:
+        smallest = min(smallest, w)
+        if w <= NEAR * tau:
+            near_hits += 1.0
+    elif w > 0.0:
+        largest = max(largest, w)
+        if w * NEAR > tau:
+            near_rest += 1.0
+    return smallest, largest, near_hits, near_rest
+
+
+@dataclass(frozen=True)
+class ClosingMargin:
+    """How close a run's picks came to its collision criterion, in units of its threshold ``tau``.
+
+    smallest_collision: the smallest closing speed counted as a collision (None: no collision yet).
+    largest_remnant: the largest positive closing speed set aside (None: none).
+    near_collisions, near_remnants: collisions closing at most `NEAR` ``tau``, and picks set aside
+    closing above ``tau / NEAR``.
+    threshold: ``tau`` itself; resolution: ``tau / V`` (the criterion as a model parameter).
+    """
+
+    smallest_collision: float | None
+    largest_remnant: float | None
+    near_collisions: int
+    near_remnants: int
+    threshold: float
+    resolution: float
+
+    @classmethod
+    def of(cls, margin: np.ndarray, threshold: float, resolution: float) -> "ClosingMargin":
+        """From a loop's ``margin (4,)`` array and the run's threshold."""
+        def ratio(w):
+            return float(w / threshold) if threshold > 0 else math.inf
+        smallest = None if not np.isfinite(margin[SMALLEST]) else ratio(margin[SMALLEST])
+        largest = None if margin[LARGEST] <= 0 else ratio(margin[LARGEST])
+        return cls(smallest, largest, int(margin[NEAR_COLLISIONS]), int(margin[NEAR_REMNANTS]), float(threshold),
+                   float(resolution))
+
+    @property
+    def thin(self) -> bool:
+        """True when the count may depend on the criterion: a collision closed within `NEAR` thresholds."""
+        return self.near_collisions > 0
+
+    def describe(self) -> str:
+        """One line: the margin on both sides and the counts near the threshold."""
+        low = "no collision" if self.smallest_collision is None else f"{self.smallest_collision:.3g}"
+        high = "none" if self.largest_remnant is None else f"{self.largest_remnant:.3g}"
+        return (f"smallest collision {low} thresholds, largest remnant {high} thresholds; "
+                f"{self.near_collisions} collisions and {self.near_remnants} remnants within a factor "
+                f"{NEAR:.0e} of it")
+
+    def warning(self) -> str:
+        """The one line a thin float run says."""
+        return (f"the closing margin is thin ({self.describe()}): the collision count depends on the float "
+                f"criterion (resolution {self.resolution:.3g}); count it exactly with arithmetic=\"exact\" "
+                f"(or \"certified\") on the same seed")
+
+    def to_dict(self) -> dict:
+        """The fields as plain numbers (None where there is none)."""
+        return {"smallest_collision": self.smallest_collision, "largest_remnant": self.largest_remnant,
+                "near_collisions": self.near_collisions, "near_remnants": self.near_remnants,
+                "threshold": self.threshold, "resolution": self.resolution}

@@ -1,0 +1,128 @@
+"""The closing margin (`engine.margin`): how near the criterion ``w > resolution * V`` a run's picks
+came, kept by every loop, and the resolution as a parameter of the model."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.engine.margin import MarginWarning, NEAR
+from pinnedballs.rules import DEFAULT_RESOLUTION
+
+
+def _pair(v):
+    """Two balls on a line (dim 1): contact 0 is (0, 1), t_0 = +1, t_1 = -1; closing speed v0 - v1."""
+    return pb.Simulation(pb.GraphGeometry.from_positions([0.0, 2.0]), np.array(v, dtype=float)[:, None], seed=0)
+
+
+def test_a_collision_is_measured_in_thresholds():
+    sim = _pair([1.0, 0.0])  # E = 1/2, V = 1, threshold 4 * 2^-53
+    sim.run(steps=3)
+    m = sim.closing_margin()
+    assert sim.collisions == 1
+    assert m.threshold == 4 * 2.0**-53 and m.resolution == DEFAULT_RESOLUTION
+    assert m.smallest_collision == 2.0**51  # w = 1 exactly
+    assert (m.largest_remnant, m.near_collisions, m.near_remnants) == (None, 0, 0)
+    assert not m.thin
+
+
+def test_a_positive_closing_speed_below_the_threshold_is_a_remnant():
+    sim = _pair([1.0, 1.0 - 2.0**-53])  # w = 2^-53, below 4 * 2^-53 * V (V about sqrt 2)
+    sim.run(steps=1)
+    m = sim.closing_margin()
+    assert sim.collisions == 0
+    assert m.smallest_collision is None and m.near_collisions == 0
+    assert m.largest_remnant == pytest.approx(2.0**-53 / m.threshold, rel=1e-15)
+    assert 1e-4 < m.largest_remnant < 1 and m.near_remnants == 1
+
+
+def test_a_collision_near_the_threshold_is_thin_and_warns_once():
+    v = [1.0, 1.0 - 64 * 2.0**-53]  # w = 64 * 2^-53: about 11 thresholds
+    sim = _pair(v)
+    with pytest.warns(MarginWarning, match=r"^the closing margin is thin \(smallest collision 11\.3 thresholds.*"
+                                           r"arithmetic=\"exact\""):
+        sim.run(steps=1)
+    m = sim.closing_margin()
+    assert m.thin and m.near_collisions == 1 and m.smallest_collision == pytest.approx(64 / (4 * math.sqrt(2)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.run(steps=5)  # said once
+
+
+def test_the_margin_of_the_paper_run():
+    """The paper's 100x50 half-plane (seed 0): genuine collisions 10^7 thresholds above the criterion,
+    remnants below a tenth of it: a wide margin, so the float count is the exact one (docs/collisions.md)."""
+    half = pb.HalfPlane.from_size(100, 50)
+    v = np.zeros((half.n_balls, 2))
+    v[half.boundary_center()] = [0.0, np.sqrt(200.0)]
+    sim = pb.Simulation(half, v, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.run_until_frozen(max_steps=10**7)
+    m = sim.closing_margin()
+    assert m.smallest_collision > NEAR * 1000 and m.near_collisions == 0
+    assert 0 < m.largest_remnant < 0.5 and m.near_remnants > 0
+
+
+@pytest.mark.parametrize("value, message", [
+    (0, "resolution: must be a number in (0, 1): a pick collides when its closing speed exceeds resolution * V "
+        "(V the system's speed scale), got 0"),
+    (1.0, "got 1.0"), (-1e-9, "got -1e-09"),
+    (float("nan"), "resolution: must be a finite number, got nan"), ("1e-9", "resolution: must be a number, got '1e-9'"),
+])
+def test_bad_resolutions_are_refused_naming_the_field(value, message):
+    with pytest.raises(ValueError, match="^" + message.replace("(", r"\(").replace(")", r"\)").replace("*", r"\*")
+                       .replace(".", r"\.") if message.startswith("resolution") else message):
+        pb.Simulation(pb.FlatTorus(4, 3), np.ones((12, 2)), resolution=value)
+
+
+def _half_plane(**kwargs):
+    half = pb.HalfPlane.from_size(60, 30)
+    v = np.zeros((half.n_balls, 2))
+    v[half.boundary_center()] = [0.3, np.sqrt(200.0)]
+    sim = pb.Simulation(half, v, seed=4, **kwargs)
+    sim.run_until_frozen(max_steps=10**7)
+    return sim
+
+
+def test_the_default_resolution_is_four_units_in_the_last_place_of_the_speed_scale():
+    default, explicit = _half_plane(), _half_plane(resolution=4 * 2.0**-53)
+    assert (default.steps, default.collisions) == (explicit.steps, explicit.collisions)
+    np.testing.assert_array_equal(default.velocities, explicit.velocities)
+    assert default.threshold == pytest.approx(4 * 2.0**-53 * math.sqrt(200.09), rel=1e-15)  # V = sqrt(2E/m)
+
+
+def test_a_coarser_resolution_is_a_model_of_its_own():
+    """N_e with e = 1e-6: picks closing below 1e-6 V are set aside; a chosen resolution is the model,
+    so its run does not warn that its count depends on it."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        coarse = _half_plane(resolution=1e-6)
+    m = coarse.closing_margin()
+    assert coarse.resolution == 1e-6 and coarse.threshold == pytest.approx(1e-6 * math.sqrt(200.09), rel=1e-15)
+    assert m.smallest_collision > 1
+    assert coarse.is_frozen()  # frozen for this criterion: no pick closes faster than 1e-6 V
+
+
+def test_the_parallel_sweep_keeps_the_margin_of_the_sequential_loop():
+    """ColoredSweep's plain steps (its own parallel loop) and its limited loop (sequential) try the same
+    contacts: the same margin."""
+    torus = pb.FlatTorus(10, 10)
+    v = np.random.default_rng(1).normal(size=(torus.n_balls, 2))
+    a = pb.Simulation(torus, v, scheduler=pb.ColoredSweep(), seed=1)
+    b = pb.Simulation(torus, v, scheduler=pb.ColoredSweep(), seed=1)
+    a.run(steps=20_000)
+    b.run(steps=20_000, collisions=10**9)
+    assert a.collisions == b.collisions
+    assert a.closing_margin() == b.closing_margin()
+
+
+def test_a_tracking_scheduler_keeps_the_margin():
+    torus = pb.FlatTorus(10, 10)
+    v = np.random.default_rng(2).normal(size=(torus.n_balls, 2))
+    sim = pb.Simulation(torus, v, scheduler=pb.RejectionFree(), seed=1)
+    sim.run(steps=5000)
+    m = sim.closing_margin()
+    assert sim.collisions > 0 and m.smallest_collision > 1
