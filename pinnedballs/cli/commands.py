@@ -187,8 +187,8 @@ def info(args: argparse.Namespace) -> int:
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
-        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.steps for s in res.snapshots])}"
-                                                if res.snapshots else ""),
+        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few(res.snapshots.steps.tolist())}"
+                                                if len(res.snapshots) else ""),
         f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
         f"written by pinnedballs {res.version}",
     ]
