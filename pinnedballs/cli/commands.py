@@ -160,12 +160,15 @@ def animate(args: argparse.Namespace) -> int:
             arg("--force", action="store_true", help="replace OUT.gsd if it exists"))
 def export(args: argparse.Namespace) -> int:
     from ..results.load import load
+    from ..results.tables import rows
     from ..results.trajectory import check_output, export as write_gsd
 
     check_output(args.out, force=args.force, hint="use --force to replace it")  # before reading the run
     res = load(args.dir)
     path = write_gsd(res, args.out, force=args.force, hint="use --force to replace it")
-    print(f"{path}: {len(res.snapshots)} frames, {len(res.positions)} balls")
+    frames = len(rows(res)[1])
+    final = "" if frames == len(res.snapshots) else " and the final state"
+    print(f"{path}: {frames} frames (the {len(res.snapshots)} snapshots{final}), {len(res.positions)} balls")
     return EXIT_OK
 
 

@@ -89,6 +89,9 @@ class Snapshots(Sequence):
         steps = ", ".join(f"{s:,}" for s in self.steps[:4].tolist()) + (", ..." if len(self) > 4 else "")
         return f"<{len(self)} snapshots of {self.shape[0]:,} balls at steps [{steps}], read when asked>"
 
+    def __dask_tokenize__(self):  # the same files read the same frames (dask's name for a lazy read)
+        return str(self.index), [(str(f.path), f.signature) for f in self.files]
+
     def _position(self, k) -> int:
         if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
             raise TypeError(f"snapshot indices must be integers or slices, not {type(k).__name__}")

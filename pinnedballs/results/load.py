@@ -173,6 +173,20 @@ class Results:
 
         return animate(self, out, fps)
 
+    def to_pandas(self):
+        """A `pandas.DataFrame`: one row per snapshot, the final state last, scalar columns
+        (``momentum_x``, ``momentum_y``, ...); see `pinnedballs.results.tables.to_pandas`."""
+        from .tables import to_pandas
+
+        return to_pandas(self)
+
+    def to_xarray(self):
+        """An `xarray.Dataset`: ``velocities (snapshot, ball, component)`` read lazily, the observables over
+        ``snapshot``, the final state last; see `pinnedballs.results.tables.to_xarray`."""
+        from .tables import to_xarray
+
+        return to_xarray(self)
+
     def __repr__(self) -> str:
         return (f"Results({str(self.path)!r}, {self.status}, steps={self.steps}, collisions={self.collisions}, "
                 f"snapshots={len(self.snapshots)}, frozen={self.frozen})")
