@@ -16,7 +16,8 @@ from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
 from .run.driver import Stop, Writer
-from .run.ensemble import run_ensemble
+from .run.ensemble import EnsembleResult, run_ensemble
+from .run.ensemble_dir import load_ensemble
 from .run.execute import run_spec
 from .run.gsd_writer import GSDWriter
 from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
@@ -33,6 +34,7 @@ __all__ = [
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep", "Replay",
     "Simulation", "RunState", "__version__",
     "load", "Results", "ResultsError", "RunSpec", "run_ensemble", "load_spec", "run_spec",
+    "load_ensemble", "EnsembleResult",
     "search_max_collisions", "MaxCollisionsResult",
     "explore_orders", "OrdersResult",
     "ResultsWriter", "GSDWriter", "CollisionLog", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
