@@ -168,10 +168,26 @@ class Results:
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
 
     def animate(self, out=None, fps: float = 4) -> Path:
-        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`."""
+        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`.
+        Its path shows the movie when a notebook displays it."""
         from ..plot.animation import animate
 
         return animate(self, out, fps)
+
+    def plot(self, what: str = "final", *, snapshot: int | None = None, ax=None):
+        """A figure of this run as ``pinnedballs plot`` draws it: ``what`` = ``"final"`` (the final state),
+        ``"initial"``, ``"snapshot"`` (number ``snapshot``), ``"snapshots"`` (the contact sheet),
+        ``"energy"`` (by distance from the boundary), ``"height"`` (flat 3-D), ``"histograms"`` (velocity
+        components) or ``"all"`` (a dict of every figure); into ``ax`` or a new figure. Returns the
+        matplotlib `Figure`; see `pinnedballs.plot.run.plot_results`."""
+        from ..plot.run import plot_results
+
+        return plot_results(self, what, snapshot=snapshot, ax=ax)
+
+    def _repr_html_(self) -> str:  # notebooks: file, status, counters and snapshots as a table
+        from ..plot.display import results_html
+
+        return results_html(self)
 
     def to_pandas(self):
         """A `pandas.DataFrame`: one row per snapshot, the final state last, scalar columns

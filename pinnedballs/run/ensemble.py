@@ -176,6 +176,11 @@ class EnsembleResult:
             df = df.drop(columns=ERROR_COLUMN)
         return df.set_index(["replica", "at"] if at is None else "replica")
 
+    def _repr_html_(self) -> str:  # notebooks: replicas, where, and the final states' counts as a table
+        from ..plot.display import ensemble_html
+
+        return ensemble_html(self)
+
     def __repr__(self) -> str:
         failed = len(self.failures)
         seconds = f", {self.wall_seconds:.3g} s" if math.isfinite(self.wall_seconds) else ""
