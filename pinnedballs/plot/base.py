@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 
 from ..results.files import write_bytes_atomic
 
-__all__ = ["new_figure", "panels", "root", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
+__all__ = ["Picture", "new_figure", "panels", "root", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
 
 DPI = 100
 BALL_COLOUR = "0.8"
@@ -29,9 +29,19 @@ FIT_COLOUR = "tab:orange"
 COMPONENT_NAMES = "xyz"
 
 
+class Picture(Figure):
+    """A matplotlib `Figure` that a notebook shows as a PNG (``_repr_png_``) with no pyplot and no
+    ``%matplotlib inline``: what ``sim.plot()`` and ``res.plot()`` return shows itself."""
+
+    def _repr_png_(self) -> bytes:
+        image = io.BytesIO()
+        self.savefig(image, dpi=DPI, format="png")
+        return image.getvalue()
+
+
 def new_figure(figsize) -> Figure:
-    """A figure of ``figsize`` inches drawn by Agg: never a window, whatever the backend."""
-    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
+    """A figure (a `Picture`) of ``figsize`` inches drawn by Agg: never a window, whatever the backend."""
+    fig = Picture(figsize=figsize, dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
 

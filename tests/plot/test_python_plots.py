@@ -5,6 +5,7 @@ speeds, not arrows; a movie shows itself in a notebook."""
 from __future__ import annotations
 
 import base64
+import io
 import re
 import shutil
 
@@ -13,6 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.image import AxesImage
 from matplotlib.quiver import Quiver
+from PIL import Image
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as obs
@@ -47,6 +49,9 @@ def test_sim_plot_draws_the_state_as_arrows_into_a_new_figure_or_given_axes():
     (q,) = quivers(fig.axes[0])
     assert np.array_equal(np.column_stack([q.U, q.V]), sim.velocities)       # every ball moves: 36 arrows
     assert fig.axes[0].get_title() == f"after 500 steps, {sim.collisions:,} collisions"
+    png = fig._repr_png_()                                                   # a notebook shows it without pyplot
+    assert png.startswith(b"\x89PNG") and Image.open(io.BytesIO(png)).size == tuple(
+        round(x) for x in fig.get_size_inches() * fig.dpi)
     mine = new_figure((8, 4))
     left, right = mine.subplots(1, 2)
     assert sim.plot(ax=right, title="mine") is mine and right.get_title() == "mine" and quivers(right)
