@@ -18,7 +18,7 @@
 # answers for one random order; an ensemble of independent replicas gives a mean and its error. Here:
 # five sizes from 15 to 1,450 balls, 8 replicas each on local processes, a fit of collisions against
 # balls on log scales, and the same ensemble on a Dask cluster giving the same table, bit for bit.
-# ([Beyond the paper](../extended.md) runs the same study up to 577,000 balls.)
+# (The page *Beyond the paper*, `docs/extended.md`, runs the same study up to 577,000 balls.)
 #
 # It runs top to bottom in about a minute on 2 cores.
 

@@ -45,7 +45,7 @@ half
 # ## A simulation, before and after
 #
 # All velocities zero except the boundary ball nearest the middle, pointing into the balls with
-# energy 100 (speed $\sqrt{200}$). The paper's scheduler picks a contact uniformly at random; the pair
+# energy 100 (speed √200). The paper's scheduler picks a contact uniformly at random; the pair
 # collides when it approaches. A simulation shows its counters, its energy and whether it froze,
 # beside its state.
 

@@ -140,11 +140,14 @@ def ensemble_html(result) -> str:
             ("where", result.where + (f", {result.wall_seconds:.3g} s" if math.isfinite(result.wall_seconds) else "")),
             ("stages", ", ".join(result.stages()[:5]) + (", ..." if len(result.stages()) > 5 else ""))]
     final = result.statistics().get("final", {})
-    for name in ("steps", "collisions", "frozen", "energy"):
+    for name in ("steps", "collisions", "energy"):
         if name in final:
             s = final[name]
             spread = f" \u00b1 {s['std']:.3g}" if math.isfinite(s["std"]) else ""
             rows.append((name, f"mean {s['mean']:.6g}{spread} over {s['n']} final states"))
+    frozen = result.column("frozen")
+    if len(frozen):
+        rows.append(("frozen", f"{int(frozen.sum())} of {len(frozen)} final states"))
     return _table("EnsembleResult", rows)
 
 

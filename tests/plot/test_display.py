@@ -113,6 +113,7 @@ def test_an_ensemble_shows_its_replicas_and_final_counts():
     assert table["replicas"] == "3 (3 done, 0 failed)" and table["where"].startswith("in-process, ")
     steps = result.column("steps")
     assert table["steps"] == f"mean {steps.mean():.6g} \u00b1 {steps.std(ddof=1):.3g} over 3 final states"
+    assert table["frozen"] == "3 of 3 final states"
     assert len(repr(result)) < 120
 
 
