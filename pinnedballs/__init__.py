@@ -16,14 +16,16 @@ from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
 from .run.driver import Stop, Writer
-from .run.ensemble import run_ensemble
+from .run.ensemble import EnsembleResult, run_ensemble
+from .run.ensemble_dir import load_ensemble
+from .run.execute import run_spec
 from .run.gsd_writer import GSDWriter
 from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
 from .simulation import RunState, Simulation
 from .specs.errors import SpecError
-from .specs.run import RunSpec
+from .specs.run import RunSpec, load_spec
 
 __all__ = [
     "Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",
@@ -31,7 +33,8 @@ __all__ = [
     "CollisionRule", "Elastic", "Restitution",
     "Scheduler", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep", "Replay",
     "Simulation", "RunState", "__version__",
-    "load", "Results", "ResultsError", "RunSpec", "run_ensemble",
+    "load", "Results", "ResultsError", "RunSpec", "run_ensemble", "load_spec", "run_spec",
+    "load_ensemble", "EnsembleResult",
     "search_max_collisions", "MaxCollisionsResult",
     "explore_orders", "OrdersResult",
     "ResultsWriter", "GSDWriter", "CollisionLog", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",

@@ -448,6 +448,29 @@ class Simulation:
             raise FieldError("exact", "the exact velocities do not round to the state's velocities")
         return exact
 
+    def plot(self, ax=None, title: str | None = None):
+        """The current state in the geometry's own view (`pinnedballs.plot.states.state_picture`: arrows,
+        or a field above 5,000 balls), drawn into ``ax`` or a new figure; the matplotlib `Figure`."""
+        from .plot.states import state_picture
+
+        title = f"after {self.steps:,} steps, {self.collisions:,} collisions" if title is None else title
+        return state_picture(self.geometry)(self.velocities, title, ax=ax)
+
+    def _repr_html_(self) -> str:  # notebooks: the counters beside the picture of the state
+        from .plot.display import simulation_html, simulation_png
+
+        return simulation_html(self, simulation_png(self))
+
+    def _repr_png_(self) -> bytes | None:
+        from .plot.display import simulation_png
+
+        return simulation_png(self)
+
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:  # the picture drawn once for both
+        from .plot.display import mimebundle, simulation_html, simulation_png
+
+        return mimebundle(self, simulation_html, simulation_png, include, exclude)
+
     def __repr__(self) -> str:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
                 f"steps={self.steps}, collisions={self.collisions})")

@@ -24,6 +24,7 @@ import numpy as np
 from scipy import stats
 
 from ..geometry.base import Geometry
+from ..geometry.rows import boundary_rows
 from ..simulation import mass_array
 
 __all__ = [
@@ -115,26 +116,6 @@ def total_momentum(velocities, masses=None) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary
-
-def boundary_rows(distances, tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """Group balls into rows of equal distance from the boundary.
-
-    distances: ``(n_balls,)``. Sorted distances closer than ``tol`` (relative to
-    the largest distance, at least 1) to the previous one join its row.
-    Returns ``row (n_balls,) int`` (0 = nearest the boundary) and ``centres
-    (n_rows,)`` the mean distance of each row.
-    """
-    d = _array("distances", distances, 1)
-    if len(d) == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
-    order = np.argsort(d, kind="stable")
-    scale = max(1.0, float(np.abs(d).max()))
-    starts = np.diff(d[order]) > tol * scale
-    row = np.empty(len(d), dtype=np.int64)
-    row[order] = np.concatenate([[0], np.cumsum(starts)])
-    centres = np.bincount(row, weights=d) / np.bincount(row)
-    return row, centres
-
 
 def energy_profile(distances, velocities, masses=None, bin_width: float | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:

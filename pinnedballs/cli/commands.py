@@ -122,12 +122,21 @@ def schema(args: argparse.Namespace) -> int:
 
 
 @subcommand("plot", "draw the figures of a run again from its results file: the first and last states, a contact "
-                    "sheet of the snapshots, the energy and the velocity histograms",
-            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
+                    "sheet of the snapshots, the energy and the velocity histograms (of an ensemble: the "
+                    "correlation histograms)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5), or an ensemble's directory"),
             arg("--every-snapshot", action="store_true", help="also one picture per snapshot (state_step_N.png)"))
 def plot(args: argparse.Namespace) -> int:
     from ..results.load import load
+    from ..run.ensemble_dir import is_ensemble_dir, load_ensemble
     from ..run.execute import write_figures
+
+    if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
+        from ..run.ensemble import write_figures as ensemble_figures
+
+        paths = ensemble_figures(load_ensemble(args.dir), args.dir)
+        print("\n".join(map(str, paths)) if paths else f"{args.dir}: no correlation to draw; no figures written")
+        return EXIT_OK
 
     run_dir = load(args.dir).path.parent  # checks the file before drawing
     paths = write_figures(run_dir, every_snapshot=args.every_snapshot)
@@ -160,20 +169,27 @@ def animate(args: argparse.Namespace) -> int:
             arg("--force", action="store_true", help="replace OUT.gsd if it exists"))
 def export(args: argparse.Namespace) -> int:
     from ..results.load import load
+    from ..results.tables import rows
     from ..results.trajectory import check_output, export as write_gsd
 
     check_output(args.out, force=args.force, hint="use --force to replace it")  # before reading the run
     res = load(args.dir)
     path = write_gsd(res, args.out, force=args.force, hint="use --force to replace it")
-    print(f"{path}: {len(res.snapshots)} frames, {len(res.positions)} balls")
+    frames = len(rows(res)[1])
+    final = "" if frames == len(res.snapshots) else " and the final state"
+    print(f"{path}: {frames} frames (the {len(res.snapshots)} snapshots{final}), {len(res.positions)} balls")
     return EXIT_OK
 
 
-@subcommand("info", "summarise a results file",
-            arg("dir", metavar="DIR", help="a run directory (or its results.h5)"))
+@subcommand("info", "summarise a results file, or an ensemble directory",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5), or an ensemble's directory"))
 def info(args: argparse.Namespace) -> int:
     from ..results.load import load
+    from ..run.ensemble_dir import describe, is_ensemble_dir, load_ensemble
 
+    if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
+        print("\n".join(describe(load_ensemble(args.dir), Path(args.dir))))
+        return EXIT_OK
     res = load(args.dir)
     kinds = res.kinds
     made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
@@ -187,8 +203,8 @@ def info(args: argparse.Namespace) -> int:
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
-        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.steps for s in res.snapshots])}"
-                                                if res.snapshots else ""),
+        f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few(res.snapshots.steps.tolist())}"
+                                                if len(res.snapshots) else ""),
         f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
         f"written by pinnedballs {res.version}",
     ]

@@ -19,7 +19,7 @@ from ..engine.errors import FieldError, FieldTypeError
 from .base import render
 from .states import state_picture
 
-__all__ = ["animate", "movie_frames", "MOVIE_NAME", "FORMATS"]
+__all__ = ["animate", "movie_frames", "Movie", "MOVIE_NAME", "FORMATS", "INLINE_BYTES"]
 
 #: the movie's name in the run directory when no ``out`` is given
 MOVIE_NAME = "movie.gif"
@@ -27,6 +27,27 @@ MOVIE_NAME = "movie.gif"
 FORMATS = (".gif", ".mp4")
 MP4_MISSING = ("writing MP4 needs ffmpeg: python3 -m pip install \".[movies]\" in the pinnedballs checkout "
                "(imageio-ffmpeg), or write a .gif")
+
+
+#: a notebook shows a movie inline up to this size (a larger one is named, not embedded)
+INLINE_BYTES = 32 << 20
+
+
+class Movie(type(Path())):
+    """The path of a movie that `animate` wrote; a notebook displaying it shows the movie itself (a GIF
+    as an image, an MP4 in a video player), embedded in the page (up to `INLINE_BYTES`)."""
+
+    def _repr_html_(self) -> str:
+        import base64
+        import html
+
+        size = self.stat().st_size
+        if size > INLINE_BYTES:
+            return f"<p>{html.escape(str(self))}: {size / 2**20:.0f} MB, too large to show here; open the file</p>"
+        data = base64.b64encode(self.read_bytes()).decode("ascii")
+        if self.suffix.lower() == ".mp4":
+            return f"<video controls loop src=\"data:video/mp4;base64,{data}\" style=\"max-width:100%\"></video>"
+        return f"<img src=\"data:image/gif;base64,{data}\" alt=\"{html.escape(self.name)}\" style=\"max-width:100%\">"
 
 
 def movie_frames(res) -> list[tuple[str, np.ndarray]]:
@@ -65,8 +86,8 @@ def _check(out, fps) -> tuple[Path, float]:
 
 def animate(res, out=None, fps: float = 4) -> Path:
     """Write a movie of the run ``res`` (its `Results`, from `pinnedballs.load`) to ``out`` (default ``<run dir>/movie.gif``; ``.gif`` or ``.mp4``) at ``fps`` frames per second;
-    returns its path. Frames: see `movie_frames`; the state picture: `states.state_picture`, with
-    one arrow scale (`base.MOVIE_LONGEST`) and one size for all frames.
+    returns its path (a `Movie`: a notebook shows it). Frames: see `movie_frames`; the state picture:
+    `states.state_picture`, with one arrow scale (`base.MOVIE_LONGEST`) and one size for all frames.
     """
     out, fps = _check(res.run_dir / MOVIE_NAME if out is None else out, fps)
     frames = movie_frames(res)
@@ -81,7 +102,7 @@ def animate(res, out=None, fps: float = 4) -> Path:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return out
+    return Movie(out)
 
 
 def _write_gif(images: list[np.ndarray], path: Path, fps: float) -> None:

@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 
 from ..results.files import write_bytes_atomic
 
-__all__ = ["new_figure", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
+__all__ = ["Picture", "new_figure", "panels", "root", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
 
 DPI = 100
 BALL_COLOUR = "0.8"
@@ -29,9 +29,19 @@ FIT_COLOUR = "tab:orange"
 COMPONENT_NAMES = "xyz"
 
 
+class Picture(Figure):
+    """A matplotlib `Figure` that a notebook shows as a PNG (``_repr_png_``) with no pyplot and no
+    ``%matplotlib inline``: what ``sim.plot()`` and ``res.plot()`` return shows itself."""
+
+    def _repr_png_(self) -> bytes:
+        image = io.BytesIO()
+        self.savefig(image, dpi=DPI, format="png")
+        return image.getvalue()
+
+
 def new_figure(figsize) -> Figure:
-    """A figure of ``figsize`` inches drawn by Agg: never a window, whatever the backend."""
-    fig = Figure(figsize=figsize, dpi=DPI, layout="constrained")
+    """A figure (a `Picture`) of ``figsize`` inches drawn by Agg: never a window, whatever the backend."""
+    fig = Picture(figsize=figsize, dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
 
@@ -48,11 +58,12 @@ def length_label(name: str, radius: float | None = None) -> str:
 
 
 def _new_axes(ax, figsize, title):
-    """``(figure, ax)``: the given axes, or one axes on a `new_figure` of ``figsize`` inches."""
+    """``(figure, ax)``: the given axes (and the figure or subfigure holding them), or one axes on a
+    `new_figure` of ``figsize`` inches."""
     if ax is None:
         ax = new_figure(figsize).add_subplot()
     if title:
-        ax.set_title(wrapped(title, ax.figure))
+        ax.set_title(wrapped(title, root(ax.figure)))
     return ax.figure, ax
 
 
@@ -63,10 +74,32 @@ def wrapped(title: str, fig: Figure) -> str:
     return "\n".join(textwrap.fill(line, width) for line in title.split("\n"))
 
 
-def save(fig: Figure, path) -> Figure:
-    """Write ``fig`` as a PNG at ``path`` (its folder created) unless ``path`` is None: drawn in
-    memory and written through a temporary file and a rename, so a failed write (a full disk)
-    leaves no partial PNG."""
+def panels(ax, figsize):
+    """Where a drawing of several panels goes: a `new_figure` of ``figsize`` inches, or, given the
+    matplotlib Axes ``ax``, a subfigure in its place (``ax`` is removed; it must be a subplot)."""
+    if ax is None:
+        return new_figure(figsize)
+    spec = ax.get_subplotspec()
+    if spec is None:
+        raise ValueError("ax: a drawing of several panels takes the place of a subplot (e.g. from "
+                         "plt.subplots); these axes are not one")
+    parent = ax.figure
+    ax.remove()
+    return parent.add_subfigure(spec)
+
+
+def root(fig) -> Figure:
+    """The top-level `Figure` of a figure or of a subfigure in it."""
+    while not isinstance(fig, Figure):
+        fig = fig.figure
+    return fig
+
+
+def save(fig, path) -> Figure:
+    """Write ``fig`` (a figure, or a subfigure: its whole figure) as a PNG at ``path`` (its folder
+    created) unless ``path`` is None: drawn in memory and written through a temporary file and a
+    rename, so a failed write (a full disk) leaves no partial PNG. Returns the top-level `Figure`."""
+    fig = root(fig)
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         image = io.BytesIO()

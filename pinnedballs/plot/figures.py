@@ -4,13 +4,12 @@ components with a test of normality, and correlations over runs (the paper's Fig
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 from scipy import stats
 
 from ..analysis import observables as obs
-from .base import COMPONENT_NAMES, DPI, FIT_COLOUR, _new_axes, save
+from .base import COMPONENT_NAMES, FIT_COLOUR, _new_axes, panels, save
 
 __all__ = ["energy_by_distance", "energy_profiles", "component_histograms", "correlation_histogram"]
 
@@ -100,7 +99,7 @@ def _normal_panel(ax, values: np.ndarray, hist: obs.Histogram, bin_width: float)
 
 
 def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0), title: str | None = None,
-                         path=None, quantile: float | None = None) -> Figure:
+                         path=None, quantile: float | None = None, ax=None) -> Figure:
     """Histograms of each velocity component, in the velocities' own units (the paper's Figure 6).
 
     velocities: ``(n_balls, dim)``; one panel per component. The bins are the paper's:
@@ -110,7 +109,8 @@ def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0),
     values lie beyond it). Each panel gives the mean, the sd and the Anderson-Darling
     test of normality (fitted parameters, 5 %, on every value); the fitted normal (``n * bin * pdf``,
     the histogram's area) is drawn only where the test does not reject it. See
-    `observables.component_histogram` and `observables.normality_tests`.
+    `observables.component_histogram` and `observables.normality_tests`. ``ax``: the Axes whose place
+    the panels take (None: a new figure).
     """
     v = np.asarray(velocities, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] < 1:
@@ -119,8 +119,7 @@ def component_histograms(velocities, bin_width: float = 0.025, span=(-1.0, 1.0),
     scale = float(np.abs(v).max()) if v.size else 0.0
     if quantile is not None and v.size and np.quantile(np.abs(v), quantile) > 0:
         scale = float(np.quantile(np.abs(v), quantile))
-    fig = Figure(figsize=(5.0 * dim, 4.2), dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = panels(ax, (5.0 * dim, 4.2))
     for k, ax in enumerate(fig.subplots(1, dim, squeeze=False)[0]):
         hist = obs.component_histogram(v[:, k], bin_width, span, scale=scale)
         name = COMPONENT_NAMES[k] if dim <= 3 else str(k)

@@ -13,8 +13,8 @@ from matplotlib.collections import EllipseCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from ..analysis.observables import boundary_rows
-from .base import _shared_scale, _spacing, key_speed, length_label, new_figure, save
+from ..geometry.rows import boundary_rows
+from .base import _shared_scale, _spacing, key_speed, length_label, panels, save
 
 __all__ = ["layers", "layer_of", "VZ_COLOURS", "MAX_PANELS"]
 
@@ -38,13 +38,14 @@ def _shown(n_layers: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n_layers - 1, MAX_PANELS)).astype(int))
 
 
-def layers(positions, velocities, title: str | None = None, path=None, shared=None, radius: float | None = None
-           ) -> Figure:
+def layers(positions, velocities, title: str | None = None, path=None, shared=None, radius: float | None = None,
+           ax=None) -> Figure:
     """A state of a 3-D packing, one panel per layer (see the module's docstring).
 
     positions: ``(n_balls, 3)``; velocities: ``(n_balls, 3)``; ``shared``: the velocities
     ``[(n_balls, 3), ...]`` of every frame of a movie (one colour and arrow scale for all);
-    radius: of the balls (None: half the spacing of the bottom layer's centres).
+    radius: of the balls (None: half the spacing of the bottom layer's centres); ax: the Axes whose
+    place the panels take (None: a new figure).
     """
     p = np.asarray(positions, dtype=np.float64)
     v = np.asarray(velocities, dtype=np.float64)
@@ -63,7 +64,7 @@ def layers(positions, velocities, title: str | None = None, path=None, shared=No
     columns = min(_COLUMNS, int(np.ceil(np.sqrt(len(shown)))))
     rows = -(-len(shown) // columns)
     panel = 3.6 * float(np.clip((hi[1] - lo[1]) / (hi[0] - lo[0]), 0.4, 2.0))
-    fig = new_figure((3.6 * columns + 1.2, panel * rows + 1.0))
+    fig = panels(ax, (3.6 * columns + 1.2, panel * rows + 1.0))
     axes = fig.subplots(rows, columns, squeeze=False, sharex=True, sharey=True)
     balls, arrows = None, None
     for ax, index in zip(axes.ravel(), shown):

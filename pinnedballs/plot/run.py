@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable, Iterator
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -16,7 +17,8 @@ from .states import state_picture
 #: the velocity histograms' range: this quantile of the absolute components (one outlier does not set it)
 ROBUST_RANGE = 0.99
 
-__all__ = ["write_figures", "figure_files", "snapshot_name", "snapshot_counter", "FIGURE_PATTERNS"]
+__all__ = ["write_figures", "figures", "plot_results", "PLOTS", "figure_files", "snapshot_name", "snapshot_counter",
+           "FIGURE_PATTERNS"]
 
 
 # ---------------------------------------------------------------- one run
@@ -57,43 +59,93 @@ def write_figures(res, out_dir, every_snapshot: bool = False) -> list[Path]:
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    for name, make in _figures(res, every_snapshot):
+        path = out / name
+        save(make(None), path)  # one figure at a time: a run of many snapshots holds one
+        written.append(path)
+    return written
+
+
+def figures(res, every_snapshot: bool = False) -> dict[str, Figure]:
+    """The figures `write_figures` writes, as ``{file name without .png: Figure}``."""
+    return {name.removesuffix(".png"): make(None) for name, make in _figures(res, every_snapshot)}
+
+
+def _figures(res, every_snapshot: bool = False) -> Iterator[tuple[str, Callable]]:
+    """``(file name, make(ax) -> Figure)`` of each figure of ``res``, in the order `write_figures` writes them."""
     positions = np.asarray(res.positions, dtype=np.float64)
     final = np.asarray(res.velocities, dtype=np.float64)
     geometry = res.geometry
-    written: list[Path] = []
-
-    def emit(name: str, fig: Figure) -> None:
-        path = out / name
-        save(fig, path)
-        written.append(path)
-
     draw = state_picture(geometry)
-    snapshots = list(() if res.snapshots is None else res.snapshots)
-    start = [s for s in snapshots if int(s.steps) == 0]
-    later = [s for s in snapshots if int(s.steps) != 0]
-    initial = start[0].velocities if start else getattr(res, "initial_velocities", None)
-    if initial is not None:
-        emit("state_initial.png", draw(np.asarray(initial, dtype=np.float64), "initial state"))
+    snapshots = () if res.snapshots is None else res.snapshots
+    steps = [int(s) for s in _steps(snapshots)]
+    start = [k for k, s in enumerate(steps) if s == 0]
+    later = [k for k, s in enumerate(steps) if s != 0]
+    initial = getattr(res, "initial_velocities", None)
+    if start or initial is not None:
+        yield "state_initial.png", lambda ax: draw(_velocities(snapshots, start[0]) if start else
+                                                   np.asarray(initial, dtype=np.float64), "initial state", ax=ax)
     counter = snapshot_counter(res)
     if len(later) > 1:
-        tiles = [(snapshot_name(s, counter)[1].removeprefix("after "), np.asarray(s.velocities, dtype=np.float64))
-                 for s in later]
-        emit("state_snapshots.png", contact_sheet(draw, tiles, title=f"the {len(later)} snapshots after the start"))
+        def sheet(ax):
+            tiles = [(snapshot_name(snapshots[k], counter)[1].removeprefix("after "), _velocities(snapshots, k))
+                     for k in later]
+            return contact_sheet(draw, tiles, title=f"the {len(later)} snapshots after the start", ax=ax)
+        yield "state_snapshots.png", sheet
     if every_snapshot or len(later) == 1:  # a sheet of one would be a small copy of its picture
-        for snap in later:
+        for k in later:
+            snap = snapshots[k]
             name, title = snapshot_name(snap, counter)
-            emit(name, draw(np.asarray(snap.velocities, dtype=np.float64), title))
-    emit("state_final.png", draw(final, "final state"))
+            yield name, lambda ax, v=np.asarray(snap.velocities, dtype=np.float64), t=title: draw(v, t, ax=ax)
+    yield "state_final.png", lambda ax: draw(final, "final state", ax=ax)
     if geometry.boundary is not None:
         unit = "lengths on the surface" if geometry.curved else length_unit(geometry.radius)
-        emit("energy_by_distance.png", energy_by_distance(geometry.boundary.distance, final, res.masses,
-                                                          title="energy by distance from the boundary, final state",
-                                                          xlabel=f"distance from the boundary ({unit})"))
+        yield "energy_by_distance.png", lambda ax: energy_by_distance(
+            geometry.boundary.distance, final, res.masses, ax=ax, title="energy by distance from the boundary, "
+            "final state", xlabel=f"distance from the boundary ({unit})")
     if geometry.dim == 3 and positions.shape[1] == 3 and not geometry.curved:
-        emit("energy_by_height.png", energy_by_distance(
-            positions[:, 2] - positions[:, 2].min(), final, res.masses, title="energy by height (z), final state",
-            xlabel=length_label("height z above the lowest layer", geometry.radius), first="lowest layer"))
+        yield "energy_by_height.png", lambda ax: energy_by_distance(
+            positions[:, 2] - positions[:, 2].min(), final, res.masses, ax=ax, title="energy by height (z), final state",
+            xlabel=length_label("height z above the lowest layer", geometry.radius), first="lowest layer")
     if final.ndim == 2 and 1 <= final.shape[1] <= 3:
-        emit("velocity_histograms.png", component_histograms(final, title="velocity components, final state",
-                                                             quantile=ROBUST_RANGE))
-    return written
+        yield "velocity_histograms.png", lambda ax: component_histograms(
+            final, title="velocity components, final state", quantile=ROBUST_RANGE, ax=ax)
+
+
+def _steps(snapshots) -> list[int]:
+    """The steps of each snapshot, without reading their velocities when the run was loaded lazily."""
+    steps = getattr(snapshots, "steps", None)
+    return list(steps) if steps is not None else [s.steps for s in snapshots]
+
+
+def _velocities(snapshots, k: int) -> np.ndarray:
+    return np.asarray(snapshots[k].velocities, dtype=np.float64)
+
+
+#: what `plot_results` draws: ``what`` -> the figure of `write_figures` it is
+PLOTS = {"final": "state_final", "initial": "state_initial", "snapshots": "state_snapshots",
+         "energy": "energy_by_distance", "height": "energy_by_height", "histograms": "velocity_histograms"}
+
+
+def plot_results(res, what: str = "final", *, snapshot: int | None = None, ax=None):
+    """A figure of the run ``res`` (`pinnedballs.Results.plot`), as `write_figures` draws it: ``what`` is
+    ``"final"`` (the final state), ``"initial"``, ``"snapshot"`` (snapshot number ``snapshot``, e.g. -1),
+    ``"snapshots"`` (the contact sheet), ``"energy"`` (energy by distance from the boundary), ``"height"``
+    (energy by height, flat 3-D), ``"histograms"`` (the velocity components), or ``"all"``:
+    ``{name: Figure}`` of every figure ``pinnedballs plot`` writes. ``ax``: draw into these axes (a
+    drawing of several panels takes their place); else a new figure. Returns the `Figure` (a dict for
+    ``"all"``); a ValueError names what this run has when ``what`` does not fit it."""
+    if what == "all":
+        return figures(res)
+    if what == "snapshot":
+        if snapshot is None:
+            raise ValueError("snapshot: give the number of the snapshot to draw (0 the first, -1 the last)")
+        snap = res.snapshots[snapshot]
+        title = snapshot_name(snap, snapshot_counter(res))[1]
+        return state_picture(res.geometry)(np.asarray(snap.velocities, dtype=np.float64), title, ax=ax)
+    makers = {name.removesuffix(".png"): make for name, make in _figures(res)}
+    if what not in PLOTS or PLOTS[what] not in makers:
+        known = [w for w, name in PLOTS.items() if name in makers] + ["snapshot", "all"]
+        raise ValueError(f"what: {what!r} is not a figure of this run; it has: {', '.join(known)}")
+    return makers[PLOTS[what]](ax)

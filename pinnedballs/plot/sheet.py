@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .base import new_figure, render, save
+from .base import panels, render, save
 
 __all__ = ["contact_sheet", "MAX_TILES"]
 
@@ -29,11 +29,11 @@ def _chosen(n: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, MAX_TILES)).astype(int))
 
 
-def contact_sheet(draw, states: list[tuple[str, np.ndarray]], title: str | None = None, path=None) -> Figure:
+def contact_sheet(draw, states: list[tuple[str, np.ndarray]], title: str | None = None, path=None, ax=None) -> Figure:
     """One tile per state of ``states`` ``[(label, velocities (n, dim)), ...]`` drawn with ``draw``
     (`states.state_picture` of the geometry) on their shared arrow scale; the tiles in order,
     left to right and top to bottom. More than `MAX_TILES` states: evenly spaced ones, and the
-    title says how many."""
+    title says how many. ``ax``: the Axes whose place the sheet takes (None: a new figure)."""
     chosen = _chosen(len(states))
     shared = [v for _, v in states]
     columns = min(_COLUMNS, int(np.ceil(np.sqrt(len(chosen)))))
@@ -41,7 +41,7 @@ def contact_sheet(draw, states: list[tuple[str, np.ndarray]], title: str | None 
     images = [render(draw(states[i][1], None, shared=shared)) for i in chosen]
     height, width = images[0].shape[:2]
     tile = min(_LARGEST_TILE, _SHEET_INCHES / columns)
-    fig = new_figure((tile * columns, (tile * height / width + 0.3) * rows + 0.5))
+    fig = panels(ax, (tile * columns, (tile * height / width + 0.3) * rows + 0.5))
     axes = fig.subplots(rows, columns, squeeze=False)
     for ax, i, image in zip(axes.ravel(), chosen, images):
         ax.imshow(image, interpolation="antialiased")

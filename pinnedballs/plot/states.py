@@ -4,7 +4,13 @@
 (`quiver`), both hemispheres of a sphere (`sphere_views`), the Poincare disk (`poincare_disk`),
 a 3-D packing layer by layer (`pinnedballs.plot.layers.layers`), a 1-D chain (`chain`), or each
 component against the ball index (`components_by_ball`). Balls are drawn at their true size
-(touching balls touch), with a thin white line between them.
+(touching balls touch), with a thin white line between them. A state of more than
+`field.FIELD_BALLS` (5,000) balls is drawn in the plane, on the sphere and in the disk as a field
+instead: the mean speed in small cells, as a heat map (`field`), since arrows would be moire.
+
+Every drawing takes ``ax``: a matplotlib Axes to draw into (a drawing of several panels, such as
+both hemispheres or the layers of a packing, takes that Axes' place in its figure), or None for a
+new figure; it returns the `Figure` drawn in, saved as a PNG when ``path`` is given.
 """
 
 from __future__ import annotations
@@ -16,13 +22,15 @@ from matplotlib.patches import Circle
 from matplotlib.ticker import MaxNLocator
 
 from .base import (ARROW_COLOUR, BALL_COLOUR, BALL_EDGE, COMPONENT_NAMES, _key, _new_axes, _shared_scale, _spacing,
-                   length_label, new_figure, save)
+                   length_label, panels, save)
+from .field import colour_bar, draws_field, speed_field, speed_norm
 from .layers import layers
 
 #: a lone arrow in the Poincare disk is at most this many spacings long (3 would run off the disk)
 DISK_LONGEST = 1.5
 
-__all__ = ["quiver", "sphere_views", "poincare_disk", "layers", "chain", "components_by_ball", "state_picture"]
+__all__ = ["quiver", "sphere_views", "poincare_disk", "layers", "chain", "components_by_ball", "state_picture",
+           "DRAWINGS"]
 
 
 def quiver(positions, velocities, ax=None, title: str | None = None, path=None, shared=None,
@@ -43,6 +51,8 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None, 
         raise ValueError(f"velocities: must have shape (n_balls, 2) = {p.shape}, got {v.shape}")
     spacing = _spacing(p)
     speeds = np.linalg.norm(v, axis=1)
+    if draws_field(len(p)):
+        return _plane_field(p, speeds, spacing, ax, title, path, shared, radius)
     k = _shared_scale(speeds, shared, spacing, lambda u: np.linalg.norm(u, axis=1))
     tips = [p + k * np.asarray(u, dtype=np.float64) for u in (shared if shared is not None else [v])]
     reach = np.concatenate([p, *tips]) if len(p) else np.array([[0.0, 0.0], [1.0, 1.0]])
@@ -68,6 +78,21 @@ def quiver(positions, velocities, ax=None, title: str | None = None, path=None, 
     return save(fig, path)
 
 
+def _plane_field(p: np.ndarray, speeds: np.ndarray, spacing: float, ax, title, path, shared, radius) -> Figure:
+    """`quiver`'s picture of a large state: the field of the speeds over the plane (`field`)."""
+    norm = speed_norm([speeds] if shared is None else [np.linalg.norm(np.asarray(u, float), axis=1) for u in shared])
+    lo, hi = p.min(axis=0) - spacing, p.max(axis=0) + spacing
+    width, height = hi - lo
+    fig, ax = _new_axes(ax, (8.0, float(np.clip(7.0 * height / width, 2.5, 10.0)) + 0.6), title)
+    colour_bar(ax.figure, speed_field(ax, p, speeds, norm), ax)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel(length_label("x", radius))
+    ax.set_ylabel(length_label("y", radius))
+    return save(fig, path)
+
+
 def _tangent_arrows(ax, p: np.ndarray, v: np.ndarray, k: float, spacing: float):
     """Arrows ``v (n, 2)`` at ``p (n, 2)``, ``k`` long per unit speed; the `Quiver`, or None if all rest."""
     moving = np.linalg.norm(v, axis=1) > 0
@@ -78,7 +103,7 @@ def _tangent_arrows(ax, p: np.ndarray, v: np.ndarray, k: float, spacing: float):
     return None
 
 
-def sphere_views(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+def sphere_views(positions, velocities, title: str | None = None, path=None, shared=None, ax=None) -> Figure:
     """Orthographic views of both hemispheres of the unit sphere, velocities as tangent arrows.
 
     positions: ``(n_balls, 3)`` on the unit sphere; velocities: ``(n_balls, 3)`` in embedding
@@ -92,17 +117,23 @@ def sphere_views(positions, velocities, title: str | None = None, path=None, sha
     V = np.asarray(velocities, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 3 or V.shape != x.shape:
         raise ValueError(f"positions, velocities: must both have shape (n_balls, 3), got {x.shape} and {V.shape}")
-    fig = new_figure((11.0, 5.8))
+    fig = panels(ax, (11.0, 5.8))
     spacing = _spacing(x)
     k = _shared_scale(np.linalg.norm(V, axis=1), shared, spacing, lambda u: np.linalg.norm(u, axis=1))
     frames = [V] if shared is None else [np.asarray(u, dtype=np.float64) for u in shared]
-    reach = max(1.25, *(float(np.abs(x[:, :2] + k * u[:, :2]).max()) + 0.05 for u in frames))  # every tip shows
-    for ax, sign, name in zip(fig.subplots(1, 2), (1.0, -1.0), ("northern hemisphere (from +z)",
-                                                                  "southern hemisphere (from -z)")):
+    field = draws_field(len(x))
+    reach = 1.1 if field else max(1.25, *(float(np.abs(x[:, :2] + k * u[:, :2]).max()) + 0.05 for u in frames))
+    norm = speed_norm([np.linalg.norm(u, axis=1) for u in frames]) if field else None
+    axes = fig.subplots(1, 2)
+    for ax, sign, name in zip(axes, (1.0, -1.0), ("northern hemisphere (from +z)", "southern hemisphere (from -z)")):
         on = sign * x[:, 2] >= 0
         flip = np.array([sign, 1.0])
         p, v = x[on, :2] * flip, V[on, :2] * flip
         ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
+        if field:  # each ball's whole speed, where the view shows its centre
+            image = speed_field(ax, p, np.linalg.norm(V[on], axis=1), norm, (-1, 1, -1, 1))
+            _hemisphere_axes(ax, reach, sign, name)
+            continue
         # a ball seen at a slant: its width along the rim kept, its depth towards the centre foreshortened by |z|
         size = np.full(len(p), spacing)  # neighbours touch
         along_rim = np.degrees(np.arctan2(p[:, 1], p[:, 0])) + 90
@@ -112,18 +143,24 @@ def sphere_views(positions, velocities, title: str | None = None, path=None, sha
         arrows = _tangent_arrows(ax, p, v, k, spacing)
         if arrows is not None:
             _key(ax, arrows, k, spacing, 2 * reach, y=0.04)
-        ax.set_xlim(-reach, reach)
-        ax.set_ylim(-reach, reach)
-        ax.set_aspect("equal")
-        ax.set_title(name)
-        ax.set_xlabel(("x" if sign > 0 else "-x") + " (unit sphere)")
-        ax.set_ylabel("y (unit sphere)")
+        _hemisphere_axes(ax, reach, sign, name)
+    if field:
+        colour_bar(fig, image, list(axes))
     if title:
         fig.suptitle(title)
     return save(fig, path)
 
 
-def poincare_disk(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+def _hemisphere_axes(ax, reach: float, sign: float, name: str) -> None:
+    ax.set_xlim(-reach, reach)
+    ax.set_ylim(-reach, reach)
+    ax.set_aspect("equal")
+    ax.set_title(name)
+    ax.set_xlabel(("x" if sign > 0 else "-x") + " (unit sphere)")
+    ax.set_ylabel("y (unit sphere)")
+
+
+def poincare_disk(positions, velocities, title: str | None = None, path=None, shared=None, ax=None) -> Figure:
     """A state of the hyperbolic plane drawn in the Poincare disk.
 
     positions: ``(n_balls, 3)`` on the hyperboloid; velocities: ``(n_balls, 3)`` in embedding
@@ -150,13 +187,15 @@ def poincare_disk(positions, velocities, title: str | None = None, path=None, sh
     cosh = x[centre, 0] * x[:, 0] - x[:, 1:] @ x[centre, 1:]
     cosh[centre] = np.inf
     spacing = float(np.arccosh(cosh.min())) if len(x) > 1 else 1.0
+    if draws_field(len(x)):
+        return _disk_field(p, speeds, title, path, shared, ax, minkowski_speeds)
     k = _shared_scale(speeds, shared, spacing, minkowski_speeds, longest=DISK_LONGEST,
                       movie_longest=DISK_LONGEST)
     tips = [p + k * dp] if shared is None else [p + k * _disk_velocities(x, np.asarray(u, float)) for u in shared]
     lo = np.minimum(np.concatenate([*tips, [[-1.0, -1.0]]]).min(axis=0) - 0.05, -1.05)
     hi = np.maximum(np.concatenate([*tips, [[1.0, 1.0]]]).max(axis=0) + 0.05, 1.05)
     lo[1] -= 0.15  # a strip under the disk for the key
-    fig, ax = _new_axes(None, (8.0, float(np.clip(8.0 * (hi[1] - lo[1]) / (hi[0] - lo[0]), 6.0, 10.0))), title)
+    fig, ax = _new_axes(ax, (8.0, float(np.clip(8.0 * (hi[1] - lo[1]) / (hi[0] - lo[0]), 6.0, 10.0))), title)
     ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
     size = spacing * shrink  # the contact length: neighbours touch
     ax.add_collection(EllipseCollection(size, size, np.zeros(len(p)), units="xy", offsets=p,
@@ -177,6 +216,21 @@ def poincare_disk(positions, velocities, title: str | None = None, path=None, sh
     return save(fig, path)
 
 
+def _disk_field(p: np.ndarray, speeds: np.ndarray, title, path, shared, ax, norm_of) -> Figure:
+    """`poincare_disk`'s picture of a large state: the field of the hyperbolic speeds over the disk,
+    in cells sized by the spacing of the balls (most of them near the rim, where the disk shrinks them)."""
+    norm = speed_norm([speeds] if shared is None else [norm_of(np.asarray(u, float)) for u in shared])
+    fig, ax = _new_axes(ax, (8.0, 7.0), title)
+    ax.add_patch(Circle((0, 0), 1.0, fill=False, color="0.5", linewidth=0.8))
+    colour_bar(ax.figure, speed_field(ax, p, speeds, norm, (-1, 1, -1, 1)), ax)
+    ax.set_xlim(-1.05, 1.05)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x in the Poincare disk (radius 1)")
+    ax.set_ylabel("y in the Poincare disk (radius 1)")
+    return save(fig, path)
+
+
 def _disk_velocities(x: np.ndarray, V: np.ndarray) -> np.ndarray:
     """``(n, 2)``: velocities ``V (n, 3)`` on the hyperboloid at ``x (n, 3)`` carried to the Poincare disk."""
     one = 1.0 + x[:, :1]
@@ -184,7 +238,7 @@ def _disk_velocities(x: np.ndarray, V: np.ndarray) -> np.ndarray:
 
 
 def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = None, path=None,
-                       shared=None) -> Figure:
+                       shared=None, ax=None) -> Figure:
     """Each velocity component as a stem at its ball's ``x (n_balls,)``: the state picture of a 1-D
     chain (``x`` its positions) and of any geometry no other picture fits (``x`` the ball index).
 
@@ -195,11 +249,11 @@ def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = 
     v = np.asarray(velocities, dtype=np.float64)
     if v.ndim != 2 or x.shape != (len(v),):
         raise ValueError(f"x, velocities: must have shapes (n_balls,) and (n_balls, dim), got {x.shape} and {v.shape}")
-    panels = min(v.shape[1], 3)
+    count = min(v.shape[1], 3)
     top = max(float(np.abs(np.asarray(u)).max(initial=0.0)) for u in (shared if shared is not None else [v]))
     top = 1.1 * top if top > 0 else 1.0
-    fig = new_figure((8.0, 1.2 + 2.2 * panels))
-    axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
+    fig = panels(ax, (8.0, 1.2 + 2.2 * count))
+    axes = fig.subplots(count, 1, sharex=True, squeeze=False)[:, 0]
     for k, ax in enumerate(axes):
         ax.axhline(0.0, color=BALL_COLOUR, linewidth=4, zorder=0)
         ax.scatter(x, np.zeros_like(x), s=12, color="0.5", zorder=1)
@@ -218,12 +272,13 @@ def components_by_ball(x, velocities, xlabel: str = "ball", title: str | None = 
     return save(fig, path)
 
 
-def chain(positions, velocities, title: str | None = None, path=None, shared=None) -> Figure:
+def chain(positions, velocities, title: str | None = None, path=None, shared=None, ax=None) -> Figure:
     """A state of a 1-D chain: ``positions (n_balls, 1)``, each velocity ``(n_balls, 1)`` a stem at its ball."""
     p = np.asarray(positions, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 1:
         raise ValueError(f"positions: must have shape (n_balls, 1), got {p.shape}")
-    return components_by_ball(p[:, 0], velocities, xlabel="position x (ball radii)", title=title, path=path, shared=shared)
+    return components_by_ball(p[:, 0], velocities, xlabel="position x (ball radii)", title=title, path=path,
+                              shared=shared, ax=ax)
 
 
 def _embedded(draw, frames: np.ndarray):
@@ -231,14 +286,15 @@ def _embedded(draw, frames: np.ndarray):
     def embed(v):
         return np.einsum("nd,ndk->nk", np.asarray(v, dtype=np.float64), frames)
 
-    def embedded(positions, v, title=None, path=None, shared=None):
+    def embedded(positions, v, title=None, path=None, shared=None, ax=None):
         return draw(positions, embed(v), title=title, path=path,
-                    shared=None if shared is None else [embed(u) for u in shared])
+                    shared=None if shared is None else [embed(u) for u in shared], ax=ax)
     return embedded
 
 
-def _by_ball(positions, v, title=None, path=None, shared=None) -> Figure:
-    return components_by_ball(np.arange(len(positions), dtype=np.float64), v, title=title, path=path, shared=shared)
+def _by_ball(positions, v, title=None, path=None, shared=None, ax=None) -> Figure:
+    return components_by_ball(np.arange(len(positions), dtype=np.float64), v, title=title, path=path, shared=shared,
+                              ax=ax)
 
 
 #: the drawing of each view (`pinnedballs.geometry.VIEWS`): ``draw(positions, velocities, title, path, shared)``
@@ -247,14 +303,18 @@ DRAWINGS = {"plane": quiver, "sphere": sphere_views, "poincare": poincare_disk, 
 
 
 def state_picture(geometry):
-    """``draw(velocities (n, dim), title, shared=None) -> Figure`` for this geometry's states, in its
-    `view` (velocities in the balls' frames on a curved surface are carried to the embedding first).
-    ``shared``: every frame's velocities of a movie, drawn on one scale."""
+    """``draw(velocities (n, dim), title=None, shared=None, ax=None) -> Figure`` for this geometry's states,
+    in its `view` (velocities in the balls' frames on a curved surface are carried to the embedding first).
+    ``shared``: every frame's velocities of a movie, drawn on one scale; ``ax``: draw into these axes
+    (a view of several panels takes their place), else a new figure.
+
+    ``pb.Simulation.plot`` and ``pb.Results.plot`` draw with it; so do ``pinnedballs plot`` and movies."""
     draw = DRAWINGS[geometry.view]
     if geometry.view in ("sphere", "poincare"):
         draw = _embedded(draw, geometry.frames())
     positions = np.asarray(geometry.positions, dtype=np.float64)
     if geometry.view in ("plane", "layers"):  # flat: balls of the geometry's radius
         radius = float(geometry.radius)
-        return lambda v, title, shared=None: draw(positions, v, title=title, shared=shared, radius=radius)
-    return lambda v, title, shared=None: draw(positions, v, title=title, shared=shared)
+        return lambda v, title=None, shared=None, ax=None: draw(positions, v, title=title, shared=shared, ax=ax,
+                                                                radius=radius)
+    return lambda v, title=None, shared=None, ax=None: draw(positions, v, title=title, shared=shared, ax=ax)

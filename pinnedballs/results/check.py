@@ -5,7 +5,8 @@ with one message naming the file and the dataset, never read as a run.
 First what the index says of itself (`index`: format and version, attributes, the segment list
 and the links to the data files), then the data. What is checked (``n`` balls, ``d`` velocity components, ``E`` contacts, ``F`` snapshots):
 shapes and dtypes of the geometry, the initial and latest velocities, the snapshots and their
-observables; the contacts against the geometry the stored spec builds; finite numbers; the
+observables; the contacts against the geometry the stored spec builds; finite numbers (the
+snapshots' of format 3 as each is read, `frames`: their digests are verified here); the
 counters (``0 <= collisions <= steps``, snapshots in order and not past the state); the random
 state (4 words, not all zero) and the scheduler state (as its scheduler would check it); and
 every segment and the static file behind the index (virtual datasets read missing or truncated
@@ -125,7 +126,7 @@ def _check(f: h5py.File) -> None:
     _check_scheduler_state(f, sched, e)
     if "exact" in f["state"]:
         _check_exact(f, n, d)
-    _check_snapshots(f, n, d, steps, collisions)
+    _check_snapshots(f, n, d, steps, collisions, scan=int(f.attrs["format_version"]) < 3)
 
 
 def _check_sources(segments: list, data_dir: Path) -> None:
@@ -193,17 +194,24 @@ def _check_scheduler_state(f: h5py.File, sched: np.ndarray, e: int) -> None:
         raise Damage("state/scheduler_state", exc.problem) from None
 
 
-def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int) -> None:
-    """Snapshot velocities ``(F, n, d)``, finite; counters ``(F,)`` in order, within the state's."""
+#: the snapshot velocities a scan holds at once
+_SCAN_BYTES = 16 << 20
+
+
+def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int, scan: bool) -> None:
+    """Snapshot velocities ``(F, n, d)``; counters ``(F,)`` in order, within the state's. ``scan``: read
+    every frame to check it is finite (formats 1 and 2; a run of format 3 had its digests verified, and
+    `frames.Snapshots` checks each frame as it reads it, so a large run opens at once)."""
     frames = _dataset(f, "snapshots/velocities")
     if frames.ndim != 3 or frames.shape[1:] != (n, d) or frames.dtype.kind != "f":
         raise Damage("snapshots/velocities", f"must be floating point of shape (F, {n}, {d}), got "
                                               f"{frames.dtype} {frames.shape}")
     count = frames.shape[0]
-    for start in range(0, count, 64):  # a few frames at a time: bounded memory
-        block = frames[start:start + 64]
-        if not np.isfinite(block).all():
-            raise Damage("snapshots/velocities", "holds non-finite values (NaN or inf)")
+    if scan:
+        rows = max(1, _SCAN_BYTES // max(1, 8 * n * d))  # a few frames at a time: bounded memory
+        for start in range(0, count, rows):
+            if not np.isfinite(frames[start:start + rows]).all():
+                raise Damage("snapshots/velocities", "holds non-finite values (NaN or inf)")
     at = {}
     for name, last in (("steps", steps), ("collisions", collisions)):
         x = _array(f, f"observables/{name}", "i", (count,))

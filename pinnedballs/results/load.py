@@ -22,8 +22,9 @@ from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
 from .check import check_results
 from .digest import unseal
-from .format import (FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, Snapshot,
-                     results_path)
+from .format import FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, data_dir, results_path
+from .frames import FrameFile, Snapshots
+from .index import segment_list
 
 __all__ = ["Results", "load", "open_checked", "read"]
 
@@ -35,8 +36,10 @@ class Results:
     latest: the latest `RunState` (``velocities``, ``steps``, ``collisions``, ``rng_state``,
     ``scheduler_state`` are its fields, as properties here too); stored: the `StoredGeometry`
     the file holds (``positions (n, k)``, ``pairs (E, 2)``, ``t_i, t_j (E, d)`` are its arrays);
-    snapshots: list of `Snapshot` ``(step, collisions, velocities (n, d))``; observables: dict of
-    per-snapshot columns (``steps, collisions (F,)`` and the recorded observables).
+    snapshots: the `Snapshot` ``(steps, collisions, velocities (n, d))`` of each snapshot, as a
+    sequence (`frames.Snapshots`) that reads a snapshot's velocities when it is taken (the run opens
+    at once, whatever its size); observables: dict of per-snapshot columns (``steps, collisions (F,)``
+    and the recorded observables).
     spec: the `RunSpec`, or None for a run built in Python, which ``run`` describes
     (``geometry``, ``rule``, ``scheduler``: each component's own spec, else ``{"class": ...}``).
     """
@@ -54,7 +57,7 @@ class Results:
     masses: np.ndarray | None
     initial_velocities: np.ndarray
     initial_energy: float
-    snapshots: list[Snapshot]
+    snapshots: Snapshots
     observables: dict[str, np.ndarray]
     elapsed_seconds: float
     checkpoints: int
@@ -165,10 +168,40 @@ class Results:
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
 
     def animate(self, out=None, fps: float = 4) -> Path:
-        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`."""
+        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`.
+        Its path shows the movie when a notebook displays it."""
         from ..plot.animation import animate
 
         return animate(self, out, fps)
+
+    def plot(self, what: str = "final", *, snapshot: int | None = None, ax=None):
+        """A figure of this run as ``pinnedballs plot`` draws it: ``what`` = ``"final"`` (the final state),
+        ``"initial"``, ``"snapshot"`` (number ``snapshot``), ``"snapshots"`` (the contact sheet),
+        ``"energy"`` (by distance from the boundary), ``"height"`` (flat 3-D), ``"histograms"`` (velocity
+        components) or ``"all"`` (a dict of every figure); into ``ax`` or a new figure. Returns the
+        matplotlib `Figure`; see `pinnedballs.plot.run.plot_results`."""
+        from ..plot.run import plot_results
+
+        return plot_results(self, what, snapshot=snapshot, ax=ax)
+
+    def _repr_html_(self) -> str:  # notebooks: file, status, counters and snapshots as a table
+        from ..plot.display import results_html
+
+        return results_html(self)
+
+    def to_pandas(self):
+        """A `pandas.DataFrame`: one row per snapshot, the final state last, scalar columns
+        (``momentum_x``, ``momentum_y``, ...); see `pinnedballs.results.tables.to_pandas`."""
+        from .tables import to_pandas
+
+        return to_pandas(self)
+
+    def to_xarray(self):
+        """An `xarray.Dataset`: ``velocities (snapshot, ball, component)`` read lazily, the observables over
+        ``snapshot``, the final state last; see `pinnedballs.results.tables.to_xarray`."""
+        from .tables import to_xarray
+
+        return to_xarray(self)
 
     def __repr__(self) -> str:
         return (f"Results({str(self.path)!r}, {self.status}, steps={self.steps}, collisions={self.collisions}, "
@@ -242,7 +275,6 @@ def read(p: Path, f: h5py.File) -> Results:
     exact = s["exact"].asstr()[()] if "exact" in s else None
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
                       s["scheduler_state"][()], exact)
-    frames = f["snapshots/velocities"][()]
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
     observables = {name: o[name][()] for name in names}
     steps, collisions = observables["steps"], observables["collisions"]
@@ -253,12 +285,20 @@ def read(p: Path, f: h5py.File) -> Results:
         energy=float(s.attrs["energy"]), momentum=s["momentum"][()], approaching=int(s.attrs["approaching"]),
         frozen=bool(s.attrs["frozen"]), stored=stored_geometry(g), masses=g["masses"][()] if "masses" in g else None,
         initial_velocities=f["initial/velocities"][()], initial_energy=float(f["initial"].attrs["energy"]),
-        snapshots=[Snapshot(int(a), int(b), v) for a, b, v in zip(steps, collisions, frames)],
+        snapshots=Snapshots(p, steps, collisions, _frame_files(p, f, version), latest.velocities.shape),
         observables=observables,
         elapsed_seconds=float(f.attrs["elapsed_seconds"]), checkpoints=int(f.attrs["checkpoints"]),
         created=str(f.attrs["created"]), updated=str(f.attrs["updated"]),
         latest=latest, run=json.loads(f.attrs.get("run", "") or "{}"), format_version=version,
     )
+
+
+def _frame_files(p: Path, f: h5py.File, version: int) -> list[FrameFile]:
+    """Where each snapshot's velocities are: the segments (formats 2 and 3), or the file itself (format 1)."""
+    if version == 1:
+        return [FrameFile.at(p, "snapshots/velocities", 0, len(f["snapshots/velocities"]))]
+    data = data_dir(p)
+    return [FrameFile.at(data / name, "velocities", first, count) for name, first, count in segment_list(f)]
 
 
 def stored_geometry(g: h5py.Group) -> StoredGeometry:

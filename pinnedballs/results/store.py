@@ -92,7 +92,7 @@ class ResultsStore:
         attrs["format_version"] = FORMAT_VERSION
         state = Record(res.state(), res.energy, res.momentum, res.approaching)
         store = cls(path, attrs, res.velocities.shape, columns, segments, sum(s[2] for s in segments), digests,
-                    res.snapshots[-1].steps if res.snapshots else -1, state)
+                    int(res.snapshots.steps[-1]) if len(res.snapshots) else -1, state)
         store._remove_strays()
         return store
 

@@ -37,6 +37,7 @@ from ..analysis.observables import boundary_rows
 from ..engine.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from .files import written_atomically
+from .tables import rows
 
 __all__ = ["TRAJECTORY_NAME", "TYPES", "ORIGIN_LOG", "Layout", "Trajectory", "export"]
 
@@ -262,7 +263,9 @@ def _check_same_balls(handle, layout: Layout, path: Path) -> int | None:
 def export(res, out: str | os.PathLike, *, force: bool = False,
            hint: str = "pass force=True to replace it") -> Path:
     """Write every snapshot of the run ``res`` (its `pinnedballs.results.load.Results`) as one frame of
-    the GSD file ``out`` (written whole to a temporary file, then renamed); returns its path.
+    the GSD file ``out`` (written whole to a temporary file, then renamed), then the state the run
+    stopped in, unless the last snapshot is that state; returns its path. The final frame logs the
+    observables the results file holds for it (a user's observable is NaN there).
 
     An `InputError` naming the file or run if ``out`` cannot be written (an existing file needs
     ``force``) or the run has no snapshots; nothing is written then.
@@ -272,12 +275,14 @@ def export(res, out: str | os.PathLike, *, force: bool = False,
         raise InputError(f"{res.run_dir}: the run has no snapshots to export (give its spec \"snapshots\", "
                          f"or a \"trajectory\" to write {TRAJECTORY_NAME} while it runs)")
     layout = Layout.of(res.geometry, res.masses)
+    columns, final = rows(res)
     with written_atomically(out) as tmp:
         handle = _open_gsd(tmp, "w")
         try:
-            for i, snap in enumerate(res.snapshots):
-                log = {name: column[i] for name, column in res.observables.items()}
-                handle.append(layout.frame(snap.steps, snap.velocities, log, first=i == 0))
+            for i in range(len(final)):
+                log = {name: column[i] for name, column in columns.items()}
+                velocities = res.velocities if i == len(res.snapshots) else res.snapshots.velocities(i)
+                handle.append(layout.frame(int(columns["steps"][i]), velocities, log, first=i == 0))
         finally:
             handle.close()
     return out

@@ -38,7 +38,7 @@ from ..specs.run import RunSpec
 from . import executors
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
-           "write_outputs", "read_table", "KEY_COLUMNS", "ERROR_COLUMN", "FINAL", "CORRELATIONS",
+           "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "ERROR_COLUMN", "FINAL", "CORRELATIONS",
            "TABLE_NAME", "SUMMARY_NAME"]
 
 TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json", "spec.json", "figures"
@@ -161,6 +161,31 @@ class EnsembleResult:
         """``(n,)`` float values of column ``name`` at ``at`` over the replicas that have it, by replica."""
         return np.array([float(row[name]) for row in self.rows
                          if not row.get(ERROR_COLUMN) and row["at"] == at and name in row], dtype=np.float64)
+
+    def to_pandas(self, at: str | None = FINAL):
+        """A `pandas.DataFrame`: with ``at`` (default the final state), a row per replica indexed by
+        ``replica`` (a failed one has its ``error`` and no numbers); with ``at=None`` every row, indexed
+        by ``(replica, at)``. ``frozen`` is a boolean column."""
+        import pandas as pd
+
+        columns = self.columns if at is None else [c for c in self.columns if c != "at"]
+        rows = self.rows if at is None else [r for r in self.rows if r.get(ERROR_COLUMN) or r.get("at") == at]
+        df = pd.DataFrame([{c: r.get(c) for c in columns} for r in rows], columns=columns)
+        df["frozen"] = df["frozen"].map(lambda x: pd.NA if x is None or x != x else bool(x)).astype("boolean")
+        if not df[ERROR_COLUMN].notna().any():
+            df = df.drop(columns=ERROR_COLUMN)
+        return df.set_index(["replica", "at"] if at is None else "replica")
+
+    def _repr_html_(self) -> str:  # notebooks: replicas, where, and the final states' counts as a table
+        from ..plot.display import ensemble_html
+
+        return ensemble_html(self)
+
+    def __repr__(self) -> str:
+        failed = len(self.failures)
+        seconds = f", {self.wall_seconds:.3g} s" if math.isfinite(self.wall_seconds) else ""
+        return (f"EnsembleResult({self.replicas} replicas of {self.spec.geometry.kind}, seed {self.spec.seed}: "
+                f"{self.replicas - failed} done, {failed} failed; {len(self.rows)} rows; {self.where}{seconds})")
 
     def statistics(self) -> dict[str, dict[str, dict[str, float]]]:
         """``{at: {column: {n, mean, std, min, max}}}`` of every numeric column (``std`` with ``ddof=1``)."""
@@ -328,19 +353,29 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
     write_text_atomic(path2, result.spec.to_json() + "\n")
     written += [path, path2]
     if figures:
-        from ..plot.figures import correlation_histogram
+        written += write_figures(result, out)
+    return written
 
-        for at in result.stages():
-            for name, label in CORRELATIONS.items():
-                x = result.column(name, at)
-                x = x[np.isfinite(x)]
-                if not len(x):
-                    continue
-                when = "final state" if at == FINAL else at.replace("=", " = ")
-                fig_path = out / FIGURES_DIR / f"{name}_{_slug(at)}.png"
-                correlation_histogram(x, CORRELATION_BIN_WIDTH, title=f"{label}\n{len(x)} replicas, {when}",
-                                      xlabel=name.replace("_", " "), path=fig_path)
-                written.append(fig_path)
+
+def write_figures(result: EnsembleResult, out_dir) -> list[Path]:
+    """Write ``figures/<correlation>_<at>.png`` (the correlations over replicas at each stage) into
+    ``out_dir``, first removing those an earlier ensemble left; return their paths."""
+    from ..plot.figures import correlation_histogram
+
+    out = Path(out_dir)
+    _remove_figures(out)
+    written = []
+    for at in result.stages():
+        for name, label in CORRELATIONS.items():
+            x = result.column(name, at)
+            x = x[np.isfinite(x)]
+            if not len(x):
+                continue
+            when = "final state" if at == FINAL else at.replace("=", " = ")
+            fig_path = out / FIGURES_DIR / f"{name}_{_slug(at)}.png"
+            correlation_histogram(x, CORRELATION_BIN_WIDTH, title=f"{label}\n{len(x)} replicas, {when}",
+                                  xlabel=name.replace("_", " "), path=fig_path)
+            written.append(fig_path)
     return written
 
 
@@ -348,6 +383,10 @@ def _remove_old_outputs(out: Path) -> None:
     """Before writing with --force: remove what an earlier ensemble wrote here (other files stay)."""
     for name in (TABLE_NAME, SUMMARY_NAME, SPEC_NAME):
         (out / name).unlink(missing_ok=True)
+    _remove_figures(out)
+
+
+def _remove_figures(out: Path) -> None:
     for name in CORRELATIONS:
         for png in (out / FIGURES_DIR).glob(f"{name}_*.png"):
             png.unlink()

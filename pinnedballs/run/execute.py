@@ -27,12 +27,12 @@ from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
-from ..specs.run import RunSpec
+from ..specs.run import RunSpec, load_spec
 from .driver import Stop, Writer, drive
 from .gsd_writer import GSDWriter
 from .writers import OnSnapshot, ResultsWriter
 
-__all__ = ["Interrupted", "run_to_stop", "execute", "write_figures", "SILENT"]
+__all__ = ["Interrupted", "run_to_stop", "execute", "run_spec", "write_figures", "SILENT"]
 
 
 class _Silent:
@@ -126,6 +126,26 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
         write_figures(out)
     status.clear()
     return path
+
+
+def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resume: bool = False, force: bool = False,
+             progress: bool | None = None, figures: bool = True) -> Results:
+    """Run a spec (a `RunSpec`, or the path of its JSON file) into the directory ``out``, as
+    ``pinnedballs run SPEC --out DIR`` does, and return its `Results`.
+
+    The same driver and files as the command line (`execute`): ``resume`` continues the run in
+    ``out`` from its last checkpoint, ``force`` replaces a run there; ``progress``: a bar on stderr
+    (None: only when stderr is a terminal); ``figures``: draw the figures beside the results. A bad
+    spec file raises `SpecError` (a ValueError) with the command line's one line, e.g.
+    ``geometry.lenght: unknown key; did you mean 'length'?``.
+    """
+    if not isinstance(spec, RunSpec):
+        if not isinstance(spec, (str, os.PathLike)):
+            raise InputError(f"spec: must be a RunSpec or the path of a spec file, got {type(spec).__name__}")
+        spec = load_spec(spec)
+    if force and resume:
+        raise InputError("force, resume: give one of them, not both")
+    return load(execute(spec, out, force=force, resume=resume, progress=progress, figures=figures))
 
 
 def _resumed(spec: RunSpec, path: Path) -> Simulation | None:

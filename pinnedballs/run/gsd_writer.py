@@ -7,7 +7,8 @@
 
 Each frame is laid out as `pinnedballs.results.trajectory` says (positions, velocities, types,
 box, observables under ``log/``) and flushed at once, so a kill loses no frame a checkpoint has
-recorded: list the GSDWriter before the `ResultsWriter` (``pinnedballs run`` does). With
+recorded: list the GSDWriter before the `ResultsWriter` (``pinnedballs run`` does). The state a run
+stops in (its stop reached) is the last frame (``final=False``: the trigger's frames only). With
 ``resume=True`` frames are appended: the run continued from a checkpoint skips the frames the file
 already holds, so none is written twice. ``pinnedballs run`` writes ``DIR/trajectory.gsd`` this
 way when its spec has a ``"trajectory"``.
@@ -33,12 +34,16 @@ class GSDWriter(Writer):
     snapshots: a `Trigger` or a dict like a spec's ``"snapshots"`` (``{"every_steps": 1000}``, ...).
     observables: names from `pinnedballs.analysis.observables.OBSERVABLES` logged with each frame
     (default: all built-ins). force: replace an existing file; resume: append to it, skipping the
-    frames it already holds (the simulation continues the run that wrote them). ``hint``: what an
-    error about an existing file advises.
+    frames it already holds (the simulation continues the run that wrote them). final: also write the
+    state each run stops in (its stop reached; not a kill) unless a frame was just taken there; pass
+    False when one run is split into several calls with this writer and the file must hold only the
+    trigger's frames (as the run in one call writes them). ``hint``: what an error about an existing
+    file advises.
     """
 
     def __init__(self, path: str | os.PathLike, snapshots, observables=None, *, force: bool = False,
-                 resume: bool = False, hint: str = "pass force=True to replace it or resume=True to append to it"):
+                 resume: bool = False, final: bool = True,
+                 hint: str = "pass force=True to replace it or resume=True to append to it"):
         if force and resume:
             raise ValueError("force, resume: give one of them, not both")
         self.path = Path(path)
@@ -46,7 +51,7 @@ class GSDWriter(Writer):
         if self.trigger is None:
             raise ValueError("snapshots: a GSDWriter needs a trigger, e.g. {'every_steps': 1000}")
         self.names = named.check_names(named.DEFAULT if observables is None else observables)
-        self.force, self.resume, self.hint = force, resume, hint
+        self.force, self.resume, self.final, self.hint = force, resume, bool(final), hint
         self.file: Trajectory | None = None
         self._started = False       #: a run has opened the file (later runs append to it)
         self._checked: Counts | None = None
@@ -66,6 +71,10 @@ class GSDWriter(Writer):
         self.file.append(sim.steps, sim.velocities, named.measure(sim, self.names))
 
     def finish(self, sim, reason: str) -> None:
+        """The run reached its stop: its state is the last frame (``final``; `Trajectory.append` skips a
+        state already on disk)."""
+        if self.final:
+            self.write(sim)
         self._checked = (sim.steps, sim.collisions)
         self.close()
 

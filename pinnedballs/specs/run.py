@@ -59,6 +59,11 @@ class RunSpec(_Spec):
     arithmetic: Literal["float", "exact"] = "float"
     description: str = ""
 
+    def _repr_html_(self) -> str:  # notebooks: a table of the parts
+        from ..plot.display import spec_html
+
+        return spec_html(self)
+
     @model_validator(mode="before")
     @classmethod
     def _entry_points(cls, data: Any) -> Any:

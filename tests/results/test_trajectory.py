@@ -20,8 +20,17 @@ f32 = np.float32
 
 def assert_frames_are_the_snapshots(frames: list, res, position: np.ndarray, velocities: list[np.ndarray]) -> None:
     """Each frame: the step, positions, velocities (given in the figures' coordinates), N, types and
-    every recorded observable of the snapshot it stands for."""
-    assert len(frames) == len(res.snapshots)
+    every recorded observable of the snapshot it stands for; then the state the run stopped in, unless
+    the last snapshot is that state (``velocities`` then holds it last)."""
+    assert len(frames) == len(velocities) and [int(f.configuration.step) for f in frames][-1] == res.steps
+    final = len(frames) > len(res.snapshots)
+    if final:  # the final state's frame: its counters and the observables the results file holds for it
+        log = frames[-1].log
+        assert (int(log["steps"][0]), int(log["collisions"][0]), int(log["approaching"][0])) == \
+            (res.steps, res.collisions, res.approaching)
+        assert np.array_equal(log["energy"], [res.energy]) and np.array_equal(log["momentum"], res.momentum)
+        k = position.shape[1]
+        assert np.array_equal(frames[-1].particles.velocity[:, :k], velocities[-1].astype(f32))
     origin = frames[0].log[trajectory.ORIGIN_LOG]
     for i, (frame, snap) in enumerate(zip(frames, res.snapshots)):
         p = frame.particles
@@ -48,7 +57,7 @@ def test_a_torus_exports_one_frame_per_snapshot_in_its_periodic_box(tmp_path):
     res = run(tmp_path, spec(TORUS, snapshots={"every_steps": 100}))
     assert call("export", tmp_path / "run", tmp_path / "t.gsd")[0] == 0
     frames = frames_of(tmp_path / "t.gsd")
-    assert len(frames) == 10
+    assert len(frames) == 10                                            # the last snapshot is the final state
     assert_frames_are_the_snapshots(frames, res, res.positions, [s.velocities for s in res.snapshots])
     first = frames[0]
     torus = pb.FlatTorus(4, 4)
@@ -64,7 +73,8 @@ def test_a_half_plane_marks_its_boundary_row_and_boxes_its_balls(tmp_path):
     res = run(tmp_path, spec(HALF_PLANE, snapshots={"every_collisions": 20}))
     path = trajectory.export(res, tmp_path / "h.gsd")
     frames = frames_of(path)
-    assert_frames_are_the_snapshots(frames, res, res.positions, [s.velocities for s in res.snapshots])
+    assert res.frozen and len(frames) == len(res.snapshots) + 1        # frozen between two snapshots: then its state
+    assert_frames_are_the_snapshots(frames, res, res.positions, [*(s.velocities for s in res.snapshots), res.velocities])
     half = pb.HalfPlane(6, 10)
     p = frames[0].particles
     assert np.array_equal(p.typeid, (half.boundary_distance() == 0).astype(np.uint32))
@@ -102,6 +112,7 @@ def test_a_curved_surface_exports_its_embedding(tmp_path, geometry):
     frames = frames_of(trajectory.export(res, tmp_path / "c.gsd"))
     frames_of_balls = geometry.frames()
     embedded = [np.einsum("nd,ndk->nk", s.velocities, frames_of_balls) for s in res.snapshots]
+    assert res.snapshots.steps[-1] == res.steps
     assert_frames_are_the_snapshots(frames, res, geometry.positions, embedded)
     assert frames[0].configuration.dimensions == 3
     pairs = geometry.contacts.pairs.astype(int)

@@ -62,11 +62,11 @@ def test_continuing_and_resuming_append_each_frame_once(tmp_path, trigger):
     whole = torus_sim()
     whole.run(steps=10_000, writers=[pb.GSDWriter(tmp_path / "whole.gsd", snapshots=trigger)])
 
-    first = torus_sim()
-    first.run(steps=3_000, writers=[pb.GSDWriter(tmp_path / "split.gsd", snapshots=trigger),
+    first = torus_sim()  # the two runs a kill ends write no final frame
+    first.run(steps=3_000, writers=[pb.GSDWriter(tmp_path / "split.gsd", snapshots=trigger, final=False),
                                     pb.ResultsWriter(tmp_path / "run", snapshots=trigger)])
     ahead = load(tmp_path / "run").simulation()
-    ahead.run(steps=2_000, writers=[pb.GSDWriter(tmp_path / "split.gsd", snapshots=trigger, resume=True)])
+    ahead.run(steps=2_000, writers=[pb.GSDWriter(tmp_path / "split.gsd", snapshots=trigger, resume=True, final=False)])
     assert max(int(f.configuration.step) for f in frames_of(tmp_path / "split.gsd")) > 3_000
 
     again = load(tmp_path / "run").simulation()
@@ -74,16 +74,21 @@ def test_continuing_and_resuming_append_each_frame_once(tmp_path, trigger):
     again.run(steps=7_000, writers=[pb.GSDWriter(tmp_path / "split.gsd", snapshots=trigger, resume=True),
                                     pb.ResultsWriter(tmp_path / "run", snapshots=trigger, resume=True)])
     whole_frames = frames_of(tmp_path / "whole.gsd")
-    assert len(whole_frames) >= 5
+    assert len(whole_frames) >= 5 and int(whole_frames[-1].configuration.step) == 10_000  # ends on the final state
     assert_same_frames(frames_of(tmp_path / "split.gsd"), whole_frames)
 
 
 def test_one_writer_over_several_runs_appends(tmp_path):
-    sim = torus_sim()
-    w = pb.GSDWriter(tmp_path / "t.gsd", snapshots={"every_steps": 100})
-    sim.run(steps=250, writers=[w])
-    sim.run(steps=250, writers=[w])
-    assert [int(f.configuration.step) for f in frames_of(tmp_path / "t.gsd")] == [100, 200, 300, 400, 500]
+    """Each run ends on its final state (250, 500), or with ``final=False`` the trigger's frames only,
+    as one run of 500 steps writes them."""
+    for final, steps in ((True, [100, 200, 250, 300, 400, 500]), (False, [100, 200, 300, 400, 500])):
+        sim = torus_sim()
+        w = pb.GSDWriter(tmp_path / f"t{final}.gsd", snapshots={"every_steps": 100}, final=final)
+        sim.run(steps=250, writers=[w])
+        sim.run(steps=250, writers=[w])
+        frames = frames_of(tmp_path / f"t{final}.gsd")
+        assert [int(f.configuration.step) for f in frames] == steps
+        assert np.array_equal(frames[-1].particles.velocity[:, :2], sim.velocities.astype(np.float32))
 
 
 def test_the_writer_refuses_what_it_must_not_overwrite(tmp_path):
@@ -122,7 +127,8 @@ def test_a_spec_with_a_trajectory_writes_it_beside_the_results(tmp_path):
     res = load(tmp_path / "r")
     frames = frames_of(tmp_path / "r" / "trajectory.gsd")
     collisions = [int(f.log["collisions"][0]) for f in frames]
-    assert collisions == list(range(50, res.collisions + 1, 50))
+    assert res.collisions % 50 and collisions == [*range(50, res.collisions + 1, 50), res.collisions]  # then the final state
+    assert np.array_equal(frames[-1].particles.velocity[:, :2], res.velocities.astype(np.float32))
     assert len(res.snapshots) == 3                                         # the snapshots are their own
     # run again without one: --force leaves no trajectory of the replaced run
     assert call("run", write(tmp_path / "t.json", TORUS), "--out", tmp_path / "r", "--quiet", "--no-figures",

@@ -1,0 +1,111 @@
+"""An ensemble directory read back: `load_ensemble` gives the `EnsembleResult` that
+``pinnedballs ensemble`` (or `write_outputs`) wrote, and `describe` the few lines
+``pinnedballs info`` prints of it.
+
+The directory holds ``replicas.csv`` (a row per replica and snapshot, and one for each final
+state), ``summary.json`` (how it ran) and ``spec.json``. A directory without them, or a file
+that does not parse, is an `InputError` naming the file (and the row and column of a bad cell).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..engine.errors import InputError
+from ..specs.run import stored_spec
+from .ensemble import (ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult,
+                       read_table)
+
+__all__ = ["load_ensemble", "is_ensemble_dir", "describe"]
+
+#: columns that hold integers (the others hold numbers, except the texts below)
+_INTEGERS = ("replica", "seed_entropy", "steps", "collisions", "frozen")
+_TEXTS = ("spawn_key", "at", "stop_reason", ERROR_COLUMN)
+
+
+def is_ensemble_dir(path: str | os.PathLike) -> bool:
+    """True when ``path`` is a directory holding an ensemble's ``replicas.csv`` and ``summary.json``."""
+    p = Path(path)
+    return p.is_dir() and (p / TABLE_NAME).is_file() and (p / SUMMARY_NAME).is_file()
+
+
+def _cell(name: str, text: str, where: str):
+    if name in _TEXTS:
+        return text
+    try:
+        return int(text) if name in _INTEGERS else float(text)
+    except ValueError:
+        kind = "an integer" if name in _INTEGERS else "a number"
+        raise InputError(f"{where}: column {name}: must be {kind}, got {text[:40]!r}") from None
+
+
+def _json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: missing (not an ensemble directory, or an incomplete one)") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{path}: not readable JSON ({' '.join(str(exc).split())})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: must hold a JSON object")
+    return data
+
+
+def load_ensemble(path: str | os.PathLike) -> EnsembleResult:
+    """The `EnsembleResult` in the ensemble directory ``path``: its rows (numbers as numbers), its
+    spec, the number of replicas and how it ran. An `InputError` naming the file if it is not one."""
+    out = Path(path)
+    if not out.is_dir():
+        raise InputError(f"{out}: no such directory")
+    if not (out / TABLE_NAME).is_file():
+        raise InputError(f"{out}: not an ensemble directory (no {TABLE_NAME})")
+    summary = _json(out / SUMMARY_NAME)
+    try:
+        spec = stored_spec((out / SPEC_NAME).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{out / SPEC_NAME}: missing (not an ensemble directory, or an incomplete one)") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{out / SPEC_NAME}: not a valid run spec ({' '.join(str(exc).split())[:200]})") from None
+    try:
+        raw = read_table(out / TABLE_NAME)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{out / TABLE_NAME}: not a readable table ({' '.join(str(exc).split())})") from None
+    rows = [{k: _cell(k, v, f"{out / TABLE_NAME}: row {n + 2}") for k, v in row.items() if k is not None}
+            for n, row in enumerate(raw)]
+    for n, row in enumerate(rows):
+        if "replica" not in row or not (ERROR_COLUMN in row or all(k in row for k in KEY_COLUMNS[:5])):
+            raise InputError(f"{out / TABLE_NAME}: row {n + 2}: must have the columns {', '.join(KEY_COLUMNS[:5])}")
+        if ERROR_COLUMN not in row:
+            row.setdefault("stop_reason", "")  # a snapshot's row: written as an empty cell
+    replicas = summary.get("replicas")
+    if not isinstance(replicas, int) or isinstance(replicas, bool) or replicas < 1:
+        raise InputError(f"{out / SUMMARY_NAME}: replicas: must be a count >= 1, got {replicas!r}")
+    wall = summary.get("wall_seconds")
+    return EnsembleResult(spec, replicas, rows, str(summary.get("where", "")),
+                          float(wall) if isinstance(wall, (int, float)) and not isinstance(wall, bool) else math.nan)
+
+
+def describe(result: EnsembleResult, path: Path) -> list[str]:
+    """The lines ``pinnedballs info`` prints of an ensemble directory."""
+    final = [r for r in result.rows if not r.get(ERROR_COLUMN) and r.get("at") == FINAL]
+    stages = result.stages()
+    lines = [f"ensemble:    {path}",
+             f"replicas:    {result.replicas} ({result.replicas - len(result.failures)} done, "
+             f"{len(result.failures)} failed), seeds spawned from {result.spec.seed}",
+             f"geometry:    {result.spec.geometry.kind}; {result.spec.rule.kind}, {result.spec.scheduler.kind}",
+             f"ran:         {result.where}" + (f" in {result.wall_seconds:.3g} s" if math.isfinite(result.wall_seconds)
+                                                else ""),
+             f"stages:      {len(stages)}: " + ", ".join(stages[:4]) + (", ..." if len(stages) > 4 else "")]
+    for name in ("steps", "collisions"):
+        x = np.array([r[name] for r in final], dtype=np.float64)
+        if len(x):
+            lines.append(f"{name + ':':<12} mean {x.mean():,.6g}, min {x.min():,.0f}, max {x.max():,.0f} (final states)")
+    if final:
+        frozen = sum(int(r["frozen"]) for r in final)
+        lines.append(f"frozen:      {frozen} of {len(final)} final states")
+    return lines
