@@ -154,6 +154,20 @@ def mass_array(masses, n_balls: int) -> np.ndarray:
     return m
 
 
+def _recorded_seed(seed) -> int | np.random.SeedSequence:
+    """The seed a simulation records (`Simulation.seed`): what repeats its stream, as an int when one does."""
+    if seed is None:
+        return np.random.SeedSequence().entropy  # fresh entropy, as numpy.random.default_rng() draws it
+    seed = checks.seed("seed", seed)
+    if isinstance(seed, np.random.SeedSequence) and isinstance(seed.entropy, int) and not seed.spawn_key \
+            and seed.pool_size == _DEFAULT_POOL_SIZE:
+        return seed.entropy  # SeedSequence(entropy) gives the same stream
+    return seed
+
+
+_DEFAULT_POOL_SIZE = np.random.SeedSequence(0).pool_size
+
+
 def _count(name: str, value) -> int:
     """A count in ``[0, 2**63 - 1]`` (the loop's counters are int64)."""
     return checks.integer(name, value, 0, NO_LIMIT)
@@ -177,7 +191,9 @@ class Simulation:
 
     velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
     masses: ``(n_balls,)`` positive masses, or None for all equal.
-    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream.
+    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream. As in
+    numpy, None (the default) draws fresh entropy from the operating system, so two simulations
+    made alike without a seed are independent; `seed` records it (an int) to repeat the run.
     A contact collides only if its closing speed exceeds ``threshold`` (`pinnedballs.rules.threshold`,
     about 4 units in the last place of the largest speed the velocities given can give a ball):
     closing speeds below it are rounding remnants, which exact arithmetic shows are no approach.
@@ -200,7 +216,7 @@ class Simulation:
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
-                 scheduler: Scheduler | None = None, masses=None, seed=0, arithmetic: str = "float"):
+                 scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float"):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -226,7 +242,11 @@ class Simulation:
         self._own_steps = None if s.steps is None else s.steps(self._collide, dim, flat)
         self._live_flags, self._any_live = live_kernel(self._collide, dim, flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
-        self._rng = seed_state(seed)
+        #: the seed used: the int given, the entropy drawn when none was (an int), or the SeedSequence
+        #: given when its entropy alone would not repeat it (a spawned one); ``Simulation(..., seed=sim.seed)``
+        #: repeats the run
+        self.seed = _recorded_seed(seed)
+        self._rng = seed_state(self.seed)
         self._counters = np.zeros(3, dtype=np.int64)
         self._live = None  # the LiveSet, built when a tracked run first needs it
         #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
