@@ -20,7 +20,7 @@ from ..engine.errors import InputError
 from .files import remove, tmp_path
 from .format import DATA_DIR, RESULTS_NAME
 
-__all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "check_resumable", "take_run_dir",
+__all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",
            "check_out_dir"]
 
 #: the lock file in a locked directory (removed when the lock is released)
@@ -35,31 +35,43 @@ def check_writable(out: str | os.PathLike, option: str = "--out") -> Path:
     """``out`` as a Path if it is, or can be created as, a directory we may write into;
     else an `InputError` naming ``option`` and the path at fault. Writes nothing."""
     out = Path(out)
+    problem = unwritable(out)
+    if problem is not None:
+        raise _fail(option, out, problem)
+    return out
+
+
+def unwritable(out: Path) -> str | None:
+    """Why ``out`` cannot be, or be created as, a directory we may write into (None if it can):
+    ``"is a dangling symbolic link (to X)"``, ``"X is not a directory"``, ``"X is not writable
+    (read-only file system)"``, ... Writes nothing."""
     if out.is_symlink() and not out.exists():
-        raise _fail(option, out, f"is a dangling symbolic link (to {os.readlink(out)})")
+        return f"is a dangling symbolic link (to {os.readlink(out)})"
     if out.exists() and not out.is_dir():
-        raise _fail(option, out, "exists and is not a directory")
+        return "exists and is not a directory"
     existing = out
     while not existing.is_dir():
         parent = existing.parent
         if existing.is_symlink() and not existing.exists():
-            raise _fail(option, out, f"{existing} is a dangling symbolic link")
+            return f"{existing} is a dangling symbolic link"
         if existing.exists() or parent == existing:
-            raise _fail(option, out, f"{existing} is not a directory")
+            return f"{existing} is not a directory"
         existing = parent
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise _fail(option, out, f"{existing} is not writable ({_why(existing)})")
-    return out
+    if not os.access(existing, os.W_OK | os.X_OK) or _read_only(existing):
+        return f"{existing} is not writable ({_why(existing)})"
+    return None
+
+
+def _read_only(path: Path) -> bool:
+    try:
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 def _why(path: Path) -> str:
     """Why ``path`` cannot be written: a read-only file system, or permissions."""
-    try:
-        if os.statvfs(path).f_flag & os.ST_RDONLY:
-            return "read-only file system"
-    except OSError:
-        pass
-    return "permission denied"
+    return "read-only file system" if _read_only(path) else "permission denied"
 
 
 class DirLock:
