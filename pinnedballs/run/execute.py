@@ -29,7 +29,7 @@ from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec
 from .driver import Stop, Writer, drive
-from .gsd_writer import GSDWriter
+from .gsd_writer import GSDWriter, layout as gsd_layout
 from .writers import OnSnapshot, ResultsWriter
 
 __all__ = ["Interrupted", "run_to_stop", "execute", "write_figures", "SILENT"]
@@ -106,6 +106,8 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             status("building the geometry")
             with signals.at_once():
                 sim = spec.build()
+            if spec.trajectory is not None:
+                gsd_layout(sim)  # a trajectory GSD's 32-bit floats cannot hold is refused before anything is written
             if starting is not None and log is not None:
                 status.clear()
                 log(f"--resume: {out} holds no run yet ({starting}): starting it")
