@@ -208,17 +208,32 @@ def start(argv: list, cwd: Path, env: dict | None = None) -> subprocess.Popen:
 
 
 HANGS = [("geometry", signal.SIGINT, "run"), ("initial", signal.SIGTERM, "run"), ("rule", signal.SIGTERM, "run"),
-         ("scheduler", signal.SIGINT, "run"), ("geometry", signal.SIGTERM, "validate")]
+         ("scheduler", signal.SIGINT, "run"), ("geometry", signal.SIGTERM, "validate"),
+         ("entry point", signal.SIGTERM, "run"), ("import", signal.SIGINT, "run"), ("import", signal.SIGTERM, "validate")]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("slot, signum, command", HANGS, ids=[f"{s}-{g.name}-{c}" for s, g, c in HANGS])
-def test_a_factory_that_never_returns_stops_at_once_on_a_signal(tmp_path, slot, signum, command):
-    name = user_module(tmp_path)
+@pytest.mark.parametrize("where, signum, command", HANGS, ids=[f"{w}-{g.name}-{c}" for w, g, c in HANGS])
+def test_a_factory_that_never_returns_stops_at_once_on_a_signal(tmp_path, where, signum, command):
+    """In any slot, as an entry-point kind, or as its module is imported (spec validation)."""
     mark = tmp_path / "started"
-    spec_path = write(tmp_path / "s.json", with_factory(slot, f"{name}:hang", mark=str(mark)))
+    env = {}
+    if where == "import":
+        name = user_module(tmp_path, f"open({str(mark)!r}, 'w').close()\nwhile True:\n    pass\n")
+        data = with_factory("geometry", f"{name}:anything")
+    elif where == "entry point":
+        name = user_module(tmp_path)
+        dist = tmp_path / "hanging_components-1.0.dist-info"
+        dist.mkdir()
+        (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: hanging-components\nVersion: 1.0\n")
+        (dist / "entry_points.txt").write_text(f"[pinnedballs.schedulers]\nforever = {name}:hang\n")
+        data = spec(TORUS, scheduler={"kind": "forever", "mark": str(mark)})
+        env = {"PYTHONPATH": f"{ROOT}{os.pathsep}{tmp_path}"}
+    else:
+        data = with_factory(where, f"{user_module(tmp_path)}:hang", mark=str(mark))
+    spec_path = write(tmp_path / "s.json", data)
     out = tmp_path / "out"
-    child = start(COMMANDS[command](spec_path, out), cwd=tmp_path)
+    child = start(COMMANDS[command](spec_path, out), cwd=tmp_path, env=env)
     deadline = time.monotonic() + 120
     while not mark.exists():
         assert child.poll() is None and time.monotonic() < deadline, child.communicate()
