@@ -20,9 +20,11 @@ _SEGMENT = re.compile(r"frames_(\d+)\.h5")
 
 
 def lost_index(run_dir: str | os.PathLike) -> list[str] | None:
-    """Lines describing the segments in ``run_dir/results.data/`` when ``run_dir`` has no index but
-    holds segments; None when it is not such a directory."""
+    """Lines describing the segments in ``run_dir/results.data/`` when ``run_dir`` (or the index path
+    ``run_dir/results.h5``) has no index but holds segments; None when it is not such a directory."""
     run_dir = Path(run_dir)
+    if run_dir.name == RESULTS_NAME and not run_dir.is_dir():  # the index's own path was given
+        run_dir = run_dir.parent
     data = run_dir / DATA_DIR
     if (run_dir / RESULTS_NAME).exists() or not data.is_dir():
         return None

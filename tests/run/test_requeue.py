@@ -86,7 +86,7 @@ def test_info_says_what_the_segments_of_a_lost_index_hold(done):
     (out / "results.h5").unlink()
     segments = sorted(p.name for p in (out / "results.data").glob("frames_*.h5"))
     code, stdout, err = call("info", out)
-    assert (code, err) == (0, "")
+    assert (code, err) == (0, "") and call("info", out / "results.h5") == (code, stdout, err)
     assert stdout == (
         f"results:     {out / 'results.h5'} is missing: the run's index is lost\n"
         f"segments:    {len(segments)} in {out / 'results.data'} ({segments[0]} to {segments[-1]}): "
