@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +61,48 @@ class RunState:
         """This state with the fields named in ``changes`` replaced."""
         return dataclasses.replace(self, **changes)
 
+    # ------------------------------------------------------------ the dict it used to be (deprecated)
+    def keys(self) -> tuple[str, ...]:
+        """Deprecated: the names of the fields, as the dict `Simulation.get_state` used to give had them
+        (``exact`` only for a run in exact arithmetic)."""
+        _mapping_deprecated("keys()")
+        return self._keys()
+
+    def _keys(self) -> tuple[str, ...]:
+        names = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
+        return names if self.exact is None else (*names, "exact")
+
+    def __getitem__(self, name: str):
+        """Deprecated: ``state["velocities"]``; use ``state.velocities``."""
+        _mapping_deprecated(f"state[{name!r}]", f"state.{name}" if isinstance(name, str) else "its fields")
+        if not isinstance(name, str) or name not in self._keys():
+            raise KeyError(name)
+        return getattr(self, name)
+
+    def __iter__(self):
+        _mapping_deprecated("iterating over it")
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        _mapping_deprecated("len()")
+        return len(self._keys())
+
+    def __contains__(self, name) -> bool:
+        _mapping_deprecated("'in'")
+        return name in self._keys()
+
+    def items(self):
+        _mapping_deprecated("items()")
+        return [(name, getattr(self, name)) for name in self._keys()]
+
+    def values(self):
+        _mapping_deprecated("values()")
+        return [getattr(self, name) for name in self._keys()]
+
+    def get(self, name, default=None):
+        _mapping_deprecated("get()")
+        return getattr(self, name) if isinstance(name, str) and name in self._keys() else default
+
     def identical(self, other: "RunState") -> bool:
         """True when ``other`` is this state bit for bit (every array, dtype and count)."""
         same_exact = (self.exact is None) == (other.exact is None) and (
@@ -67,6 +110,32 @@ class RunState:
         return (self.steps, self.collisions) == (other.steps, other.collisions) and same_exact and all(
             getattr(self, name).dtype == getattr(other, name).dtype
             and np.array_equal(getattr(self, name), getattr(other, name)) for name in self.ARRAYS)
+
+
+#: old code reads a state as the dict it was until 2026-11: ``dict(state, steps=0)``, ``state["steps"]``
+Mapping.register(RunState)
+
+
+def _mapping_deprecated(what: str, instead: str = "its fields (state.velocities, state.replace(steps=...))") -> None:
+    warnings.warn(f"RunState is a record, no longer a dict: {what} is deprecated and will be removed; use {instead}",
+                  DeprecationWarning, stacklevel=3)
+
+
+def _as_state(state) -> "RunState":
+    """``state`` as a `RunState`: a dict (what `Simulation.get_state` gave until 2026-11) is still
+    taken, with a DeprecationWarning."""
+    if isinstance(state, Mapping) and not isinstance(state, RunState):
+        warnings.warn("Simulation.set_state: a dict is deprecated and will be removed; pass the RunState that "
+                      "get_state gives (RunState(**d) makes one of a dict)", DeprecationWarning, stacklevel=3)
+        names = [f.name for f in dataclasses.fields(RunState)]
+        missing = [n for n in names if n != "exact" and n not in state]
+        if missing:
+            raise FieldError("state", f"the dict lacks {', '.join(missing)}")
+        unknown = sorted(str(k) for k in state if k not in names)
+        if unknown:
+            raise FieldError("state", f"unknown key(s) {', '.join(unknown)} (a state has {', '.join(names)})")
+        return RunState(**state)
+    return state
 
 
 def mass_array(masses, n_balls: int) -> np.ndarray:
@@ -84,6 +153,20 @@ def mass_array(masses, n_balls: int) -> np.ndarray:
     if not (np.isfinite(m).all() and (m > 0).all()):
         raise FieldError("masses", "must all be finite and > 0")
     return m
+
+
+def _recorded_seed(seed) -> int | np.random.SeedSequence:
+    """The seed a simulation records (`Simulation.seed`): what repeats its stream, as an int when one does."""
+    if seed is None:
+        return np.random.SeedSequence().entropy  # fresh entropy, as numpy.random.default_rng() draws it
+    seed = checks.seed("seed", seed)
+    if isinstance(seed, np.random.SeedSequence) and isinstance(seed.entropy, int) and not seed.spawn_key \
+            and seed.pool_size == _DEFAULT_POOL_SIZE:
+        return seed.entropy  # SeedSequence(entropy) gives the same stream
+    return seed
+
+
+_DEFAULT_POOL_SIZE = np.random.SeedSequence(0).pool_size
 
 
 def _count(name: str, value) -> int:
@@ -109,7 +192,9 @@ class Simulation:
 
     velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
     masses: ``(n_balls,)`` positive masses, or None for all equal.
-    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream.
+    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream. As in
+    numpy, None (the default) draws fresh entropy from the operating system, so two simulations
+    made alike without a seed are independent; `seed` records it (an int) to repeat the run.
     A contact collides only if its closing speed exceeds ``threshold = resolution * V``
     (`pinnedballs.rules.threshold`, ``V`` the largest speed the velocities given can give a ball of
     the mean mass). The default resolution, ``4 * 2^-53`` (4 units in the last place of ``V``), sets
@@ -136,7 +221,7 @@ class Simulation:
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
-                 scheduler: Scheduler | None = None, masses=None, seed=0, arithmetic: str = "float",
+                 scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float",
                  resolution: float | None = None):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
@@ -166,7 +251,11 @@ class Simulation:
         self._own_steps = None if s.steps is None else s.steps(self._collide, dim, flat)
         self._live_flags, self._any_live = live_kernel(self._collide, dim, flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
-        self._rng = seed_state(seed)
+        #: the seed used: the int given, the entropy drawn when none was (an int), or the SeedSequence
+        #: given when its entropy alone would not repeat it (a spawned one); ``Simulation(..., seed=sim.seed)``
+        #: repeats the run
+        self.seed = _recorded_seed(seed)
+        self._rng = seed_state(self.seed)
         self._counters = np.zeros(3, dtype=np.int64)
         self._margin = new_margin()  # every pick's closing speed against the threshold (`closing_margin`)
         self._margin_warned = False
@@ -400,7 +489,9 @@ class Simulation:
 
     def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
-        scheduler). Everything is checked before anything changes."""
+        scheduler). Everything is checked before anything changes. (A dict with the same keys, what
+        `get_state` gave until 2026-11, is still taken, with a DeprecationWarning.)"""
+        state = _as_state(state)
         velocities = self._check_velocities(state.velocities)
         rng = np.asarray(state.rng_state)
         if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():

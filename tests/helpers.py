@@ -276,6 +276,44 @@ def assert_input_error(code: int, err: str, *words: str) -> None:
 
 
 
+# ================================================================ directories that cannot be written
+
+def _succeeds(*argv: str) -> bool:
+    import subprocess
+
+    return subprocess.run(argv, capture_output=True).returncode == 0
+
+
+@contextlib.contextmanager
+def read_only_dir(where: Path, fill=None):
+    """A directory ``where`` on which nothing can be created: a read-only tmpfs if mounting works,
+    else an immutable directory (root ignores permissions). ``fill(where)``, if given, writes into
+    it first."""
+    import os
+
+    where.mkdir()
+    if _succeeds("mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(where)):
+        try:
+            if fill is not None:
+                fill(where)
+            assert _succeeds("mount", "-o", "remount,ro", str(where))
+            yield where
+        finally:
+            _succeeds("umount", str(where))
+        return
+    if fill is not None:
+        fill(where)
+    if _succeeds("chattr", "+i", str(where)):
+        try:
+            yield where
+        finally:
+            _succeeds("chattr", "-i", str(where))
+    else:
+        assert os.getuid() != 0, "as root, a read-only directory needs mount or chattr"
+        where.chmod(0o555)
+        yield where
+
+
 # ================================================================ comparing runs bit for bit
 
 def reference(tmp_path: Path, data: dict):

@@ -544,3 +544,33 @@ def test_set_state_refuses_scheduler_states_that_index_outside_the_contacts(cls,
     state = sim.get_state()
     with pytest.raises(ValueError, match=r"^scheduler_state: "):
         sim.set_state(state.replace(scheduler_state=bad(g.n_contacts)))
+
+
+# ---------------------------------------------------------------- seeds (issue 26, item 4)
+
+
+def test_without_a_seed_each_simulation_draws_its_own_and_records_it():
+    """As numpy: no seed means fresh entropy, so replicas made in a loop are independent; `seed`
+    records it, and passing it again repeats the run bit for bit."""
+    g, v = paper_torus(rows=6, cols=5)
+    a, b = pb.Simulation(g, v), pb.Simulation(g, v)
+    assert isinstance(a.seed, int) and a.seed >= 2**64 and a.seed != b.seed  # 128 bits of entropy
+    assert not np.array_equal(a.get_state().rng_state, b.get_state().rng_state)
+    again = pb.Simulation(g, v, seed=a.seed)
+    for sim in (a, b, again):
+        sim.run(steps=2_000)
+    assert again.get_state().identical(a.get_state()) and not b.get_state().identical(a.get_state())
+
+
+def test_the_seed_recorded_is_what_repeats_the_run():
+    g, v = paper_torus(rows=6, cols=5)
+    assert pb.Simulation(g, v, seed=7).seed == 7
+    assert pb.Simulation(g, v, seed=np.random.SeedSequence(7)).seed == 7  # its entropy alone repeats it
+    child = np.random.SeedSequence(7).spawn(3)[2]  # an ensemble's replica: the spawn key matters
+    sim = pb.Simulation(g, v, seed=child)
+    assert sim.seed is child
+    repeat = pb.Simulation(g, v, seed=sim.seed)
+    sim.run(steps=500)
+    repeat.run(steps=500)
+    assert repeat.get_state().identical(sim.get_state())
+    assert not pb.Simulation(g, v, seed=7).get_state().identical(pb.Simulation(g, v, seed=child).get_state())

@@ -45,6 +45,11 @@ class UsageError(Exception):
     """Bad command-line arguments (exit 2, one line)."""
 
 
+#: the flag of every subcommand that may run a user's code (a spec's factories)
+TRACEBACK = arg("--traceback", action="store_true",
+                help="when a user's code named by the spec fails, print its traceback too (for debugging it)")
+
+
 # ---------------------------------------------------------------- subcommands
 
 
@@ -52,9 +57,12 @@ class UsageError(Exception):
             arg("spec", metavar="SPEC.json", help="the run spec"),
             arg("--out", required=True, metavar="DIR", help="the run directory (created)"),
             arg("--force", action="store_true", help="write into a non-empty directory, replacing a run there"),
-            arg("--resume", action="store_true", help="continue the run in DIR from its last checkpoint"),
+            arg("--resume", action="store_true", help="continue the run in DIR from its last checkpoint, or start it "
+                                                      "if DIR holds none yet (one command line for every life of a "
+                                                      "requeued job)"),
             arg("--quiet", action="store_true", help="no progress bar, no summary"),
-            arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"))
+            arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"),
+            TRACEBACK)
 def run(args: argparse.Namespace) -> int:
     """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
     (`interrupts.exit_status`)."""
@@ -77,8 +85,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..results.format import RESULTS_NAME
-    from ..results.rundir import check_resumable
     from ..run.execute import execute
     from .status import Status
 
@@ -87,13 +93,9 @@ def _run(args: argparse.Namespace) -> int:
         from ..specs.run import load_spec
 
         spec = load_spec(args.spec)
-        if args.resume and not (Path(args.out) / RESULTS_NAME).exists():
-            check_resumable(args.out)  # a missing or empty directory is refused; else that run starts again:
-            status.clear()
-            print(f"{PROG}: {args.out} holds no checkpoint yet (its run stopped before writing one): starting "
-                  f"it from the beginning", file=sys.stderr)
         path = execute(spec, args.out, force=args.force, resume=args.resume, progress=False if args.quiet else None,
-                       figures=not args.no_figures and _plots_available(), status=status)
+                       figures=not args.no_figures and _plots_available(), status=status,
+                       log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True))
     if not args.quiet:
         from ..results.load import load
 
@@ -104,7 +106,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 @subcommand("validate", "check a spec, and that it builds; print a one-line summary",
-            arg("spec", metavar="SPEC.json", help="the run spec"))
+            arg("spec", metavar="SPEC.json", help="the run spec"), TRACEBACK)
 def validate(args: argparse.Namespace) -> int:
     from ..specs.run import describe, load_spec
 
@@ -185,10 +187,15 @@ def export(args: argparse.Namespace) -> int:
             arg("dir", metavar="DIR", help="a run directory (or its results.h5), or an ensemble's directory"))
 def info(args: argparse.Namespace) -> int:
     from ..results.load import load
+    from ..results.remains import lost_index
     from ..run.ensemble_dir import describe, is_ensemble_dir, load_ensemble
 
     if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
         print("\n".join(describe(load_ensemble(args.dir), Path(args.dir))))
+        return EXIT_OK
+    remains = lost_index(args.dir)  # a run whose index is lost: what its segments hold
+    if remains is not None:
+        print("\n".join(remains))
         return EXIT_OK
     res = load(args.dir)
     kinds = res.kinds
@@ -259,7 +266,7 @@ def _plots_available() -> bool:
             arg("--dask", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)"),
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
-            arg("--quiet", action="store_true", help="no progress bar, no summary line"))
+            arg("--quiet", action="store_true", help="no progress bar, no summary line"), TRACEBACK)
 def ensemble_command(args) -> int:
     """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
     from .status import Status
@@ -272,7 +279,7 @@ def ensemble_command(args) -> int:
 def _ensemble(args, status) -> int:
     from ..engine.errors import InputError
     from ..results.rundir import DirLock, check_out_dir
-    from ..run.ensemble import (ERROR_COLUMN, _check_count, _check_replicas_memory, _remove_old_outputs, replica_seed,
+    from ..run.ensemble import (ERROR_COLUMN, SPEC_NAME, _check_count, _check_replicas_memory, _remove_old_outputs, replica_seed,
                                 run_ensemble, write_outputs)
     from ..run.executors import dask_client
     from ..specs.run import load_spec
@@ -284,6 +291,8 @@ def _ensemble(args, status) -> int:
         if args.dask is not None:
             raise InputError("--workers, --dask: give one of them, not both")
     spec = load_spec(args.spec)
+    seeded = args.spec if spec.seed is not None else str(Path(args.out) / SPEC_NAME)  # a spec that repeats it
+    spec = spec.seeded()  # one seed for the whole ensemble, recorded in its spec.json
     out = check_out_dir(args.out, args.force)
     status("building the geometry")
     spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
@@ -306,7 +315,7 @@ def _ensemble(args, status) -> int:
     for row in result.failures:  # its rows depend on the spec and its index only: it can be run alone
         print(f"pinnedballs: replica {row['replica']} (seed entropy {row['seed_entropy']}, spawn key "
               f"{row['spawn_key']}) failed: {row[ERROR_COLUMN]}; rerun it alone with pinnedballs.run.ensemble."
-              f"run_replica(pinnedballs.specs.load_spec({args.spec!r}), {row['replica']}), which gives the rows it "
+              f"run_replica(pinnedballs.specs.load_spec({seeded!r}), {row['replica']}), which gives the rows it "
               f"would have had", file=sys.stderr)
     if not args.quiet:
         print(f"{replicas - len(result.failures)} of {replicas} replicas done in {result.wall_seconds:.1f} s "

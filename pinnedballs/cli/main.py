@@ -1,8 +1,9 @@
 """The ``pinnedballs`` command line: `main` parses the arguments, runs the subcommand (`commands`)
 and turns every failure into one line on stderr and an exit status.
 
-Exit status: 0 done; 2 bad input (one line on stderr naming the field or file);
-1 anything else; 130 interrupted (after a complete checkpoint).
+Exit status: 0 done; 2 bad input (one line on stderr naming the field or file), a user's code
+that fails included (naming the factory; ``--traceback`` prints its traceback first); 1 anything
+else; 130 interrupted (Ctrl-C or SIGTERM; a run after a complete checkpoint).
 """
 
 from __future__ import annotations
@@ -46,22 +47,28 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``: the program itself, which from
-    then on ignores Ctrl-C: one that comes as it exits must not change its status); return the exit status."""
+    then on ignores Ctrl-C: one that comes as it exits must not change its status); return the exit status.
+    SIGTERM stops a command as Ctrl-C does (a run saves its state first)."""
     try:
-        return _main(argv)
+        with _sigterm_interrupts():
+            return _main(argv)
     finally:
         if argv is None and threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _main(argv: list[str] | None) -> int:
+    show_traceback = False
     try:
         args = _parser().parse_args(argv)
+        show_traceback = getattr(args, "traceback", False)
         with _user_modules(getattr(args, "spec", None)):
             return COMMANDS[args.command].run(args)
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else EXIT_OK
     except (UsageError, InputError, FileNotFoundError) as exc:
+        if show_traceback:  # a user's code that failed: its own traceback, then what it means here
+            traceback.print_exception(exc, file=sys.stderr)
         _say(f"error: {_one_line(exc)}")
         return EXIT_INPUT
     except KeyboardInterrupt:
@@ -80,6 +87,26 @@ def _main(argv: list[str] | None) -> int:
         traceback.print_exc(file=sys.stderr)
         _say(f"error: {type(exc).__name__}: {_one_line(exc)}")
         return EXIT_ERROR
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """SIGTERM raises KeyboardInterrupt, as Ctrl-C does, while the command runs (main thread; not
+    where it is ignored, as a launcher may ask): code that runs long outside the run loop, a user's
+    factory that never returns, stops at once with exit status 130."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGTERM) in (signal.SIG_IGN, None):
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 @contextlib.contextmanager

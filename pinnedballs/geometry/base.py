@@ -16,10 +16,11 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
+from ..engine import checks
 from ..engine.errors import FieldError
 from ..engine.rows import row_pattern
 
-__all__ = ["Contacts", "Geometry", "Boundary", "tangent_contacts", "VIEWS"]
+__all__ = ["Contacts", "Geometry", "Boundary", "tangent_contacts", "VIEWS", "LENGTHS", "checked_radius"]
 
 SQRT3 = float(np.sqrt(3.0))
 _INT32_MAX = np.iinfo(np.int32).max
@@ -27,6 +28,26 @@ _INT32_MAX = np.iinfo(np.int32).max
 #: how a state is drawn (`Geometry.view`): arrows in the plane; both hemispheres of a sphere; the
 #: Poincare disk; a 3-D packing layer by layer; a 1-D chain; each component against the ball index
 VIEWS = ("plane", "sphere", "poincare", "layers", "chain", "components")
+
+
+#: the lengths a geometry may hold (radius, centres' distances from the origin): distances are computed
+#: as square roots of sums of squares, and these squares stay normal float64 numbers
+LENGTHS = (1e-150, 1e150)
+
+
+def checked_radius(radius, reach: float = 1.0) -> float:
+    """``radius`` as a float if it is finite, > 0 and keeps every length of the geometry within
+    `LENGTHS`: the radius itself, and centres up to ``reach`` radii from the origin. Else a
+    `FieldError` on ``radius`` giving the range that does (the centres would overflow, or lengths
+    lose their digits to rounding, and a results file would hold what cannot be read back)."""
+    r = checks.number("radius", radius, 0.0, above=True)
+    low, high = LENGTHS
+    top = high / max(float(reach), 1.0)
+    if not low <= r <= top:
+        where = f" for centres up to {float(reach):.3g} radii from the origin" if reach > 1 else ""
+        raise FieldError("radius", f"must be in [{low:g}, {top:.3g}]{where} (lengths beyond [{low:g}, {high:g}] "
+                                   f"lose their digits when squared), got {radius!r}")
+    return r
 
 
 def _index_dtype(n: int) -> np.dtype:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
-from .base import _INT32_MAX, VIEWS, Boundary, Contacts, Geometry
+from .base import _INT32_MAX, LENGTHS, VIEWS, Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["GraphGeometry", "StoredGeometry"]
 
@@ -25,6 +25,10 @@ def _as_positions(positions) -> np.ndarray:
         raise FieldError("positions", f"must have shape (n_balls, d), got {p.shape}")
     if not np.isfinite(p).all():
         raise FieldError("positions", "contain NaN or inf")
+    far = float(np.abs(p).max()) if p.size else 0.0
+    if far > LENGTHS[1]:
+        raise FieldError("positions", f"a centre has a coordinate of {far:.3g}; lengths beyond {LENGTHS[1]:g} lose "
+                                      f"their digits when squared: scale them down")
     return p
 
 
@@ -148,7 +152,7 @@ class GraphGeometry(Geometry):
         if n > _INT32_MAX or 2 * len(pairs) > _INT32_MAX:
             raise FieldError("graph", "too large for 32-bit contact tables")
         self.positions = positions
-        self.radius = checks.number("radius", radius, 0.0, above=True)
+        self.radius = checked_radius(radius)
         e = len(pairs)
         units = np.empty((2 * e, t_i.shape[1]))
         units[0::2], units[1::2] = t_i, t_j
@@ -168,11 +172,16 @@ class GraphGeometry(Geometry):
         """
         from scipy.spatial import cKDTree
 
+        radius = checked_radius(radius)
         p = _as_positions(positions)
-        radius = checks.number("radius", radius, 0.0, above=True)
         if not (0 <= rtol < 0.5):
             raise FieldError("rtol", f"must be in [0, 0.5), got {rtol}")
         contact = 2.0 * radius
+        far = float(np.abs(p).max()) if p.size else 0.0
+        if np.spacing(far) > 1e-6 * contact:  # distances between centres would not resolve the contact distance
+            raise FieldError("radius", f"{radius:g} is too small for centres up to {far:.3g} from the origin: they are "
+                                       f"rounded to {np.spacing(far):.2g}, more than a millionth of the contact "
+                                       f"distance {contact:g} (move the centres near the origin, or scale them)")
         pairs = cKDTree(p).query_pairs(contact * (1 + rtol), output_type="ndarray").astype(np.int64)
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else pairs.reshape(0, 2)
         dist = np.linalg.norm(p[pairs[:, 1]] - p[pairs[:, 0]], axis=1)

@@ -19,7 +19,7 @@ import numpy as np
 from ..engine import checks
 from ..engine.errors import FieldError
 
-from .base import Boundary, Contacts, Geometry
+from .base import Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["HyperbolicPlane", "contact_length", "MINKOWSKI"]
 
@@ -50,7 +50,7 @@ class HyperbolicPlane(Geometry):
     def __init__(self, q: int = 7, layers: int = 4, radius: float = 1.0):
         self.q = checks.integer("q", q, 7)
         self.layers = checks.integer("layers", layers, 0)
-        self.radius = checks.number("radius", radius, 0.0, above=True)
+        self.radius = checked_radius(radius)  # the balls' size: the centres lie on the unit surface
         self.length = contact_length(self.q)
         self._r, self._phi, self.ring, self.pairs = _tiling(self.q, self.layers)
         self.positions = _hyperboloid(self._r, self._phi).astype(np.float64)

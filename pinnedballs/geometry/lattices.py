@@ -8,7 +8,7 @@ from ..engine import checks
 from ..engine.errors import FieldError
 from ..engine.limits import check_memory, format_count, run_bytes
 
-from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry
+from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["FlatTorus", "HalfPlane"]
 
@@ -20,10 +20,14 @@ _LATTICE_UNITS = np.array([[1.0, 0.0], [0.5, SQRT3 / 2], [-0.5, SQRT3 / 2]])
 _LATTICE_UNITS = np.concatenate([_LATTICE_UNITS, -_LATTICE_UNITS])
 
 
-def _lattice_positions(rows: int, cols: int, radius: float) -> np.ndarray:
-    """``(rows*cols, 2)`` centres: ball ``r*cols + c`` at ``(2c + r%2, r*sqrt(3))`` radii."""
+def _lattice_positions(rows: int, cols: int, radius) -> tuple[np.ndarray, float]:
+    """``(rows*cols, 2)`` centres: ball ``r*cols + c`` at ``(2c + r%2, r*sqrt(3))`` radii; and the radius,
+    checked against the farthest centre (`checked_radius`)."""
     r, c = np.divmod(np.arange(rows * cols), cols)
-    return radius * np.column_stack([2.0 * c + (r % 2), SQRT3 * r])
+    p = np.column_stack([2.0 * c + (r % 2), SQRT3 * r])
+    radius = checked_radius(radius, float(np.sqrt(np.einsum("ij,ij->i", p, p).max())))
+    p *= radius
+    return p, radius
 
 
 def _lattice_contacts(rows: int, cols: int, periodic: bool) -> Contacts:
@@ -73,8 +77,8 @@ class FlatTorus(Geometry):
                      f"a {format_count(rows)} x {format_count(cols)} flat torus")
         if rows * cols > _INT32_MAX // 3:
             raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {rows * cols}")
-        self.rows, self.cols, self.radius = rows, cols, checks.number("radius", radius, 0.0, above=True)
-        self.positions = _lattice_positions(rows, cols, self.radius)
+        self.rows, self.cols = rows, cols
+        self.positions, self.radius = _lattice_positions(rows, cols, radius)
 
     @property
     def period(self) -> np.ndarray:
@@ -110,9 +114,8 @@ class HalfPlane(Geometry):
                      f"a {format_count(self.rows)} x {format_count(self.cols)} half-plane lattice")
         if self.rows * self.cols > _INT32_MAX // 3:
             raise FieldError("rows*cols", f"at most {_INT32_MAX // 3} balls, got {self.rows * self.cols}")
-        self.radius = checks.number("radius", radius, 0.0, above=True)
         self.orientation = checks.choice("orientation", orientation, ORIENTATIONS)
-        p = _lattice_positions(self.rows, self.cols, self.radius)
+        p, self.radius = _lattice_positions(self.rows, self.cols, radius)
         self.positions = p if self.orientation == "along" else np.ascontiguousarray(p[:, ::-1])
 
     @classmethod

@@ -16,7 +16,7 @@ from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
 from ..engine.limits import check_memory, format_count, run_bytes
 
-from .base import _INT32_MAX, Boundary, Contacts, Geometry
+from .base import _INT32_MAX, Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["FCC", "HCP"]
 
@@ -34,7 +34,7 @@ class _Packing(Geometry):
     def __init__(self, nx: int, ny: int, nz: int, periodic=True, radius: float = 1.0):
         self.shape = tuple(checks.integer(name, n, 1) for name, n in zip(AXES, (nx, ny, nz)))
         self.periodic = _check_periodic(periodic)
-        self.radius = checks.number("radius", radius, 0.0, above=True)
+        checks.number("radius", radius, 0.0, above=True)
         n = int(np.prod(self.shape)) * len(self.BASIS)
         check_memory(run_bytes(n, 6 * n, dim=3), "nx*ny*nz",
                      f"a {' x '.join(format_count(s) for s in self.shape)} {type(self).__name__} packing")
@@ -45,7 +45,9 @@ class _Packing(Geometry):
         _check_wrap(self._stencil, self.shape, self.periodic)
         cells = np.indices(self.shape).reshape(3, -1).T
         p = (cells[:, None, :] * self.CELL + self.BASIS[None, :, :]).reshape(-1, 3)
-        self.positions = self.radius * p
+        self.radius = checked_radius(radius, float(np.sqrt(np.einsum("ij,ij->i", p, p).max())))
+        p *= self.radius
+        self.positions = p
 
     def to_spec(self) -> dict:
         nx, ny, nz = self.shape

@@ -15,7 +15,7 @@ import numpy as np
 from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
 
-from .base import Contacts, Geometry, tangent_contacts
+from .base import Contacts, Geometry, tangent_contacts, checked_radius
 
 __all__ = ["Sphere"]
 
@@ -43,7 +43,7 @@ class Sphere(Geometry):
     def __init__(self, positions: np.ndarray, pairs: np.ndarray, radius: float = 1.0):
         self.positions = np.ascontiguousarray(positions, dtype=np.float64)
         self.pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
-        self.radius = checks.number("radius", radius, 0.0, above=True)
+        self.radius = checked_radius(radius)  # the balls' size: the centres lie on the unit surface
 
     @classmethod
     def geodesic(cls, frequency: int, radius: float = 1.0) -> "Sphere":

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.errors import FieldError, FieldTypeError
+from ..results.rundir import unwritable
 from .base import render
 from .states import state_picture
 
@@ -66,14 +67,27 @@ def movie_frames(res) -> list[tuple[str, np.ndarray]]:
             for k, (s, c, v) in enumerate(frames)]
 
 
+#: frames per second a movie may have: a GIF holds each frame's duration in hundredths of a second,
+#: from 1 to 65535 (a frame at most 655 s, at least 10 ms), and MP4 players keep to the same
+FPS_RANGE = (0.01, 100.0)
+
+
 def _check(out, fps) -> tuple[Path, float]:
+    """``out`` and ``fps`` checked before anything is drawn or written: a `FieldError` naming either."""
     if not isinstance(out, (str, os.PathLike)):
         raise FieldTypeError("out", f"must be a path ending in .gif or .mp4, got {type(out).__name__}")
     out = Path(out)
     if out.suffix.lower() not in FORMATS:
         raise FieldError("out", f"must end in .gif or .mp4, got {out.name!r}")
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 100:
-        raise FieldError("fps", f"must be a number of frames per second in (0, 100], got {fps!r}")
+    low, high = FPS_RANGE
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not low <= fps <= high:
+        raise FieldError("fps", f"must be a number of frames per second in [{low:g}, {high:g}], got {fps!r}")
+    if out.is_dir():
+        raise FieldError("out", f"{out} is a directory; give the movie's file name (e.g. {out / MOVIE_NAME})")
+    problem = unwritable(out.parent)
+    if problem is not None:
+        where = out.parent if problem.startswith(("is ", "exists ")) else ""
+        raise FieldError("out", f"{out}: cannot be written, {where}{' ' if where else ''}{problem}")
     if out.suffix.lower() == ".mp4":
         try:
             import imageio_ffmpeg

@@ -17,7 +17,7 @@ from ..geometry.graph import StoredGeometry
 from ..simulation import RunState, Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.errors import InputError
-from ..specs.errors import SpecError
+from ..specs.errors import SpecError, UserCodeError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
 from .check import check_results
@@ -150,7 +150,7 @@ class Results:
         try:
             sim = self._build(rule, scheduler)
         except SpecError as exc:
-            if not exc.path.endswith(".factory"):
+            if not exc.path.endswith(".factory") or isinstance(exc, UserCodeError):  # that one names the factory
                 raise
             raise InputError(f"{self.run_dir}: continuing this run needs the code its spec names: {exc}") from None
         sim.set_state(self.state())

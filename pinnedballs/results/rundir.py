@@ -13,13 +13,15 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
+import re
 from pathlib import Path
 
 from ..engine.errors import InputError
 from .files import remove, tmp_path
 from .format import DATA_DIR, RESULTS_NAME
 
-__all__ = ["LOCK_NAME", "DirLock", "holder", "check_writable", "check_resumable", "take_run_dir", "check_out_dir"]
+__all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",
+           "check_out_dir"]
 
 #: the lock file in a locked directory (removed when the lock is released)
 LOCK_NAME = ".pinnedballs.lock"
@@ -33,31 +35,43 @@ def check_writable(out: str | os.PathLike, option: str = "--out") -> Path:
     """``out`` as a Path if it is, or can be created as, a directory we may write into;
     else an `InputError` naming ``option`` and the path at fault. Writes nothing."""
     out = Path(out)
+    problem = unwritable(out)
+    if problem is not None:
+        raise _fail(option, out, problem)
+    return out
+
+
+def unwritable(out: Path) -> str | None:
+    """Why ``out`` cannot be, or be created as, a directory we may write into (None if it can):
+    ``"is a dangling symbolic link (to X)"``, ``"X is not a directory"``, ``"X is not writable
+    (read-only file system)"``, ... Writes nothing."""
     if out.is_symlink() and not out.exists():
-        raise _fail(option, out, f"is a dangling symbolic link (to {os.readlink(out)})")
+        return f"is a dangling symbolic link (to {os.readlink(out)})"
     if out.exists() and not out.is_dir():
-        raise _fail(option, out, "exists and is not a directory")
+        return "exists and is not a directory"
     existing = out
     while not existing.is_dir():
         parent = existing.parent
         if existing.is_symlink() and not existing.exists():
-            raise _fail(option, out, f"{existing} is a dangling symbolic link")
+            return f"{existing} is a dangling symbolic link"
         if existing.exists() or parent == existing:
-            raise _fail(option, out, f"{existing} is not a directory")
+            return f"{existing} is not a directory"
         existing = parent
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise _fail(option, out, f"{existing} is not writable ({_why(existing)})")
-    return out
+    if not os.access(existing, os.W_OK | os.X_OK) or _read_only(existing):
+        return f"{existing} is not writable ({_why(existing)})"
+    return None
+
+
+def _read_only(path: Path) -> bool:
+    try:
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 def _why(path: Path) -> str:
     """Why ``path`` cannot be written: a read-only file system, or permissions."""
-    try:
-        if os.statvfs(path).f_flag & os.ST_RDONLY:
-            return "read-only file system"
-    except OSError:
-        pass
-    return "permission denied"
+    return "read-only file system" if _read_only(path) else "permission denied"
 
 
 class DirLock:
@@ -150,19 +164,79 @@ def _same_file(f, path: Path) -> bool:
     return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
 
 
-def check_resumable(out: str | os.PathLike, option: str = "--out",
-                    hint: str = "check the path, or start a run without --resume") -> Path:
-    """``out`` as a Path if it may hold a run to continue; an `InputError` naming ``option`` if it is
-    missing or empty: continuing nothing would start hours of computation somewhere unintended (a
-    mistyped path) while the user believes a run goes on. A directory holding only what a run killed
-    before its first checkpoint leaves (a lock file, ``results.data/``, ``spec.json``) passes: that run
-    starts again from the beginning."""
-    out = Path(out)
-    if not out.is_dir():
-        raise InputError(f"{option} {out}: no such directory, so no run to continue; {hint}")
-    if not any(out.iterdir()):
-        raise InputError(f"{option} {out}: an empty directory, so no run to continue; {hint}")
-    return out
+#: what a run killed before its first checkpoint may leave beside its lock file
+BIRTH = frozenset({"spec.json", DATA_DIR, RESULTS_NAME + ".tmp"})
+#: the files a run writes in ``results.data/``: the static data, the segments, their temporary files
+_OURS = re.compile(r"(static|frames_\d+)\.h5(\.tmp)?")
+_SEGMENT = re.compile(r"frames_\d+\.h5(\.tmp)?")
+
+
+def check_resumable(out: str | os.PathLike, option: str = "--out", *, start: bool = True,
+                    hint: str = "check the path, or start a run without --resume") -> str | None:
+    """What continuing the run in ``out`` finds there, before anything is written: None if ``out``
+    holds a run (its index, ``results.h5``), else why it holds none yet, when the run may start there:
+    "no such directory", "an empty directory", or "only what a run killed before its first checkpoint
+    left" (a lock file, ``spec.json``, ``results.data/`` without segments). With ``start`` False a
+    missing or empty directory is refused instead (``hint`` says what to do), as a Python writer's
+    ``resume=True`` refuses one. Anything else is refused (an `InputError` naming ``option``): other
+    files; segments without their index (a run whose index is lost: never started over); an index
+    that is a dangling link or a loop of links; a file or folder in ``results.data/`` that no run wrote."""
+    out = check_writable(out, option)
+    index = out / RESULTS_NAME
+    if index.is_symlink() and not index.exists():
+        raise _fail(option, out, f"{RESULTS_NAME} is {_broken_link(index)}; the run's index cannot be read: "
+                                 f"put {RESULTS_NAME} back, or choose another directory")
+    if index.exists():
+        _data_files(out, option)
+        return None
+    if not out.is_dir() or not any(p.name != LOCK_NAME for p in out.iterdir()):
+        why = "no such directory" if not out.is_dir() else "an empty directory"
+        if not start:
+            raise _fail(option, out, f"{why}, so no run to continue; {hint}")
+        return why
+    segments = [p for p in _data_files(out, option) if _SEGMENT.fullmatch(p.name)]
+    if segments:
+        raise _lost_index(option, out, segments)
+    others = sorted(p.name for p in out.iterdir()
+                    if p.name != LOCK_NAME and (p.name not in BIRTH or (p.name == DATA_DIR and not p.is_dir())))
+    if others:
+        shown = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
+        raise _fail(option, out, f"holds no run to continue, but other files ({shown}); choose another directory, "
+                                 f"or write into this one with --force instead of --resume")
+    return "only what a run killed before its first checkpoint left"
+
+
+def _broken_link(path: Path) -> str:
+    """What is wrong with the symbolic link ``path`` that leads to no file."""
+    try:
+        os.stat(path)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return "a loop of symbolic links"
+    return f"a dangling symbolic link (to {os.readlink(path)})"
+
+
+def _data_files(out: Path, option: str) -> list[Path]:
+    """The files in ``out/results.data/`` (none if it is missing); an `InputError` naming the first
+    entry no run wrote (a user's file or folder), which no command may remove or write beside."""
+    data = out / DATA_DIR
+    if not data.is_dir():
+        return []
+    entries = sorted(data.iterdir())
+    for p in entries:
+        if not _OURS.fullmatch(p.name) or p.is_symlink() or not p.is_file():
+            what = "a folder" if p.is_dir() else "a file"
+            raise _fail(option, out, f"{DATA_DIR}/{p.name} is {what} no run wrote; move it out of {DATA_DIR}/ "
+                                     f"(a run's own data goes there)")
+    return entries
+
+
+def _lost_index(option: str, out: Path, segments: list[Path]) -> InputError:
+    names = ", ".join(p.name for p in segments[:2]) + (", ..." if len(segments) > 2 else "")
+    return _fail(option, out, f"{RESULTS_NAME} is missing, but {DATA_DIR}/ holds {len(segments)} segment(s) of a run "
+                              f"({names}): its index is lost, and nothing was written over it; put {RESULTS_NAME} "
+                              f"back (from a backup), or move the directory away to start anew (pinnedballs info "
+                              f"{out} says what the segments hold)")
 
 
 def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: frozenset[str] = frozenset(), hint: str = "use --force to overwrite or --resume to continue",
@@ -173,13 +247,15 @@ def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: froze
     ``may_hold`` unless ``force``; with ``force``, removes the results a run left there.
     """
     out = check_out_dir(out, force, may_hold=may_hold, hint=hint, option=option)
+    files = _data_files(out, option)  # a user's own file there is never removed, even with force
+    segments = [p for p in files if _SEGMENT.fullmatch(p.name)]
+    if segments and not force and not (out / RESULTS_NAME).exists():
+        raise _lost_index(option, out, segments)
     out.mkdir(parents=True, exist_ok=True)
     remove(out / RESULTS_NAME)
     remove(tmp_path(out / RESULTS_NAME))
-    data = out / DATA_DIR
-    if data.is_dir():
-        for p in data.iterdir():
-            p.unlink()
+    for p in files:
+        p.unlink()
     return out
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -139,12 +140,17 @@ class ResultsStore:
         write_bytes_atomic(self.path, seal(h5_image(fill)))
 
     def _remove_strays(self) -> None:
-        """Remove temporary files and segments the index does not list (left by a kill)."""
+        """Remove temporary files and segments the index does not list (left by a kill); what no run
+        writes (a user's own file or folder) is left alone."""
         keep = {s[0] for s in self.segments} | {STATIC_NAME}
         for p in self.data_dir.iterdir():
-            if p.name not in keep:
+            if p.name not in keep and _STRAY.fullmatch(p.name) and p.is_file():
                 p.unlink()
         remove(tmp_path(self.path))
+
+
+#: what a kill may leave in the data directory: a segment the index does not list, temporary files
+_STRAY = re.compile(r"(static|frames_\d+)\.h5(\.tmp)?")
 
 
 def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> str:

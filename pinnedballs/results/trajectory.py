@@ -84,6 +84,8 @@ class Layout:
         lengths, origin = _box(geometry, p, dimensions, float(diameter.max()) if n else 0.0)
         centred = np.zeros((n, 3))
         centred[:, :k] = p - origin[:k]
+        _fits_float32(max(float(np.abs(centred).max(initial=0.0)), float(lengths.max())),
+                      float(diameter.min(initial=np.inf)))
         mass = None if masses is None else np.broadcast_to(np.asarray(masses, dtype=np.float32), (n,)).copy()
         return cls(centred.astype(np.float32), origin, np.concatenate([lengths, np.zeros(3)]).astype(np.float32),
                    dimensions, diameter.astype(np.float32), _typeid(geometry), mass, frames, k)
@@ -121,6 +123,32 @@ class Layout:
         if first:
             f.log[ORIGIN_LOG] = self.origin.astype(np.float64)
         return f
+
+
+#: what a GSD frame's 32-bit floats hold with all their digits: sizes from FLOAT32[0] to FLOAT32[1]
+FLOAT32 = (1e-30, 1e38)
+
+
+def _fits_float32(largest: float, diameter: float) -> None:
+    """A `FieldError` on ``trajectory`` unless lengths up to ``largest`` and balls of ``diameter`` fit
+    GSD's 32-bit floats (whose range float64 runs far exceed: their frames would hold inf or 0)."""
+    low, high = FLOAT32
+    if largest > high or diameter < low:
+        raise FieldError("trajectory", f"a GSD trajectory holds 32-bit floats, which cannot hold this geometry "
+                                       f"(balls {diameter:.3g} across, coordinates up to {largest:.3g}; they hold "
+                                       f"{low:g} to {high:g})")
+
+
+def check_speeds_fit(velocities: np.ndarray, masses=None) -> None:
+    """A `FieldError` on ``trajectory`` unless every speed a run from ``velocities (n, dim)`` can reach
+    (all its energy in the lightest ball) fits GSD's 32-bit floats."""
+    v = np.asarray(velocities, dtype=np.float64)
+    m = np.ones(len(v)) if masses is None else np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(v),))
+    energy = 0.5 * float(np.dot(m, np.einsum("ij,ij->i", v, v))) if len(v) else 0.0
+    fastest = float(np.sqrt(2.0 * energy / m.min())) if len(v) else 0.0
+    if fastest > FLOAT32[1]:
+        raise FieldError("trajectory", f"a GSD trajectory holds 32-bit floats, which cannot hold the speeds of this "
+                                       f"run (up to {fastest:.3g}; they hold at most {FLOAT32[1]:g})")
 
 
 def _diameters(geometry: Geometry, p: np.ndarray) -> np.ndarray:
@@ -274,14 +302,21 @@ def export(res, out: str | os.PathLike, *, force: bool = False,
     if not res.snapshots:
         raise InputError(f"{res.run_dir}: the run has no snapshots to export (give its spec \"snapshots\", "
                          f"or a \"trajectory\" to write {TRAJECTORY_NAME} while it runs)")
-    layout = Layout.of(res.geometry, res.masses)
+    try:
+        layout = Layout.of(res.geometry, res.masses)
+    except FieldError as exc:
+        raise InputError(f"{out}: {exc.problem}") from None
     columns, final = rows(res)
-    with written_atomically(out) as tmp:
+    with written_atomically(out) as tmp:  # a refusal below leaves nothing written
         handle = _open_gsd(tmp, "w")
         try:
             for i in range(len(final)):
                 log = {name: column[i] for name, column in columns.items()}
                 velocities = res.velocities if i == len(res.snapshots) else res.snapshots.velocities(i)
+                try:
+                    check_speeds_fit(velocities, res.masses)
+                except FieldError as exc:
+                    raise InputError(f"{out}: {exc.problem}") from None
                 handle.append(layout.frame(int(columns["steps"][i]), velocities, log, first=i == 0))
         finally:
             handle.close()

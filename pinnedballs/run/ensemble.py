@@ -3,6 +3,8 @@
 Replica ``k`` of ``N`` is seeded with child ``k`` of ``SeedSequence(spec.seed).spawn(N)``
 (entropy ``spec.seed``, spawn key ``(k,)``; `replica_seed`), so its result depends
 on the spec and ``k`` only: not on ``N``, the number of workers, or where it ran.
+A spec without a seed gets one drawn for the whole ensemble (`RunSpec.seeded`), which
+``summary.json`` and ``spec.json`` record.
 Each replica runs the spec's stop rule (`execute.run_to_stop`) and gives one table
 row per snapshot and one for the final state (`state_row`: `observables.summary`
 and a few more). Rows are ordered by replica, then by time, so the same spec and
@@ -231,6 +233,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     """
     if not isinstance(spec, RunSpec):
         raise InputError(f"spec: must be a RunSpec, got {type(spec).__name__}")
+    spec = spec.seeded()
     replicas = _check_count("replicas", replicas)
     _check_replicas_memory(replicas, "replicas")
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:

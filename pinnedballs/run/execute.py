@@ -29,7 +29,7 @@ from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec, load_spec
 from .driver import Stop, Writer, drive
-from .gsd_writer import GSDWriter
+from .gsd_writer import GSDWriter, layout as gsd_layout
 from .writers import OnSnapshot, ResultsWriter
 
 __all__ = ["Interrupted", "run_to_stop", "execute", "run_spec", "write_figures", "SILENT"]
@@ -72,33 +72,45 @@ def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record
 
 
 def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, resume: bool = False,
-            progress: bool | None = None, figures: bool = True, status=SILENT) -> Path:
+            progress: bool | None = None, figures: bool = True, status=SILENT,
+            log: Callable[[str], None] | None = None) -> Path:
     """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
 
     The spec is built once into what runs it (the simulation, its stop, the writer's trigger),
-    before anything is written: bad input fails first. A non-empty ``out_dir`` is refused
-    (`InputError`) unless ``force`` (which replaces our files) or ``resume`` (which continues
-    from the last checkpoint of the same spec; a finished run is left as it is; a missing or empty
-    ``out_dir`` is refused, `check_resumable`). ``progress``: a
+    before anything is written: bad input fails first. A spec without a seed gets one drawn
+    (`RunSpec.seeded`), recorded with the run. A non-empty ``out_dir`` is refused (`InputError`)
+    unless ``force`` (which replaces our files) or ``resume``: that continues the run there from its
+    last checkpoint (the same spec; a finished run is left as it is), or starts it where none is yet
+    (a missing or empty ``out_dir``, or one a run killed before its first checkpoint left), telling
+    ``log`` so in one line; anything else is refused (`check_resumable`). ``progress``: a
     tqdm bar on stderr; None means only if stderr is a terminal. ``status``: a callable told each
     stage (building, compiling, drawing).
 
-    SIGINT/SIGTERM (main thread) ask the run to stop at the end of its chunk: the state is saved,
-    marked "interrupted", and `Interrupted` raised. A second SIGINT raises KeyboardInterrupt at once,
-    and the state the simulation is in is saved the same way. A request that comes as the run
-    finishes leaves it done, without its figures (``pinnedballs plot`` draws them).
+    SIGINT/SIGTERM (main thread) while the spec is built or a checkpoint read (a user's factory
+    may run there) raise KeyboardInterrupt at once: nothing has been written. During the run they ask
+    it to stop at the end of its chunk: the state is saved, marked "interrupted", and `Interrupted`
+    raised. A second SIGINT raises KeyboardInterrupt at once, and the state the simulation is in is
+    saved the same way. A request that comes as the run finishes leaves it done, without its
+    figures (``pinnedballs plot`` draws them).
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
-    if resume and not path.exists():
-        check_resumable(out)
+    starting = check_resumable(out) if resume else None  # None: a run to continue (or no --resume)
+    fresh = not resume or starting is not None
     stop = spec.stop.build()
     snapshots = spec.snapshots.build() if spec.snapshots else None
-    with _deferred_signals() as stop_requested:
-        sim, fresh = None, not (resume and path.exists())
+    with _deferred_signals() as signals:
+        sim = None
         if fresh:
+            spec = spec.seeded()  # a spec without a seed: one drawn now, recorded with the run
             status("building the geometry")
-            sim = spec.build()
+            with signals.at_once():
+                sim = spec.build()
+            if spec.trajectory is not None:
+                gsd_layout(sim)  # a trajectory GSD's 32-bit floats cannot hold is refused before anything is written
+            if starting is not None and log is not None:
+                status.clear()
+                log(f"--resume: {out} holds no run yet ({starting}): starting it")
         with DirLock(out, "--out") as lock:  # held to the end: one run at a time in a directory
             writer = ResultsWriter(out, snapshots=snapshots, checkpoint_seconds=spec.checkpoint.every_seconds,
                                    spec=spec, force=force, resume=resume, lock=lock)
@@ -110,14 +122,15 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
                     write_text_atomic(out / "spec.json", spec.to_json() + "\n")
                 else:
                     status("reading the last checkpoint")
-                    sim = _resumed(spec, path)
+                    with signals.at_once():
+                        sim = _resumed(spec, path)
                 if sim is not None:         # None: that run had finished
                     _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status,
-                           stop_requested)
+                           signals.requested)
             except BaseException:
                 writer.abort(sim, None)  # once attached, before the loop (the loop's own abort makes it a no-op)
                 raise
-        stopping = stop_requested()
+        stopping = signals.requested()
     if figures and stopping:
         raise Interrupted(f"the run in {out} is done; interrupted before its figures: draw them with "
                           f"pinnedballs plot {out}")
@@ -194,7 +207,7 @@ def _check_same_run(res: Results, spec: RunSpec) -> None:
     if res.spec is None:
         raise InputError(f"--resume: the run in {res.path.parent} was built in Python, not from a spec; "
                          f"continue it in Python (pb.load(...).simulation())")
-    ignore = {"checkpoint", "description"}
+    ignore = {"checkpoint", "description"} | ({"seed"} if spec.seed is None else set())  # None: the run's own
     old, new = res.spec.model_dump(exclude=ignore), spec.model_dump(exclude=ignore)
     where = _first_difference(old, new)
     if where is not None:
@@ -213,25 +226,44 @@ def _first_difference(a, b, path: str = "") -> tuple[str, object, object] | None
     return None if a == b else (path, a, b)
 
 
+class _Signals:
+    """SIGINT and SIGTERM as `_deferred_signals` handles them: `requested` says whether a stop was asked
+    for; within `at_once` they raise KeyboardInterrupt at once instead (the code there writes nothing)."""
+
+    def __init__(self):
+        self.signals: list[int] = []
+        self.immediate = False
+
+    def requested(self) -> bool:
+        return bool(self.signals)
+
+    @contextlib.contextmanager
+    def at_once(self) -> Iterator[None]:
+        self.immediate = True
+        try:
+            yield
+        finally:
+            self.immediate = False
+
+    def handler(self, signum, frame) -> None:
+        if self.immediate or (self.signals and signum == signal.SIGINT):
+            raise KeyboardInterrupt
+        self.signals.append(signum)
+
+
 @contextlib.contextmanager
-def _deferred_signals() -> Iterator[Callable[[], bool]]:
+def _deferred_signals() -> Iterator[_Signals]:
     """Turn SIGINT/SIGTERM into a request the loop honours between chunks (main thread only).
 
-    A second SIGINT interrupts at once.
+    A second SIGINT interrupts at once, as does either within `_Signals.at_once`.
     """
-    requested = []
+    signals = _Signals()
     if threading.current_thread() is not threading.main_thread():
-        yield lambda: False
+        yield signals
         return
-
-    def handler(signum, frame):
-        if requested and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        requested.append(signum)
-
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    old = {s: signal.signal(s, signals.handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield lambda: bool(requested)
+        yield signals
     finally:
         for s, h in old.items():
             signal.signal(s, h)

@@ -20,12 +20,19 @@ import os
 from pathlib import Path
 
 from ..analysis import observables as named
-from ..results.trajectory import Layout, Trajectory
+from ..results.trajectory import Layout, Trajectory, check_speeds_fit
 from .driver import Writer
 from .triggers import Counts
 from .writers import _trigger
 
 __all__ = ["GSDWriter"]
+
+
+def layout(sim) -> Layout:
+    """The `Layout` of ``sim``'s frames; a `FieldError` on ``trajectory`` if its geometry or speeds
+    do not fit a GSD file's 32-bit floats (`trajectory.check_speeds_fit`)."""
+    check_speeds_fit(sim.velocities, sim.masses)
+    return Layout.of(sim.geometry, sim.masses)
 
 
 class GSDWriter(Writer):
@@ -58,8 +65,8 @@ class GSDWriter(Writer):
 
     def attach(self, sim) -> Counts | None:
         resume = self.resume or self._started
-        self.file = Trajectory.open(self.path, Layout.of(sim.geometry, sim.masses), force=self.force and not resume,
-                                    resume=resume, hint=self.hint)
+        self.file = Trajectory.open(self.path, layout(sim), force=self.force and not resume, resume=resume,
+                                    hint=self.hint)
         if not self._started and self.resume and self.file.last_steps is not None:
             # the run stopped after this state was checked (this writer fires before a checkpoint)
             self._checked = (sim.steps, sim.collisions)

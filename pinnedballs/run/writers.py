@@ -31,8 +31,8 @@ from .._version import __version__
 from ..engine import checks
 from ..analysis import observables as named
 from ..results.files import held_signals
-from ..results.format import DATA_DIR, RESULTS_NAME, Record
-from ..results.rundir import DirLock, check_resumable, take_run_dir
+from ..results.format import RESULTS_NAME, Record
+from ..results.rundir import BIRTH, DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from .driver import Writer
 from .triggers import Counts, Trigger
@@ -108,8 +108,8 @@ class ResultsWriter(Writer):
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
-        if self.resume and self.store is None and not self.path.exists() and self._own_lock:
-            check_resumable(self.out_dir, "out_dir", "check the path, or pass resume=False to start one")
+        if self.resume and self.store is None and self._own_lock:  # else the caller checked
+            check_resumable(self.out_dir, "out_dir", start=False, hint="check the path, or pass resume=False to start one")
         with held_signals():  # a Ctrl-C lands once the store is open and the run is ours to save
             if self._own_lock and self._lock is None:
                 self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()
@@ -212,7 +212,7 @@ class ResultsWriter(Writer):
             return store
         # what a run killed at birth leaves may be resumed over
         cli = self.spec is not None
-        take_run_dir(self.out_dir, force=self.force, may_hold=_BIRTH if self.resume else frozenset(),
+        take_run_dir(self.out_dir, force=self.force, may_hold=BIRTH if self.resume else frozenset(),
                      option="--out" if cli else "out_dir",
                      hint="use --force to overwrite or --resume to continue" if cli else
                      "pass force=True to overwrite or resume=True to continue")
@@ -222,8 +222,6 @@ class ResultsWriter(Writer):
         return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
                                    initial=initial, version=__version__)
 
-
-_BIRTH = frozenset({"spec.json", DATA_DIR, RESULTS_NAME + ".tmp"})
 
 
 class OnSnapshot(Writer):

@@ -10,9 +10,9 @@ from typing import Annotated, Any, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
-from ..engine.errors import FieldError
+from ..engine.errors import FieldError, InputError
 
-__all__ = ["SpecError", "first_error"]
+__all__ = ["SpecError", "UserCodeError", "first_error", "failure"]
 
 
 class SpecError(FieldError):
@@ -24,6 +24,24 @@ class SpecError(FieldError):
     @property
     def path(self) -> str:
         return self.field
+
+
+class UserCodeError(SpecError):
+    """A user's code that a spec names failed: its factory raised or exited, or the component it made
+    failed as the run was set up. The message is one line, ``"geometry.factory shapes:boom raised
+    RuntimeError: boom"``; ``__cause__`` is the user's exception, with its traceback."""
+
+    def __init__(self, path: str, problem: str):
+        self.field, self.problem = path, problem
+        InputError.__init__(self, f"{path} {problem}" if path else problem)
+
+
+def failure(exc: BaseException) -> str:
+    """What a user's code did: ``"raised KeyError: 'x'"``, ``"called sys.exit(3)"``."""
+    if isinstance(exc, SystemExit):
+        return f"called sys.exit({'' if exc.code is None else repr(exc.code)})"
+    text = " ".join(str(exc).split())
+    return f"raised {type(exc).__name__}" + (f": {text}" if text else "")
 
 
 _PRIORITY = {"extra_forbidden": 0, "union_tag_invalid": 1, "union_tag_not_found": 1}
@@ -38,6 +56,11 @@ def first_error(exc: ValidationError, root: type[BaseModel]) -> SpecError:
         key, valid = str(loc[-1]), list(model.model_fields) if model else []
         return SpecError(_dot(path, key), f"unknown key{_suggest(key, valid)} (valid keys: {', '.join(valid)})")
     path, _, tags = _walk(loc, root)
+    failed = (e.get("ctx") or {}).get("error")
+    if isinstance(failed, UserCodeError):  # a factory's module failed as it was imported
+        error = UserCodeError(_dot(path, failed.field), failed.problem)
+        error.__cause__ = failed.__cause__
+        return error
     if e["type"] == "union_tag_not_found":
         return SpecError(_dot(path, "kind"), f"missing; one of: {', '.join(tags)}")
     if e["type"] == "union_tag_invalid":

@@ -3,7 +3,11 @@
 The callable is imported when the spec is validated and called with ``args`` when it is
 built; it returns the component: a `Geometry`, a `CollisionRule`, a `Scheduler`, or for
 the initial velocities an array ``(n_balls, dim)`` (it is called as ``factory(geometry, **args)``).
-**A spec that names Python code runs that code**: validate only specs you trust.
+**A spec that names Python code runs that code**: validate only specs you trust. Code of the user's
+that fails (its module as it is imported, the factory, or the component it made as the run is set
+up) raises `UserCodeError`, one line naming the slot, the factory and what the code did
+(``geometry.factory shapes:boom raised RuntimeError: boom``), its traceback kept as the cause; a
+``sys.exit`` there is such a failure too, and a KeyboardInterrupt goes on as one.
 
 A spec read back from a results file is validated with the context ``{IMPORT_FACTORIES: False}``:
 reading a run needs no user code (its geometry is stored), and runs none; only building a
@@ -19,19 +23,21 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
+import traceback
 from typing import Any, Callable, Literal
 
 import numpy as np
 from pydantic import ValidationInfo, field_validator
 
-from .errors import SpecError
+from .errors import SpecError, UserCodeError, failure
 from ..geometry.base import Geometry
 from ..rules import CollisionRule
 from ..schedulers.base import Scheduler
-from .base import _Spec, engine_errors
+from .base import _Spec
 
 __all__ = ["PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",
-           "ENTRY_POINT_GROUPS", "IMPORT_FACTORIES", "import_factory", "expand_entry_points", "label"]
+           "ENTRY_POINT_GROUPS", "IMPORT_FACTORIES", "import_factory", "expand_entry_points", "component_failed",
+           "label"]
 
 #: spec slot -> entry-point group whose names are kinds of that slot
 ENTRY_POINT_GROUPS = {"geometry": "pinnedballs.geometries", "rule": "pinnedballs.rules",
@@ -61,6 +67,8 @@ def import_factory(reference: str) -> Callable:
             raise ValueError(f"cannot import module {module_name!r} ({exc}); make it importable: put the "
                              f"directory holding it on PYTHONPATH, or run from that directory") from None
         raise ValueError(f"importing module {module_name!r} failed ({exc})") from None
+    except (Exception, SystemExit) as exc:  # the module's own code failed as it ran
+        raise UserCodeError("", f"{reference} could not be imported: module {module_name!r} {failure(exc)}") from exc
     target: Any = module
     for part in name.split("."):
         if not hasattr(target, part):
@@ -86,17 +94,23 @@ class _PythonSpec(_Spec):
         return value
 
     def _call(self, slot: str, *positional) -> Any:
+        """``factory(*positional, **args)``; a `UserCodeError` naming ``slot`` and the factory if it fails
+        (raises anything but KeyboardInterrupt, or exits)."""
         try:
             factory = import_factory(self.factory)
+        except UserCodeError as exc:
+            raise UserCodeError(f"{slot}.factory", exc.problem) from exc.__cause__
         except ValueError as exc:
             raise SpecError(f"{slot}.factory", str(exc)) from None
-        with engine_errors(slot):
+        try:
             return factory(*positional, **self.args)
+        except (Exception, SystemExit) as exc:
+            raise UserCodeError(f"{slot}.factory", f"{self.factory} {failure(exc)}") from exc
 
     def _check(self, slot: str, made: Any, expected: type) -> Any:
         if not isinstance(made, expected):
-            raise SpecError(f"{slot}.factory", f"{self.factory} returned {type(made).__name__}, "
-                                               f"not a pinnedballs {expected.__name__}")
+            raise UserCodeError(f"{slot}.factory", f"{self.factory} returned {type(made).__name__}, "
+                                                   f"not a pinnedballs {expected.__name__}")
         return made
 
 
@@ -112,11 +126,21 @@ class PythonInitialSpec(_PythonSpec):
 
     def build(self, geometry: Geometry, masses: np.ndarray, seed: np.random.SeedSequence) -> np.ndarray:
         v = self._call("initial", geometry)
+        wanted = (geometry.n_balls, geometry.dim)
         try:
-            return np.asarray(v, dtype=np.float64)
+            array = np.asarray(v, dtype=np.float64)
         except (TypeError, ValueError):
-            raise SpecError("initial.factory", f"{self.factory} returned {type(v).__name__}, "
-                                               f"not an array (n_balls, dim)") from None
+            array = None
+        except (Exception, SystemExit) as exc:  # its own __array__ or __float__ failed
+            raise UserCodeError("initial.factory", f"{self.factory} returned {type(v).__name__}, which "
+                                                   f"{failure(exc)} as it was read as an array") from exc
+        if array is None or array.ndim != 2:
+            raise UserCodeError("initial.factory", f"{self.factory} returned {type(v).__name__}, not an array "
+                                                   f"(n_balls, dim) = {wanted}")
+        if array.shape != wanted:
+            raise UserCodeError("initial.factory", f"{self.factory} returned an array of shape {array.shape}, "
+                                                   f"not (n_balls, dim) = {wanted}")
+        return array
 
 
 class PythonRuleSpec(_PythonSpec):
@@ -131,6 +155,25 @@ class PythonSchedulerSpec(_PythonSpec):
 
     def build(self) -> Scheduler:
         return self._check("scheduler", self._call("scheduler"), Scheduler)
+
+
+def component_failed(exc: BaseException, components: dict[str, Any], specs: dict[str, Any]) -> UserCodeError | None:
+    """``exc``, raised while a run was set up, as a `UserCodeError` naming the slot whose component
+    (``components[slot]``, made by a user's factory ``specs[slot]``) was running its own code when it
+    failed: the innermost frame whose ``self`` is that component, of a class from outside pinnedballs.
+    None if no user's component was running (then the error is not the user's)."""
+    slot = method = None
+    for frame, _ in traceback.walk_tb(exc.__traceback__):
+        owner = frame.f_locals.get("self")
+        for name, component in components.items():
+            if owner is component and not type(component).__module__.startswith("pinnedballs."):
+                slot, method = name, frame.f_code.co_name
+    if slot is None:
+        return None
+    made = type(components[slot]).__name__
+    source = specs[slot]
+    where = f"{slot}.factory {source.factory}" if isinstance(source, _PythonSpec) else slot
+    return UserCodeError(where, f"made a {made} whose {method}() {failure(exc)}")
 
 
 def label(component) -> str:

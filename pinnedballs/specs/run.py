@@ -12,15 +12,15 @@ from pydantic import AfterValidator, BaseModel, ValidationError, field_validator
 
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
-from ..engine.errors import FieldError
+from ..engine.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from ..engine.limits import check_memory
 from ..simulation import Simulation, mass_array
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
-from .errors import SpecError, _dot, _models_of, _short, first_error
-from .python import ENTRY_POINT_GROUPS, IMPORT_FACTORIES, expand_entry_points, label
+from .errors import SpecError, UserCodeError, _dot, _models_of, _short, first_error
+from .python import ENTRY_POINT_GROUPS, IMPORT_FACTORIES, component_failed, expand_entry_points, label
 from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
@@ -41,6 +41,10 @@ class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, and the
     arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``).
 
+    ``seed``: seeds the run's random stream; a spec without one gets one drawn from fresh entropy when
+    it runs (`seeded`), which the run's own spec (``spec.json``, the results file) records, so
+    ``--resume`` continues the same run and the recorded spec repeats it.
+
     ``trajectory``: when to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
     freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
     """
@@ -50,7 +54,7 @@ class RunSpec(_Spec):
     rule: RuleSpec = ElasticSpec()
     scheduler: SchedulerSpec = UniformRandomPairSpec()
     masses: MassesField | None = None
-    seed: Count = 0
+    seed: Count | None = None
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
     trajectory: SnapshotsSpec | None = None
@@ -90,6 +94,13 @@ class RunSpec(_Spec):
                     raise ValueError(f"{field}.{name}: {listed[-1]} is beyond the stop at {limit}")
         return self
 
+    def seeded(self) -> "RunSpec":
+        """This spec, with a seed: its own, or one drawn from fresh entropy (63 bits, as a spec holds)."""
+        if self.seed is not None:
+            return self
+        drawn = int(np.random.SeedSequence().generate_state(1, np.uint64)[0] >> np.uint64(1))
+        return self.model_copy(update={"seed": drawn})
+
     # ------------------------------------------------------------ building
     def build_masses(self, n_balls: int) -> float | np.ndarray | None:
         """The masses: None (all 1), a number, or ``(n_balls,)`` from the file."""
@@ -103,11 +114,14 @@ class RunSpec(_Spec):
         return m
 
     def build(self, seed: int | np.random.SeedSequence | None = None) -> Simulation:
-        """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``."""
+        """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``
+        (with neither, fresh entropy: see `Simulation`)."""
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
             raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
                                     f"got {_short(seed)}")
+        if seed is None and self.seed is None:
+            return self.seeded().build()  # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
             np.random.SeedSequence(self.seed if seed is None else seed)
         geometry = self.geometry.build()
@@ -122,11 +136,23 @@ class RunSpec(_Spec):
         ``masses`` already built (or read back from a results file)."""
         seq = seed if seed is not None else np.random.SeedSequence(self.seed)
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
+        rule, scheduler = self.rule.build(), self.scheduler.build()
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
                                     "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic"}):
-                return Simulation(geometry, velocities, rule=self.rule.build(), scheduler=self.scheduler.build(),
-                                  masses=masses, seed=seq, arithmetic=self.arithmetic)
+                try:
+                    return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
+                                      masses=masses, seed=seq, arithmetic=self.arithmetic)
+                except InputError:
+                    raise  # the engine's own words, mapped to the spec's fields
+                except (Exception, SystemExit) as exc:  # a user's component failing in its own code
+                    failed = component_failed(exc, {"geometry": geometry, "rule": rule, "scheduler": scheduler},
+                                              {"geometry": self.geometry, "rule": self.rule, "scheduler": self.scheduler})
+                    if failed is None:
+                        raise
+                    raise failed from exc
+        except UserCodeError:
+            raise
         except SpecError as exc:
             files = {"geometry": getattr(self.geometry, "positions", None),
                      "initial.path": getattr(self.initial, "path", None),
@@ -168,6 +194,8 @@ def parse_spec(data: str | bytes | dict, base_dir: str | os.PathLike | None = No
         return RunSpec.model_validate(parsed, context=context)
     except ValidationError as exc:
         error = first_error(exc, RunSpec)
+        if isinstance(error, UserCodeError):
+            raise error  # with the user's exception as its cause
         raise SpecError(_join(source, error.path) if source else error.path, error.problem) from None
 
 
@@ -262,7 +290,7 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     rule = label(spec.rule) + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {label(spec.initial)}, energy {sim.energy():.6g}; {rule}, {label(spec.scheduler)}; "
-            f"stop at {until}; {snapshots}; seed {spec.seed}")
+            f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"))
 
 
 def _shape(g: BaseModel, geometry: Geometry) -> str:

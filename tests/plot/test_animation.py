@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ import pinnedballs as pb
 from pinnedballs.plot import animation
 from pinnedballs.cli import main as cli
 from pinnedballs.plot import run as plot_run
+from helpers import read_only_dir
 
 
 def record(tmp_path, geometry, every=300, steps=1_500, name="run"):
@@ -100,14 +102,63 @@ def test_mp4_without_ffmpeg_is_refused_with_what_to_install(tmp_path, monkeypatc
     assert not (tmp_path / "movie.mp4").exists()
 
 
+FPS = "animate: --fps: must be a number of frames per second in [0.01, 100], got"
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--out", "movie.avi"], "animate: --out: must end in .gif or .mp4, got 'movie.avi'"),
-    (["--fps", "0"], "animate: --fps: must be a number of frames per second in (0, 100], got 0.0"),
+    (["--fps", "0"], f"{FPS} 0.0"),
+    (["--fps", "0.001"], f"{FPS} 0.001"),  # a GIF frame lasts at most 655.35 s
+    (["--fps", "-4"], f"{FPS} -4.0"),
+    (["--fps", "nan"], f"{FPS} nan"),
+    (["--fps", "1e300"], f"{FPS} 1e+300"),
+    (["--fps", "inf"], f"{FPS} inf"),
 ])
 def test_bad_animate_arguments_exit_2_with_one_line(tmp_path, capsys, argv, message):
     record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    before = sorted(p.name for p in (tmp_path / "run").iterdir())
     assert cli.main(["animate", str(tmp_path / "run"), *argv]) == 2
     assert capsys.readouterr().err == f"pinnedballs: error: {message}\n"
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == before
+
+
+def test_an_out_that_cannot_be_written_exits_2_with_one_line_naming_out(tmp_path, capsys):
+    """Issue 26, item 6: refused before a frame is drawn, and nothing written."""
+    record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=500)
+    run = tmp_path / "run"
+    (tmp_path / "file").write_text("not a directory")
+    (tmp_path / "x.gif").mkdir()
+    cases = {tmp_path / "file" / "movie.gif": f"{tmp_path / 'file'} exists and is not a directory",
+             tmp_path / "file" / "a" / "movie.gif": f"{tmp_path / 'file'} is not a directory",
+             Path("/dev/null/movie.gif"): "/dev/null exists and is not a directory"}
+    for out, why in cases.items():
+        assert cli.main(["animate", str(run), "--out", str(out)]) == 2
+        assert capsys.readouterr().err == f"pinnedballs: error: animate: --out: {out}: cannot be written, {why}\n"
+    assert cli.main(["animate", str(run), "--out", str(tmp_path / "x.gif")]) == 2
+    assert capsys.readouterr().err == (f"pinnedballs: error: animate: --out: {tmp_path / 'x.gif'} is a directory; give "
+                                       f"the movie's file name (e.g. {tmp_path / 'x.gif' / 'movie.gif'})\n")
+    assert list((tmp_path / "x.gif").iterdir()) == [] and (tmp_path / "file").read_text() == "not a directory"
+    with read_only_dir(tmp_path / "ro") as ro:
+        for out in (ro / "movie.gif", ro / "sub" / "movie.gif"):
+            assert cli.main(["animate", str(run), "--out", str(out)]) == 2
+            err = capsys.readouterr().err
+            assert err.startswith(f"pinnedballs: error: animate: --out: {out}: cannot be written, {ro} is not writable (")
+            assert err.count("\n") == 1
+        assert list(ro.iterdir()) == []
+
+
+def test_a_read_only_run_directory_names_out(tmp_path, capsys):
+    """The movie goes into the run directory by default: a read-only one is refused naming --out."""
+    def fill(where):
+        record(where, pb.FlatTorus(rows=4, cols=6), every=500)
+
+    with read_only_dir(tmp_path / "ro", fill) as ro:
+        before = sorted(p.name for p in (ro / "run").iterdir())
+        assert cli.main(["animate", str(ro / "run")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"pinnedballs: error: animate: --out: {ro / 'run' / 'movie.gif'}: cannot be written, "
+                              f"{ro / 'run'} is not writable (") and err.count("\n") == 1
+        assert sorted(p.name for p in (ro / "run").iterdir()) == before
 
 
 def test_a_failed_movie_leaves_no_file_and_an_old_movie_intact(tmp_path, monkeypatch):

@@ -9,7 +9,6 @@ unwritable directory is tried by a child running as ``nobody``.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import shutil
 import signal
@@ -27,7 +26,7 @@ from pinnedballs.results.load import load
 from pinnedballs.results.rundir import LOCK_NAME, DirLock
 from helpers import TORUS, spec, write
 from helpers import assert_input_error, call
-from helpers import assert_identical, reference, resume
+from helpers import assert_identical, read_only_dir, reference, resume
 
 ROOT = Path(__file__).resolve().parents[2]
 NOBODY = 65534
@@ -37,32 +36,6 @@ COMMANDS = {
     "ensemble": lambda s, out: ["ensemble", s, "--replicas", "2", "--workers", "1", "--out", out, "--quiet"],
     "reproduce": lambda s, out: ["reproduce", "--quick", "--workers", "1", "--out", out, "--quiet"],
 }
-
-
-def _run(*argv: str) -> bool:
-    return subprocess.run(argv, capture_output=True).returncode == 0
-
-
-@contextlib.contextmanager
-def read_only_dir(where: Path):
-    """A directory ``where`` on which nothing can be created: a read-only tmpfs if mounting
-    works, else an immutable directory."""
-    where.mkdir()
-    if _run("mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(where)):
-        try:
-            assert _run("mount", "-o", "remount,ro", str(where))
-            yield where
-        finally:
-            _run("umount", str(where))
-    elif _run("chattr", "+i", str(where)):
-        try:
-            yield where
-        finally:
-            _run("chattr", "-i", str(where))
-    else:
-        assert os.getuid() != 0, "as root, a read-only directory needs mount or chattr"
-        where.chmod(0o555)
-        yield where
 
 
 # ---------------------------------------------------------------- item 3: unwritable output paths

@@ -173,23 +173,23 @@ def test_resume_after_a_kill_mid_write(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("empty", [False, True], ids=["missing", "empty"])
-def test_resume_refuses_a_directory_without_a_run(tmp_path, empty):
-    """Issue 20, item 6: --resume of nothing (a mistyped path, most likely) is refused rather than
-    starting, somewhere unintended, a run the user believes is going on; from Python too."""
+def test_resume_starts_a_run_where_there_is_none_yet(tmp_path, empty):
+    """Issue 26, item 3 (GROMACS's -cpi): a requeued job runs the same command line in every life, so
+    --resume of a missing or empty directory starts the run, saying so in one line. A Python writer's
+    resume=True still refuses one (issue 20, item 6): its simulation must be at the run's state."""
     spec_path = write(tmp_path / "s.json", TORUS)
     out = tmp_path / "fresh"
     if empty:
         out.mkdir()
     what = "an empty directory" if empty else "no such directory"
-    code, stdout, err = call("run", spec_path, "--out", out, "--resume", "--quiet", "--no-figures")
-    assert_input_error(code, err, f"--out {out}: {what}, so no run to continue; check the path, or start a run "
-                                  f"without --resume")
-    assert stdout == "" and (list(out.iterdir()) == [] if empty else not out.exists())
     sim = parse_spec(TORUS).build()
     with pytest.raises(InputError, match=rf"^out_dir {out}: {what}, so no run to continue; check the path, or pass "
                                          rf"resume=False to start one$"):
         sim.run(steps=10, writers=[pb.ResultsWriter(out, resume=True)])
     assert sim.steps == 0 and (list(out.iterdir()) == [] if empty else not out.exists())
+    code, stdout, err = call("run", spec_path, "--out", out, "--resume", "--quiet", "--no-figures")
+    assert (code, stdout, err) == (0, "", f"pinnedballs: --resume: {out} holds no run yet ({what}): starting it\n")
+    assert_identical(load(out), reference(tmp_path, TORUS))
 
 
 def test_resume_starts_over_a_run_killed_before_its_first_checkpoint(tmp_path):
@@ -202,8 +202,8 @@ def test_resume_starts_over_a_run_killed_before_its_first_checkpoint(tmp_path):
     (out / LOCK_NAME).write_text("999999999\n")
     code, stdout, err = call("run", spec_path, "--out", out, "--resume", "--quiet", "--no-figures")
     assert (code, stdout) == (0, "")
-    assert err == f"pinnedballs: {out} holds no checkpoint yet (its run stopped before writing one): starting it " \
-                  f"from the beginning\n"
+    assert err == f"pinnedballs: --resume: {out} holds no run yet (only what a run killed before its first " \
+                  f"checkpoint left): starting it\n"
     assert_identical(load(out), reference(tmp_path, TORUS))
 
 

@@ -142,9 +142,12 @@ def test_half_plane_from_size_equals_rows_and_cols():
 def test_defaults_and_round_trip():
     s = parse_spec(spec(rule=..., scheduler=..., seed=..., snapshots=...))
     assert (s.rule.kind, s.scheduler.kind, s.seed, s.snapshots, s.checkpoint.every_seconds) == \
-        ("elastic", "uniform_random_pair", 0, None, 60.0)
+        ("elastic", "uniform_random_pair", None, None, 60.0)  # no seed: one is drawn when it runs
     again = parse_spec(s.to_json())
     assert again == s
+    seeded = s.seeded()
+    assert isinstance(seeded.seed, int) and 0 <= seeded.seed < 2**63 and parse_spec(seeded.to_json()) == seeded
+    assert seeded.seeded() is seeded and s.seeded().seed != seeded.seed  # fresh entropy each time
 
 
 def test_snapshot_lists_are_sorted_and_unique():

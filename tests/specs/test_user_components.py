@@ -70,11 +70,12 @@ def test_validate_names_the_field_of_a_missing_factory(tmp_path, capsys, slot, f
 def test_a_factory_returning_the_wrong_thing(tmp_path, capsys):
     data = {**CHAIN, "rule": {"kind": "python", "factory": "user_components:not_a_rule"}}
     code, _, err = call(capsys, "validate", write(tmp_path / "s.json", data))
-    assert code == 2 and err == ("pinnedballs: error: rule.factory: user_components:not_a_rule returned int, "
+    assert code == 2 and err == ("pinnedballs: error: rule.factory user_components:not_a_rule returned int, "
                                  "not a pinnedballs CollisionRule\n")
     data = {**CHAIN, "geometry": {**CHAIN["geometry"], "args": {"n": 6, "colour": "red"}}}
     code, _, err = call(capsys, "validate", write(tmp_path / "s.json", data))
-    assert code == 2 and err.startswith("pinnedballs: error: geometry: ") and "colour" in err
+    assert code == 2 and err == ("pinnedballs: error: geometry.factory user_components:chain raised TypeError: "
+                                 "chain() got an unexpected keyword argument 'colour'\n")
 
 
 def test_entry_points_register_named_kinds(tmp_path, monkeypatch, capsys):
@@ -128,7 +129,7 @@ def user_run(directory, name: str, stop: dict) -> dict:
             "initial": {"kind": "python", "factory": f"{name}:reversed_speeds", "args": {"speed": 0.5}},
             "rule": {"kind": "python", "factory": f"{name}:half_elastic"},
             "scheduler": {"kind": "python", "factory": f"{name}:sweep"},
-            "stop": stop, "snapshots": {"every_steps": 2}}
+            "stop": stop, "snapshots": {"every_steps": 2}, "seed": 0}
 
 
 def forget(name: str) -> None:
