@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .engine import checks
-from .engine.chain import COLLISIONS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
+from .engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
 from .engine.errors import FieldError, FieldTypeError, check_jitted
 from .engine.exact import BLOCK as EXACT_BLOCK
 from .engine.exact import ExactChain
@@ -19,6 +19,8 @@ from .engine.fields import NotExact
 from .engine.limits import check_speeds
 from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
 from .engine.margin import ClosingMargin, MarginWarning, new_margin
+from .engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain
+from .engine.threads import most_threads
 
 #: collisions a logging loop records before handing them to the listeners
 LOG_CAPACITY = 1 << 16
@@ -256,10 +258,11 @@ class Simulation:
         #: repeats the run
         self.seed = _recorded_seed(seed)
         self._rng = seed_state(self.seed)
-        self._counters = np.zeros(3, dtype=np.int64)
+        self._counters = np.zeros(COUNTERS, dtype=np.int64)
         self._margin = new_margin()  # every pick's closing speed against the threshold (`closing_margin`)
         self._margin_warned = False
         self._live = None  # the LiveSet, built when a tracked run first needs it
+        self._parallel = None  # the ParallelChain, built when a run first asks (False: none)
         #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
         #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
         #: record them run a little slower
@@ -349,8 +352,27 @@ class Simulation:
         if plain and self._own_steps is not None:
             return self._own_steps(*chain, *tables, max_steps)
         limited, pattern = self._limited(logged=False)
+        parallel = self._parallel_chain()
+        if parallel is not None:
+            return parallel.run(chain, pattern, limited, self._loops.picks, self._any_live, *tables, max_steps,
+                                max_collisions, until_frozen, TUNED_SEGMENT if plain else self._freeze_chunk())
         return limited(*chain, pattern, *tables, max_steps, max_collisions, until_frozen,
                        max_steps if plain else self._freeze_chunk(), np.empty_like(self._sched_state), _NO_LOG)
+
+    def _parallel_chain(self):
+        """The chain on several threads (`engine.parallel.ParallelChain`) where the scheduler allows it
+        and it pays (a large system, regions with few crossings), built once; else None."""
+        if self._parallel is None:
+            self._parallel = False
+            s, c = self._selector, self.geometry.contacts
+            wanted = self.scheduler.threads if hasattr(self.scheduler, "threads") else None
+            threads = most_threads() if wanted is None else wanted
+            if s.uniform and not s.tracks and threads > 1 and len(c) >= MIN_PARALLEL_CONTACTS:
+                built = ParallelChain.build(self._collide, self.geometry.dim, c.flat, c.pairs, self.geometry.n_balls,
+                                            self._limited(logged=False)[1] is not NO_PATTERN, threads,
+                                            tuned=wanted is None)
+                self._parallel = built if built is not None else False
+        return self._parallel or None
 
     def _limited(self, logged: bool):
         """``(loop, pattern)``: the engine's limited loop for this system's size, and the row pattern it

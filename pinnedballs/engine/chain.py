@@ -7,10 +7,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "NO_LIMIT"]
+__all__ = ["Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "LAST", "COUNTERS", "NO_LIMIT"]
 
-#: indices into the ``counters`` array shared by Python and the loops
-STEPS, COLLISIONS, LIVE = 0, 1, 2
+#: indices into the ``counters (COUNTERS,) int64`` array shared by Python and the loops: steps and
+#: collisions so far, live contacts (-1: unknown), and the step count right after the last collision a
+#: call made (left as it was by a call that made none)
+STEPS, COLLISIONS, LIVE, LAST = 0, 1, 2, 3
+COUNTERS = 4
 
 NO_LIMIT = np.iinfo(np.int64).max  #: "no limit" for max_steps or max_collisions
 

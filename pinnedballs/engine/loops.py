@@ -38,8 +38,9 @@ Every loop also keeps the run's closing margin (`engine.margin`): ``margin (4,) 
 with the closing speed of every pick it tries (a colliding loop computes it anyway: the same bits).
 
 Shapes: v ``(n_balls, dim)``; pairs, ends ``(E, 2)``; units ``(K, dim)``; rng_words ``(4,) uint64``;
-counters ``(3,) int64``, totals ``[steps, collisions, live]`` (live: the number of live contacts
-after a tracked loop, 0 after a loop that found the system frozen, -1 when not known); flags
+counters ``(4,) int64``, totals ``[steps, collisions, live, last]`` (live: the number of live contacts
+after a tracked loop, 0 after a loop that found the system frozen, -1 when not known; last: the
+steps counted right after the call's last collision, unchanged by a call that made none); flags
 ``(E,) uint8`` and the incidence ``ptr, inc`` (`chain.incidence`). Every loop returns the steps taken.
 """
 
@@ -51,7 +52,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numba import njit
 
-from .chain import COLLISIONS, LIVE, STEPS
+from .chain import COLLISIONS, LAST, LIVE, STEPS
 from .closing import closing_form, closing_speed
 from .intrinsics import fixed_width, prefetch
 from .jitcache import jit_cached_if_possible, njit_cached
@@ -89,6 +90,8 @@ class Selector(NamedTuple):
     aux: the arrays (or a tuple of them) its functions read besides ``state``.
     tracks: it needs the live set kept up to date after every collision (the ``tracked`` loop).
     skips: ``select`` may take more than one step per pick, or return no contact (``k < 0``).
+    uniform: its picks are the paper's, one word of the stream each through `random.bounded`, so the
+    parallel chain (`engine.parallel`) may draw them ahead on several threads.
     steps: None, or ``steps(collide, dim, flat) -> loop``: its own compiled loop for plain steps
     (`ColoredSweep` runs a class in parallel), called as ``loop(v, pairs, ends, units, masses, params,
     state, aux, rng_words, counters, margin, max_steps) -> steps``.
@@ -101,6 +104,7 @@ class Selector(NamedTuple):
     tracks: bool = False
     skips: bool = False
     steps: Callable | None = None
+    uniform: bool = False
 
 
 @njit_cached(inline="always")
@@ -410,11 +414,14 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 max_collisions = min(max_collisions, collisions + log.shape[0])
             if until_frozen and not any_live(v, pairs, ends, units, masses, params):
                 frozen = True
+            last_step = np.int64(-1)
             if not until_frozen and max_collisions - collisions >= max_steps and not AHEAD and not LOG:
                 # plain steps: the loop without a collision target (the same picks; no count to stop at)
-                taken, made, _, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, max_steps,
-                                               -1, False, log, base, tau, m)
+                taken, made, last, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
+                                                  max_steps, -1, False, log, base, tau, m)
                 collisions += made
+                if last >= 0:
+                    last_step = base + last + 1
             while not frozen and taken < max_steps and collisions < max_collisions:
                 count = min(chunk_steps, max_steps - taken)
                 start = rng
@@ -431,6 +438,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     used, made, last, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count,
                                                      left, LOG, at, base + taken, tau, m)
                 collisions += made
+                if last >= 0:
+                    last_step = base + taken + last + 1
                 if until_frozen and last >= 0 and not any_live(v, pairs, ends, units, masses, params):
                     frozen, used = True, last + 1  # the run ends right after its last collision
                 if used < count and (AHEAD or frozen):  # picks drawn past the end: replay up to it
@@ -443,6 +452,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             counters[STEPS] += taken
             counters[COLLISIONS] = collisions
             counters[LIVE] = 0 if frozen else UNKNOWN
+            if last_step >= 0:
+                counters[LAST] = last_step
             return taken
         return run
 
@@ -469,6 +480,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     if LOG:
                         log[collisions - start_collisions, 0], log[collisions - start_collisions, 1] = base + taken, k
                     collisions += 1
+                    counters[LAST] = base + taken
                     # contact k is re-tested once, with ball i's contacts: ball j's pass would find the same
                     live += refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, pairs[k, 0], -1,
                                     changed, state, aux)

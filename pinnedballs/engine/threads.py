@@ -29,7 +29,10 @@ import time
 
 from .errors import FieldError
 
-__all__ = ["WAIT_POLICY", "ThreadTuner", "most_threads", "using"]
+__all__ = ["WAIT_POLICY", "ThreadTuner", "most_threads", "using", "TUNED_SEGMENT"]
+
+#: steps of one segment of a long run whose thread count `ThreadTuner` chooses (about 20-40 ms)
+TUNED_SEGMENT = 1 << 23
 
 #: the wait policy pinnedballs asks libgomp for, unless the environment chose one
 WAIT_POLICY = "passive"

@@ -38,7 +38,7 @@ from ..engine.jitcache import jit_cached_if_possible, njit_cached
 from ..engine.loops import Selector, contact_kernels, no_change
 from ..engine.margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
 from ..engine.random import bounded, load, store
-from ..engine.threads import ThreadTuner, check_threads, using
+from ..engine.threads import TUNED_SEGMENT, ThreadTuner, check_threads, using
 from .base import Scheduler
 
 __all__ = ["ColoredSweep", "colour_classes", "sweep_selector", "sweep_steps"]
@@ -257,10 +257,6 @@ class ColoredSweep(Scheduler):
 
     def __hash__(self) -> int:
         return hash((type(self), self.shuffle, self.threads))
-
-
-#: steps of one segment of a long run whose thread count `ThreadTuner` chooses (about 20-40 ms)
-TUNED_SEGMENT = 1 << 23
 
 
 def _threaded_steps(collide: Callable, dim: int, flat: bool, shuffle: bool, threads: int | None) -> Callable:

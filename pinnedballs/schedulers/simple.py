@@ -7,7 +7,10 @@ from typing import Callable
 
 import numpy as np
 
+from ..engine import checks
 from ..engine.jitcache import njit_cached
+from ..engine.loops import Selector, pick_selector
+from ..engine.threads import check_threads
 from ..engine.errors import FieldError
 from ..engine.random import bounded
 from .base import Scheduler
@@ -47,13 +50,31 @@ def pick_random_sweep(state, rng, n_contacts):
 
 
 class UniformRandomPair(Scheduler):
-    """Each step tries one contact chosen uniformly at random (the paper's scheduler)."""
+    """Each step tries one contact chosen uniformly at random (the paper's scheduler).
+
+    ``threads``: how many of numba's threads a run may use (`engine.parallel`: the lattice cut into
+    regions, the same bits on any number); None (the default) lets long runs on large systems use
+    every core, each stretch on the count a `ThreadTuner` finds faster (never slower than one thread
+    on a busy machine); 1 runs the sequential loop only."""
+
+    def __init__(self, threads: int | None = None):
+        self.threads = None if threads is None else checks.integer("threads", threads, minimum=1)
 
     def kernel(self) -> Callable:
         return pick_uniform
 
+    def selector(self, geometry) -> Selector:
+        check_threads(self.threads)
+        return pick_selector(pick_uniform)._replace(uniform=True)
+
     def to_spec(self) -> dict:
-        return {"kind": "uniform_random_pair"}
+        return {"kind": "uniform_random_pair", **({} if self.threads is None else {"threads": self.threads})}
+
+    def __repr__(self) -> str:
+        return "UniformRandomPair()" if self.threads is None else f"UniformRandomPair(threads={self.threads})"
+
+    def __hash__(self) -> int:
+        return hash((type(self), self.threads))
 
 
 class Sweep(Scheduler):

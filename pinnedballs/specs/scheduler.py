@@ -21,9 +21,11 @@ class UniformRandomPairSpec(_Spec):
     """The paper's scheduler: one contact uniformly at random per step."""
 
     kind: Literal["uniform_random_pair"] = "uniform_random_pair"
+    #: numba threads a run may use (None: every core, tuned; 1: the sequential loop); the results do not depend on it
+    threads: Optional[Annotated[int, Field(ge=1)]] = None
 
     def build(self) -> Scheduler:
-        return UniformRandomPair()
+        return UniformRandomPair(threads=self.threads)
 
 
 class SweepSpec(_Spec):

@@ -46,9 +46,9 @@ def test_loop_refuses_tables_of_another_row_length():
     c = geom.contacts
     loops = pick_loops(collide_elastic, pick_uniform, 2, True)
     v3 = np.zeros((geom.n_balls, 3))  # three components for a loop built for two
-    rng, counters = np.array([1, 2, 3, 4], dtype=np.uint64), np.zeros(3, dtype=np.int64)
+    rng, counters = np.array([1, 2, 3, 4], dtype=np.uint64), np.zeros(4, dtype=np.int64)
     with pytest.raises(ValueError, match="^the loop's tables do not have the row lengths it was built for$"):
         loops.limited(v3, c.pairs, c.ends, c.units, np.ones(geom.n_balls), np.array([1.0]), NO_PATTERN,
                       np.zeros(1, dtype=np.int64), NO_AUX, rng, counters, new_margin(), 10, NO_LIMIT, False, 10,
                       np.zeros(1, dtype=np.int64), np.empty((0, 2), dtype=np.int64))
-    assert counters.tolist() == [0, 0, 0]
+    assert counters.tolist() == [0, 0, 0, 0]

@@ -103,7 +103,7 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
         key = _ClosureCache(k.py_func)._index_key(("sig",), k.targetctx.codegen())
         v = np.array([[1.0, 0.0], [0.0, 0.0]])
         g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0]])
-        counters = np.zeros(3, np.int64)
+        counters = np.zeros(4, np.int64)
         k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0, 0.0]), NO_PATTERN,
           np.zeros(1, np.int64), np.zeros(0, np.int64), seed_state(0), counters, new_margin(), 1, NO_LIMIT, False, 1,
           np.zeros(1, np.int64), np.empty((0, 2), np.int64))

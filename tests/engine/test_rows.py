@@ -52,7 +52,7 @@ def test_only_lattices_offer_a_pattern_and_only_when_large():
 
 def _limited(loop, geometry, v, pattern, masses, params, seed, steps, collisions=NO_LIMIT, until_frozen=False):
     c = geometry.contacts
-    rng, counters, margin = seed_state(seed), np.zeros(3, np.int64), new_margin()
+    rng, counters, margin = seed_state(seed), np.zeros(4, np.int64), new_margin()
     chunk = steps if collisions == NO_LIMIT and not until_frozen else 4096
     loop(v, c.pairs, c.ends, c.units, masses, params, pattern, np.zeros(1, np.int64), np.zeros(0, np.int64), rng,
          counters, margin, steps, collisions, until_frozen, chunk, np.zeros(1, np.int64), np.empty((0, 2), np.int64))

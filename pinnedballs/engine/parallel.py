@@ -1,0 +1,377 @@
+"""The paper's chain on every core, with the bits of one: `UniformRandomPair`'s picks run by regions.
+
+The balls are cut into ``p`` regions by index (row bands on a lattice), each holding about ``E/p``
+contacts. A contact with both balls in one region is *local*; the few that join two regions
+(about 2 per column at each cut) are *crossings*. Picks that share no ball commute, so within a
+stretch of picks between two crossings, each region's picks can run on its own thread in their
+order, and the crossing that ends the stretch runs once every region has finished it. The result
+is the sequential chain's, bit for bit: every collision sees the velocities it would have seen.
+
+**Blocks.** The picks come in blocks of ``p * W`` words of the random stream. Phase G: thread ``t``
+jumps the stream ``t * W`` words ahead (`engine.jump`) and turns its ``W`` words into picks exactly
+as `random.bounded` does (Lemire's test rejects a word on its own, so the picks of a block are the
+accepted words in order), decodes each contact (tables or the lattice's row pattern) and files it
+under its region, or as a crossing. Phase E: the stretches between crossings, region by region.
+
+**Threads that never wait for one another's absence.** Every piece of work (a G segment, a
+region's part of a stretch) is claimed with a compare-and-swap on a counter, so a thread that finds
+the others late does their work itself: one thread alone runs the whole block, and a thread the
+operating system deschedules costs the others only the piece it holds. The last thread to finish a
+stretch runs its crossing and publishes it (release); the others wait to see it (acquire), spinning
+with ``pause``. A thread that arrives after a block is complete skips it. Nothing depends on how
+many threads actually ran, or in which order they claimed.
+
+The caller (`ParallelChain`) runs whole blocks only where they cannot pass a limit (steps left,
+collisions left), runs the rest with the sequential loop, and finds the freeze as the sequential
+loop does (a scan after each chunk, then the stream rewound to the last collision), so the steps,
+collisions, velocities, random state and margin are those of one thread.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable
+
+import numpy as np
+from numba import prange
+
+from .chain import COLLISIONS, LAST, LIVE, STEPS
+from .closing import closing_form, closing_speed
+from .intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
+from .jitcache import jit_cached_if_possible, njit_cached
+from .jump import jump, jump_polynomial
+from .margin import merge_margin, track
+from .threads import TUNED_SEGMENT, ThreadTuner, using
+from .random import load, next_uint64, store
+from .rows import decode
+
+__all__ = ["ParallelChain", "region_cuts", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE", "MIN_PARALLEL_CONTACTS",
+           "TUNED_SEGMENT"]
+
+#: words of the stream each thread turns into picks per block
+WORDS = 1 << 14
+#: regions are not worth it when more than this share of the contacts joins two of them
+MAX_CROSSING_SHARE = 0.02
+#: systems with fewer contacts run on one thread (a freeze scan's chunk holds a few blocks at least)
+MIN_PARALLEL_CONTACTS = 1 << 16
+#: records ahead whose velocity rows are fetched while a stretch runs
+AHEAD = 16
+
+# the shared counters (`sync`), each on its own cache line
+_LINE = 8
+NEXT_GEN, GEN_DONE, FINISHED, DONE, BLOCKS_DONE, NEXT_TASK = (k * _LINE for k in range(6))
+
+
+def region_cuts(pairs: np.ndarray, n_balls: int, threads: int) -> np.ndarray | None:
+    """``(threads - 1,) int64`` ball indices cutting the balls into regions of about equal numbers of
+    contacts, or None when more than `MAX_CROSSING_SHARE` of the contacts would join two regions."""
+    low = np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64)
+    high = np.maximum(pairs[:, 0], pairs[:, 1]).astype(np.int64)
+    per_ball = np.cumsum(np.bincount(low, minlength=n_balls))
+    cuts = np.searchsorted(per_ball, np.arange(1, threads) * len(pairs) / threads).astype(np.int64) + 1
+    if len(np.unique(cuts)) != threads - 1 or cuts.min() <= 0 or cuts.max() >= n_balls:
+        return None
+    crossing = (np.searchsorted(cuts, low, side="right") != np.searchsorted(cuts, high, side="right")).mean()
+    return cuts if crossing <= MAX_CROSSING_SHARE else None
+
+
+@njit_cached(inline="always")
+def _region(cuts, ball):
+    r = 0
+    for c in range(cuts.shape[0]):
+        r += 1 if ball >= cuts[c] else 0
+    return r
+
+
+#: ``pause`` this many times before yielding the core
+SPINS = 1 << 10
+
+
+@njit_cached(inline="always")
+def _spin_until(sync, index, value):
+    """Wait until ``sync[index] >= value`` (acquire): spin a while, then yield the core at each look, so
+    a thread waiting for one the operating system has descheduled lets it run."""
+    spins = 0
+    while atomic_load(sync, index) < value:
+        if spins < SPINS:
+            spins += 1
+            pause()
+        else:
+            give_way()
+
+
+@functools.cache
+def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Callable:
+    """The compiled blocks of the chain for one rule's ``collide``, ``dim``, ``flat`` and the contacts'
+    source (``rows``: the row pattern, else the tables):
+
+    blocks(v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n,
+           recs, counts, xrecs, xbounds, ncross, npick, history, sync, out) -> picks
+
+    runs ``len(history)`` blocks of ``p * W`` words (``p = len(cuts) + 1`` regions, ``W =
+    recs.shape[2]``, ``poly`` the jump polynomial of ``W`` words) on numba's threads, advances
+    ``rng_words`` past them, and returns the picks taken. ``out (p, 6) float64`` receives each
+    thread's collisions, the position of its last collision (-1: none; positions count the call's
+    picks from 0) and its margin (4). ``history (blocks, 6) int64`` receives each block's picks,
+    stretches and final stream state (4 words). The scratch: ``recs (p, p, W, 3)``, ``counts (p, p)``,
+    ``xrecs (p, W + 1, 3)``, ``xbounds (p, W + 1, p)``, ``ncross, npick (p,)`` int64; ``sync``
+    (zeros, ``NEXT_TASK + p * 8``) int64.
+    """
+    collide_at = closing_form(collide)
+    D, FLAT, ROWS = dim, flat, rows
+
+    @njit_cached(inline="always")
+    def contact(pairs, ends, pattern, k):
+        if ROWS:
+            return decode(pattern, np.int64(k))
+        return np.int64(pairs[k, 0]), np.int64(pairs[k, 1]), np.int64(ends[k, 0]), np.int64(ends[k, 1])
+
+    @njit_cached(inline="always")
+    def generate(s, n, pairs, ends, pattern, cuts, recs, counts, xrecs, xbounds, t, W, p):
+        """Segment ``t`` of a block: ``W`` words from state ``s`` into records; ``(picks, crossings, s')``."""
+        n64 = np.uint64(n)
+        threshold = (np.uint64(1 << 32) - n64) % n64
+        for r in range(p):
+            counts[t, r] = 0
+        picks, crossings = 0, 0
+        for _ in range(W):
+            x, s = next_uint64(s)
+            m = (x >> np.uint64(32)) * n64
+            low = m & np.uint64(0xFFFFFFFF)
+            if low < n64 and low < threshold:  # Lemire's test, word by word: `random.bounded`
+                continue
+            i, j, a, b = contact(pairs, ends, pattern, np.int64(m >> np.uint64(32)))
+            ri, rj = _region(cuts, i), _region(cuts, j)
+            if ri == rj:
+                q = counts[t, ri]
+                recs[t, ri, q, 0], recs[t, ri, q, 1], recs[t, ri, q, 2] = (i << 32) | j, (a << 32) | b, picks
+                counts[t, ri] = q + 1
+            else:
+                xrecs[t, crossings, 0], xrecs[t, crossings, 1], xrecs[t, crossings, 2] = (i << 32) | j, (a << 32) | b, picks
+                for r in range(p):
+                    xbounds[t, crossings, r] = counts[t, r]
+                crossings += 1
+            picks += 1
+        return picks, crossings, s
+
+    @njit_cached(inline="always")
+    def attempt(v, units, masses, params, rec, base, tau, m, last, made):
+        """Try the record ``rec`` (its position ``base + rec[2]``): ``(m, last, made)`` updated."""
+        i, j = rec[0] >> 32, rec[0] & 0xFFFFFFFF
+        a, b = rec[1] >> 32, rec[1] & 0xFFFFFFFF
+        w = closing_speed(v, units, i, j, a, b, D, FLAT)
+        hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
+        m = track(hit, w, tau, m[0], m[1], m[2], m[3])
+        if hit:
+            made += 1
+            last = max(last, base + rec[2])
+        return m, last, made
+
+    @njit_cached(inline="always")
+    def stretch(v, units, masses, params, recs, t, r, lo, hi, base, tau, m, last, made):
+        """Region ``r``'s records ``lo:hi`` of segment ``t``, in order, their rows fetched ahead."""
+        for q in range(lo, hi):
+            if q + AHEAD < hi:
+                ahead = recs[t, r, q + AHEAD, 0]
+                prefetch(v, ahead >> 32)
+                prefetch(v, ahead & 0xFFFFFFFF)
+            m, last, made = attempt(v, units, masses, params, recs[t, r, q], base, tau, m, last, made)
+        return m, last, made
+
+    @jit_cached_if_possible
+    def worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n, recs, counts, xrecs,
+               xbounds, ncross, npick, history, sync, out):
+        """One thread's share of `blocks` (a function of its own: numba's analysis of a parallel loop
+        does not follow the tuples the margin travels in)."""
+        p, W, n_blocks = cuts.shape[0] + 1, recs.shape[2], history.shape[0]
+        v, units = fixed_width(v, D), fixed_width(units, D)
+        tau = params[params.shape[0] - 1]
+        m = (np.inf, 0.0, 0.0, 0.0)
+        last, made = np.int64(-1), np.int64(0)
+        my_counts, my_cross, my_picks = np.empty((p, p), np.int64), np.empty(p, np.int64), np.empty(p, np.int64)
+        segment, base = np.int64(0), np.int64(0)  # stretches and picks before this block
+        for blk in range(n_blocks):
+            s_block = load(rng_words) if blk == 0 else load(history[blk - 1, 2:6].view(np.uint64))
+            # phase G: claim segments of this block's words
+            while True:
+                g = atomic_load(sync, NEXT_GEN)
+                if g >= (blk + 1) * p:
+                    break
+                if atomic_cas(sync, NEXT_GEN, g, g + 1) == g:
+                    t = g - blk * p
+                    st = s_block
+                    for _ in range(t):
+                        st = jump(st, poly)
+                    picks, crossings, st = generate(st, n, pairs, ends, pattern, cuts, recs, counts, xrecs,
+                                                    xbounds, t, W, p)
+                    npick[t], ncross[t] = picks, crossings
+                    if t == p - 1:  # the block's last word: where the next block starts
+                        store(history[blk, 2:6].view(np.uint64), st)
+                    atomic_add(sync, GEN_DONE, 1)
+            _spin_until(sync, GEN_DONE, (blk + 1) * p)
+            skip = atomic_load(sync, BLOCKS_DONE) > blk
+            if not skip:  # copy the block's layout, then check that no one finished the block meanwhile
+                my_counts[:, :] = counts
+                my_cross[:] = ncross
+                my_picks[:] = npick
+                skip = atomic_load(sync, BLOCKS_DONE) > blk
+            if skip:  # done by the others: its numbers are in the history
+                _spin_until(sync, BLOCKS_DONE, blk + 1)
+                segment += history[blk, 1]
+                base += history[blk, 0]
+                continue
+            # phase E: the stretches between crossings, each region's part claimed by one thread
+            offset, stretches, picks = np.int64(0), np.int64(0), np.int64(0)
+            for t in range(p):
+                stretches += my_cross[t] + 1
+                picks += my_picks[t]
+            for t in range(p):
+                for c in range(my_cross[t] + 1):
+                    g = segment
+                    for k in range(p):
+                        r = (tid + k) % p
+                        if atomic_cas(sync, NEXT_TASK + r * _LINE, g, g + 1) != g:
+                            continue
+                        lo = 0 if c == 0 else xbounds[t, c - 1, r]
+                        hi = my_counts[t, r] if c == my_cross[t] else xbounds[t, c, r]
+                        m, last, made = stretch(v, units, masses, params, recs, t, r, lo, hi, base + offset,
+                                                tau, m, last, made)
+                        if atomic_add(sync, FINISHED, 1) == (g + 1) * p - 1:  # the stretch's last part
+                            if c < my_cross[t]:
+                                m, last, made = attempt(v, units, masses, params, xrecs[t, c], base + offset,
+                                                        tau, m, last, made)
+                            if t == p - 1 and c == my_cross[t]:  # the block's last stretch
+                                history[blk, 0], history[blk, 1] = picks, stretches
+                                atomic_store(sync, BLOCKS_DONE, blk + 1)
+                            atomic_store(sync, DONE, g + 1)
+                    _spin_until(sync, DONE, g + 1)
+                    segment += 1
+                offset += my_picks[t]
+            base += picks
+        out[tid, 0], out[tid, 1] = made, last
+        out[tid, 2], out[tid, 3], out[tid, 4], out[tid, 5] = m
+
+    @jit_cached_if_possible(parallel=True)
+    def blocks(v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n, recs, counts, xrecs,
+               xbounds, ncross, npick, history, sync, out):
+        for tid in prange(cuts.shape[0] + 1):
+            worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n, recs, counts, xrecs,
+                   xbounds, ncross, npick, history, sync, out)
+        store(rng_words, load(history[history.shape[0] - 1, 2:6].view(np.uint64)))
+        total = np.int64(0)
+        for blk in range(history.shape[0]):
+            total += history[blk, 0]
+        return total
+
+    return blocks
+
+
+class ParallelChain:
+    """`parallel_blocks` for one simulation: its regions, scratch and the limits of a run.
+
+    Built by `build` (None where regions do not pay: a crossing share above `MAX_CROSSING_SHARE`).
+    `run` takes the place of the sequential limited loop, with its bits.
+    """
+
+    def __init__(self, blocks: Callable, cuts: np.ndarray, threads: int, words: int = WORDS, tuned: bool = False):
+        self.blocks, self.cuts, self.threads, self.words = blocks, cuts, threads, words
+        #: chooses, stretch by stretch, between all threads and one (None: always all)
+        self.tuner = ThreadTuner((threads, 1)) if tuned else None
+        self.poly = jump_polynomial(words)
+        p = threads
+        self.recs = np.empty((p, p, words, 3), dtype=np.int64)
+        self.counts = np.empty((p, p), dtype=np.int64)
+        self.xrecs = np.empty((p, words + 1, 3), dtype=np.int64)
+        self.xbounds = np.empty((p, words + 1, p), dtype=np.int64)
+        self.ncross, self.npick = np.empty(p, dtype=np.int64), np.empty(p, dtype=np.int64)
+        self.out = np.empty((p, 6))
+
+    @classmethod
+    def build(cls, collide: Callable, dim: int, flat: bool, pairs: np.ndarray, n_balls: int, rows: bool,
+              threads: int, words: int = WORDS, tuned: bool = False) -> "ParallelChain | None":
+        cuts = region_cuts(pairs, n_balls, threads) if threads > 1 else None
+        if cuts is None:
+            return None
+        return cls(parallel_blocks(collide, dim, flat, rows), cuts, threads, words, tuned)
+
+    @property
+    def block(self) -> int:
+        """Words per block: the most picks a block can take."""
+        return self.threads * self.words
+
+    def _whole(self, chain, pattern, rng, counters, margin, count: int, sequential: Callable) -> int:
+        """``count`` blocks' worth of steps on all threads or, where the tuner finds one thread faster, on
+        the sequential loop (``sequential(steps)``: the same picks); the steps taken."""
+        if self.tuner is None:
+            return self._blocks(chain, pattern, rng, counters, margin, count)
+        taken = []
+
+        def segment(steps):
+            if self.tuner.choose() == 1:
+                taken.append(sequential(steps))
+            else:
+                taken.append(self._blocks(chain, pattern, rng, counters, margin, count))
+
+        self.tuner.run(segment, count * self.block)
+        return taken[0]
+
+    def _blocks(self, chain, pattern, rng, counters, margin, count: int) -> int:
+        """``count`` blocks; the picks they took. The counters (``LAST`` too), stream and margin advanced."""
+        history = np.empty((count, 6), dtype=np.int64)
+        sync = np.zeros(NEXT_TASK + self.threads * _LINE, dtype=np.int64)
+        picks = self.blocks(chain.v, chain.pairs, chain.ends, chain.units, chain.masses, chain.params, pattern,
+                            self.cuts, self.poly, rng, np.int64(len(chain.pairs)), self.recs, self.counts, self.xrecs,
+                            self.xbounds, self.ncross, self.npick, history, sync, self.out)
+        made, last = int(self.out[:, 0].sum()), int(self.out[:, 1].max())
+        for row in self.out:
+            merge_margin(margin, row[2:6])
+        counters[STEPS] += picks
+        counters[COLLISIONS] += made
+        if last >= 0:
+            counters[LAST] = counters[STEPS] - picks + last + 1
+        return int(picks)
+
+    def run(self, chain, pattern, limited, picks, any_live, state, aux, rng, counters, margin, max_steps: int,
+            max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
+        """What the sequential ``limited`` loop (with ``pattern``) does for these limits, bit for bit:
+        chunks of ``chunk_steps`` steps, each as whole blocks on the threads and its rest on ``limited``,
+        the freeze scanned (``any_live``) after a chunk with a collision and the stream rewound to the
+        last collision (``picks``, the selector's). Returns the steps taken."""
+        if until_frozen and not any_live(*chain):
+            counters[LIVE] = 0
+            return 0
+        taken, frozen, saved = 0, False, np.empty_like(state)
+
+        def sequential(steps: int) -> int:
+            return limited(*chain, pattern, state, aux, rng, counters, margin, steps, max_collisions, False, steps,
+                           saved, _NO_LOG)
+
+        while not frozen and taken < max_steps and counters[COLLISIONS] < max_collisions:
+            count = min(chunk_steps, max_steps - taken)
+            start_rng, start_state = rng.copy(), state.copy()
+            start_steps, start_collisions = int(counters[STEPS]), int(counters[COLLISIONS])
+            whole = min(count, max_collisions - start_collisions) // self.block
+            done = self._whole(chain, pattern, rng, counters, margin, whole, sequential) if whole > 0 else 0
+            if done < count and counters[COLLISIONS] < max_collisions:
+                done += sequential(count - done)
+            if until_frozen and counters[COLLISIONS] > start_collisions and not any_live(*chain):
+                frozen = True  # the run ends right after its last collision
+                done = int(counters[LAST]) - start_steps
+                rng[:], state[:] = start_rng, start_state
+                _advance(picks, state, aux, rng, len(chain.pairs), done)
+                counters[STEPS] = start_steps + done
+            taken += done
+        counters[LIVE] = 0 if frozen else -1
+        return taken
+
+
+_NO_LOG = np.empty((0, 2), dtype=np.int64)
+
+
+def _advance(picks: Callable, state, aux, rng, n: int, count: int) -> None:
+    """Draw and drop ``count`` picks of the selector (``picks``, `loops.selector_picks`)."""
+    out = np.empty(min(count, 1 << 20), dtype=np.int64)
+    while count > 0:
+        step = min(count, len(out))
+        picks(state, aux, rng, n, out[:step])
+        count -= step
