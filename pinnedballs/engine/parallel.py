@@ -54,12 +54,20 @@ WORDS = 1 << 14
 MAX_CROSSING_SHARE = 0.02
 #: systems with fewer contacts run on one thread (a freeze scan's chunk holds a few blocks at least)
 MIN_PARALLEL_CONTACTS = 1 << 16
-#: records ahead whose velocity rows are fetched while a stretch runs
+#: records ahead whose velocity rows are fetched while a region runs
 AHEAD = 16
+#: the bands watched for the wake of a crossing reach this many contacts from a cut (in ball index:
+#: ``BAND_HOPS`` times the largest ``|j - i|`` of a contact)
+BAND_HOPS = 8
 
 # the shared counters (`sync`), each on its own cache line
 _LINE = 8
-NEXT_GEN, GEN_DONE, FINISHED, DONE, BLOCKS_DONE, NEXT_TASK = (k * _LINE for k in range(6))
+NEXT_GEN, GEN_DONE, NEXT_CLOSURE, CLOSURE_DONE, ESCAPED, FINISHED, BLOCKS_DONE, NEXT_TASK = (k * _LINE for k in range(8))
+
+
+def sync_length(threads: int) -> int:
+    """The length of the ``sync`` array for ``threads`` regions."""
+    return NEXT_TASK + threads * _LINE
 
 
 def region_cuts(pairs: np.ndarray, n_balls: int, threads: int) -> np.ndarray | None:
@@ -105,17 +113,16 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     """The compiled blocks of the chain for one rule's ``collide``, ``dim``, ``flat`` and the contacts'
     source (``rows``: the row pattern, else the tables):
 
-    blocks(v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n,
-           recs, counts, xrecs, xbounds, ncross, npick, history, sync, out) -> picks
+    blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, scratch, history,
+           sync, out) -> picks
 
-    runs ``len(history)`` blocks of ``p * W`` words (``p = len(cuts) + 1`` regions, ``W =
-    recs.shape[2]``, ``poly`` the jump polynomial of ``W`` words) on numba's threads, advances
-    ``rng_words`` past them, and returns the picks taken. ``out (p, 6) float64`` receives each
-    thread's collisions, the position of its last collision (-1: none; positions count the call's
-    picks from 0) and its margin (4). ``history (blocks, 6) int64`` receives each block's picks,
-    stretches and final stream state (4 words). The scratch: ``recs (p, p, W, 3)``, ``counts (p, p)``,
-    ``xrecs (p, W + 1, 3)``, ``xbounds (p, W + 1, p)``, ``ncross, npick (p,)`` int64; ``sync``
-    (zeros, ``NEXT_TASK + p * 8``) int64.
+    runs ``len(history)`` blocks of ``p * W`` words (``p = len(cuts) + 1`` regions, ``poly`` the jump
+    polynomial of ``W`` words) on numba's threads, advances ``rng_words`` past them, and returns the
+    picks taken. ``band``: the balls within ``band`` of a cut are watched for crossings (see the module
+    docstring); ``scratch`` = `Scratch` arrays. ``out (p, 6) float64`` receives each thread's
+    collisions, the position of its last collision (-1: none; positions count the call's picks from
+    0) and its margin (4). ``history (blocks, 6) int64`` receives each block's picks, deferred picks
+    and final stream state (4 words). ``sync``: zeros, `SYNC` int64.
     """
     collide_at = closing_form(collide)
     D, FLAT, ROWS = dim, flat, rows
@@ -127,13 +134,15 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
         return np.int64(pairs[k, 0]), np.int64(pairs[k, 1]), np.int64(ends[k, 0]), np.int64(ends[k, 1])
 
     @njit_cached(inline="always")
-    def generate(s, n, pairs, ends, pattern, cuts, recs, counts, xrecs, xbounds, t, W, p):
-        """Segment ``t`` of a block: ``W`` words from state ``s`` into records; ``(picks, crossings, s')``."""
+    def generate(s, n, pairs, ends, pattern, cuts, band, recs, counts, watch, nwatch, t, W, p):
+        """Segment ``t`` of a block: ``W`` words from state ``s`` into its regions' records (``recs[t, r]``,
+        crossings under ``r = p``), those near a cut also listed in ``watch[t]`` as ``r << 32 | q``;
+        ``(picks, s')``."""
         n64 = np.uint64(n)
         threshold = (np.uint64(1 << 32) - n64) % n64
-        for r in range(p):
+        for r in range(p + 1):
             counts[t, r] = 0
-        picks, crossings = 0, 0
+        picks, watched = 0, 0
         for _ in range(W):
             x, s = next_uint64(s)
             m = (x >> np.uint64(32)) * n64
@@ -142,45 +151,66 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
                 continue
             i, j, a, b = contact(pairs, ends, pattern, np.int64(m >> np.uint64(32)))
             ri, rj = _region(cuts, i), _region(cuts, j)
-            if ri == rj:
-                q = counts[t, ri]
-                recs[t, ri, q, 0], recs[t, ri, q, 1], recs[t, ri, q, 2] = (i << 32) | j, (a << 32) | b, picks
-                counts[t, ri] = q + 1
-            else:
-                xrecs[t, crossings, 0], xrecs[t, crossings, 1], xrecs[t, crossings, 2] = (i << 32) | j, (a << 32) | b, picks
-                for r in range(p):
-                    xbounds[t, crossings, r] = counts[t, r]
-                crossings += 1
+            r = ri if ri == rj else p
+            q = counts[t, r]
+            recs[t, r, q, 0], recs[t, r, q, 1], recs[t, r, q, 2] = (i << 32) | j, (a << 32) | b, picks
+            counts[t, r] = q + 1
+            if r == p or _near(cuts, band, i) or _near(cuts, band, j):
+                watch[t, watched] = (r << 32) | q
+                watched += 1
             picks += 1
-        return picks, crossings, s
+        nwatch[t] = watched
+        return picks, s
 
     @njit_cached(inline="always")
-    def attempt(v, units, masses, params, rec, base, tau, m, last, made):
-        """Try the record ``rec`` (its position ``base + rec[2]``): ``(m, last, made)`` updated."""
-        i, j = rec[0] >> 32, rec[0] & 0xFFFFFFFF
-        a, b = rec[1] >> 32, rec[1] & 0xFFFFFFFF
+    def attempt(v, units, masses, params, recs, t, r, q, base, tau, m, last, made):
+        """Try the record ``recs[t, r, q]`` (its position ``base + recs[t, r, q, 2]``): ``(m, last, made)``
+        updated. (Scalars, not the record's view: a view per pick costs numba reference counting.)"""
+        ij, ab = recs[t, r, q, 0], recs[t, r, q, 1]
+        i, j = ij >> 32, ij & 0xFFFFFFFF
+        a, b = ab >> 32, ab & 0xFFFFFFFF
         w = closing_speed(v, units, i, j, a, b, D, FLAT)
         hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
         m = track(hit, w, tau, m[0], m[1], m[2], m[3])
         if hit:
             made += 1
-            last = max(last, base + rec[2])
+            last = max(last, base + (recs[t, r, q, 2] & _POSITION))
         return m, last, made
 
     @njit_cached(inline="always")
-    def stretch(v, units, masses, params, recs, t, r, lo, hi, base, tau, m, last, made):
-        """Region ``r``'s records ``lo:hi`` of segment ``t``, in order, their rows fetched ahead."""
-        for q in range(lo, hi):
-            if q + AHEAD < hi:
+    def region(v, units, masses, params, recs, t, r, count, base, tau, m, last, made):
+        """Region ``r``'s records of segment ``t`` in order, deferred ones left out, rows fetched ahead."""
+        for q in range(count):
+            if q + AHEAD < count:
                 ahead = recs[t, r, q + AHEAD, 0]
                 prefetch(v, ahead >> 32)
                 prefetch(v, ahead & 0xFFFFFFFF)
-            m, last, made = attempt(v, units, masses, params, recs[t, r, q], base, tau, m, last, made)
+            if recs[t, r, q, 2] & _DEFERRED:
+                continue
+            m, last, made = attempt(v, units, masses, params, recs, t, r, q, base, tau, m, last, made)
+        return m, last, made
+
+    @njit_cached(inline="always")
+    def in_order(v, units, masses, params, recs, counts, t, p, base, tau, m, last, made):
+        """Segment ``t``'s records, all of them, in time order (a merge of its ``p + 1`` lists by position)."""
+        heads = np.zeros(p + 1, np.int64)
+        total = 0
+        for r in range(p + 1):
+            total += counts[t, r]
+        for _ in range(total):
+            best, at = -1, _POSITION
+            for r in range(p + 1):
+                if heads[r] < counts[t, r]:
+                    position = recs[t, r, heads[r], 2] & _POSITION
+                    if position < at:
+                        best, at = r, position
+            m, last, made = attempt(v, units, masses, params, recs, t, best, heads[best], base, tau, m, last, made)
+            heads[best] += 1
         return m, last, made
 
     @jit_cached_if_possible
-    def worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n, recs, counts, xrecs,
-               xbounds, ncross, npick, history, sync, out):
+    def worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, recs, counts,
+               watch, nwatch, npick, marks, deferred, history, sync, out):
         """One thread's share of `blocks` (a function of its own: numba's analysis of a parallel loop
         does not follow the tuples the margin travels in)."""
         p, W, n_blocks = cuts.shape[0] + 1, recs.shape[2], history.shape[0]
@@ -188,9 +218,12 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
         tau = params[params.shape[0] - 1]
         m = (np.inf, 0.0, 0.0, 0.0)
         last, made = np.int64(-1), np.int64(0)
-        my_counts, my_cross, my_picks = np.empty((p, p), np.int64), np.empty(p, np.int64), np.empty(p, np.int64)
-        segment, base = np.int64(0), np.int64(0)  # stretches and picks before this block
+        offsets = np.empty(p + 1, np.int64)
+        base = np.int64(0)  # picks before this block
         for blk in range(n_blocks):
+            if atomic_load(sync, BLOCKS_DONE) > blk:  # done by the others: its numbers are in the history
+                base += history[blk, 0]
+                continue
             s_block = load(rng_words) if blk == 0 else load(history[blk - 1, 2:6].view(np.uint64))
             # phase G: claim segments of this block's words
             while True:
@@ -202,61 +235,56 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
                     st = s_block
                     for _ in range(t):
                         st = jump(st, poly)
-                    picks, crossings, st = generate(st, n, pairs, ends, pattern, cuts, recs, counts, xrecs,
-                                                    xbounds, t, W, p)
-                    npick[t], ncross[t] = picks, crossings
+                    npick[t], st = generate(st, n, pairs, ends, pattern, cuts, band, recs, counts, watch, nwatch, t,
+                                            W, p)
                     if t == p - 1:  # the block's last word: where the next block starts
                         store(history[blk, 2:6].view(np.uint64), st)
                     atomic_add(sync, GEN_DONE, 1)
             _spin_until(sync, GEN_DONE, (blk + 1) * p)
-            skip = atomic_load(sync, BLOCKS_DONE) > blk
-            if not skip:  # copy the block's layout, then check that no one finished the block meanwhile
-                my_counts[:, :] = counts
-                my_cross[:] = ncross
-                my_picks[:] = npick
-                skip = atomic_load(sync, BLOCKS_DONE) > blk
-            if skip:  # done by the others: its numbers are in the history
-                _spin_until(sync, BLOCKS_DONE, blk + 1)
-                segment += history[blk, 1]
-                base += history[blk, 0]
-                continue
-            # phase E: the stretches between crossings, each region's part claimed by one thread
-            offset, stretches, picks = np.int64(0), np.int64(0), np.int64(0)
+            # the crossings and what must follow them: one thread defers them (in time order)
+            if atomic_cas(sync, NEXT_CLOSURE, blk, blk + 1) == blk:
+                sync[ESCAPED] = _defer(recs, watch, nwatch, cuts, band, marks, deferred, p)
+                atomic_store(sync, CLOSURE_DONE, blk + 1)
+            _spin_until(sync, CLOSURE_DONE, blk + 1)
+            offsets[0] = base
             for t in range(p):
-                stretches += my_cross[t] + 1
-                picks += my_picks[t]
-            for t in range(p):
-                for c in range(my_cross[t] + 1):
-                    g = segment
-                    for k in range(p):
-                        r = (tid + k) % p
-                        if atomic_cas(sync, NEXT_TASK + r * _LINE, g, g + 1) != g:
-                            continue
-                        lo = 0 if c == 0 else xbounds[t, c - 1, r]
-                        hi = my_counts[t, r] if c == my_cross[t] else xbounds[t, c, r]
-                        m, last, made = stretch(v, units, masses, params, recs, t, r, lo, hi, base + offset,
-                                                tau, m, last, made)
-                        if atomic_add(sync, FINISHED, 1) == (g + 1) * p - 1:  # the stretch's last part
-                            if c < my_cross[t]:
-                                m, last, made = attempt(v, units, masses, params, xrecs[t, c], base + offset,
-                                                        tau, m, last, made)
-                            if t == p - 1 and c == my_cross[t]:  # the block's last stretch
-                                history[blk, 0], history[blk, 1] = picks, stretches
-                                atomic_store(sync, BLOCKS_DONE, blk + 1)
-                            atomic_store(sync, DONE, g + 1)
-                    _spin_until(sync, DONE, g + 1)
-                    segment += 1
-                offset += my_picks[t]
-            base += picks
+                offsets[t + 1] = offsets[t] + npick[t]
+            escaped = sync[ESCAPED] != 0
+            # phase E: each region's picks but the deferred ones, all segments in order; the last to
+            # finish runs the deferred picks in time order (or, if the crossings' wake left the bands,
+            # the whole block in time order)
+            for k in range(p):
+                r = (tid + k) % p
+                if atomic_cas(sync, NEXT_TASK + r * _LINE, blk, blk + 1) != blk:
+                    continue
+                if not escaped:
+                    for t in range(p):
+                        m, last, made = region(v, units, masses, params, recs, t, r, counts[t, r], offsets[t], tau,
+                                               m, last, made)
+                if atomic_add(sync, FINISHED, 1) == (blk + 1) * p - 1:
+                    if escaped:
+                        for t in range(p):
+                            m, last, made = in_order(v, units, masses, params, recs, counts, t, p, offsets[t], tau,
+                                                     m, last, made)
+                    else:
+                        for d in range(deferred[0]):
+                            e = deferred[1 + d]
+                            t, r2, q = e >> 48, (e >> 32) & 0xFFFF, e & 0xFFFFFFFF
+                            m, last, made = attempt(v, units, masses, params, recs, t, r2, q, offsets[t], tau, m,
+                                                    last, made)
+                    history[blk, 0], history[blk, 1] = offsets[p] - base, deferred[0]
+                    atomic_store(sync, BLOCKS_DONE, blk + 1)
+            _spin_until(sync, BLOCKS_DONE, blk + 1)
+            base += history[blk, 0]
         out[tid, 0], out[tid, 1] = made, last
         out[tid, 2], out[tid, 3], out[tid, 4], out[tid, 5] = m
 
     @jit_cached_if_possible(parallel=True)
-    def blocks(v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n, recs, counts, xrecs,
-               xbounds, ncross, npick, history, sync, out):
+    def blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, recs, counts, watch,
+               nwatch, npick, marks, deferred, history, sync, out):
         for tid in prange(cuts.shape[0] + 1):
-            worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, poly, rng_words, n, recs, counts, xrecs,
-                   xbounds, ncross, npick, history, sync, out)
+            worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, recs, counts,
+                   watch, nwatch, npick, marks, deferred, history, sync, out)
         store(rng_words, load(history[history.shape[0] - 1, 2:6].view(np.uint64)))
         total = np.int64(0)
         for blk in range(history.shape[0]):
@@ -266,6 +294,65 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     return blocks
 
 
+#: the bit of a record's position that says it is deferred, and the position itself
+_DEFERRED = np.int64(1) << 62
+_POSITION = _DEFERRED - 1
+
+
+@njit_cached(inline="always")
+def _near(cuts, band, ball):
+    """True when ``ball`` lies within ``band`` balls of a cut (a crossing's wake can reach it)."""
+    for c in range(cuts.shape[0]):
+        if cuts[c] - band <= ball < cuts[c] + band:
+            return True
+    return False
+
+
+@njit_cached(inline="always")
+def _mark_index(cuts, band, ball):
+    """Where ``ball``'s mark lives (``2 * band`` marks per cut), or -1 outside every band."""
+    for c in range(cuts.shape[0]):
+        if cuts[c] - band <= ball < cuts[c] + band:
+            return c * 2 * band + ball - (cuts[c] - band)
+    return -1
+
+
+@njit_cached
+def _defer(recs, watch, nwatch, cuts, band, marks, deferred, p):
+    """Defer every crossing, and every later pick that shares a ball with a deferred one, in time order:
+    mark their records, list them in ``deferred`` (``[count, t << 48 | r << 32 | q, ...]``). Deferred
+    picks run after all others, in their order: no pick that runs early shares a ball with one that
+    runs later. Every pick touching a ball within ``band`` of a cut is watched, so the wake is followed
+    in full while it stays in the bands; returns 1 when a deferred pick reaches a ball outside them (the
+    block must then run in time order), else 0."""
+    count, escaped = 0, 0
+    for t in range(p):
+        for e in range(nwatch[t]):
+            w = watch[t, e]
+            r, q = w >> 32, w & 0xFFFFFFFF
+            ij = recs[t, r, q, 0]
+            i, j = ij >> 32, ij & 0xFFFFFFFF
+            mi, mj = _mark_index(cuts, band, i), _mark_index(cuts, band, j)
+            if r == p or (mi >= 0 and marks[mi] != 0) or (mj >= 0 and marks[mj] != 0):
+                for mk in (mi, mj):
+                    if mk < 0:
+                        escaped = 1
+                    else:
+                        marks[mk] = 1
+                recs[t, r, q, 2] |= _DEFERRED
+                deferred[1 + count] = (t << 48) | (r << 32) | q
+                count += 1
+    for d in range(count):  # clear the marks for the next block
+        e = deferred[1 + d]
+        ij = recs[e >> 48, (e >> 32) & 0xFFFF, e & 0xFFFFFFFF, 0]
+        for ball in (ij >> 32, ij & 0xFFFFFFFF):
+            mk = _mark_index(cuts, band, ball)
+            if mk >= 0:
+                marks[mk] = 0
+    deferred[0] = count
+    return escaped
+
+
 class ParallelChain:
     """`parallel_blocks` for one simulation: its regions, scratch and the limits of a run.
 
@@ -273,17 +360,20 @@ class ParallelChain:
     `run` takes the place of the sequential limited loop, with its bits.
     """
 
-    def __init__(self, blocks: Callable, cuts: np.ndarray, threads: int, words: int = WORDS, tuned: bool = False):
-        self.blocks, self.cuts, self.threads, self.words = blocks, cuts, threads, words
+    def __init__(self, blocks: Callable, cuts: np.ndarray, band: int, threads: int, words: int = WORDS,
+                 tuned: bool = False):
+        self.blocks, self.cuts, self.band, self.threads, self.words = blocks, cuts, band, threads, words
         #: chooses, stretch by stretch, between all threads and one (None: always all)
         self.tuner = ThreadTuner((threads, 1)) if tuned else None
         self.poly = jump_polynomial(words)
         p = threads
-        self.recs = np.empty((p, p, words, 3), dtype=np.int64)
-        self.counts = np.empty((p, p), dtype=np.int64)
-        self.xrecs = np.empty((p, words + 1, 3), dtype=np.int64)
-        self.xbounds = np.empty((p, words + 1, p), dtype=np.int64)
-        self.ncross, self.npick = np.empty(p, dtype=np.int64), np.empty(p, dtype=np.int64)
+        self.scratch = (np.empty((p, p + 1, words, 3), dtype=np.int64),  # recs: each segment's picks by region
+                        np.empty((p, p + 1), dtype=np.int64),  # counts
+                        np.empty((p, words), dtype=np.int64),  # watch: picks near a cut
+                        np.empty(p, dtype=np.int64),  # nwatch
+                        np.empty(p, dtype=np.int64),  # npick
+                        np.zeros((p - 1) * 2 * band, dtype=np.uint8),  # marks: deferred balls near each cut
+                        np.empty(p * words + 1, dtype=np.int64))  # deferred picks
         self.out = np.empty((p, 6))
 
     @classmethod
@@ -292,7 +382,8 @@ class ParallelChain:
         cuts = region_cuts(pairs, n_balls, threads) if threads > 1 else None
         if cuts is None:
             return None
-        return cls(parallel_blocks(collide, dim, flat, rows), cuts, threads, words, tuned)
+        reach = int(np.abs(pairs[:, 1].astype(np.int64) - pairs[:, 0].astype(np.int64)).max())
+        return cls(parallel_blocks(collide, dim, flat, rows), cuts, BAND_HOPS * reach, threads, words, tuned)
 
     @property
     def block(self) -> int:
@@ -318,10 +409,10 @@ class ParallelChain:
     def _blocks(self, chain, pattern, rng, counters, margin, count: int) -> int:
         """``count`` blocks; the picks they took. The counters (``LAST`` too), stream and margin advanced."""
         history = np.empty((count, 6), dtype=np.int64)
-        sync = np.zeros(NEXT_TASK + self.threads * _LINE, dtype=np.int64)
+        sync = np.zeros(sync_length(self.threads), dtype=np.int64)
         picks = self.blocks(chain.v, chain.pairs, chain.ends, chain.units, chain.masses, chain.params, pattern,
-                            self.cuts, self.poly, rng, np.int64(len(chain.pairs)), self.recs, self.counts, self.xrecs,
-                            self.xbounds, self.ncross, self.npick, history, sync, self.out)
+                            self.cuts, np.int64(self.band), self.poly, rng, np.int64(len(chain.pairs)), *self.scratch,
+                            history, sync, self.out)
         made, last = int(self.out[:, 0].sum()), int(self.out[:, 1].max())
         for row in self.out:
             merge_margin(margin, row[2:6])
