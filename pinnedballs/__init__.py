@@ -15,10 +15,11 @@ from .results.format import ResultsError
 from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
-from .run.driver import Stop, Writer
+from .engine.stop import Stop
+from .run.driver import Writer
 from .run.ensemble import run_ensemble
 from .run.gsd_writer import GSDWriter
-from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
 from .simulation import RunState, Simulation

@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from ..run import ensemble as ens
-from ..results.files import write_text_atomic
+from ..engine.atomic import write_text_atomic
 from ..results.rundir import DirLock, check_out_dir
 from ..specs.run import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage

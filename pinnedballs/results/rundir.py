@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 
 from ..engine.errors import InputError
-from .files import remove, tmp_path
+from ..engine.atomic import remove, tmp_path
 from .format import DATA_DIR, RESULTS_NAME
 
 __all__ = ["LOCK_NAME", "DirLock", "holder", "check_writable", "check_resumable", "take_run_dir", "check_out_dir"]

@@ -35,7 +35,7 @@ from ..results.format import DATA_DIR, RESULTS_NAME, Record
 from ..results.rundir import DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from .driver import Writer
-from .triggers import Counts, Trigger
+from ..engine.triggers import Counts, Trigger
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]
 

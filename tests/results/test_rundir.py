@@ -108,7 +108,7 @@ import os, sys
 os.umask(0)  # the kernels' cache directories root makes on import stay writable for uid
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble
-from pinnedballs.results import files as io
+from pinnedballs.engine import atomic as io
 from pinnedballs import reproduction
 from pinnedballs.run import execute as runner
 from pinnedballs.results import rundir
@@ -151,7 +151,7 @@ STOP_AT_FIRST_CHECKPOINT = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
 from pinnedballs.run import driver
-from pinnedballs.results import files as io
+from pinnedballs.engine import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 commit, count = io._commit, [0]
 def stopping(tmp, path):
