@@ -81,6 +81,11 @@ class FlatTorus(Geometry):
         """``(2,)`` side lengths of the periodic box."""
         return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
 
+    @property
+    def box(self) -> np.ndarray:
+        """The periodic box: `period`."""
+        return self.period
+
     def to_spec(self) -> dict:
         return {"kind": "flat_torus", "rows": self.rows, "cols": self.cols, "radius": self.radius}
 
