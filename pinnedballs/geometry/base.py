@@ -87,6 +87,10 @@ class Contacts:
     def __len__(self) -> int:
         return len(self.pairs)
 
+    def __getstate__(self) -> dict:
+        """A pickle leaves out the checks' verdict (`checks.check_contacts`): a copy is checked afresh."""
+        return {k: v for k, v in self.__dict__.items() if k != "_sound_for"}
+
 
 @dataclass(frozen=True, eq=False)
 class Boundary:

@@ -17,6 +17,7 @@ in ``state`` and ``rng``, so a checkpoint of the two resumes it exactly; `check_
 
 from __future__ import annotations
 
+import functools
 import re
 from abc import ABC
 from typing import Callable
@@ -35,7 +36,15 @@ PICK_RETURNS = "(k, rng): the contact's index (an integer) and the random stream
 
 
 class Scheduler(ABC):
-    """Chooses which contact the engine tries next: a `kernel` pick, or a whole `selector`."""
+    """Chooses which contact the engine tries next: a `kernel` pick, or a whole `selector`.
+
+    ``law``: the law of its picks, which `pinnedballs.testing.check_scheduler_law` tests: ``"uniform"``
+    (each pick uniform over the contacts, independent of the others), ``"sweep"`` (every contact once
+    in each sweep of ``n_contacts`` picks), ``"uniform_chain"`` (the paper's uniform chain without its
+    rejected picks: the same law of steps, collisions and velocities), or None (none claimed).
+    """
+
+    law: str | None = None
 
     def kernel(self) -> Callable:
         """The jitted ``pick(state, rng, n_contacts) -> (k, rng)``."""
@@ -102,6 +111,7 @@ class PickOutOfRange(FieldError):
         return type(self), (self.name, self.k, self.n_contacts)
 
 
+@functools.cache  # one wrapper per pick: the engine's compiled loops are cached per selector
 def checked_pick(pick: Callable, name: str) -> Callable:
     """``pick`` with its contact checked: `PickOutOfRange` naming ``name`` (raised from compiled code, so
     the run stops there) unless ``0 <= k < n_contacts``. For a user's pick: the compiled loop indexes

@@ -49,6 +49,8 @@ def pick_random_sweep(state, rng, n_contacts):
 class UniformRandomPair(Scheduler):
     """Each step tries one contact chosen uniformly at random (the paper's scheduler)."""
 
+    law = "uniform"  #: `Scheduler.law`
+
     def kernel(self) -> Callable:
         return pick_uniform
 
@@ -58,6 +60,8 @@ class UniformRandomPair(Scheduler):
 
 class Sweep(Scheduler):
     """Tries every contact once per sweep, in the geometry's fixed contact order."""
+
+    law = "sweep"  #: `Scheduler.law`
 
     def kernel(self) -> Callable:
         return pick_sweep
@@ -73,6 +77,8 @@ class Sweep(Scheduler):
 
 class RandomSweep(Scheduler):
     """Tries every contact once per sweep, in a fresh uniformly random order each sweep."""
+
+    law = "sweep"  #: `Scheduler.law`
 
     def kernel(self) -> Callable:
         return pick_random_sweep
