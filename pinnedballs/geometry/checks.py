@@ -29,8 +29,10 @@ contact graph: the segment of a contact across the boundary runs through the box
 segment is ``2 * radius`` long.
 
 One compiled pass over the contacts (`_first_fault`) and one over a table of each ball's contacts
-(`_first_repeat`, O(contacts + balls)) do it: they cost less than building a lattice's contacts
-(docs/testing.md gives the figures). Plain-Python twins in the tests check them.
+(`_first_repeat`, O(contacts + balls)) do it, for less than building a lattice's contacts costs
+(CPU seconds, measured on this project's 2-core machine: HalfPlane(1155, 2000), 6.9 million
+contacts, 0.10 against 0.8-1.0 to build them; FCC(100, 100, 100), 24 million, 0.9-1.0 against
+2.5-2.6). A plain-Python twin in the tests checks them.
 """
 
 from __future__ import annotations
