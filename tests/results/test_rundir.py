@@ -113,6 +113,8 @@ from pinnedballs import reproduction
 from pinnedballs.run import execute as runner
 from pinnedballs.results import rundir
 from pinnedballs import specs
+from numba.core.registry import cpu_target
+cpu_target.target_context.refresh()  # numba's registries (cmath, ...): a Simulation's contact checks load a kernel
 os.setgid({uid}); os.setuid({uid})
 sys.exit(cli.main(sys.argv[1:]))
 """
