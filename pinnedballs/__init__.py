@@ -4,6 +4,8 @@ Balls sit at fixed centres; their pseudo-velocities change when two touching
 balls approach and collide. See ``docs/`` and the README for a tour.
 """
 
+import sys as _sys
+
 from ._version import __version__
 from .analysis.maxima import MaxCollisionsResult, search_max_collisions
 from .analysis.observables import register as register_observable
@@ -15,12 +17,13 @@ from .results.format import ResultsError
 from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
-from .run.driver import Stop, Writer
+from .engine.stop import Stop
+from .run.driver import Writer
 from .run.ensemble import EnsembleResult, run_ensemble
 from .run.ensemble_dir import load_ensemble
 from .run.execute import run_spec
 from .run.gsd_writer import GSDWriter
-from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
 from .simulation import RunState, Simulation
@@ -40,3 +43,8 @@ __all__ = [
     "ResultsWriter", "GSDWriter", "CollisionLog", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
     "register_observable", "InputError", "FieldError", "FieldTypeError", "SpecError",
 ]
+
+# hypothesis came first: st.from_type(pb.Geometry) and the others draw from the kit's strategies, which
+# register themselves as they are imported (_pinnedballs_hypothesis.py says why here)
+if _sys.modules.get("hypothesis") is not None:
+    from .testing import strategies as _strategies  # noqa: F401 - registers them

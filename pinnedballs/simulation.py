@@ -27,6 +27,7 @@ LOG_CAPACITY = 1 << 16
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
 from .engine.random import seed_state
 from .geometry.base import Geometry
+from .geometry.checks import check_contacts
 from .rules import CollisionRule, Elastic, check_resolution, threshold
 from .schedulers.base import Scheduler
 from .schedulers.simple import UniformRandomPair
@@ -236,6 +237,7 @@ class Simulation:
                                               f"got {type(scheduler).__name__}")
         if geometry.n_contacts == 0:
             raise FieldError("geometry", "has no contacts, so nothing can ever collide")
+        check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
         self._mass_array = mass_array(masses, geometry.n_balls)
         self.masses = None if masses is None else self._mass_array

@@ -139,13 +139,28 @@ def matching(n_pairs: int, dim: int = 1) -> pb.GraphGeometry:
 
 
 def two_balls(t_i, t_j) -> pb.GraphGeometry:
-    """One contact with the given unit vectors at each end (any dimension, need not be antiparallel)."""
+    """One contact with the given unit vectors at each end (any dimension, need not be antiparallel).
+
+    When ``t_j`` is not ``-t_i`` the two balls sit as on a curved surface: each node carries a frame
+    (the identity) and the graph no metric, so the contact checks leave the directions alone."""
     t_i, t_j = np.asarray(t_i, float), np.asarray(t_j, float)
+    curved = not np.array_equal(t_j, -t_i)
     g = nx.Graph()
-    g.add_node(0, pos=tuple(np.zeros_like(t_i)))
-    g.add_node(1, pos=tuple(2.0 * t_i))
+    for n, pos in enumerate((np.zeros_like(t_i), 2.0 * t_i)):
+        g.add_node(n, pos=tuple(pos), **({"frame": np.eye(len(t_i)).tolist()} if curved else {}))
     g.add_edge(0, 1, units={0: tuple(t_i), 1: tuple(t_j)})
     return pb.GraphGeometry(g)
+
+
+def stated_units(g: nx.Graph) -> nx.Graph:
+    """``g`` with each edge's ``"units"`` the straight line between its nodes' ``"pos"``: contacts stated
+    as data, of any length (balls at random places are not balls of one radius touching), which
+    `GraphGeometry` takes as they are."""
+    for u, v, data in g.edges(data=True):
+        d = np.asarray(g.nodes[v]["pos"], float) - np.asarray(g.nodes[u]["pos"], float)
+        t = d / np.linalg.norm(d)
+        data["units"] = {u: tuple(t), v: tuple(-t)}
+    return g
 
 
 def icosahedron_sphere() -> pb.GraphGeometry:

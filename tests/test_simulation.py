@@ -19,7 +19,7 @@ from scipy import stats
 
 import pinnedballs as pb
 from helpers import (SLOWER, closing_speeds, energy, icosahedron_sphere, momentum, random_state, rule_kind,
-                   schedulers_for, tangent_velocities)
+                     schedulers_for, stated_units, tangent_velocities)
 from reference import ReferenceSimulation
 
 SCHEDULERS = [pb.UniformRandomPair, pb.Sweep, pb.RandomSweep]
@@ -162,7 +162,7 @@ def random_contact_graph(draw):
         g.add_edge(k, draw(st.integers(0, k - 1)))
     extra = draw(st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=2 * n))
     g.add_edges_from((a, b) for a, b in extra if a != b)
-    geom = pb.GraphGeometry(g)
+    geom = pb.GraphGeometry(stated_units(g))
     v = rng.standard_normal((n, d)) * draw(st.sampled_from([1e-3, 1.0, 1e3]))
     v[rng.random(n) < draw(st.floats(0, 0.8))] = 0.0  # some balls at rest
     masses = rng.uniform(0.1, 10, n) if draw(st.booleans()) else None
@@ -236,7 +236,7 @@ def test_perfectly_inelastic_random_graph_freezes():
     g = nx.connected_watts_strogatz_graph(12, 4, 0.5, seed=0)
     for u in g:
         g.nodes[u]["pos"] = tuple(rng.normal(size=2))
-    geom = pb.GraphGeometry(g)
+    geom = pb.GraphGeometry(stated_units(g))
     v = rng.normal(size=(geom.n_balls, 2))
     sim = pb.Simulation(geom, v, rule=pb.Restitution(0.0), scheduler=pb.RandomSweep(), seed=0)
     frozen = sim.run_until_frozen(max_steps=200_000)

@@ -5,5 +5,7 @@ One module per idea: `errors` (errors naming the argument at fault), `checks` (t
 that validates arguments), `limits` (memory and the float64 range), `random` (xoshiro256**),
 `jitcache` (the loops' disk cache), `threads` (how the parallel sweep's threads wait, and how
 many), `intrinsics` (LLVM hints for the hot loop), `chain` (the
-data every loop reads) and `loops` (the compiled loops).
+data every loop reads) and `loops` (the compiled loops); `stop` and `triggers` (when a run ends and
+when its writers record: predicates of the counters, built by specs and read by the run driver);
+`atomic` (files written whole or not at all).
 """

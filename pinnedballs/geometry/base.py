@@ -19,6 +19,7 @@ import numpy as np
 from ..engine import checks
 from ..engine.errors import FieldError
 from ..engine.rows import row_pattern
+from .checks import LENGTH_RTOL, raw_tables
 
 __all__ = ["Contacts", "Geometry", "Boundary", "tangent_contacts", "VIEWS", "LENGTHS", "checked_radius"]
 
@@ -77,11 +78,16 @@ class Contacts:
 
     @classmethod
     def build(cls, pairs, ends, units) -> "Contacts":
-        """Contacts from integer arrays ``pairs (E, 2)``, ``ends (E, 2)`` and ``units (K, dim)``."""
-        units = np.ascontiguousarray(units, dtype=np.float64)
+        """Contacts from integer arrays ``pairs (E, 2)``, ``ends (E, 2)`` and ``units (K, dim)``.
+
+        The arrays are checked as given (`checks.raw_tables`: whole numbers, no negative index, ends
+        within units) before they are narrowed; the rest (balls in range, unit lengths, directions)
+        is checked against the geometry when a `Simulation` is built (`checks.check_contacts`).
+        """
+        pairs, ends, units = raw_tables(pairs, ends, units)
         return cls(
-            pairs=np.ascontiguousarray(pairs, dtype=np.uint32).reshape(-1, 2),
-            ends=np.ascontiguousarray(ends, dtype=_index_dtype(len(units))).reshape(-1, 2),
+            pairs=np.ascontiguousarray(pairs, dtype=np.uint32),
+            ends=np.ascontiguousarray(ends, dtype=_index_dtype(len(units))),
             units=units,
         )
 
@@ -102,6 +108,10 @@ class Contacts:
 
     def __len__(self) -> int:
         return len(self.pairs)
+
+    def __getstate__(self) -> dict:
+        """A pickle leaves out the checks' verdict (`checks.check_contacts`): a copy is checked afresh."""
+        return {k: v for k, v in self.__dict__.items() if k != "_sound_for"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +139,12 @@ class Geometry(ABC):
     radius: float = 1.0
     #: True when velocities live in tangent planes of a curved surface (`frames` is not the identity)
     curved: bool = False
+    #: on a curved surface, the embedding's inner product as the diagonal ``(k,)`` of its matrix (a sphere:
+    #: ``(1, 1, 1)``; the hyperboloid: ``(-1, 1, 1)``): the contact checks measure the direction from one
+    #: ball to another in its frame with it. None: not stated (directions on the surface are not checked)
+    metric: np.ndarray | None = None
+    #: relative tolerance on the length ``2 * radius`` of a contact in flat space (checked with the contacts)
+    rtol: float = LENGTH_RTOL
 
     @property
     def view(self) -> str:
@@ -159,6 +175,19 @@ class Geometry(ABC):
         if self.dim != k:
             raise FieldError("frames", f"{type(self).__name__} has dim {self.dim} but {k}-D positions and no frames")
         return np.broadcast_to(np.eye(k), (self.n_balls, k, k))
+
+    @property
+    def box(self) -> np.ndarray | None:
+        """``(k,)`` side lengths of the periodic box, ``inf`` along an open axis; None when nothing is
+        periodic. The contact checks (`pinnedballs.geometry.checks`) measure each contact to the
+        nearest periodic image of the other ball."""
+        return None
+
+    def _stated_contacts(self) -> np.ndarray | None:
+        """``(n_contacts,) bool``: contacts given as data whose straight segment need not be the contact
+        (it may cross a periodic boundary the geometry does not know); None: none. The contact checks
+        measure their direction only where the segment is ``2 * radius`` long, their length never."""
+        return None
 
     def boundary_center(self) -> int:
         """Index of the boundary ball (least ``boundary.distance``) nearest the middle of the boundary balls."""
@@ -216,12 +245,14 @@ class Geometry(ABC):
 
         Each edge carries ``"units" = {i: t_i, j: t_j}``, its index ``"contact"`` and its
         orientation ``"pair" = (i, j)``; on a curved surface each node also carries its
-        ``"frame"`` (``dim x k``), and the graph its ``"view"``. So ``GraphGeometry(geom.contact_graph())``
+        ``"frame"`` (``dim x k``) and the graph its ``"metric"``; the graph carries its ``"view"``. So ``GraphGeometry(geom.contact_graph())``
         rebuilds exactly these contacts in the same order (the same seed then gives the same run),
         periodic or curved ones included.
         """
         g = nx.Graph(dim=self.dim, view=self.view)
         frames = self.frames() if self.curved else None
+        if self.curved and self.metric is not None:  # how the contact checks measure directions on it
+            g.graph["metric"] = tuple(float(x) for x in self.metric)
         for n, p in enumerate(self.positions):
             g.add_node(n, pos=tuple(float(x) for x in p))
             if frames is not None:

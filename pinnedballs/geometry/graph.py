@@ -10,6 +10,7 @@ import numpy as np
 from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
 from .base import _INT32_MAX, LENGTHS, VIEWS, Boundary, Contacts, Geometry, checked_radius
+from .checks import LENGTH_RTOL, UNIT_TOLERANCE
 
 __all__ = ["GraphGeometry", "StoredGeometry"]
 
@@ -43,6 +44,19 @@ def _flat_units(positions: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return delta / norm[:, None]
 
 
+def _graph_metric(graph: nx.Graph, k: int) -> np.ndarray | None:
+    metric = graph.graph.get("metric")
+    if metric is None:
+        return None
+    try:
+        m = np.asarray(metric, dtype=np.float64)
+    except (TypeError, ValueError):
+        m = np.empty(0)
+    if m.shape != (k,) or not np.isfinite(m).all() or not np.isin(m, (-1.0, 1.0)).all():
+        raise FieldError("graph", f"its 'metric' attribute must be {k} signs (1 or -1), got {metric!r}")
+    return m
+
+
 class GraphGeometry(Geometry):
     """Any contact graph: balls anywhere in ``R^d`` (``d >= 1``), edges are contacts.
 
@@ -52,9 +66,17 @@ class GraphGeometry(Geometry):
     otherwise ``t_u`` points from ``u`` to ``v`` in a straight line and ``t_v = -t_u``.
     Nodes may carry ``"frame"`` ``(dim, d)``, their tangent basis on a curved surface
     (as `Geometry.contact_graph` writes it); then every edge needs ``"units"`` of length ``dim``.
+
+    The contacts are checked when a `Simulation` is built (`pinnedballs.geometry.checks`): an edge
+    without ``"units"`` joins balls ``2 * radius`` apart within ``rtol`` (relative). An edge with
+    ``"units"`` states its own contact: its length is not checked, and its direction only where its
+    straight segment is ``2 * radius`` long (elsewhere it may run through a periodic boundary the
+    graph does not know). On a curved surface directions are checked under the graph's ``"metric"``
+    attribute (the diagonal of the embedding's inner product, which `contact_graph` writes), and not
+    at all without one: the frames alone do not say whether the surface is a sphere or a hyperboloid.
     """
 
-    def __init__(self, graph: nx.Graph, radius: float = 1.0):
+    def __init__(self, graph: nx.Graph, radius: float = 1.0, rtol: float = LENGTH_RTOL):
         if not isinstance(graph, nx.Graph) or graph.is_directed() or graph.is_multigraph():
             raise FieldTypeError("graph", f"must be an undirected networkx.Graph, got {type(graph).__name__}")
         if graph.number_of_nodes() == 0:
@@ -75,18 +97,20 @@ class GraphGeometry(Geometry):
         pairs = np.array([(index[u], index[v]) for u, v, _ in edges], dtype=np.int64).reshape(-1, 2)
         self._frames = self._node_frames(graph, nodes, positions.shape[1])
         self.curved = self._frames is not None
+        self.metric = _graph_metric(graph, positions.shape[1])
         dim = positions.shape[1] if self._frames is None else self._frames.shape[1]
         if self.curved:
             t_i = np.zeros((len(pairs), dim))
         else:
             t_i = _flat_units(positions, pairs) if len(pairs) else np.zeros((0, dim))
         t_j = -t_i
+        self._stated = np.array([data.get("units") is not None for _, _, data in edges], dtype=bool)
         for e, (u, v, data) in enumerate(edges):
             if data.get("units") is not None:
                 t_i[e], t_j[e] = self._given_units(u, v, data["units"], dim)
             elif self.curved:
                 raise FieldError("graph", f"edge ({u!r}, {v!r}) needs 'units' on a curved surface (nodes carry 'frame')")
-        self._init(positions, pairs, t_i, t_j, radius)
+        self._init(positions, pairs, t_i, t_j, radius, rtol)
         self.nodes = nodes
         self._view = graph.graph.get("view")
         if self._view is not None:
@@ -111,6 +135,10 @@ class GraphGeometry(Geometry):
     def frames(self) -> np.ndarray:
         """``(n_balls, dim, k)``: the nodes' ``"frame"`` attributes if given, else the identity."""
         return super().frames() if self._frames is None else self._frames
+
+    def _stated_contacts(self) -> np.ndarray:
+        """The edges that carry ``"units"``."""
+        return self._stated
 
     @property
     def view(self) -> str:
@@ -143,16 +171,18 @@ class GraphGeometry(Geometry):
         except (KeyError, TypeError, ValueError):
             raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must map both ends to a vector") from None
         for t in (tu, tv):
-            if t.shape != (dim,) or not np.isfinite(t).all() or abs(np.linalg.norm(t) - 1) > 1e-9:
-                raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim}")
+            if t.shape != (dim,) or not np.isfinite(t).all() or not abs(np.linalg.norm(t) - 1) <= UNIT_TOLERANCE:
+                raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim} (norm 1 "
+                                          f"within {UNIT_TOLERANCE:g}), got {t.tolist()}")
         return tu, tv
 
-    def _init(self, positions, pairs, t_i, t_j, radius) -> None:
+    def _init(self, positions, pairs, t_i, t_j, radius, rtol) -> None:
         n = len(positions)
         if n > _INT32_MAX or 2 * len(pairs) > _INT32_MAX:
             raise FieldError("graph", "too large for 32-bit contact tables")
         self.positions = positions
         self.radius = checked_radius(radius)
+        self.rtol = checks.number("rtol", rtol, 0.0)
         e = len(pairs)
         units = np.empty((2 * e, t_i.shape[1]))
         units[0::2], units[1::2] = t_i, t_j
@@ -193,9 +223,10 @@ class GraphGeometry(Geometry):
                 f"contact distance {contact:.6g}); {len(overlap)} overlapping pair(s) in all"
             )
         self = cls.__new__(cls)
-        self._frames, self._view = None, None
+        self._frames, self._view, self.metric = None, None, None
+        self._stated = np.zeros(len(pairs), dtype=bool)
         t_i = _flat_units(p, pairs) if len(pairs) else np.zeros((0, p.shape[1]))
-        self._init(p, pairs, t_i, -t_i, radius)
+        self._init(p, pairs, t_i, -t_i, radius, rtol)
         self.nodes = list(range(len(p)))
         return self
 
@@ -232,6 +263,10 @@ class StoredGeometry(Geometry):
 
     def frames(self) -> np.ndarray:
         return super().frames() if self._frames is None else self._frames
+
+    def _stated_contacts(self) -> np.ndarray:
+        """Every contact: the file does not say which run through a periodic boundary."""
+        return np.ones(self.n_contacts, dtype=bool)
 
     def _build_contacts(self) -> Contacts:
         return self._contacts

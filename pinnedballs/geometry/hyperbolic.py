@@ -46,6 +46,7 @@ class HyperbolicPlane(Geometry):
 
     curved = True
     view = "poincare"
+    metric = MINKOWSKI
 
     def __init__(self, q: int = 7, layers: int = 4, radius: float = 1.0):
         self.q = checks.integer("q", q, 7)

@@ -85,6 +85,11 @@ class FlatTorus(Geometry):
         """``(2,)`` side lengths of the periodic box."""
         return self.radius * np.array([2.0 * self.cols, SQRT3 * self.rows])
 
+    @property
+    def box(self) -> np.ndarray:
+        """The periodic box: `period`."""
+        return self.period
+
     def row_shape(self) -> tuple[int, int]:
         return self.rows, self.cols
 

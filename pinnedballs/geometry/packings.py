@@ -60,6 +60,11 @@ class _Packing(Geometry):
         return self.radius * np.asarray(self.shape) * self.CELL
 
     @property
+    def box(self) -> np.ndarray:
+        """`period` along the periodic axes, ``inf`` along the open ones."""
+        return np.where(self.periodic, self.period, np.inf)
+
+    @property
     def boundary(self) -> Boundary | None:
         """With an open z: the bottom layer ``z = 0``, distance = height above it, outward ``(0, 0, -1)``."""
         if self.periodic[2]:

@@ -38,6 +38,7 @@ class Sphere(Geometry):
 
     curved = True
     view = "sphere"
+    metric = np.ones(3)  #: Euclidean: the contact checks measure directions in the frames with it
     frequency: int | None = None  #: of the geodesic grid; None for a sphere from points
 
     def __init__(self, positions: np.ndarray, pairs: np.ndarray, radius: float = 1.0):

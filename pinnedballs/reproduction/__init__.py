@@ -15,14 +15,14 @@ Single runs (the pictures) use ``seed`` itself; ensembles use replicas ``0..N-1`
 
 One module per idea: `plan` (what is run: the plan and the paper's set-ups), `run`
 (running it: `reproduce`), `checks` (the paper's statements against our numbers),
-`figures` and `report`; beyond the paper, `extended` (the studies of ``--extended``),
-`extended_report` and `fit`. The command ``pinnedballs reproduce`` lives in `pinnedballs.cli`.
+`figures` and `report`; beyond the paper, `extended` (the studies of ``--extended``, a module each,
+and their report) and `fit`. The command ``pinnedballs reproduce`` lives in `pinnedballs.cli`.
 """
 
 from .checks import Check
 from .plan import (FULL, PAPER_SIZES, QUICK, Plan, expected_figures, half_plane_spec, paper_lattice_spec,
                    paper_lattice_row, torus_row, torus_spec)
-from .extended import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, expected_extended_figures
+from .extended.plan import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, expected_extended_figures
 from .fit import fit_exponent
 from .run import reproduce
 

@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from ..run import ensemble as ens
-from ..results.files import write_text_atomic
+from ..engine.atomic import write_text_atomic
 from ..results.rundir import DirLock, check_out_dir
 from ..specs.run import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
@@ -20,8 +20,9 @@ from .figures import (_far_share_figure, _figure_paper_lattice, _figure_sizes, _
                       _figures_half_plane, _figures_torus, _frozen_collisions_figure)
 from .plan import (FULL, QUICK, REPORT_NAME, Plan, _Run, _check_plan, _label, _sizes, half_plane_spec,
                    paper_lattice_row, paper_lattice_spec, torus_row, torus_spec)
-from .extended import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, check_extended_plan, run_extended
-from .extended_report import extended_section
+from .extended.plan import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, check_extended_plan
+from .extended.run import run_extended
+from .extended.report import extended_section
 from .report import _report
 
 # ---------------------------------------------------------------- runs

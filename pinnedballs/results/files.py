@@ -1,21 +1,18 @@
-"""Files written so that a kill, a Ctrl-C or a full disk never leaves half of one: through a
-temporary file, flushed and renamed; HDF5 files built in memory first; signals held while a
-checkpoint is written (`held_signals`)."""
+"""Results files written so that a kill, a Ctrl-C or a full disk never leaves half of one: HDF5 files
+built in memory first (`h5_image`), then written whole (`engine.atomic.write_bytes_atomic`); their
+rows gathered from segments (`virtual_rows`); signals held while a checkpoint is written (`held_signals`)."""
 
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import threading
-from pathlib import Path
 from typing import Callable, Iterator
 
 import h5py
 import numpy as np
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "h5_image", "written_atomically", "tmp_path", "remove",
-           "virtual_rows", "held_signals"]
+__all__ = ["h5_image", "virtual_rows", "held_signals"]
 
 
 def h5_image(fill: Callable[[h5py.File], None]) -> bytes:
@@ -52,69 +49,6 @@ def held_signals() -> Iterator[None]:
             signal.signal(s, handler)
         for s in got:  # each, in order (a second Ctrl-C may mean "now")
             signal.raise_signal(s)
-
-
-@contextlib.contextmanager
-def written_atomically(path: str | os.PathLike):
-    """A temporary path beside ``path`` for a library to write a whole file into; flushed and renamed
-    over ``path`` if the block succeeds, removed if it fails (so ``path`` is never half written)."""
-    path = Path(path)
-    tmp = tmp_path(path)
-    try:
-        yield tmp
-        _commit(tmp, path)
-    except BaseException:
-        remove(tmp)
-        raise
-
-
-def tmp_path(path: Path) -> Path:
-    return path.with_name(path.name + ".tmp")
-
-
-def remove(path: Path) -> None:
-    with contextlib.suppress(FileNotFoundError):
-        path.unlink()
-
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename: a kill leaves the
-    old file or the new one, never half of one."""
-    write_bytes_atomic(path, text.encode("utf-8"))
-
-
-def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename; if writing fails
-    (a full disk), the temporary file is removed and ``path`` is as it was."""
-    path = Path(path)
-    tmp = tmp_path(path)
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-        _commit(tmp, path)
-    except BaseException:
-        remove(tmp)
-        raise
-
-
-def _commit(tmp: Path, path: Path) -> None:
-    """Flush ``tmp`` to disk and rename it over ``path`` (atomic on POSIX)."""
-    fd = os.open(tmp, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    os.replace(tmp, path)
-    try:
-        fd = os.open(path.parent, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def virtual_rows(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: tuple, segments: list, rel: str) -> None:

@@ -17,7 +17,7 @@ import re
 from pathlib import Path
 
 from ..engine.errors import InputError
-from .files import remove, tmp_path
+from ..engine.atomic import remove, tmp_path
 from .format import DATA_DIR, RESULTS_NAME
 
 __all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",

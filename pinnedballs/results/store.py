@@ -18,7 +18,8 @@ from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
 from ..simulation import RunState
 from .digest import bytes_digest, file_digest, seal
-from .files import h5_image, remove, tmp_path, virtual_rows, write_bytes_atomic
+from ..engine.atomic import remove, tmp_path, write_bytes_atomic
+from .files import h5_image, virtual_rows
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, V1_OBSERVABLES, Record, data_dir, results_path
 from .load import open_checked, read, scalar
 

@@ -36,7 +36,7 @@ import numpy as np
 from ..analysis.observables import boundary_rows
 from ..engine.errors import FieldError, InputError
 from ..geometry.base import Geometry
-from .files import written_atomically
+from ..engine.atomic import written_atomically
 from .tables import rows
 
 __all__ = ["TRAJECTORY_NAME", "TYPES", "ORIGIN_LOG", "Layout", "Trajectory", "export"]

@@ -1,2 +1,3 @@
-"""Running: the one run driver (`driver`) with its triggers and writers, a spec run into a directory
-(`execute`), and ensembles of replicas (`ensemble`) on local processes or Dask (`executors`)."""
+"""Running: the one run driver (`driver`) with its writers, a spec run into a directory (`execute`), and
+ensembles of replicas (`ensemble`) on local processes or Dask (`executors`). What a run stops at and when
+its writers record (`engine.stop`, `engine.triggers`) live in the engine, so that specs build them."""

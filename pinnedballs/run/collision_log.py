@@ -26,7 +26,8 @@ import h5py
 import numpy as np
 
 from ..engine.errors import FieldError, InputError
-from ..results.files import h5_image, virtual_rows, write_bytes_atomic
+from ..engine.atomic import write_bytes_atomic
+from ..results.files import h5_image, virtual_rows
 from .driver import Writer
 
 __all__ = ["CollisionLog", "FORMAT"]

@@ -25,41 +25,17 @@ a driven run ends on exactly the state of the plain ``sim.run(steps=, collisions
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from .triggers import Counts, Trigger
+from ..engine.stop import Stop
+from ..engine.triggers import Counts, Trigger
 
-__all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Stop", "Writer", "advance", "drive", "drive_run"]
+__all__ = ["CHUNK_STEPS", "CHUNK_PER_CONTACT", "Writer", "advance", "drive", "drive_run"]
 
 #: a chunk is at least this many steps ...
 CHUNK_STEPS = 1 << 20
 #: ... and at least this many per contact (so per-chunk O(contacts) work stays small)
 CHUNK_PER_CONTACT = 2
-
-
-@dataclass(frozen=True)
-class Stop:
-    """When a run ends, in absolute counts: ``steps`` in total (the reason is ``steps_reason``),
-    ``collisions`` in total, or, with ``until_frozen``, right after the collision that freezes it.
-
-    Reasons are checked in the order collisions, frozen, steps.
-    """
-
-    steps: int | None = None
-    collisions: int | None = None
-    until_frozen: bool = False
-    steps_reason: str = "steps"
-
-    def reason(self, sim, frozen: bool) -> str:
-        """Why the run is over (``"collisions"``, ``"frozen"``, ``steps_reason``), or ``""``."""
-        if self.collisions is not None and sim.collisions >= self.collisions:
-            return "collisions"
-        if frozen:
-            return "frozen"
-        if self.steps is not None and sim.steps >= self.steps:
-            return self.steps_reason
-        return ""
 
 
 class Writer:

@@ -35,7 +35,7 @@ from ..engine import checks
 from ..engine.errors import InputError
 from ..engine.limits import check_memory
 from ..geometry.base import Geometry
-from ..results.files import write_text_atomic
+from ..engine.atomic import write_text_atomic
 from ..specs.run import RunSpec
 from . import executors
 

@@ -21,14 +21,15 @@ from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 from ..engine.errors import InputError
-from ..results.files import remove, write_text_atomic
+from ..engine.atomic import remove, write_text_atomic
 from ..results.format import RESULTS_NAME, Record
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec, load_spec
-from .driver import Stop, Writer, drive
+from ..engine.stop import Stop
+from .driver import Writer, drive
 from .gsd_writer import GSDWriter, layout as gsd_layout
 from .writers import OnSnapshot, ResultsWriter
 

@@ -17,23 +17,34 @@ in ``state`` and ``rng``, so a checkpoint of the two resumes it exactly; `check_
 
 from __future__ import annotations
 
+import functools
 import re
 from abc import ABC
 from typing import Callable
 
 import numpy as np
 
+from numba import njit
+
 from ..engine.errors import FieldError, FieldTypeError, check_jitted
 from ..engine.loops import Selector, pick_selector
 
-__all__ = ["Scheduler", "check_pick"]
+__all__ = ["Scheduler", "check_pick", "PickOutOfRange"]
 
 #: what a pick must return, said in the errors
 PICK_RETURNS = "(k, rng): the contact's index (an integer) and the random stream (the 4-tuple of uint64 it was given)"
 
 
 class Scheduler(ABC):
-    """Chooses which contact the engine tries next: a `kernel` pick, or a whole `selector`."""
+    """Chooses which contact the engine tries next: a `kernel` pick, or a whole `selector`.
+
+    ``law``: the law of its picks, which `pinnedballs.testing.check_scheduler_law` tests: ``"uniform"``
+    (each pick uniform over the contacts, independent of the others), ``"sweep"`` (every contact once
+    in each sweep of ``n_contacts`` picks), ``"uniform_chain"`` (the paper's uniform chain without its
+    rejected picks: the same law of steps, collisions and velocities), or None (none claimed).
+    """
+
+    law: str | None = None
 
     def kernel(self) -> Callable:
         """The jitted ``pick(state, rng, n_contacts) -> (k, rng)``."""
@@ -45,8 +56,9 @@ class Scheduler(ABC):
         Default: `kernel`'s pick, one contact per step."""
         pick = check_jitted(self.kernel(), "scheduler", f"{type(self).__name__}.kernel()'s pick")
         if not (getattr(pick, "__module__", None) or "").startswith("pinnedballs."):
-            check_pick(pick, f"{type(self).__name__}.kernel()'s pick {getattr(pick, '__name__', pick)!r}",
-                       self.initial_state(geometry.n_contacts), geometry.n_contacts)
+            name = f"{type(self).__name__}.kernel()'s pick {getattr(pick, '__name__', pick)!r}"
+            check_pick(pick, name, self.initial_state(geometry.n_contacts), geometry.n_contacts)
+            pick = checked_pick(pick, name)  # a user's pick: its contact is checked at every step
         return pick_selector(pick)
 
     def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:
@@ -85,6 +97,36 @@ class Scheduler(ABC):
 
     def __hash__(self) -> int:
         return hash(type(self))
+
+
+class PickOutOfRange(FieldError):
+    """A scheduler's pick named a contact that does not exist (raised from the compiled loop)."""
+
+    def __init__(self, name: str, k: int, n_contacts: int):
+        self.name, self.k, self.n_contacts = name, int(k), int(n_contacts)
+        super().__init__("scheduler", f"{name} picked contact {self.k}, but there are {self.n_contacts} contacts "
+                                      f"(0 to {self.n_contacts - 1})")
+
+    def __reduce__(self):
+        return type(self), (self.name, self.k, self.n_contacts)
+
+
+@functools.cache  # one wrapper per pick: the engine's compiled loops are cached per selector
+def checked_pick(pick: Callable, name: str) -> Callable:
+    """``pick`` with its contact checked: `PickOutOfRange` naming ``name`` (raised from compiled code, so
+    the run stops there) unless ``0 <= k < n_contacts``. For a user's pick: the compiled loop indexes
+    the contact tables with ``k`` unchecked. (``name`` is a constant of the compiled code, and part of
+    its cache key, `engine.jitcache`.)"""
+
+    @njit(inline="always")
+    def checked(state, rng, n_contacts):
+        k, rng = pick(state, rng, n_contacts)
+        signed = np.int64(k)  # a huge unsigned k shows as the negative number it usually is
+        if signed < 0 or signed >= n_contacts:
+            raise PickOutOfRange(name, signed, n_contacts)
+        return k, rng
+
+    return checked
 
 
 def check_pick(pick: Callable, name: str, state: np.ndarray, n_contacts: int) -> None:

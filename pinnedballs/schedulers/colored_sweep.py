@@ -200,6 +200,8 @@ class ColoredSweep(Scheduler):
     ``threads``: how many of numba's threads a run uses; None (the default) uses as many as numba
     is set to (``NUMBA_NUM_THREADS``, every core unless set; see `pinnedballs.engine.threads`)."""
 
+    law = "sweep"  #: `Scheduler.law`
+
     def __init__(self, shuffle: bool = False, threads: int | None = None):
         self.shuffle = checks.flag("shuffle", shuffle)
         self.threads = None if threads is None else checks.integer("threads", threads, minimum=1)

@@ -147,6 +147,8 @@ class RejectionFree(Scheduler):
     contact chosen uniformly. Same joint law of steps, collisions and velocities as
     `UniformRandomPair`; far faster when few contacts are live (a half-plane near its freeze)."""
 
+    law = "uniform_chain"  #: `Scheduler.law`
+
     def selector(self, geometry) -> Selector:
         n = geometry.n_contacts
         aux = (np.full(n, -1, dtype=np.int64), np.zeros(n + 1))

@@ -60,6 +60,8 @@ class UniformRandomPair(Scheduler):
     def __init__(self, threads: int | None = None):
         self.threads = None if threads is None else checks.integer("threads", threads, minimum=1)
 
+    law = "uniform"  #: `Scheduler.law`
+
     def kernel(self) -> Callable:
         return pick_uniform
 
@@ -80,6 +82,8 @@ class UniformRandomPair(Scheduler):
 class Sweep(Scheduler):
     """Tries every contact once per sweep, in the geometry's fixed contact order."""
 
+    law = "sweep"  #: `Scheduler.law`
+
     def kernel(self) -> Callable:
         return pick_sweep
 
@@ -94,6 +98,8 @@ class Sweep(Scheduler):
 
 class RandomSweep(Scheduler):
     """Tries every contact once per sweep, in a fresh uniformly random order each sweep."""
+
+    law = "sweep"  #: `Scheduler.law`
 
     def kernel(self) -> Callable:
         return pick_random_sweep

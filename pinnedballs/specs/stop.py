@@ -6,8 +6,8 @@ from typing import Annotated
 
 from pydantic import AfterValidator, Field, model_validator
 
-from ..run.driver import Stop
-from ..run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from ..engine.stop import Stop
+from ..engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .base import Count, _only_one, _Spec
 
 __all__ = ["StopSpec", "SnapshotsSpec", "CheckpointSpec"]

@@ -12,7 +12,7 @@ import pytest
 import pinnedballs as pb
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
-GUIDES = ("extending.md", "getting-started.md", "collisions.md", "trajectories.md", "orders.md")
+GUIDES = ("extending.md", "getting-started.md", "collisions.md", "trajectories.md", "orders.md", "testing.md")
 
 
 def taught(page: str) -> set[str]:

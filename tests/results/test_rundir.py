@@ -81,11 +81,13 @@ import os, sys
 os.umask(0)  # the kernels' cache directories root makes on import stay writable for uid
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble
-from pinnedballs.results import files as io
+from pinnedballs.engine import atomic as io
 from pinnedballs import reproduction
 from pinnedballs.run import execute as runner
 from pinnedballs.results import rundir
 from pinnedballs import specs
+from numba.core.registry import cpu_target
+cpu_target.target_context.refresh()  # numba's registries (cmath, ...): a Simulation's contact checks load a kernel
 os.setgid({uid}); os.setuid({uid})
 sys.exit(cli.main(sys.argv[1:]))
 """
@@ -124,7 +126,7 @@ STOP_AT_FIRST_CHECKPOINT = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
 from pinnedballs.run import driver
-from pinnedballs.results import files as io
+from pinnedballs.engine import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 commit, count = io._commit, [0]
 def stopping(tmp, path):

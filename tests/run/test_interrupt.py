@@ -25,7 +25,7 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as observe
-from pinnedballs.results import files
+from pinnedballs.engine import atomic
 from pinnedballs.results.rundir import DirLock
 from pinnedballs.run import driver
 
@@ -181,7 +181,7 @@ def test_a_failing_observable_saves_the_last_state_whose_snapshots_are_all_there
 def test_ctrl_c_between_a_segment_and_its_index(tmp_path, monkeypatch, small_chunks, unbroken):
     """Raised after a checkpoint's segment is on disk but before its index: the writer's own checkpoint
     then writes both again (no frame twice)."""
-    commits, commit = [], files._commit
+    commits, commit = [], atomic._commit
 
     def interrupted(tmp, path):
         commit(tmp, path)
@@ -189,7 +189,7 @@ def test_ctrl_c_between_a_segment_and_its_index(tmp_path, monkeypatch, small_chu
         if path.name.startswith("frames_") and len([c for c in commits if c.startswith("frames_")]) == 3:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(files, "_commit", interrupted)
+    monkeypatch.setattr(atomic, "_commit", interrupted)
     sim = simulation()
     with pytest.raises(KeyboardInterrupt):
         record(sim, tmp_path / "r", TRIGGERS[unbroken[0]](), STEPS)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .extended import LAW
+from .torus_law_study import LAW
 
 
 def _f(x, fmt: str = ".3g") -> str:

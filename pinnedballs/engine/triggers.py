@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
-from ..engine import checks
+from . import checks
 
 __all__ = ["Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions", "AnyOf", "Counts"]
 

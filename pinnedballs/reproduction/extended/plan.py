@@ -1,0 +1,72 @@
+"""What the extended studies run: `ExtendedPlan` (sizes, replicas, seed), its full and quick
+scales, the order of the studies and the figures they write."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from ...engine.errors import InputError
+from ...run import ensemble as ens
+
+#: the studies in the order they run; keys of ``results.json["extended"]``
+STUDIES = ("scaling", "torus_law", "sphere", "hyperbolic", "fcc_half_space", "orders")
+
+
+@dataclass(frozen=True)
+class ExtendedPlan:
+    """What the extended studies run. Sizes are chosen for the time budget (2 cores)."""
+
+    #: half-plane ``(length, depth, replicas)``, by size
+    scaling: tuple[tuple[float, float, int], ...] = (
+        (10, 5, 16), (30, 15, 16), (60, 30, 16), (100, 50, 16), (200, 100, 8), (300, 150, 8), (500, 250, 8),
+        (1000, 500, 8), (2000, 1000, 8))
+    torus_sides: tuple[int, ...] = (16, 38, 76, 128)   #: square tori ``side x side``
+    torus_times: tuple[int, ...] = (100, 300, 1000, 3000, 10000, 30000)   #: steps per ball
+    torus_replicas: int = 24
+    sphere_frequency: int = 12   #: 10 f^2 + 2 balls (12: 1,442, next to the 38x38 torus's 1,444)
+    hyperbolic_layers: tuple[int, ...] = (2, 3, 4, 5, 6)
+    hyperbolic_replicas: int = 16
+    fcc: tuple[tuple[int, int, int], ...] = ((6, 6, 3), (10, 10, 5), (14, 14, 7))   #: open FCC blocks
+    fcc_replicas: int = 8
+    orders_replicas: int = 1000   #: random orders per configuration
+    orders_max_states: int = 10**6
+    energy: float = 100.0
+    seed: int = 0
+    max_steps: int = 10**11
+
+
+EXTENDED_FULL = ExtendedPlan()
+EXTENDED_QUICK = ExtendedPlan(
+    scaling=((10, 5, 8), (20, 10, 8), (30, 15, 8), (60, 30, 8), (100, 50, 8), (200, 100, 8), (300, 150, 4)),
+    torus_sides=(16, 38, 76), torus_times=(100, 300, 1000, 3000, 10000), torus_replicas=16,
+    hyperbolic_layers=(2, 3, 4, 5, 6), hyperbolic_replicas=8, fcc=((6, 6, 3), (8, 8, 4), (10, 10, 5)),
+    fcc_replicas=4, orders_replicas=400, orders_max_states=10**5)
+
+Ensemble = Callable[..., ens.EnsembleResult]
+
+
+def check_extended_plan(plan: ExtendedPlan) -> None:
+    """`InputError` naming the field of a plan that cannot run."""
+    for name in ("torus_replicas", "hyperbolic_replicas", "fcc_replicas", "orders_replicas", "orders_max_states"):
+        ens._check_count(name, getattr(plan, name))
+    if len(plan.scaling) < 2 or any(len(s) != 3 or s[2] < 2 for s in plan.scaling):
+        raise InputError(f"scaling: give at least two (length, depth, replicas >= 2), got {plan.scaling}")
+    if not plan.torus_sides or not plan.torus_times or list(plan.torus_times) != sorted(set(plan.torus_times)):
+        raise InputError(f"torus_times: must be increasing steps per ball, got {plan.torus_times}")
+    for name in ("hyperbolic_layers", "fcc"):
+        if not getattr(plan, name):
+            raise InputError(f"{name}: give at least one size")
+
+
+def expected_extended_figures() -> list[str]:
+    """The PNG names the extended studies write."""
+    return ["extended_scaling.png", "extended_scaling_profiles.png", "extended_torus_law.png",
+            "extended_sphere_vs_torus.png", "extended_hyperbolic.png", "extended_fcc_half_space.png",
+            "extended_orders.png"]
+
+
+def _plan_dict(plan: ExtendedPlan) -> dict:
+    import dataclasses
+
+    return dataclasses.asdict(plan)
