@@ -356,7 +356,7 @@ class Simulation:
         limited, pattern = self._limited(logged=False)
         parallel = self._parallel_chain()
         if parallel is not None:
-            return parallel.run(chain, pattern, limited, self._loops.picks, self._any_live, *tables, max_steps,
+            return parallel.run(chain, pattern, limited, self._any_live, *tables, max_steps,
                                 max_collisions, until_frozen, TUNED_SEGMENT if plain else self._freeze_chunk())
         return limited(*chain, pattern, *tables, max_steps, max_collisions, until_frozen,
                        max_steps if plain else self._freeze_chunk(), np.empty_like(self._sched_state), _NO_LOG)

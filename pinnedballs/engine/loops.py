@@ -313,6 +313,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         ``LOG`` (a compile-time constant), collision ``c`` is written to ``log[c] = (step, contact)``,
         its step counted from ``base``."""
         taken, made, last = 0, 0, -1
+        at_last = (m[1], m[3])  # the margin's remnant side as of the last collision (see `make_limited`)
         while taken < count:
             k, g, rng = select(state, aux, rng, n, count - taken)
             taken += g
@@ -324,9 +325,10 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     log[made, 0], log[made, 1] = base + taken, k
                 made += 1
                 last = taken - 1
+                at_last = (m[1], m[3])
                 if made == collisions_left:
                     break
-        return taken, made, last, rng, m
+        return taken, made, last, rng, m, at_last
 
     @njit(inline="always")
     def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log,
@@ -334,6 +336,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         """`chunk`, fetching ahead the rows of picks drawn `LOOKAHEAD` steps early (one step per pick).
         A chunk that stops early leaves the stream past picks it drew: the caller rewinds."""
         made, last, taken = 0, -1, count
+        at_last = (m[1], m[3])
         ring = np.empty(_RING, dtype=np.int64)
         for t in range(min(LOOKAHEAD, count)):
             k, _, rng = select(state, aux, rng, n, 1)
@@ -357,10 +360,11 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     log[made, 0], log[made, 1] = base + t + 1, k
                 made += 1
                 last = t
+                at_last = (m[1], m[3])
                 if made == collisions_left:
                     taken = t + 1
                     break
-        return taken, made, last, rng, m
+        return taken, made, last, rng, m, at_last
 
     @njit(inline="always")
     def chunk_rows(v, pattern, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
@@ -368,6 +372,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         """`chunk_prefetched` reading each contact from the row ``pattern``: picks drawn and decoded
         `ROWS_AHEAD` steps early, their two velocity rows fetched then."""
         made, last, taken = 0, -1, count
+        at_last = (m[1], m[3])
         ring = np.empty((_RING, 5), dtype=np.int64)  # (k, i, j, a, b) of the picks drawn ahead
         for t in range(min(ROWS_AHEAD, count)):
             k, _, rng = select(state, aux, rng, n, 1)
@@ -390,10 +395,11 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     log[made, 0], log[made, 1] = base + t + 1, ring[s, 0]
                 made += 1
                 last = t
+                at_last = (m[1], m[3])
                 if made == collisions_left:
                     taken = t + 1
                     break
-        return taken, made, last, rng, m
+        return taken, made, last, rng, m, at_last
 
     def make_limited(MODE, LOG):
         """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched."""
@@ -417,7 +423,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             last_step = np.int64(-1)
             if not until_frozen and max_collisions - collisions >= max_steps and not AHEAD and not LOG:
                 # plain steps: the loop without a collision target (the same picks; no count to stop at)
-                taken, made, last, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
+                taken, made, last, rng, m, _ = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
                                                   max_steps, -1, False, log, base, tau, m)
                 collisions += made
                 if last >= 0:
@@ -429,19 +435,21 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 at = log[collisions - start_collisions:]
                 left = max_collisions - collisions
                 if MODE == 2:
-                    used, made, last, rng, m = chunk_rows(v, pattern, units, masses, params, state, aux, rng, n, count,
-                                                          left, LOG, at, base + taken, tau, m)
+                    used, made, last, rng, m, at_last = chunk_rows(v, pattern, units, masses, params, state, aux, rng,
+                                                                   n, count, left, LOG, at, base + taken, tau, m)
                 elif MODE == 1:
-                    used, made, last, rng, m = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng,
-                                                                n, count, left, LOG, at, base + taken, tau, m)
+                    used, made, last, rng, m, at_last = chunk_prefetched(v, pairs, ends, units, masses, params, state,
+                                                                         aux, rng, n, count, left, LOG, at,
+                                                                         base + taken, tau, m)
                 else:
-                    used, made, last, rng, m = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count,
-                                                     left, LOG, at, base + taken, tau, m)
+                    used, made, last, rng, m, at_last = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
+                                                              count, left, LOG, at, base + taken, tau, m)
                 collisions += made
                 if last >= 0:
                     last_step = base + taken + last + 1
                 if until_frozen and last >= 0 and not any_live(v, pairs, ends, units, masses, params):
-                    frozen, used = True, last + 1  # the run ends right after its last collision
+                    frozen, used = True, last + 1  # the run ends right after its last collision:
+                    m = (m[0], at_last[0], m[2], at_last[1])  # so does its margin
                 if used < count and (AHEAD or frozen):  # picks drawn past the end: replay up to it
                     state[:] = saved
                     begin(state, aux, flags)

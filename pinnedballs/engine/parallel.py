@@ -2,29 +2,33 @@
 
 The balls are cut into ``p`` regions by index (row bands on a lattice), each holding about ``E/p``
 contacts. A contact with both balls in one region is *local*; the few that join two regions
-(about 2 per column at each cut) are *crossings*. Picks that share no ball commute, so within a
-stretch of picks between two crossings, each region's picks can run on its own thread in their
-order, and the crossing that ends the stretch runs once every region has finished it. The result
-is the sequential chain's, bit for bit: every collision sees the velocities it would have seen.
+(about 2 per column at each cut) are *crossings*. Picks that share no ball commute, so each region's
+picks can run on its own thread, in their order, as long as nothing that runs early shares a ball
+with something that must run later. So in each block of picks the crossings are *deferred*: a
+crossing, and every later pick of the block that shares a ball with a deferred one, runs after all
+the others, in time order. The result is the sequential chain's, bit for bit: every collision sees
+the velocities it would have seen.
 
 **Blocks.** The picks come in blocks of ``p * W`` words of the random stream. Phase G: thread ``t``
 jumps the stream ``t * W`` words ahead (`engine.jump`) and turns its ``W`` words into picks exactly
 as `random.bounded` does (Lemire's test rejects a word on its own, so the picks of a block are the
 accepted words in order), decodes each contact (tables or the lattice's row pattern) and files it
-under its region, or as a crossing. Phase E: the stretches between crossings, region by region.
+under its region, or as a crossing; picks touching a ball near a cut are also put on a watch list.
+Then one thread follows the crossings' wake through the watch list (`_defer`; if the wake ever
+leaves the watched bands, the block runs in time order instead). Phase E: each region's picks but
+the deferred ones; the thread that finishes last runs the deferred picks.
 
-**Threads that never wait for one another's absence.** Every piece of work (a G segment, a
-region's part of a stretch) is claimed with a compare-and-swap on a counter, so a thread that finds
-the others late does their work itself: one thread alone runs the whole block, and a thread the
-operating system deschedules costs the others only the piece it holds. The last thread to finish a
-stretch runs its crossing and publishes it (release); the others wait to see it (acquire), spinning
-with ``pause``. A thread that arrives after a block is complete skips it. Nothing depends on how
-many threads actually ran, or in which order they claimed.
+**Threads that never wait for one another's absence.** Every piece of work (a G segment, the wake, a
+region's share) is claimed with a compare-and-swap on a counter, so a thread that finds the others
+late does their work itself: one thread alone runs the whole block, and a thread the operating
+system deschedules costs the others only the piece it holds. Waiting threads spin with ``pause``,
+then yield their core (``sched_yield``). A thread that arrives after a block is complete skips it.
+Nothing depends on how many threads actually ran, or in which order they claimed.
 
 The caller (`ParallelChain`) runs whole blocks only where they cannot pass a limit (steps left,
 collisions left), runs the rest with the sequential loop, and finds the freeze as the sequential
-loop does (a scan after each chunk, then the stream rewound to the last collision), so the steps,
-collisions, velocities, random state and margin are those of one thread.
+loop does (a scan after each chunk; the chunk that froze runs again on one thread up to its last
+collision), so the steps, collisions, velocities, random state and margin are those of one thread.
 """
 
 from __future__ import annotations
@@ -422,12 +426,13 @@ class ParallelChain:
             counters[LAST] = counters[STEPS] - picks + last + 1
         return int(picks)
 
-    def run(self, chain, pattern, limited, picks, any_live, state, aux, rng, counters, margin, max_steps: int,
+    def run(self, chain, pattern, limited, any_live, state, aux, rng, counters, margin, max_steps: int,
             max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
         """What the sequential ``limited`` loop (with ``pattern``) does for these limits, bit for bit:
         chunks of ``chunk_steps`` steps, each as whole blocks on the threads and its rest on ``limited``,
-        the freeze scanned (``any_live``) after a chunk with a collision and the stream rewound to the
-        last collision (``picks``, the selector's). Returns the steps taken."""
+        the freeze scanned (``any_live``) after a chunk with a collision, and the chunk that froze run again
+        on one thread from its start to its last collision, so the margin too ends there. Returns the
+        steps taken."""
         if until_frozen and not any_live(*chain):
             counters[LIVE] = 0
             return 0
@@ -439,30 +444,21 @@ class ParallelChain:
 
         while not frozen and taken < max_steps and counters[COLLISIONS] < max_collisions:
             count = min(chunk_steps, max_steps - taken)
-            start_rng, start_state = rng.copy(), state.copy()
+            start = (rng.copy(), state.copy(), counters.copy(), margin.copy(), chain.v.copy() if until_frozen else None)
             start_steps, start_collisions = int(counters[STEPS]), int(counters[COLLISIONS])
             whole = min(count, max_collisions - start_collisions) // self.block
             done = self._whole(chain, pattern, rng, counters, margin, whole, sequential) if whole > 0 else 0
             if done < count and counters[COLLISIONS] < max_collisions:
                 done += sequential(count - done)
             if until_frozen and counters[COLLISIONS] > start_collisions and not any_live(*chain):
-                frozen = True  # the run ends right after its last collision
-                done = int(counters[LAST]) - start_steps
-                rng[:], state[:] = start_rng, start_state
-                _advance(picks, state, aux, rng, len(chain.pairs), done)
-                counters[STEPS] = start_steps + done
+                # frozen: the run ends right after its last collision, and so does its margin; the chunk
+                # goes again on one thread from its start to there (the same bits, once per run)
+                frozen, done = True, int(counters[LAST]) - start_steps
+                rng[:], state[:], counters[:], margin[:], chain.v[:] = start
+                sequential(done)
             taken += done
         counters[LIVE] = 0 if frozen else -1
         return taken
 
 
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
-
-
-def _advance(picks: Callable, state, aux, rng, n: int, count: int) -> None:
-    """Draw and drop ``count`` picks of the selector (``picks``, `loops.selector_picks`)."""
-    out = np.empty(min(count, 1 << 20), dtype=np.int64)
-    while count > 0:
-        step = min(count, len(out))
-        picks(state, aux, rng, n, out[:step])
-        count -= step

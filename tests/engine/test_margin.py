@@ -126,3 +126,37 @@ def test_a_tracking_scheduler_keeps_the_margin():
     sim.run(steps=5000)
     m = sim.closing_margin()
     assert sim.collisions > 0 and m.smallest_collision > 1
+
+
+def test_the_margin_ends_with_the_run_however_it_is_split():
+    """A run until frozen ends right after its last collision, and so does its margin: picks the loop
+    tried past that collision before it found the freeze (and rewound) are not part of it, so a run
+    split into calls at any steps has the margin of one call."""
+    whole = _half_plane()
+    half = pb.HalfPlane.from_size(60, 30)
+    v = np.zeros((half.n_balls, 2))
+    v[half.boundary_center()] = [0.3, np.sqrt(200.0)]
+    split = pb.Simulation(half, v, seed=4)
+    for steps in (1, 999, 7777, 20000, 3):
+        split.run(steps=steps)
+    split.run_until_frozen(max_steps=10**7)
+    assert (split.steps, split.collisions) == (whole.steps, whole.collisions)
+    np.testing.assert_array_equal(split._margin, whole._margin)
+
+
+def test_picks_tried_past_the_last_collision_are_not_in_the_margin():
+    """Four balls on a line: the first two close at 2^-55 (a sixteenth of the threshold: a remnant for
+    good), the last two collide once. The loop tries thousands of picks past that collision before its
+    scan finds the freeze; the run, and its margin, end at the collision: no pick past it is counted."""
+    line = pb.GraphGeometry.from_positions([0.0, 2.0, 4.0, 6.0])
+    v = np.array([[2.0**-55], [0.0], [1.0], [0.0]])
+    whole = pb.Simulation(line, v, seed=3)
+    assert whole.run_until_frozen(max_steps=10**6)
+    m = whole.closing_margin()
+    assert (whole.steps, whole.collisions) == (9, 1)  # contact 2 first picked at step 9
+    assert m.largest_remnant == pytest.approx(1 / 16) and m.near_remnants == 5  # contact 0 among the first 8
+    split = pb.Simulation(line, v, seed=3)
+    split.run(steps=4)
+    split.run_until_frozen(max_steps=10**6)
+    assert (split.steps, split.collisions) == (whole.steps, whole.collisions)
+    np.testing.assert_array_equal(split._margin, whole._margin)

@@ -77,7 +77,7 @@ def _parallel(geometry, v, masses, params, pattern, loops, collide, kwargs, seed
     steps, collisions, frozen = kwargs.get("steps", NO_LIMIT), kwargs.get("collisions", NO_LIMIT), kwargs.get("frozen", False)
     plain = collisions == NO_LIMIT and not frozen
     _, any_live = live_kernel(collide, 2, True)
-    taken = parallel.run(chain, pattern, limited, loops.picks, any_live, np.zeros(1, np.int64), np.zeros(0, np.int64),
+    taken = parallel.run(chain, pattern, limited, any_live, np.zeros(1, np.int64), np.zeros(0, np.int64),
                          rng, counters, margin, steps, collisions, frozen, 1 << 23 if plain else max(4096, 4 * len(c)))
     return taken, v, rng, counters, margin
 
