@@ -53,7 +53,7 @@ import numpy as np
 
 from ..analysis import observables
 from ..engine.errors import InputError
-from ..simulation import RunState
+from ..engine.state import RunState
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",
            "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES"]

@@ -14,7 +14,8 @@ import numpy as np
 
 from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
-from ..simulation import RunState, Simulation
+from ..engine.state import RunState
+from ..simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.errors import InputError
 from ..specs.errors import SpecError, UserCodeError

@@ -16,7 +16,7 @@ import numpy as np
 from ..analysis import observables
 from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
-from ..simulation import RunState
+from ..engine.state import RunState
 from .digest import bytes_digest, file_digest, seal
 from ..engine.atomic import remove, tmp_path, write_bytes_atomic
 from .files import h5_image, virtual_rows

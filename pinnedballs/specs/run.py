@@ -15,7 +15,8 @@ from ..analysis.observables import OBSERVABLES
 from ..engine.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from ..engine.limits import check_memory
-from ..simulation import Simulation, mass_array
+from ..engine.state import mass_array
+from ..simulation import Simulation
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
