@@ -70,6 +70,11 @@ BAD_SPECS = {
     "negative mass in a file": (_negative_masses, ["masses:", "m.npy: must all be finite and > 0"]),
     "overflowing energy": (lambda d: spec(initial__energy=1e308),
                            ["initial.energy: too large for these masses: the speeds or the total energy overflow"]),
+    "resolution out of range": (lambda d: spec(resolution=0), [
+        "pinnedballs: error: resolution: must be a number in (0, 1): a pick collides when its closing speed exceeds "
+        "resolution * V (V the system's speed scale), got 0"]),
+    "resolution as text": (lambda d: spec(resolution="1e-9"),
+                           ["pinnedballs: error: resolution: must be a number, got '1e-9'"]),
     "overflowing gaussian energy": (lambda d: spec(initial={"kind": "gaussian", "energy": 1e308}),
                                     ["initial.energy: too large for these masses"]),
 }
