@@ -1,12 +1,10 @@
-"""`Simulation`: owns the velocities, the counters and the random stream; `RunState`: all of
-it that changes during a run, as one record."""
+"""`Simulation`: owns the velocities, the counters and the random stream. (`RunState`, all of it
+that changes during a run as one record, lives in `engine.state`; its name is imported here too, where
+scripts have always found it.)"""
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
-from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,6 +17,7 @@ from .engine.fields import NotExact
 from .engine.limits import check_speeds
 from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
 from .engine.margin import ClosingMargin, MarginWarning, new_margin
+from .engine.state import RunState, as_state, margin_problem, mass_array
 from .engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain
 from .engine.threads import most_threads
 
@@ -33,129 +32,6 @@ from .schedulers.base import Scheduler
 from .schedulers.simple import UniformRandomPair
 
 __all__ = ["Simulation", "RunState", "mass_array"]
-
-
-@dataclass(frozen=True, eq=False)
-class RunState:
-    """Everything that changes during a run: enough to resume it bit for bit.
-
-    velocities ``(n_balls, dim) float64``; steps and collisions so far; rng_state ``(4,) uint64``,
-    the random stream; scheduler_state ``(L,) int64``, the scheduler's own state; exact: for a
-    run in exact arithmetic, the exact velocities as ``(n_balls, dim, m)`` strings, each velocity
-    component's coefficients on its number field's basis (``velocities`` are then their roundings).
-    """
-
-    velocities: np.ndarray
-    steps: int
-    collisions: int
-    rng_state: np.ndarray
-    scheduler_state: np.ndarray
-    exact: np.ndarray | None = None
-
-    #: the arrays among the fields (the rest are counts)
-    ARRAYS = ("velocities", "rng_state", "scheduler_state")
-
-    def copy(self) -> "RunState":
-        """A copy whose arrays share no memory with this one's."""
-        return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
-                        self.scheduler_state.copy(), None if self.exact is None else self.exact.copy())
-
-    def replace(self, **changes) -> "RunState":
-        """This state with the fields named in ``changes`` replaced."""
-        return dataclasses.replace(self, **changes)
-
-    # ------------------------------------------------------------ the dict it used to be (deprecated)
-    def keys(self) -> tuple[str, ...]:
-        """Deprecated: the names of the fields, as the dict `Simulation.get_state` used to give had them
-        (``exact`` only for a run in exact arithmetic)."""
-        _mapping_deprecated("keys()")
-        return self._keys()
-
-    def _keys(self) -> tuple[str, ...]:
-        names = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
-        return names if self.exact is None else (*names, "exact")
-
-    def __getitem__(self, name: str):
-        """Deprecated: ``state["velocities"]``; use ``state.velocities``."""
-        _mapping_deprecated(f"state[{name!r}]", f"state.{name}" if isinstance(name, str) else "its fields")
-        if not isinstance(name, str) or name not in self._keys():
-            raise KeyError(name)
-        return getattr(self, name)
-
-    def __iter__(self):
-        _mapping_deprecated("iterating over it")
-        return iter(self._keys())
-
-    def __len__(self) -> int:
-        _mapping_deprecated("len()")
-        return len(self._keys())
-
-    def __contains__(self, name) -> bool:
-        _mapping_deprecated("'in'")
-        return name in self._keys()
-
-    def items(self):
-        _mapping_deprecated("items()")
-        return [(name, getattr(self, name)) for name in self._keys()]
-
-    def values(self):
-        _mapping_deprecated("values()")
-        return [getattr(self, name) for name in self._keys()]
-
-    def get(self, name, default=None):
-        _mapping_deprecated("get()")
-        return getattr(self, name) if isinstance(name, str) and name in self._keys() else default
-
-    def identical(self, other: "RunState") -> bool:
-        """True when ``other`` is this state bit for bit (every array, dtype and count)."""
-        same_exact = (self.exact is None) == (other.exact is None) and (
-            self.exact is None or np.array_equal(self.exact, other.exact))
-        return (self.steps, self.collisions) == (other.steps, other.collisions) and same_exact and all(
-            getattr(self, name).dtype == getattr(other, name).dtype
-            and np.array_equal(getattr(self, name), getattr(other, name)) for name in self.ARRAYS)
-
-
-#: old code reads a state as the dict it was until 2026-11: ``dict(state, steps=0)``, ``state["steps"]``
-Mapping.register(RunState)
-
-
-def _mapping_deprecated(what: str, instead: str = "its fields (state.velocities, state.replace(steps=...))") -> None:
-    warnings.warn(f"RunState is a record, no longer a dict: {what} is deprecated and will be removed; use {instead}",
-                  DeprecationWarning, stacklevel=3)
-
-
-def _as_state(state) -> "RunState":
-    """``state`` as a `RunState`: a dict (what `Simulation.get_state` gave until 2026-11) is still
-    taken, with a DeprecationWarning."""
-    if isinstance(state, Mapping) and not isinstance(state, RunState):
-        warnings.warn("Simulation.set_state: a dict is deprecated and will be removed; pass the RunState that "
-                      "get_state gives (RunState(**d) makes one of a dict)", DeprecationWarning, stacklevel=3)
-        names = [f.name for f in dataclasses.fields(RunState)]
-        missing = [n for n in names if n != "exact" and n not in state]
-        if missing:
-            raise FieldError("state", f"the dict lacks {', '.join(missing)}")
-        unknown = sorted(str(k) for k in state if k not in names)
-        if unknown:
-            raise FieldError("state", f"unknown key(s) {', '.join(unknown)} (a state has {', '.join(names)})")
-        return RunState(**state)
-    return state
-
-
-def mass_array(masses, n_balls: int) -> np.ndarray:
-    """``(n_balls,)`` masses from None (all 1), one number, or an array; each finite and > 0."""
-    if masses is None:
-        return np.ones(n_balls)
-    try:
-        m = np.array(masses, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise FieldTypeError("masses", f"must be an array of numbers ({exc})") from None
-    if m.ndim == 0:
-        m = np.full(n_balls, float(m))
-    if m.shape != (n_balls,):
-        raise FieldError("masses", f"must have shape (n_balls,) = ({n_balls},), got {m.shape}")
-    if not (np.isfinite(m).all() and (m > 0).all()):
-        raise FieldError("masses", "must all be finite and > 0")
-    return m
 
 
 def _recorded_seed(seed) -> int | np.random.SeedSequence:
@@ -506,16 +382,20 @@ class Simulation:
 
     # ------------------------------------------------------------ state for checkpoints
     def get_state(self) -> RunState:
-        """Everything that changes during a run, as copies: enough to resume bit for bit."""
+        """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
+        margin too: None in exact arithmetic, where it is not kept)."""
         exact = None if self._exact is None else self._exact.coefficients()
+        margin = None if self._exact is not None else self._margin.copy()
         return RunState(self.velocities.copy(), self.steps, self.collisions, self._rng.copy(),
-                        self._sched_state.copy(), exact)
+                        self._sched_state.copy(), exact, margin)
 
     def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
-        scheduler). Everything is checked before anything changes. (A dict with the same keys, what
-        `get_state` gave until 2026-11, is still taken, with a DeprecationWarning.)"""
-        state = _as_state(state)
+        scheduler). Everything is checked before anything changes. A state without a margin (one
+        written before runs kept it) starts the margin afresh: it then covers the picks from here on.
+        (A dict with the same keys, what `get_state` gave until 2026-11, is still taken, with a
+        DeprecationWarning.)"""
+        state = as_state(state)
         velocities = self._check_velocities(state.velocities)
         rng = np.asarray(state.rng_state)
         if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
@@ -532,6 +412,8 @@ class Simulation:
         steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
         if collisions > steps:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
+        if state.margin is not None and (problem := margin_problem(state.margin)) is not None:
+            raise FieldError("margin", problem)
         exact = self._exact_state(state, velocities)
         if exact is not None:
             self._exact.set_velocities(exact)
@@ -540,6 +422,7 @@ class Simulation:
         self._rng = rng.copy()
         self._sched_state = sched.copy()
         self._counters[STEPS], self._counters[COLLISIONS] = steps, collisions
+        self._margin[:] = new_margin() if state.margin is None else state.margin
 
     def _exact_state(self, state: RunState, velocities: np.ndarray) -> list | None:
         """The exact velocities of ``state`` for an exact simulation (None for a float one), checked:

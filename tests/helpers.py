@@ -249,6 +249,19 @@ HALF_PLANE = {
 }
 
 
+def thin_spec(where: Path) -> dict:
+    """A run whose closing margin is thin: two balls on a line (files in ``where``) closing at 64 * 2^-53,
+    about 11.3 thresholds of the default criterion; one collision, then frozen."""
+    np.save(where / "pair.npy", np.array([[0.0], [2.0]]))
+    np.save(where / "pair_v.npy", np.array([[1.0], [1.0 - 64 * 2.0**-53]]))
+    return {"geometry": {"kind": "graph_positions", "positions": str(where / "pair.npy")},
+            "initial": {"kind": "from_file", "path": str(where / "pair_v.npy")}, "stop": {"steps": 10}, "seed": 0}
+
+
+#: the first words of what a thin run says (`engine.margin.ClosingMargin.warning`)
+THIN = "the closing margin is thin (smallest collision 11.3 thresholds"
+
+
 def spec(base: dict = TORUS, **changes) -> dict:
     """A deep copy of ``base`` with dotted keys changed (``geometry__rows=6``); ``...`` deletes a key."""
     d = copy.deepcopy(base)
@@ -346,6 +359,8 @@ def assert_identical(a, b) -> None:
     assert all(np.array_equal(x.velocities, y.velocities) for x, y in zip(a.snapshots, b.snapshots))
     for name in a.observables:
         assert np.array_equal(a.observables[name], b.observables[name])
+    assert a.latest.identical(b.latest)  # the closing margin too, bit for bit
+    assert a.closing_margin == b.closing_margin
 
 
 def frames_of(path) -> list:

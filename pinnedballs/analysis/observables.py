@@ -25,7 +25,7 @@ from scipy import stats
 
 from ..geometry.base import Geometry
 from ..geometry.rows import boundary_rows
-from ..simulation import mass_array
+from ..engine.state import mass_array
 
 __all__ = [
     "energy_per_ball", "total_energy", "total_momentum",

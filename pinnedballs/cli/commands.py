@@ -212,11 +212,37 @@ def info(args: argparse.Namespace) -> int:
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few(res.snapshots.steps.tolist())}"
                                                 if len(res.snapshots) else ""),
+        *_margin(res),
         f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
         f"written by pinnedballs {res.version}",
     ]
     print("\n".join(lines))
     return EXIT_OK
+
+
+def _margin(res) -> list[str]:
+    """The closing margin of a run (`engine.margin`) in two lines, or why it has none."""
+    m = res.closing_margin
+    if m is None:
+        arithmetic = res.spec.arithmetic if res.spec is not None else res.run.get("arithmetic", "float")
+        if arithmetic == "exact":
+            return ["margin:      none kept (exact arithmetic: every closing speed's sign is exact)"]
+        return ["margin:      unknown (this run began before runs kept their closing margin)"]
+    from ..engine.margin import NEAR
+    from ..rules import DEFAULT_RESOLUTION
+
+    low = "no collision yet" if m.smallest_collision is None else \
+        f"smallest collision {m.smallest_collision:.3g} thresholds"
+    high = "no remnant set aside" if m.largest_remnant is None else f"largest remnant {m.largest_remnant:.3g} thresholds"
+    default = " (the default)" if m.resolution == DEFAULT_RESOLUTION else ""
+    verdict = ": thin, so the count depends on the criterion" if m.thin else " (wide)"
+    return [f"margin:      {low}, {high}; resolution {m.resolution:.3g}{default}",
+            f"             {_counted(m.near_collisions, 'collision')} and {_counted(m.near_remnants, 'remnant')} "
+            f"within a factor {NEAR:,.0f} of the threshold{verdict}"]
+
+
+def _counted(n: int, noun: str) -> str:
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
 def _status(res) -> str:

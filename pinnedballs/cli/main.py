@@ -4,6 +4,9 @@ and turns every failure into one line on stderr and an exit status.
 Exit status: 0 done; 2 bad input (one line on stderr naming the field or file), a user's code
 that fails included (naming the factory; ``--traceback`` prints its traceback first); 1 anything
 else; 130 interrupted (Ctrl-C or SIGTERM; a run after a complete checkpoint).
+
+A float run whose count depends on its collision criterion (`engine.margin.MarginWarning`) says so
+once, as one line on stderr: ``pinnedballs: note: the closing margin is thin (...)``.
 """
 
 from __future__ import annotations
@@ -16,13 +19,16 @@ import signal
 import sys
 import threading
 import traceback
+import warnings
 from pathlib import Path
 from typing import Iterator
 
 from .._version import __version__
 from ..engine.errors import InputError
+from ..engine.margin import MarginWarning
 from ..run.execute import Interrupted
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
+from .status import CLEAR, is_terminal
 
 __all__ = ["main"]
 
@@ -62,7 +68,7 @@ def _main(argv: list[str] | None) -> int:
     try:
         args = _parser().parse_args(argv)
         show_traceback = getattr(args, "traceback", False)
-        with _user_modules(getattr(args, "spec", None)):
+        with _user_modules(getattr(args, "spec", None)), _notes():
             return COMMANDS[args.command].run(args)
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else EXIT_OK
@@ -127,6 +133,31 @@ def _user_modules(spec: str | None) -> Iterator[None]:
         for d in added:
             if d in sys.path:
                 sys.path.remove(d)
+
+
+@contextlib.contextmanager
+def _notes() -> Iterator[None]:
+    """While a command runs, a `MarginWarning` is said once, as one line ``pinnedballs: note: ...`` on
+    stderr (clearing a status line or progress bar first), instead of Python's warning with a file
+    and a line; later ones are left out. Other warnings are shown as Python shows them."""
+    said = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", MarginWarning)  # each simulation warns once; the command says it once
+        show = warnings.showwarning
+
+        def note(message, category, filename, lineno, file=None, line=None):
+            if not issubclass(category, MarginWarning):
+                show(message, category, filename, lineno, file, line)
+            elif not said:
+                said.append(message)
+                from tqdm import tqdm
+
+                with tqdm.external_write_mode(file=sys.stderr):
+                    sys.stderr.write(f"{CLEAR if is_terminal(sys.stderr) else ''}{PROG}: note: {_one_line(message)}\n")
+                    sys.stderr.flush()
+
+        warnings.showwarning = note
+        yield
 
 
 #: errors of a full disk or quota: one line, not a traceback

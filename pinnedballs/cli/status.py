@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 from typing import TextIO
 
-__all__ = ["Status", "CLEAR"]
+__all__ = ["Status", "CLEAR", "is_terminal"]
 
 #: carriage return, then erase to the end of the line (ANSI)
 CLEAR = "\r\x1b[K"
@@ -22,7 +22,7 @@ class Status:
 
     def __init__(self, show: bool | None = None, stream: TextIO | None = None):
         self.stream = sys.stderr if stream is None else stream
-        self.shown = _is_terminal(self.stream) if show is None else bool(show)
+        self.shown = is_terminal(self.stream) if show is None else bool(show)
         self._on = False
 
     def __call__(self, message: str) -> None:
@@ -45,7 +45,7 @@ class Status:
         self.clear()
 
 
-def _is_terminal(stream) -> bool:
+def is_terminal(stream) -> bool:
     try:
         return stream.isatty()
     except (AttributeError, ValueError):

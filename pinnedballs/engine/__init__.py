@@ -7,5 +7,6 @@ that validates arguments), `limits` (memory and the float64 range), `random` (xo
 many), `intrinsics` (LLVM hints for the hot loop), `chain` (the
 data every loop reads) and `loops` (the compiled loops); `stop` and `triggers` (when a run ends and
 when its writers record: predicates of the counters, built by specs and read by the run driver);
-`atomic` (files written whole or not at all).
+`atomic` (files written whole or not at all); `margin` (how near the collision criterion a run's picks
+came) and `state` (`RunState`: all of a run that changes, as one record).
 """

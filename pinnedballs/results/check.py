@@ -8,7 +8,9 @@ shapes and dtypes of the geometry, the initial and latest velocities, the snapsh
 observables; the contacts against the geometry the stored spec builds; finite numbers (the
 snapshots' of format 3 as each is read, `frames`: their digests are verified here); the
 counters (``0 <= collisions <= steps``, snapshots in order and not past the state); the random
-state (4 words, not all zero) and the scheduler state (as its scheduler would check it); and
+state (4 words, not all zero) and the scheduler state (as its scheduler would check it); the
+closing margin where the file keeps one (as `Simulation.set_state` would check it, with its
+criterion); and
 every segment and the static file behind the index (virtual datasets read missing or truncated
 sources as zeros, so each one is opened and measured).
 """
@@ -23,6 +25,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from ..engine.errors import FieldError
+from ..engine.state import margin_problem
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error
 from ..specs.run import RunSpec, stored_spec
@@ -126,6 +129,8 @@ def _check(f: h5py.File) -> None:
     _check_scheduler_state(f, sched, e)
     if "exact" in f["state"]:
         _check_exact(f, n, d)
+    if "margin" in f["state"]:
+        _check_margin(f)
     _check_snapshots(f, n, d, steps, collisions, scan=int(f.attrs["format_version"]) < 3)
 
 
@@ -240,3 +245,19 @@ def _check_exact(f: h5py.File, n: int, d: int) -> None:
             mpq(text)
         except (ValueError, TypeError, ZeroDivisionError):
             raise Damage("state/exact", f"holds {text[:40]!r}, not a rational number") from None
+
+
+def _check_margin(f: h5py.File) -> None:
+    """The closing margin of the latest state (`engine.margin`): ``(4,)`` floats a margin can hold,
+    and its criterion: the threshold a finite number > 0, the resolution in (0, 1)."""
+    ds = _dataset(f, "state/margin")
+    problem = margin_problem(ds[()]) if ds.shape == (4,) and ds.dtype.kind == "f" else \
+        f"must be 4 floating-point numbers, got {ds.dtype} {ds.shape}"
+    if problem is not None:
+        raise Damage("state/margin", problem)
+    for name, low, high in (("threshold", 0.0, np.inf), ("resolution", 0.0, 1.0)):
+        value = ds.attrs.get(name)
+        if not (isinstance(value, (float, np.floating)) and low < value < high):
+            shown = value.item() if isinstance(value, np.generic) else value
+            raise Damage(f"state/margin (attribute {name})", f"must be a number in ({low:g}, {high:g}), got "
+                                                              f"{shown!r}")

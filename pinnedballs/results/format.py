@@ -23,7 +23,11 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
     /observables      one column per recorded observable (`pinnedballs.analysis.observables`): (F,) or (F, ...)
     /state            the latest state, enough to resume bit for bit: velocities (n, d),
                       rng_state (4,) uint64, scheduler_state (L,) int64, momentum (d,);
-                      attrs steps, collisions, energy, approaching, frozen
+                      attrs steps, collisions, energy, approaching, frozen;
+                      margin (4,) float64 [a float run's]: its closing margin so far (`engine.margin`:
+                      the smallest closing speed of a collision, inf before the first; the largest
+                      positive one set aside; the counts within a factor 1e4 of the threshold), with
+                      attrs threshold and resolution (the run's criterion)
 
 ``/geometry`` and ``/initial`` are external links, ``/snapshots`` and ``/observables``
 virtual datasets over the segments, so ``h5py`` reads the index like one file.
@@ -38,7 +42,9 @@ smaller to describe but can be left unreadable by a kill in the middle of a writ
 
 Format 2 is format 3 without the digests and the status "interrupted"; format 1 is a single
 file, copied whole at each checkpoint. Both still load; continuing such a run converts it to
-format 3 first.
+format 3 first. A file written before runs kept their margin (of any format) has no
+``/state/margin``: its margin is unknown (`Results.closing_margin` is None), and stays so when
+the run is continued, whose later picks alone the margin could not speak for.
 """
 
 from __future__ import annotations
@@ -53,7 +59,7 @@ import numpy as np
 
 from ..analysis import observables
 from ..engine.errors import InputError
-from ..simulation import RunState
+from ..engine.state import RunState
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",
            "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES"]

@@ -14,7 +14,9 @@ import numpy as np
 
 from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
-from ..simulation import RunState, Simulation
+from ..engine.margin import ClosingMargin
+from ..engine.state import RunState
+from ..simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.errors import InputError
 from ..specs.errors import SpecError, UserCodeError
@@ -42,6 +44,9 @@ class Results:
     and the recorded observables).
     spec: the `RunSpec`, or None for a run built in Python, which ``run`` describes
     (``geometry``, ``rule``, ``scheduler``: each component's own spec, else ``{"class": ...}``).
+    closing_margin: how near its collision criterion the run's picks came, at the latest state
+    (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact
+    arithmetic, or one begun before runs kept their margin).
     """
 
     path: Path
@@ -66,6 +71,7 @@ class Results:
     latest: RunState
     run: dict = field(default_factory=dict, repr=False)
     format_version: int = FORMAT_VERSION
+    closing_margin: ClosingMargin | None = None
 
     @property
     def velocities(self) -> np.ndarray:
@@ -165,7 +171,8 @@ class Results:
         scheduler = scheduler if scheduler is not None else \
             _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
         return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
-                          masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
+                          masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"),
+                          resolution=self.run.get("resolution"))
 
     def animate(self, out=None, fps: float = 4) -> Path:
         """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`.
@@ -273,8 +280,9 @@ def read(p: Path, f: h5py.File) -> Results:
     version = int(f.attrs["format_version"])
     s, o = f["state"], f["observables"]
     exact = s["exact"].asstr()[()] if "exact" in s else None
+    margin = s["margin"][()] if "margin" in s else None  # checked by check_results
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
-                      s["scheduler_state"][()], exact)
+                      s["scheduler_state"][()], exact, margin)
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
     observables = {name: o[name][()] for name in names}
     steps, collisions = observables["steps"], observables["collisions"]
@@ -290,6 +298,8 @@ def read(p: Path, f: h5py.File) -> Results:
         elapsed_seconds=float(f.attrs["elapsed_seconds"]), checkpoints=int(f.attrs["checkpoints"]),
         created=str(f.attrs["created"]), updated=str(f.attrs["updated"]),
         latest=latest, run=json.loads(f.attrs.get("run", "") or "{}"), format_version=version,
+        closing_margin=None if margin is None else ClosingMargin.of(
+            margin, float(s["margin"].attrs["threshold"]), float(s["margin"].attrs["resolution"])),
     )
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from ..analysis import observables
 from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
-from ..simulation import RunState
+from ..engine.state import RunState
 from .digest import bytes_digest, file_digest, seal
 from ..engine.atomic import remove, tmp_path, write_bytes_atomic
 from .files import h5_image, virtual_rows
@@ -49,6 +49,9 @@ class ResultsStore:
     digests: dict = field(default_factory=dict)   #: file -> SHA-256 of static.h5 and each segment
     last_step: int = -1              #: the step of the last frame stored (-1: none)
     state: Record | None = None      #: the state the index holds
+    #: (threshold, resolution) of the run, whose margin the index keeps; None: it keeps none (a run
+    #: begun before runs kept their margin: its margin is unknown)
+    criterion: tuple[float, float] | None = None
 
     @property
     def data_dir(self) -> Path:
@@ -56,9 +59,10 @@ class ResultsStore:
 
     @classmethod
     def create(cls, path: str | os.PathLike, *, spec: str, run: str, geometry: Geometry, masses,
-               initial: Record, version: str) -> "ResultsStore":
+               initial: Record, version: str, criterion: tuple[float, float] | None = None) -> "ResultsStore":
         """Write ``static.h5`` and an index with no snapshots. ``spec``: the run spec as JSON, or "";
-        ``run``: JSON describing a run built in Python, or ""."""
+        ``run``: JSON describing a run built in Python, or ""; ``criterion``: the simulation's
+        ``(threshold, resolution)``, kept with the margin of each state that has one."""
         path = Path(path)
         data = data_dir(path)
         data.mkdir(parents=True, exist_ok=True)
@@ -69,7 +73,7 @@ class ResultsStore:
                      status="running", stop_reason="", created=now, updated=now, elapsed_seconds=0.0,
                      checkpoints=0, checked=False, observables=json.dumps(list(initial.values)))
         columns = {k: (v.dtype.str, v.shape) for k, v in initial.values.items()}
-        store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static})
+        store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static}, criterion=criterion)
         store._write_index(initial, attrs, store.segments, store.digests)
         store.state = initial
         return store
@@ -88,13 +92,15 @@ class ResultsStore:
             segments = json.loads(f.attrs["segments"])
             columns = {name: (f["observables"][name].dtype.str, f["observables"][name].shape[1:])
                        for name in json.loads(f.attrs["observables"])}
+            margin = res.closing_margin
         data = data_dir(path)
         digests = json.loads(attrs.pop("digests")) if version >= 3 else \
             {name: file_digest(data / name) for name in [STATIC_NAME, *(s[0] for s in segments)]}
         attrs["format_version"] = FORMAT_VERSION
         state = Record(res.state(), res.energy, res.momentum, res.approaching)
         store = cls(path, attrs, res.velocities.shape, columns, segments, sum(s[2] for s in segments), digests,
-                    int(res.snapshots.steps[-1]) if len(res.snapshots) else -1, state)
+                    int(res.snapshots.steps[-1]) if len(res.snapshots) else -1, state,
+                    None if margin is None else (margin.threshold, margin.resolution))
         store._remove_strays()
         return store
 
@@ -136,7 +142,7 @@ class ResultsStore:
                              segments, rel)
             for name in observables.ALWAYS:
                 f["snapshots"][name] = h5py.SoftLink(f"/observables/{name}")
-            _write_state(f, state)
+            _write_state(f, state, self.criterion)
 
         write_bytes_atomic(self.path, seal(h5_image(fill)))
 
@@ -197,8 +203,9 @@ def _write(path: Path, image: bytes) -> str:
     return bytes_digest(image)
 
 
-def _write_state(f: h5py.File, record: Record) -> None:
-    """``/state``: ``record``'s arrays as datasets, its counts as attributes."""
+def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | None) -> None:
+    """``/state``: ``record``'s arrays as datasets, its counts as attributes, and its margin with the
+    run's ``criterion`` (threshold, resolution) when it has one and the run keeps it."""
     s = f.create_group("state")
     state = record.state
     for name in RunState.ARRAYS:
@@ -209,6 +216,9 @@ def _write_state(f: h5py.File, record: Record) -> None:
         s.create_dataset("exact", data=np.asarray(state.exact, dtype=object), dtype=h5py.string_dtype())
     s["momentum"] = record.momentum
     s.attrs.update(energy=record.energy, approaching=record.approaching, frozen=record.frozen)
+    if criterion is not None and state.margin is not None:
+        s["margin"] = np.asarray(state.margin, dtype=np.float64)
+        s["margin"].attrs.update(threshold=float(criterion[0]), resolution=float(criterion[1]))
 
 
 def _convert_v1(path: Path, f: h5py.File) -> "ResultsStore":

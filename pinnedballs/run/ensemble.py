@@ -7,8 +7,11 @@ A spec without a seed gets one drawn for the whole ensemble (`RunSpec.seeded`), 
 ``summary.json`` and ``spec.json`` record.
 Each replica runs the spec's stop rule (`execute.run_to_stop`) and gives one table
 row per snapshot and one for the final state (`state_row`: `observables.summary`
-and a few more). Rows are ordered by replica, then by time, so the same spec and
-``N`` give a bit-identical table however the replicas were spread.
+and a few more), with the closing margin so far (`MARGIN_COLUMNS`, `engine.margin`).
+Rows are ordered by replica, then by time, so the same spec and ``N`` give a
+bit-identical table however the replicas were spread. A float ensemble at the default
+resolution in which any replica's margin is thin says so once (`MarginWarning`), not
+once per replica.
 
 A replica that raises becomes one row with its index, seed and the error; the
 others are kept. `write_outputs` writes ``replicas.csv``, ``summary.json``,
@@ -24,6 +27,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -34,18 +38,22 @@ from .._version import __version__
 from ..engine import checks
 from ..engine.errors import InputError
 from ..engine.limits import check_memory
+from ..engine.margin import NEAR, ClosingMargin, MarginWarning
+from ..rules import DEFAULT_RESOLUTION
 from ..geometry.base import Geometry
 from ..engine.atomic import write_text_atomic
 from ..specs.run import RunSpec
 from . import executors
 
-__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row",
-           "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "ERROR_COLUMN", "FINAL", "CORRELATIONS",
-           "TABLE_NAME", "SUMMARY_NAME"]
+__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row", "margin_columns",
+           "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS", "ERROR_COLUMN", "FINAL",
+           "CORRELATIONS", "TABLE_NAME", "SUMMARY_NAME"]
 
 TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json", "spec.json", "figures"
 #: the first columns of every row; observables follow, then `ERROR_COLUMN`
 KEY_COLUMNS = ("replica", "seed_entropy", "spawn_key", "at", "steps", "collisions", "frozen", "stop_reason")
+#: the closing margin of a row's state, after `KEY_COLUMNS` (`margin_columns`)
+MARGIN_COLUMNS = ("smallest_collision", "largest_remnant", "near_collisions", "near_remnants")
 ERROR_COLUMN = "error"
 #: the ``at`` of a replica's final state (snapshots are ``"steps=N"`` or ``"collisions=N"``)
 FINAL = "final"
@@ -78,6 +86,17 @@ def state_row(geometry: Geometry, velocities: np.ndarray, masses=None) -> dict[s
     return row
 
 
+def margin_columns(sim, margin: np.ndarray | None) -> dict:
+    """`MARGIN_COLUMNS` of a state of ``sim`` whose margin is ``margin (4,)`` (`engine.margin`):
+    ``smallest_collision`` and ``largest_remnant`` in thresholds (left out while there is none),
+    ``near_collisions`` and ``near_remnants``; none at all for a state that keeps no margin (exact
+    arithmetic)."""
+    if margin is None:
+        return {}
+    m = ClosingMargin.of(margin, sim.threshold, sim.resolution).to_dict()
+    return {name: m[name] for name in MARGIN_COLUMNS if m[name] is not None}
+
+
 def _head(index: int, seed: np.random.SeedSequence) -> dict:
     return {"replica": index, "seed_entropy": seed.entropy, "spawn_key": json.dumps(list(seed.spawn_key))}
 
@@ -93,13 +112,14 @@ def run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence | None =
 
     seed = replica_seed(spec, index) if seed is None else seed
     sim = spec.build(seed=seed)
+    sim._margin_warned = True  # the ensemble says once that margins are thin, not each replica (`run_ensemble`)
     head = _head(index, seed)
     rows: list[dict] = []
     counter = spec.snapshots.counter if spec.snapshots else ""
 
     def row(at: str, state: dict, frozen: bool, reason: str) -> dict:
         return {**head, "at": at, "steps": int(state.steps), "collisions": int(state.collisions),
-                "frozen": int(frozen), "stop_reason": reason,
+                "frozen": int(frozen), "stop_reason": reason, **margin_columns(sim, state.margin),
                 **observe(sim.geometry, state.velocities, sim.masses)}
 
     def on_snapshot(record) -> None:
@@ -142,11 +162,20 @@ class EnsembleResult:
 
     @property
     def columns(self) -> list[str]:
-        """Column names: `KEY_COLUMNS`, observables in first-seen order, `ERROR_COLUMN`."""
+        """Column names: `KEY_COLUMNS`, `MARGIN_COLUMNS` (of a run that keeps its margin), observables in
+        first-seen order, `ERROR_COLUMN`."""
         seen = dict.fromkeys(KEY_COLUMNS)
+        if any(c in row for row in self.rows for c in MARGIN_COLUMNS):  # a run that keeps its margin
+            seen.update(dict.fromkeys(MARGIN_COLUMNS))
         for row in self.rows:
             seen.update(dict.fromkeys(k for k in row if k != ERROR_COLUMN))
         return [*seen, ERROR_COLUMN]
+
+    def thin(self) -> list[dict]:
+        """The final rows of the replicas whose closing margin is thin: a collision closed within a factor
+        `engine.margin.NEAR` of the threshold, so their counts depend on the criterion."""
+        return [row for row in self.rows if not row.get(ERROR_COLUMN) and row["at"] == FINAL
+                and row.get("near_collisions", 0) > 0]
 
     @property
     def failures(self) -> list[dict]:
@@ -262,7 +291,21 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
             results = executors.in_process(jobs, tick) if workers == 1 else \
                 executors.on_processes(jobs, workers, tick, lost)
     rows = [row for k in range(replicas) for row in results[k]]
-    return EnsembleResult(spec, replicas, rows, where, time.perf_counter() - start)
+    result = EnsembleResult(spec, replicas, rows, where, time.perf_counter() - start)
+    if spec.arithmetic == "float" and spec.resolution is None and result.thin():
+        warnings.warn(_thin_note(result), MarginWarning, stacklevel=2)
+    return result
+
+
+def _thin_note(result: EnsembleResult) -> str:
+    """The one line an ensemble with thin margins says (`MarginWarning`)."""
+    thin = result.thin()
+    smallest = min(row["smallest_collision"] for row in thin)
+    done = sum(1 for row in result.rows if not row.get(ERROR_COLUMN) and row["at"] == FINAL)
+    return (f"the closing margin is thin in {len(thin)} of {done} replicas (collisions closing within a factor "
+            f"{NEAR:,.0f} of the threshold, the smallest at {smallest:.3g} thresholds; replicas.csv has each "
+            f"replica's margin): their collision counts depend on the float criterion (resolution "
+            f"{DEFAULT_RESOLUTION:.3g}); count them exactly with \"arithmetic\": \"exact\" on the same seed")
 
 
 class _progress:

@@ -24,7 +24,7 @@ from .ensemble import (ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME
 __all__ = ["load_ensemble", "is_ensemble_dir", "describe"]
 
 #: columns that hold integers (the others hold numbers, except the texts below)
-_INTEGERS = ("replica", "seed_entropy", "steps", "collisions", "frozen")
+_INTEGERS = ("replica", "seed_entropy", "steps", "collisions", "frozen", "near_collisions", "near_remnants")
 _TEXTS = ("spawn_key", "at", "stop_reason", ERROR_COLUMN)
 
 
@@ -108,4 +108,17 @@ def describe(result: EnsembleResult, path: Path) -> list[str]:
     if final:
         frozen = sum(int(r["frozen"]) for r in final)
         lines.append(f"frozen:      {frozen} of {len(final)} final states")
+    kept = [r for r in final if "near_collisions" in r]
+    if kept:
+        lines.append(_margins(kept, len(result.thin())))
     return lines
+
+
+def _margins(final: list[dict], thin: int) -> str:
+    """One line on the replicas' closing margins (`engine.margin`): how many are thin, the smallest
+    collision and the largest remnant over them all, in thresholds."""
+    low = [r["smallest_collision"] for r in final if "smallest_collision" in r]
+    high = [r["largest_remnant"] for r in final if "largest_remnant" in r]
+    smallest = f"smallest collision {min(low):.3g} thresholds" if low else "no collision"
+    largest = f"largest remnant {max(high):.3g} thresholds" if high else "no remnant set aside"
+    return f"margin:      thin in {thin} of {len(final)} final states; {smallest}, {largest} (over all replicas)"

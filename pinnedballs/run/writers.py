@@ -34,6 +34,7 @@ from ..results.files import held_signals
 from ..results.format import RESULTS_NAME, Record
 from ..results.rundir import BIRTH, DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
+from ..rules import DEFAULT_RESOLUTION
 from .driver import Writer
 from ..engine.triggers import Counts, Trigger
 
@@ -220,7 +221,7 @@ class ResultsWriter(Writer):
         spec = self.spec.model_dump_json() if self.spec is not None else ""
         run = "" if self.spec is not None else json.dumps(describe_run(sim, self))
         return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
-                                   initial=initial, version=__version__)
+                                   initial=initial, version=__version__, criterion=(sim.threshold, sim.resolution))
 
 
 
@@ -251,10 +252,11 @@ def _check_continues(store: ResultsStore, sim, path: Path) -> None:
 def describe_run(sim, writer: Writer | None = None) -> dict:
     """What a run built in Python was made of: its geometry, rule and scheduler as their own specs
     (`to_spec`), or ``{"class": "module.Name", "repr": ...}`` for one that has none; whether it has
-    masses; and the ``writer``'s own spec."""
+    masses; its arithmetic and resolution (None: the default); and the ``writer``'s own spec."""
     out = {name: _described(getattr(sim, name)) for name in ("geometry", "rule", "scheduler")}
     out["masses"] = sim.masses is not None
     out["arithmetic"] = sim.arithmetic
+    out["resolution"] = None if sim.resolution == DEFAULT_RESOLUTION else sim.resolution
     if writer is not None:
         out["writer"] = writer.to_spec()
     return out

@@ -14,8 +14,10 @@ from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
 from ..engine.errors import FieldError, InputError
 from ..geometry.base import Geometry
+from ..rules import check_resolution
 from ..engine.limits import check_memory
-from ..simulation import Simulation, mass_array
+from ..engine.state import mass_array
+from ..simulation import Simulation
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
@@ -38,8 +40,12 @@ def _known_observable(name: str) -> str:
 
 
 class RunSpec(_Spec):
-    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, and the
-    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``).
+    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, the
+    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``) and the resolution.
+
+    ``resolution``: the collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
+    exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model
+    parameter: the run records it, and ``--resume`` continues with it.
 
     ``seed``: seeds the run's random stream; a spec without one gets one drawn from fresh entropy when
     it runs (`seeded`), which the run's own spec (``spec.json``, the results file) records, so
@@ -61,6 +67,7 @@ class RunSpec(_Spec):
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
     arithmetic: Literal["float", "exact"] = "float"
+    resolution: float | None = None
     description: str = ""
 
     def _repr_html_(self) -> str:  # notebooks: a table of the parts
@@ -80,6 +87,14 @@ class RunSpec(_Spec):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, str))):
             raise ValueError(f"must be a number > 0 or the path of a .npy file, got {value!r}")
         return value
+
+    @field_validator("resolution", mode="before")
+    @classmethod
+    def _resolution(cls, value: Any) -> Any:
+        try:
+            return None if value is None else check_resolution(value)  # the engine's words
+        except FieldError as exc:
+            raise ValueError(exc.problem) from None
 
     @model_validator(mode="after")
     def _snapshots_before_stop(self) -> "RunSpec":
@@ -139,10 +154,12 @@ class RunSpec(_Spec):
         rule, scheduler = self.rule.build(), self.scheduler.build()
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
-                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic"}):
+                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
+                                    "resolution": "resolution"}):
                 try:
                     return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
-                                      masses=masses, seed=seq, arithmetic=self.arithmetic)
+                                      masses=masses, seed=seq, arithmetic=self.arithmetic,
+                                      resolution=self.resolution)
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code
@@ -290,7 +307,8 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     rule = label(spec.rule) + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {label(spec.initial)}, energy {sim.energy():.6g}; {rule}, {label(spec.scheduler)}; "
-            f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"))
+            f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}")
+            + ("" if spec.resolution is None else f"; resolution {spec.resolution:.3g}"))
 
 
 def _shape(g: BaseModel, geometry: Geometry) -> str:

@@ -25,7 +25,7 @@ from ..geometry.graph import GraphGeometry
 from ..geometry.lattices import FlatTorus, HalfPlane
 from ..schedulers.base import PickOutOfRange
 from ..schedulers.simple import UniformRandomPair
-from ..simulation import RunState
+from ..engine.state import RunState
 from .samples import SEED, fail, simulation
 
 __all__ = ["check_scheduler_picks_in_range", "check_scheduler_same_seed_same_run", "check_scheduler_split_run",

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from helpers import HALF_PLANE, TORUS, assert_input_error, call, spec, write
+from helpers import HALF_PLANE, THIN, TORUS, assert_input_error, call, spec, thin_spec, write
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -70,6 +70,11 @@ BAD_SPECS = {
     "negative mass in a file": (_negative_masses, ["masses:", "m.npy: must all be finite and > 0"]),
     "overflowing energy": (lambda d: spec(initial__energy=1e308),
                            ["initial.energy: too large for these masses: the speeds or the total energy overflow"]),
+    "resolution out of range": (lambda d: spec(resolution=0), [
+        "pinnedballs: error: resolution: must be a number in (0, 1): a pick collides when its closing speed exceeds "
+        "resolution * V (V the system's speed scale), got 0"]),
+    "resolution as text": (lambda d: spec(resolution="1e-9"),
+                           ["pinnedballs: error: resolution: must be a number, got '1e-9'"]),
     "overflowing gaussian energy": (lambda d: spec(initial={"kind": "gaussian", "energy": 1e308}),
                                     ["initial.energy: too large for these masses"]),
 }
@@ -186,6 +191,30 @@ def test_run_writes_results_spec_and_figures(tmp_path):
     assert code == 0 and (out / "state_final.png").exists() and str(out / "state_final.png") in stdout
     code, stdout, _ = call("plot", out, "--every-snapshot")
     assert code == 0 and (out / "state_step_100.png").exists() and str(out / "state_step_100.png") in stdout
+
+
+def test_a_thin_run_says_so_once_as_a_note(tmp_path):
+    """A float run at the default resolution whose margin is thin: one line on stderr, the warning's words
+    after ``pinnedballs: note:``, no Python warning with its file and line; a chosen resolution is the
+    model, and says nothing."""
+    code, out, err = call("run", write(tmp_path / "s.json", thin_spec(tmp_path)), "--out", tmp_path / "r",
+                          "--no-figures")
+    m = pb.load(tmp_path / "r").closing_margin
+    assert code == 0 and out.startswith("steps: 10 steps, 1 collisions")
+    assert err == f"pinnedballs: note: {m.warning()}\n" and err.startswith(f"pinnedballs: note: {THIN}")
+    chosen = write(tmp_path / "c.json", spec(thin_spec(tmp_path), resolution=1e-15))
+    code, _, err = call("run", chosen, "--out", tmp_path / "c", "--quiet", "--no-figures")
+    assert (code, err) == (0, "") and pb.load(tmp_path / "c").closing_margin.thin
+
+
+@pytest.mark.slow
+def test_the_note_is_one_line_of_the_real_command(tmp_path):
+    """The program itself (a subprocess): its whole stderr is the note."""
+    s = write(tmp_path / "s.json", thin_spec(tmp_path))
+    done = subprocess.run([sys.executable, "-m", "pinnedballs", "run", str(s), "--out", str(tmp_path / "r"),
+                           "--quiet", "--no-figures"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert done.returncode == 0 and done.stdout == ""
+    assert done.stderr == f"pinnedballs: note: {pb.load(tmp_path / 'r').closing_margin.warning()}\n"
 
 
 def test_run_prints_summary_and_info(tmp_path):

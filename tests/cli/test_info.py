@@ -15,7 +15,7 @@ import pytest
 import pinnedballs as pb
 from pinnedballs.cli.commands import _duration
 from pinnedballs.results.rundir import LOCK_NAME, DirLock
-from helpers import ROOT, TORUS, call, chain, write
+from helpers import HALF_PLANE, ROOT, TORUS, call, chain, spec, thin_spec, write
 
 
 @pytest.mark.parametrize("seconds,text", [(0.0052913, "5.29 ms"), (0.0208, "20.8 ms"), (0.9996, "1 s"),
@@ -70,3 +70,42 @@ def test_info_tells_a_running_run_from_one_killed(running):
     with DirLock(running):
         code, out, _ = call("info", running)
     assert code == 0 and f"status:      running (pid {os.getpid()}; this is its last checkpoint)\n" in out
+
+
+# ---------------------------------------------------------------- the closing margin (issue 27)
+
+
+def test_info_shows_a_thin_margin_in_two_lines(tmp_path):
+    data = thin_spec(tmp_path)
+    assert call("run", write(tmp_path / "s.json", data), "--out", tmp_path / "r", "--quiet", "--no-figures")[0] == 0
+    code, out, err = call("info", tmp_path / "r")
+    assert (code, err) == (0, "")
+    assert ("margin:      smallest collision 11.3 thresholds, no remnant set aside; resolution 4.44e-16 (the default)\n"
+            "             1 collision and 0 remnants within a factor 10,000 of the threshold: thin, so the count "
+            "depends on the criterion\n") in out
+
+
+def test_info_shows_a_wide_margin_and_a_chosen_resolution(tmp_path):
+    s = write(tmp_path / "s.json", spec(HALF_PLANE, resolution=1e-9))
+    assert call("run", s, "--out", tmp_path / "r", "--quiet", "--no-figures")[0] == 0
+    m = pb.load(tmp_path / "r").closing_margin
+    assert m.smallest_collision > 1e4 and m.near_collisions == 0 and m.resolution == 1e-9
+    code, out, _ = call("info", tmp_path / "r")
+    assert code == 0
+    assert (f"margin:      smallest collision {m.smallest_collision:.3g} thresholds, largest remnant "
+            f"{m.largest_remnant:.3g} thresholds; resolution 1e-09\n"
+            f"             0 collisions and {m.near_remnants:,} remnants within a factor 10,000 of the threshold "
+            f"(wide)\n") in out
+
+
+def test_info_says_why_a_run_has_no_margin(tmp_path):
+    """A file written before margins were kept: unknown; a run in exact arithmetic: none kept."""
+    run = tmp_path / "old"
+    shutil.copytree(ROOT / "tests" / "data" / "format2", run)
+    assert "margin:      unknown (this run began before runs kept their closing margin)\n" in call("info", run)[1]
+    g = pb.FlatTorus(4, 4)
+    v = np.zeros((16, 2))
+    v[0] = (1.0, 0.0)
+    pb.Simulation(g, v, seed=2, arithmetic="exact").run(steps=30, writers=[pb.ResultsWriter(tmp_path / "e")])
+    out = call("info", tmp_path / "e")[1]
+    assert "margin:      none kept (exact arithmetic: every closing speed's sign is exact)\n" in out

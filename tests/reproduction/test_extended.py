@@ -63,6 +63,13 @@ def test_scaling_rows_match_their_replicas(tiny):
         assert all(math.isclose(float(row["energy"]), 100.0, rel_tol=1e-10) for row in table)
         profile = results["extended"]["scaling_profiles"][f"{r['length']:g}x{r['depth']:g}"]
         assert len(profile) == ext.DECILES and sum(profile) == pytest.approx(1.0, abs=1e-9)
+        # the closing margins of the replicas' counts, carried from replicas.csv (in thresholds)
+        near = [int(row["near_collisions"]) for row in table]
+        smallest = [float(row["smallest_collision"]) for row in table]
+        assert r["thin"] == sum(n > 0 for n in near) and r["near_collisions_mean"] == pytest.approx(np.mean(near))
+        assert r["smallest_collision_min"] == min(smallest) > 1  # every replica collided, above the threshold
+        remnants = [float(row["largest_remnant"]) for row in table if row["largest_remnant"]]
+        assert r["largest_remnant_max"] == (max(remnants) if remnants else None)
     fit = results["extended"]["scaling_fit"]["collisions"]
     again = rp.fit_exponent([r["balls"] for r in rows], [r["collisions_mean"] for r in rows],
                             [r["collisions_sd"] / math.sqrt(r["replicas"]) for r in rows])
@@ -131,6 +138,8 @@ def test_report_has_a_table_per_study_and_every_figure(tiny):
         assert len(rows) == len(x[study]), study
     scaling = _table_rows(text, "### Scaling")
     assert [row[2] for row in scaling] == [f"{r['balls']:,}" for r in x["scaling"]]
+    assert [row[10:12] for row in scaling] == [[f"{r['thin']} of {r['replicas']}", f"{r['smallest_collision_min']:.3g}"]
+                                              for r in x["scaling"]]
     fit = x["scaling_fit"]["collisions"]
     assert f"collisions ~ N^({fit['exponent']:.3f} ± {fit['exponent_se']:.3f})" in text
     assert len(re.findall(r"\*\*(open|settled: differs|no difference from the reference seen)", text)) == 3

@@ -133,6 +133,19 @@ def _repeat_a_step(x):
     x[-1] = x[-2]
 
 
+def _margin(margin, **attrs):
+    """A damage: ``/state/margin`` in the index replaced by ``margin`` (written where there was none, as in
+    format 2), with the threshold and resolution of the run but for those in ``attrs``."""
+    def damage(run: Path) -> None:
+        with h5py.File(_index(run), "r+") as f:
+            if "margin" in f["state"]:
+                del f["state/margin"]
+            f["state/margin"] = np.asarray(margin)
+            f["state/margin"].attrs.update({"threshold": 4 * 2.0**-53 * np.sqrt(200.0), "resolution": 4 * 2.0**-53,
+                                            **attrs})
+    return damage
+
+
 #: name: (damage done to the run directory, the file named, words of the message)
 DAMAGE = {
     "format": (lambda r: _attr(_index(r), "/", format="something-else"), _index, "not a pinnedballs results file"),
@@ -198,6 +211,18 @@ DAMAGE = {
                                "snapshots/velocities: does not map the segments the index lists, each once and in order"),
     "a step listed twice": (lambda r: _set(_last_segment(r), "observables/steps", _repeat_a_step), _index,
                             "observables/steps: lists the same step twice (duplicated snapshots)"),
+    # issue 27: the closing margin of the latest state, and its criterion
+    "margin NaN": (_margin([np.nan, 0.0, 0.0, 0.0]), _index, "state/margin: the smallest collision's closing speed "
+                                                             "must be > 0 (inf: none yet), got nan"),
+    "margin shape": (_margin(np.ones(3)), _index, "state/margin: must be 4 floating-point numbers, got float64 (3,)"),
+    "margin text": (_margin(np.array([b"wide"] * 4)), _index, "state/margin: must be 4 floating-point numbers, "
+                                                              "got |S4 (4,)"),
+    "margin counts a fraction": (_margin([1.0, 0.0, 0.5, 0.0]), _index,
+                                 "state/margin: the counts near the threshold must be whole numbers >= 0, got [0.5, 0.0]"),
+    "margin threshold text": (_margin(np.full(4, 1.0), threshold="x"), _index,
+                              "state/margin (attribute threshold): must be a number in (0, inf), got 'x'"),
+    "margin resolution 2": (_margin(np.full(4, 1.0), resolution=2.0), _index,
+                            "state/margin (attribute resolution): must be a number in (0, 1), got 2.0"),
 }
 
 
@@ -239,7 +264,8 @@ def test_the_undamaged_copy_loads_and_resumes_to_done(good, good3, tmp_path):
     assert call("run", s, "--out", run, "--resume", "--quiet", "--no-figures")[0] == 0
     res, now = pb.load(run), pb.load(good3[1])
     assert (res.format_version, res.complete, res.steps) == (3, True, 1000)
-    assert res.latest.identical(now.latest) and res.checkpoints == now.checkpoints + 1
+    assert res.latest.identical(now.latest.replace(margin=None)) and res.checkpoints == now.checkpoints + 1
+    assert res.closing_margin is None and now.closing_margin is not None  # format 2 kept none: unknown
     assert all(np.array_equal(a.velocities, b.velocities) for a, b in zip(res.snapshots, now.snapshots))
 
 

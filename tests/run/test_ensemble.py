@@ -2,7 +2,9 @@
 
 import json
 import math
+import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -14,7 +16,8 @@ from pinnedballs.analysis import observables as obs
 from pinnedballs.reproduction import torus_row
 from pinnedballs.engine.errors import InputError
 from pinnedballs.specs import parse_spec
-from helpers import pickled_by_value
+from helpers import pickled_by_value, thin_spec, write
+from pinnedballs.engine.margin import MarginWarning
 
 TORUS = {"geometry": {"kind": "flat_torus", "rows": 8, "cols": 8},
          "initial": {"kind": "single_ball", "ball": 0, "direction": [1.0, 0.0], "energy": 100.0},
@@ -82,6 +85,65 @@ def test_half_plane_rows_freeze_with_snapshot_and_far_shares():
     assert all(r["frozen"] == 1 and r["approaching_fraction"] == 0.0 for r in finals)
     assert [r["collisions"] for r in result.rows if r["at"] == "collisions=50"] == [50] * 4
     assert all(0 <= r["far_row_share"] <= r["far_half_share"] <= 1 for r in finals)
+
+
+# ---------------------------------------------------------------- the closing margin of each replica
+
+
+def test_each_row_carries_the_closing_margin_of_its_state():
+    """`MARGIN_COLUMNS` after the key columns: each replica's margin at its snapshot and at the end, as
+    that replica run alone gives it (`sim.closing_margin()`)."""
+    spec = parse_spec(HALF_PLANE)
+    result = ens.run_ensemble(spec, 3, workers=1)
+    assert result.columns[len(ens.KEY_COLUMNS):][:4] == list(ens.MARGIN_COLUMNS)
+    for k in range(3):
+        sim = spec.build(seed=ens.replica_seed(spec, k))
+        rows = [r for r in result.rows if r["replica"] == k]
+        for row, run in zip(rows, (lambda: sim.run(collisions=50), lambda: sim.run_until_frozen(10**8))):
+            run()
+            m = sim.closing_margin()
+            expected = {"smallest_collision": m.smallest_collision, "near_collisions": m.near_collisions,
+                        "near_remnants": m.near_remnants}
+            if m.largest_remnant is not None:
+                expected["largest_remnant"] = m.largest_remnant
+            assert {c: row[c] for c in ens.MARGIN_COLUMNS if c in row} == expected
+            assert isinstance(row["near_remnants"], int) and row["smallest_collision"] > 1e4  # a wide margin
+    assert result.thin() == []
+
+
+def test_an_ensemble_with_thin_margins_says_so_once(tmp_path):
+    """Three replicas, each thin: one `MarginWarning` for the ensemble, none from the replicas; none
+    at a chosen resolution (the model) or where the margins are wide."""
+    thin = parse_spec(thin_spec(tmp_path))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = ens.run_ensemble(thin, 3, workers=1)
+    said = [str(w.message) for w in caught if issubclass(w.category, MarginWarning)]
+    assert said == [
+        "the closing margin is thin in 3 of 3 replicas (collisions closing within a factor 10,000 of the "
+        "threshold, the smallest at 11.3 thresholds; replicas.csv has each replica's margin): their collision "
+        "counts depend on the float criterion (resolution 4.44e-16); count them exactly with \"arithmetic\": "
+        "\"exact\" on the same seed"]
+    assert [r["replica"] for r in result.thin()] == [0, 1, 2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ens.run_ensemble(thin.model_copy(update={"resolution": 1e-15}), 2, workers=1)
+        ens.run_ensemble(parse_spec(HALF_PLANE), 2, workers=1)
+
+
+@pytest.mark.slow
+def test_the_ensemble_command_says_it_in_one_line(tmp_path):
+    """The program itself, replicas on two local processes: its whole stderr is one note (the workers say
+    nothing), and replicas.csv has the margin columns."""
+    s = write(tmp_path / "s.json", thin_spec(tmp_path))
+    done = subprocess.run([sys.executable, "-m", "pinnedballs", "ensemble", str(s), "--replicas", "3", "--workers",
+                           "2", "--out", str(tmp_path / "e"), "--quiet"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and done.stdout == ""
+    assert done.stderr.startswith("pinnedballs: note: the closing margin is thin in 3 of 3 replicas (")
+    assert done.stderr.count("\n") == 1 and done.stderr.endswith("on the same seed\n")
+    rows = ens.read_table(tmp_path / "e" / ens.TABLE_NAME)
+    assert [(r["near_collisions"], r["near_remnants"]) for r in rows] == [("1", "0")] * 3
+    assert all(float(r["smallest_collision"]) == pytest.approx(64 / (4 * math.sqrt(2)), rel=1e-13) for r in rows)
 
 
 # ---------------------------------------------------------------- wherever it runs

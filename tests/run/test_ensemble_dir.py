@@ -57,6 +57,34 @@ def test_to_pandas_has_a_row_per_replica(written):
     assert every.loc[(0, "collisions=50"), "collisions"] == 50
 
 
+def test_to_pandas_has_the_closing_margin_of_each_replica(written):
+    out, result = written
+    df = pb.load_ensemble(out).to_pandas()
+    assert list(df.columns[len(ens.KEY_COLUMNS) - 2:][:4]) == list(ens.MARGIN_COLUMNS)  # replica, at: not columns
+    final = {r["replica"]: r for r in result.rows if r.get("at") == "final"}
+    for k, row in final.items():
+        assert [df.loc[k, c] for c in ens.MARGIN_COLUMNS] == [row[c] for c in ens.MARGIN_COLUMNS]
+    assert df["near_collisions"].drop(index=2).tolist() == [0] * 4 and pd.isna(df.loc[2, "smallest_collision"])
+
+
+def test_an_ensemble_written_before_margins_loads_without_them(written, tmp_path):
+    """replicas.csv without the margin columns (as ensembles wrote it before): no such columns, no margin line."""
+    import csv
+    import shutil
+
+    out = tmp_path / "old"
+    shutil.copytree(written[0], out)
+    with open(out / ens.TABLE_NAME, newline="") as f:
+        table = list(csv.reader(f))
+    keep = [k for k, name in enumerate(table[0]) if name not in ens.MARGIN_COLUMNS]
+    assert len(keep) == len(table[0]) - 4
+    with open(out / ens.TABLE_NAME, "w", newline="") as f:
+        csv.writer(f, lineterminator="\n").writerows([[row[k] for k in keep] for row in table])
+    old = pb.load_ensemble(out)
+    assert not set(ens.MARGIN_COLUMNS) & set(old.columns) and not set(ens.MARGIN_COLUMNS) & set(old.to_pandas())
+    assert old.thin() == [] and "margin:" not in call("info", out)[1]
+
+
 def test_a_clean_ensemble_has_no_error_column(tmp_path):
     result = ens.run_ensemble(parse_spec(HALF_PLANE), 2, workers=1)
     df = result.to_pandas()
@@ -78,7 +106,11 @@ def test_info_and_plot_describe_an_ensemble_directory(written, tmp_path):
     assert lines[0] == f"ensemble:    {out}"
     assert lines[1] == "replicas:    5 (4 done, 1 failed), seeds spawned from 11"
     assert lines[4] == "stages:      2: collisions=50, final"
-    assert lines[-1] == "frozen:      4 of 4 final states"
+    assert lines[-2] == "frozen:      4 of 4 final states"
+    final = [r for r in pb.load_ensemble(out).rows if r.get("at") == "final"]
+    assert lines[-1] == (f"margin:      thin in 0 of 4 final states; smallest collision "
+                         f"{min(r['smallest_collision'] for r in final):.3g} thresholds, largest remnant "
+                         f"{max(r['largest_remnant'] for r in final):.3g} thresholds (over all replicas)")
     code, text, err = call("plot", out)
     assert (code, err) == (0, "")
     drawn = text.splitlines()

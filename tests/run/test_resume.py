@@ -217,3 +217,42 @@ def test_resume_may_change_checkpoint_and_description(tmp_path, monkeypatch):
     changed = write(tmp_path / "changed.json", spec(data, checkpoint={"every_seconds": 5}, description="again"))
     assert resume(changed, out) == 0
     assert_identical(load(out), reference(tmp_path, data))
+
+
+def test_a_run_split_by_resume_ends_with_the_margin_of_one_unbroken_run(tmp_path, monkeypatch):
+    """The closing margin is saved with the checkpoint and restored by --resume: the later picks add to it
+    (the margin at the split is not the final one), and it ends bit for bit as the unbroken run's."""
+    data = spec(HALF_PLANE, initial__direction=[0.3, 1.0], checkpoint={"every_seconds": 0})
+    ref = reference(tmp_path, data)
+    monkeypatch.setattr(driver, "CHUNK_STEPS", 200)
+    monkeypatch.setattr(driver, "CHUNK_PER_CONTACT", 0)
+    advance, calls = driver.advance, []
+
+    def crashing(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise Crash
+        return advance(*args, **kwargs)
+
+    monkeypatch.setattr(driver, "advance", crashing)
+    out = tmp_path / "split"
+    with pytest.raises(Crash):
+        runner.execute(parse_spec(data), out, figures=False, progress=False)
+    monkeypatch.undo()
+    split = load(out)
+    assert split.steps == 200 and split.closing_margin != ref.closing_margin
+    assert split.closing_margin.near_remnants < ref.closing_margin.near_remnants
+    assert resume(write(tmp_path / "s.json", data), out) == 0
+    done = load(out)
+    assert np.array_equal(done.latest.margin, ref.latest.margin) and done.closing_margin == ref.closing_margin
+    assert_identical(done, ref)
+
+
+def test_resume_with_another_resolution_is_refused(tmp_path):
+    """The resolution is the model: a run continues only with its own."""
+    out = tmp_path / "out"
+    assert call("run", write(tmp_path / "a.json", TORUS), "--out", out, "--quiet", "--no-figures")[0] == 0
+    before = (out / "results.h5").read_bytes()
+    code, _, err = call("run", write(tmp_path / "b.json", spec(TORUS, resolution=1e-9)), "--out", out, "--resume")
+    assert_input_error(code, err, f"resolution: differs from the run in {out} (None there, 1e-09 here)")
+    assert (out / "results.h5").read_bytes() == before

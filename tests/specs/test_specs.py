@@ -193,6 +193,39 @@ def test_describe_counts_snapshots_in_words(snapshots, trajectory, said):
     assert said in describe(s, s.build())
 
 
+def test_the_resolution_is_the_simulations_and_round_trips():
+    """``"resolution"``: the collision criterion ``e`` of the simulation a spec builds (None: the default
+    4 * 2^-53), written out with the spec; the same picks at a coarser e set aside more of them."""
+    default, coarse = parse_spec(HALF_PLANE), parse_spec(spec(HALF_PLANE, resolution=1e-3))
+    assert default.resolution is None and default.build().resolution == 4 * 2.0**-53
+    sim = coarse.build()
+    assert sim.resolution == 1e-3 and sim.threshold == pytest.approx(1e-3 * np.sqrt(200.0), rel=1e-15)
+    assert parse_spec(coarse.to_json()) == coarse and json.loads(coarse.to_json())["resolution"] == 1e-3
+    assert describe(coarse, sim).endswith("; seed 3; resolution 0.001")
+    fine = default.build()
+    fine.run_until_frozen(max_steps=10**6)
+    sim.run_until_frozen(max_steps=10**6)
+    assert sim.closing_margin().smallest_collision > 1 and sim.collisions < fine.collisions
+
+
+RESOLUTION_RANGE = ("must be a number in (0, 1): a pick collides when its closing speed exceeds resolution * V "
+                    "(V the system's speed scale), got ")
+
+
+@pytest.mark.parametrize("text, problem", [
+    ("0", RESOLUTION_RANGE + "0"), ("1", RESOLUTION_RANGE + "1"), ("1.5", RESOLUTION_RANGE + "1.5"),
+    ("-1e-9", RESOLUTION_RANGE + "-1e-09"), ('"1e-9"', "must be a number, got '1e-9'"),
+    ("true", "must be a number, got True"), ("[1e-9]", "must be a number, got [1e-09]"),
+    ("NaN", "must be a finite number, got nan"), ("1e400", "must be a finite number, got inf"),
+])
+def test_a_bad_resolution_is_one_line_naming_the_field(tmp_path, text, problem):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(TORUS)[:-1] + f', "resolution": {text}}}')
+    with pytest.raises(SpecError) as info:
+        load_spec(path)
+    assert str(info.value) == f"resolution: {problem}"
+
+
 def test_describe_says_every_so_many_collisions_when_it_cannot_count():
     s = parse_spec(spec(HALF_PLANE, snapshots={"every_collisions": 100}))
     assert "stop at frozen (max 10,000,000 steps); a snapshot every 100 collisions; seed 3" in describe(s, s.build())

@@ -73,6 +73,19 @@ def _frozen_row(res: ens.EnsembleResult) -> dict:
     return row
 
 
+def _margin_row(res: ens.EnsembleResult) -> dict:
+    """The replicas' closing margins (`engine.margin`, final states): how many are thin, the smallest
+    collision and the largest remnant over them (in thresholds; NaN where there is none), and the mean
+    counts of collisions and remnants near the threshold."""
+    def over(name: str, pick) -> float:
+        x = res.column(name)
+        return float(pick(x)) if len(x) else math.nan
+
+    return {"thin": len(res.thin()), "smallest_collision_min": over("smallest_collision", np.min),
+            "largest_remnant_max": over("largest_remnant", np.max),
+            "near_collisions_mean": over("near_collisions", np.mean), "near_remnants_mean": over("near_remnants", np.mean)}
+
+
 def _inward_spec(geometry: dict, plan: ExtendedPlan, what: str, scheduler: str = "rejection_free") -> RunSpec:
     """``geometry``'s boundary-centre ball moving inward with the plan's energy, ``scheduler``, until frozen."""
     return parse_spec({

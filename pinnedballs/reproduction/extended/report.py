@@ -33,7 +33,7 @@ def _scaling(x: dict) -> list[str]:
     rows = [[f"{r['length']:g}x{r['depth']:g}", f"{r['rows']}x{r['cols']}", f"{r['balls']:,}", str(r["replicas"]),
              str(r["frozen"]), f"{r['collisions_mean']:,.0f}", f"{_f(r['collisions_sd'], ',.0f')}",
              f"{r['steps_mean']:,.0f}", _f(r["boundary_share_mean"], ".3f"), _f(r["far_half_share_mean"], ".2e"),
-             f"{r['seconds']:.1f}"] for r in x["scaling"]]
+             *_margin_cells(r), f"{r['seconds']:.1f}"] for r in x["scaling"]]
     fits = x["scaling_fit"]
     fit_text = "; ".join(f"{what} ~ N^({f['exponent']:.3f} ± {f['exponent_se']:.3f}) "
                          f"(chi²/dof {f['chi2_per_dof']:.2f}, {f['points']} sizes)" for what, f in fits.items())
@@ -41,7 +41,12 @@ def _scaling(x: dict) -> list[str]:
             "Half-plane `HalfPlane.from_size(L, D)`, the boundary-centre ball moving inward with energy 100, "
             "`UniformRandomPair` (the paper's chain), run until frozen.", "",
             *_table(["L x D", "rows x cols", "balls N", "replicas", "frozen", "collisions (mean)", "collisions (sd)",
-                     "steps (mean)", "boundary share", "far-half share", "wall s"], rows),
+                     "steps (mean)", "boundary share", "far-half share", "thin margins", "smallest collision",
+                     "largest remnant", "near collisions (mean)", "wall s"], rows),
+            "Closing margins (`sim.closing_margin()`, in thresholds of the float criterion, final states): replicas "
+            "with a collision closing within a factor 10,000 of the threshold (thin: their counts depend on the "
+            "criterion), the smallest collision and the largest remnant over the replicas, and the mean number of "
+            "collisions within that factor.", "",
             f"Fitted: {fit_text}. Method: weighted least squares of log(mean) on log(N), each size weighted by "
             "1/(relative standard error of its mean)², se = sd/sqrt(replicas); the exponent's standard error is "
             "the fit's, scaled up by sqrt(chi²/dof) when the sizes scatter more than their errors.", "",
@@ -49,6 +54,14 @@ def _scaling(x: dict) -> list[str]:
               + ", ".join(f"{a:.3f} ± {e:.3f}" for a, e in zip(f["local_exponents"], f["local_exponents_se"]))
               + (" (chi²/dof > 3: the sizes do not lie on one power law; the fitted exponent is an average)."
                  if f["chi2_per_dof"] > 3 else ".") for what, f in fits.items()], ""]
+
+
+def _margin_cells(r: dict) -> list[str]:
+    """The closing-margin cells of a scaling row (— in a row written before rows had them)."""
+    if "thin" not in r:
+        return ["—"] * 4
+    return [f"{r['thin']} of {r['replicas']}", _f(r["smallest_collision_min"]), _f(r["largest_remnant_max"]),
+            _f(r["near_collisions_mean"], ",.1f")]
 
 
 def _torus(x: dict) -> list[str]:

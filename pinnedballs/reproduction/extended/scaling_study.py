@@ -1,6 +1,7 @@
 """The scaling study: collisions and steps until frozen against the number of balls on half-planes,
 one boundary ball moving inward, `UniformRandomPair`; fitted exponents (`fit.fit_exponent`), local
-exponents between consecutive sizes, and the frozen energy profile by decile of depth."""
+exponents between consecutive sizes, the frozen energy profile by decile of depth, and the closing
+margin of each size's counts (`engine.margin`: how near the float criterion their picks came)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import numpy as np
 
 from ...specs.run import RunSpec
 from ..fit import fit_exponent
-from .common import DECILES, _frozen_row, _inward_spec, _observing, _profile, decile_row
+from .common import DECILES, _frozen_row, _inward_spec, _margin_row, _observing, _profile, decile_row
 from .plan import Ensemble, ExtendedPlan
 
 
@@ -33,7 +34,7 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
         t0 = time.perf_counter()
         res = ensemble(f"scaling_{length:g}x{depth:g}", spec, replicas, task=_observing(decile_row))
         row = {"length": float(length), "depth": float(depth), "rows": g.rows, "cols": g.cols, "balls": g.n_balls,
-               **_frozen_row(res), "seconds": time.perf_counter() - t0}
+               **_frozen_row(res), **_margin_row(res), "seconds": time.perf_counter() - t0}
         row["collisions_se"] = row["collisions_sd"] / math.sqrt(row["replicas"])
         row["steps_se"] = row["steps_sd"] / math.sqrt(row["replicas"])
         rows.append(row)

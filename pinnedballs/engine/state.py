@@ -1,0 +1,170 @@
+"""`RunState`: all of a run that changes, as one record (what `Simulation.get_state` gives and
+`set_state` takes, and what a results file keeps); `mass_array`, the masses a simulation uses;
+`margin_problem`, what is wrong with a closing margin read back (`engine.margin`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import FieldError, FieldTypeError
+from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
+
+__all__ = ["RunState", "as_state", "mass_array", "margin_problem"]
+
+
+@dataclass(frozen=True, eq=False)
+class RunState:
+    """Everything that changes during a run: enough to resume it bit for bit.
+
+    velocities ``(n_balls, dim) float64``; steps and collisions so far; rng_state ``(4,) uint64``,
+    the random stream; scheduler_state ``(L,) int64``, the scheduler's own state; exact: for a
+    run in exact arithmetic, the exact velocities as ``(n_balls, dim, m)`` strings, each velocity
+    component's coefficients on its number field's basis (``velocities`` are then their roundings);
+    margin: the closing margin so far, ``(4,) float64`` (`engine.margin`), of a float run (None: not
+    kept, as in exact arithmetic or a results file written before margins were).
+    """
+
+    velocities: np.ndarray
+    steps: int
+    collisions: int
+    rng_state: np.ndarray
+    scheduler_state: np.ndarray
+    exact: np.ndarray | None = None
+    margin: np.ndarray | None = None
+
+    #: the arrays among the fields (the rest are counts)
+    ARRAYS = ("velocities", "rng_state", "scheduler_state")
+
+    def copy(self) -> "RunState":
+        """A copy whose arrays share no memory with this one's."""
+        return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
+                        self.scheduler_state.copy(), None if self.exact is None else self.exact.copy(),
+                        None if self.margin is None else self.margin.copy())
+
+    def replace(self, **changes) -> "RunState":
+        """This state with the fields named in ``changes`` replaced."""
+        return dataclasses.replace(self, **changes)
+
+    # ------------------------------------------------------------ the dict it used to be (deprecated)
+    def keys(self) -> tuple[str, ...]:
+        """Deprecated: the names of the fields, as the dict `Simulation.get_state` used to give had them
+        (``exact`` only for a run in exact arithmetic, ``margin`` only where there is one)."""
+        _mapping_deprecated("keys()")
+        return self._keys()
+
+    def _keys(self) -> tuple[str, ...]:
+        names = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
+        return names + tuple(n for n in ("exact", "margin") if getattr(self, n) is not None)
+
+    def __getitem__(self, name: str):
+        """Deprecated: ``state["velocities"]``; use ``state.velocities``."""
+        _mapping_deprecated(f"state[{name!r}]", f"state.{name}" if isinstance(name, str) else "its fields")
+        if not isinstance(name, str) or name not in self._keys():
+            raise KeyError(name)
+        return getattr(self, name)
+
+    def __iter__(self):
+        _mapping_deprecated("iterating over it")
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        _mapping_deprecated("len()")
+        return len(self._keys())
+
+    def __contains__(self, name) -> bool:
+        _mapping_deprecated("'in'")
+        return name in self._keys()
+
+    def items(self):
+        _mapping_deprecated("items()")
+        return [(name, getattr(self, name)) for name in self._keys()]
+
+    def values(self):
+        _mapping_deprecated("values()")
+        return [getattr(self, name) for name in self._keys()]
+
+    def get(self, name, default=None):
+        _mapping_deprecated("get()")
+        return getattr(self, name) if isinstance(name, str) and name in self._keys() else default
+
+    def identical(self, other: "RunState") -> bool:
+        """True when ``other`` is this state bit for bit (every array, dtype and count, the exact
+        velocities and the margin)."""
+        return (self.steps, self.collisions) == (other.steps, other.collisions) \
+            and _same(self.exact, other.exact) and _same(self.margin, other.margin) and all(
+                getattr(self, name).dtype == getattr(other, name).dtype
+                and np.array_equal(getattr(self, name), getattr(other, name)) for name in self.ARRAYS)
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Both None, or arrays equal element for element (``inf`` equals ``inf``)."""
+    return (a is None) == (b is None) and (a is None or np.array_equal(a, b))
+
+
+#: old code reads a state as the dict it was until 2026-11: ``dict(state, steps=0)``, ``state["steps"]``
+Mapping.register(RunState)
+
+
+def _mapping_deprecated(what: str, instead: str = "its fields (state.velocities, state.replace(steps=...))") -> None:
+    warnings.warn(f"RunState is a record, no longer a dict: {what} is deprecated and will be removed; use {instead}",
+                  DeprecationWarning, stacklevel=3)
+
+
+def as_state(state) -> RunState:
+    """``state`` as a `RunState`: a dict (what `Simulation.get_state` gave until 2026-11) is still
+    taken, with a DeprecationWarning."""
+    if isinstance(state, Mapping) and not isinstance(state, RunState):
+        warnings.warn("Simulation.set_state: a dict is deprecated and will be removed; pass the RunState that "
+                      "get_state gives (RunState(**d) makes one of a dict)", DeprecationWarning, stacklevel=3)
+        names = [f.name for f in dataclasses.fields(RunState)]
+        missing = [n for n in names if n not in ("exact", "margin") and n not in state]
+        if missing:
+            raise FieldError("state", f"the dict lacks {', '.join(missing)}")
+        unknown = sorted(str(k) for k in state if k not in names)
+        if unknown:
+            raise FieldError("state", f"unknown key(s) {', '.join(unknown)} (a state has {', '.join(names)})")
+        return RunState(**state)
+    return state
+
+
+def margin_problem(margin) -> str | None:
+    """What is wrong with ``margin`` as a closing margin (`engine.margin`), or None when it is one:
+    ``(4,)`` floats; the smallest collision's closing speed > 0 (``inf``: none yet); the largest
+    remnant's finite and >= 0 (0: none); the counts near the threshold whole numbers >= 0, no
+    collision near it when there is no collision at all."""
+    m = np.asarray(margin)
+    if m.shape != (4,) or m.dtype.kind != "f":
+        return f"must be 4 floating-point numbers, got {m.dtype} {m.shape}"
+    smallest, largest, near = float(m[SMALLEST]), float(m[LARGEST]), m[[NEAR_COLLISIONS, NEAR_REMNANTS]]
+    if not smallest > 0:
+        return f"the smallest collision's closing speed must be > 0 (inf: none yet), got {smallest}"
+    if not (math.isfinite(largest) and largest >= 0):
+        return f"the largest remnant's closing speed must be finite and >= 0 (0: none), got {largest}"
+    if not (np.isfinite(near).all() and (near >= 0).all() and (near == np.floor(near)).all()):
+        return f"the counts near the threshold must be whole numbers >= 0, got {near.tolist()}"
+    if math.isinf(smallest) and near[0] > 0:
+        return f"counts {near[0]:.0f} collisions near the threshold but no collision"
+    return None
+
+
+def mass_array(masses, n_balls: int) -> np.ndarray:
+    """``(n_balls,)`` masses from None (all 1), one number, or an array; each finite and > 0."""
+    if masses is None:
+        return np.ones(n_balls)
+    try:
+        m = np.array(masses, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise FieldTypeError("masses", f"must be an array of numbers ({exc})") from None
+    if m.ndim == 0:
+        m = np.full(n_balls, float(m))
+    if m.shape != (n_balls,):
+        raise FieldError("masses", f"must have shape (n_balls,) = ({n_balls},), got {m.shape}")
+    if not (np.isfinite(m).all() and (m > 0).all()):
+        raise FieldError("masses", "must all be finite and > 0")
+    return m
