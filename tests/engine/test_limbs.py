@@ -135,3 +135,29 @@ def test_integers_go_in_and_out_unchanged():
     assert limbs.from_limbs(limbs.to_limbs(values, P)).tolist() == values
     with pytest.raises(OverflowError):
         limbs.to_limbs([HALF], P)
+
+
+@settings(max_examples=200, deadline=None)
+@given(xs=st.lists(numbers, min_size=4, max_size=4), ys=st.lists(numbers, min_size=4, max_size=4),
+       fs=st.lists(small, min_size=3, max_size=3), count=st.integers(0, 3))
+def test_a_linear_combination_of_differences_is_that_of_integers(xs, ys, fs, count):
+    """``sum f_t (x[d_t, s_t] - y[d_t, s_t])`` in one pass through the 128-bit accumulator."""
+    x = limbs.to_limbs(np.array(xs, dtype=object).reshape(2, 2), P)  # (dim, m, P)
+    y = limbs.to_limbs(np.array(ys, dtype=object).reshape(2, 2), P)
+    picked = [(0, 0), (1, 1), (1, 0)][:count]
+    terms = np.array([[d, s, f] for (d, s), f in zip(picked, fs)] or [[0, 0, 0]], dtype=np.int64)
+    out = np.empty(P, dtype=np.uint64)
+    limbs.diff_combination(out, x, y, terms, count)
+    expected = sum(f * (xs[2 * d + s] - ys[2 * d + s]) for (d, s), f in zip(picked, fs))
+    assert val(out) == wrap(expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(xi=numbers, xj=numbers, om=st.lists(numbers, min_size=2, max_size=2), fs=st.lists(small, min_size=2, max_size=2),
+       count=st.integers(0, 2))
+def test_an_exchange_moves_the_same_combination_out_of_one_number_and_into_the_other(xi, xj, om, fs, count):
+    a, b = arr(xi), arr(xj)
+    terms = np.array([[s, f] for s, f in zip((1, 0), fs)], dtype=np.int64)
+    limbs.exchange(a, b, limbs.to_limbs(om, P), terms, count)
+    k = sum(f * om[s] for s, f in list(zip((1, 0), fs))[:count])
+    assert (val(a), val(b)) == (wrap(xi - k), wrap(xj + k))
