@@ -187,6 +187,7 @@ def info(args: argparse.Namespace) -> int:
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
+        *_arithmetic(res),
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few([s.steps for s in res.snapshots])}"
                                                 if res.snapshots else ""),
         f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
@@ -194,6 +195,18 @@ def info(args: argparse.Namespace) -> int:
     ]
     print("\n".join(lines))
     return EXIT_OK
+
+
+def _arithmetic(res) -> list[str]:
+    """The arithmetic line: none for floats; for a certified run, what it proves and its error bound."""
+    name = res.run.get("arithmetic") or (res.spec.arithmetic if res.spec is not None else "float")
+    certified = res.latest.certified
+    if certified is not None:
+        G, largest = certified.error_bound()
+        return [f"arithmetic:  certified (every decision proved equal to exact arithmetic's: exact counts); "
+                f"velocities within {largest:.3g} of exact arithmetic's (error bound G = {G:.3g}), "
+                f"{64 * certified.limbs.shape[-1]} bits"]
+    return [] if name == "float" else [f"arithmetic:  {name}"]
 
 
 def _status(res) -> str:

@@ -17,6 +17,7 @@ from ..geometry.graph import StoredGeometry
 from ..simulation import RunState, Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.errors import InputError
+from ..engine.fixed_state import CertifiedState
 from ..specs.errors import SpecError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
@@ -240,8 +241,12 @@ def read(p: Path, f: h5py.File) -> Results:
     version = int(f.attrs["format_version"])
     s, o = f["state"], f["observables"]
     exact = s["exact"].asstr()[()] if "exact" in s else None
+    certified = None
+    if "certified" in s:
+        c = s["certified"]
+        certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]))
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
-                      s["scheduler_state"][()], exact)
+                      s["scheduler_state"][()], exact, certified)
     frames = f["snapshots/velocities"][()]
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
     observables = {name: o[name][()] for name in names}

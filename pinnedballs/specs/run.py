@@ -39,7 +39,8 @@ def _known_observable(name: str) -> str:
 
 class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, and the
-    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``).
+    arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
+    certified arithmetic's bits per coefficient, None for its default).
 
     ``trajectory``: when to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
     freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
@@ -56,7 +57,8 @@ class RunSpec(_Spec):
     trajectory: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
-    arithmetic: Literal["float", "exact"] = "float"
+    arithmetic: Literal["float", "exact", "certified"] = "float"
+    precision: Count | None = None
     description: str = ""
 
     @model_validator(mode="before")
@@ -119,9 +121,10 @@ class RunSpec(_Spec):
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
-                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic"}):
+                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
+                                    "precision": "precision"}):
                 return Simulation(geometry, velocities, rule=self.rule.build(), scheduler=self.scheduler.build(),
-                                  masses=masses, seed=seq, arithmetic=self.arithmetic)
+                                  masses=masses, seed=seq, arithmetic=self.arithmetic, precision=self.precision)
         except SpecError as exc:
             files = {"geometry": getattr(self.geometry, "positions", None),
                      "initial.path": getattr(self.initial, "path", None),
