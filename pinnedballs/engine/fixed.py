@@ -189,7 +189,8 @@ class FixedChain(FieldChain):
         self.B, self.Pp, self.acc = np.zeros((n, L)), np.zeros((n, L)), np.zeros(2)
         self.X = np.zeros((n, dim, self.field.m, self.P), dtype=np.uint64)
         rows = np.flatnonzero(self.rows[:, dim])
-        self.X[rows, :, 0] = to_limbs([[int(Fraction(x) * (1 << self.S)) for x in v[b]] for b in rows], self.P)
+        if len(rows):
+            self.X[rows, :, 0] = to_limbs([[int(Fraction(x) * (1 << self.S)) for x in v[b]] for b in rows], self.P)
         self.live, self.failure, self._at = -1, None, None
         #: the smallest closing speed counted as a collision, the largest nonzero one set aside, and the
         #: number of picks set aside with closing speed exactly 0 (balls not both at rest), so far
@@ -262,6 +263,21 @@ class FixedChain(FieldChain):
         elif status == UNCOUNTED:
             self.failure = self._uncertified(None, first_step + t - 1)
         return t, made, at[:made].copy()
+
+    # ------------------------------------------------------------ one contact (as ExactChain's)
+    def closing(self, k: int) -> tuple:
+        """The exact closing speed of contact ``k`` (a field element; for the certified policy, ``w~``)."""
+        i, j = self.pairs[k]
+        rows = self._elements(np.array([i, j]))
+        return self.closing_of(rows[0], rows[1], k)
+
+    def collide(self, k: int) -> bool:
+        """Collide contact ``k`` if it is live; True if it was (a failure to certify raises)."""
+        _, made, _ = self.run(np.array([k]), 1, False)
+        failure, self.failure = self.failure, None
+        if failure is not None:
+            raise failure
+        return made == 1
 
     def _uncertified(self, step: int | None, after: int | None) -> UncertifiedDecision:
         """The error for an undecided pick at ``step``, or for a count of the live contacts ``after``

@@ -255,3 +255,11 @@ def test_a_bad_precision_is_named(arithmetic, precision, message):
     with pytest.raises(ValueError) as info:
         pb.Simulation(g, inward(g), arithmetic=arithmetic, precision=precision)
     assert str(info.value) == message
+
+
+@pytest.mark.parametrize("arithmetic", ["exact", "certified"])
+def test_a_system_at_rest_is_frozen_at_once(arithmetic):
+    g = pb.HalfPlane(3, 4)
+    sim = pb.Simulation(g, np.zeros((g.n_balls, 2)), arithmetic=arithmetic)
+    assert sim.run_until_frozen(max_steps=100) and sim.steps == 0 and sim.approaching() == 0
+    assert sim.run(steps=50) == 50 and sim.collisions == 0 and not sim.velocities.any()
