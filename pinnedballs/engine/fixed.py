@@ -74,9 +74,6 @@ class UncertifiedDecision(FieldError):
     """A decision certified arithmetic cannot prove equal to exact arithmetic's: ``|w~|`` is within
     the error bound. The run stops consistent as of the pick before it."""
 
-    def __init__(self, field: str, problem: str):
-        super().__init__(field, problem)
-
 
 class Lines(NamedTuple):
     """The contact lines of a geometry, in the form the kernels read (`fixed_kernels`)."""
@@ -163,9 +160,10 @@ def _coefficients(field: Field, lines: list, dim: int) -> np.ndarray:
 class FixedChain(FieldChain):
     """The velocities of ``geometry``'s balls in fixed point, and their collisions (module docstring).
 
-    velocities: ``(n_balls, dim)`` floats, taken exactly; policy: ``"exact"`` or ``"certified"``;
-    precision: the certified policy's bits per coefficient (rounded up to 64; more when the
-    velocities given need more to be held exactly). `NotFixed` when the chain cannot run the geometry.
+    velocities: ``(n_balls, dim)`` floats, taken exactly; lines: the geometry's (`lines_of`);
+    policy: ``"exact"`` or ``"certified"``; precision: bits per coefficient, rounded up to a
+    multiple of 64 and raised to what the velocities given need to be held exactly: the certified
+    policy's (None: `PRECISION`), or the width the exact policy starts from (None: the least).
     """
 
     def __init__(self, geometry, velocities: np.ndarray, lines: Lines, policy: str, precision: int | None = None):

@@ -105,11 +105,11 @@ def _closing(tables, X, i, j, l, W):
 def _approx(W, scale, root):
     """``(f, err)``: the element ``W / 2^scale`` as a float, within ``err`` of it."""
     f0, e0 = scaled_float(W[0])
-    a = math.ldexp(f0, e0 - scale)
+    a = math.ldexp(f0, int(e0 - scale))
     if W.shape[0] == 1:
         return a, 4.0 * _U * abs(a) + TINY
     f1, e1 = scaled_float(W[1])
-    b = math.ldexp(f1, e1 - scale)
+    b = math.ldexp(f1, int(e1 - scale))
     return a + b * root[1], 9.0 * _U * (abs(a) + abs(b) * root[1]) + TINY
 
 
@@ -232,7 +232,7 @@ def _collide(k, tables, state, scale, certify, scratch):
         rho0 = shift_round(W[0], W[0], bits)
         rho1 = shift_round(W[1], W[1], bits) if m == 2 else 0
         if rho0 != 0 or rho1 != 0:
-            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, -(scale + tables.e[l]))
+            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-(scale + tables.e[l])))
     for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
         for c in range(m):
             exchange(X[i, d, c], X[j, d, c], W, tables.kterms[l, d, c], tables.kcount[l, d, c])

@@ -293,7 +293,7 @@ def scaled_float(x):
 def to_float(x, scale):
     """``X / 2^scale`` as a float: within ``4 * 2^-53`` of it, relatively, in the normal range."""
     f, e = scaled_float(x)
-    return math.ldexp(f, e - scale)
+    return math.ldexp(f, int(e - scale))
 
 
 @njit_cached(_nrt=False)
@@ -349,9 +349,9 @@ def field_sign(w0, w1, root, d, tmp0, tmp1, big):
     f1, e1 = scaled_float(w1)
     a, b = abs(f0), abs(f1) * root  # |w0| and sqrt(d)|w1|, each within 6 * 2^-53 relatively
     if e0 >= e1:
-        a = math.ldexp(a, min(e0 - e1, 2000))
+        a = math.ldexp(a, int(min(e0 - e1, 2000)))
     else:
-        b = math.ldexp(b, min(e1 - e0, 2000))
+        b = math.ldexp(b, int(min(e1 - e0, 2000)))
     if a > b * (1.0 + 2.0 ** -48):
         return s0
     if b > a * (1.0 + 2.0 ** -48):

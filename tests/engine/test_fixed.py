@@ -263,3 +263,37 @@ def test_a_system_at_rest_is_frozen_at_once(arithmetic):
     sim = pb.Simulation(g, np.zeros((g.n_balls, 2)), arithmetic=arithmetic)
     assert sim.run_until_frozen(max_steps=100) and sim.steps == 0 and sim.approaching() == 0
     assert sim.run(steps=50) == 50 and sim.collisions == 0 and not sim.velocities.any()
+
+
+_PLAIN = r"""
+import json, sys
+import numpy as np
+import pinnedballs as pb
+g = pb.HalfPlane(3, 4)
+v = np.zeros((g.n_balls, 2))
+v[g.boundary_center()] = [0.3, 14.0]
+out = {}
+for arithmetic, options in (("exact", {}), ("certified", {"precision": 128})):
+    sim = pb.Simulation(g, v, seed=2, arithmetic=arithmetic, **options)
+    sim.run_until_frozen(10**5)
+    state = sim.get_state()
+    out[arithmetic] = [sim.steps, sim.collisions, sim.velocities.tolist(),
+                       state.exact.tolist() if state.exact is not None else state.certified.limbs.tolist()]
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.slow
+def test_the_compiled_chain_and_its_plain_python_twin_agree_bit_for_bit():
+    """With NUMBA_DISABLE_JIT=1 every kernel runs as plain Python (the limbs' accumulator on Python's
+    integers): the same steps, collisions, velocities and fixed-point integers as compiled."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1", PYTHONWARNINGS="ignore::RuntimeWarning")
+    plain = subprocess.run([sys.executable, "-c", _PLAIN], capture_output=True, text=True, env=env, check=True)
+    compiled = subprocess.run([sys.executable, "-c", _PLAIN], capture_output=True, text=True, check=True)
+    a, b = json.loads(plain.stdout), json.loads(compiled.stdout)
+    assert a == b and a["exact"][1] > 10 and a["exact"][:2] == a["certified"][:2]
