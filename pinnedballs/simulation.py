@@ -11,9 +11,12 @@ import numpy as np
 from .engine import checks
 from .engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
 from .engine.errors import FieldError, FieldTypeError, check_jitted
-from .engine.exact import BLOCK as EXACT_BLOCK
-from .engine.exact import ExactChain
+from .engine.arithmetic import ARITHMETICS, MAX_PRECISION, field_chain
+from .engine.exact import FieldChain
 from .engine.fields import NotExact
+from .engine.fixed import NotFixed
+from .engine.fixed_state import CertifiedState, nearest_floats
+from .engine.limbs import from_limbs
 from .engine.limits import check_speeds
 from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
 from .engine.margin import ClosingMargin, MarginWarning, new_margin
@@ -87,7 +90,13 @@ class Simulation:
     normals (`pinnedballs.engine.exact`; ``velocities`` are then the exact values rounded, and
     `exact_velocities` the values themselves). Exact runs need normals in a known field (the
     triangular lattices: Q(sqrt 3); FCC: Q(sqrt 2); HCP: Q(sqrt 2, sqrt 3); chains: Q), the
-    built-in rules, and a scheduler that picks without a live set.
+    built-in rules, and a scheduler that picks without a live set; with equal masses, elastic
+    collisions and flat dyadic normals (all but HCP) they run in fixed point at about the cost of
+    floats (`pinnedballs.engine.fixed`). ``"certified"``: that fixed-point chain at a fixed
+    ``precision`` (bits per coefficient, default 768), rounding allowed and every decision proved
+    equal to exact arithmetic's, so the counts and steps are the exact ones (`error_bound` bounds
+    how far the velocities are from exact arithmetic's); a decision it cannot prove stops the run
+    with `pinnedballs.engine.fixed.UncertifiedDecision` (a ValueError).
 
     Each step the scheduler picks a contact; if its balls approach, the rule
     collides them. ``steps`` counts picks, ``collisions`` the picks that changed
@@ -101,7 +110,7 @@ class Simulation:
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
                  scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float",
-                 resolution: float | None = None):
+                 resolution: float | None = None, precision: int | None = None):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -145,8 +154,8 @@ class Simulation:
         #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
         #: record them run a little slower
         self.collision_listeners: list = []
-        self.arithmetic = checks.choice("arithmetic", arithmetic, ("float", "exact"))
-        self._exact = _exact_chain(self) if self.arithmetic == "exact" else None
+        self.arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
+        self._exact = _exact_chain(self, precision)  # None in float arithmetic
         if self._exact is not None:
             self.velocities = self._exact.shadow  # the exact values rounded, kept by the exact chain
 
@@ -291,19 +300,20 @@ class Simulation:
                 return taken
 
     def _run_exact(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
-        """`_run` in exact arithmetic: the compiled selector's picks in blocks, each tried exactly
-        (`ExactChain.run`); a block cut short is drawn again to its end, so the stream and the
-        scheduler's state are those of the float loop after the same steps."""
+        """`_run` in exact or certified arithmetic: the compiled selector's picks in blocks, each tried
+        by the chain (`FieldChain.run`); a block cut short is drawn again to its end, so the stream
+        and the scheduler's state are those of the float loop after the same steps. A decision
+        certified arithmetic cannot make raises once the picks before it are counted."""
         ex, s, n = self._exact, self._selector, self.geometry.n_contacts
-        if ex.flags is None:
-            ex.count_live()
+        ex.prepare(until_frozen)
         taken, collisions = 0, self.collisions
-        while taken < max_steps and collisions < max_collisions and not (until_frozen and ex.live == 0):
-            block = int(min(EXACT_BLOCK, max_steps - taken))
+        while taken < max_steps and collisions < max_collisions and not (until_frozen and ex.live == 0) \
+                and ex.failure is None:
+            block = int(min(ex.block, max_steps - taken))
             rng, state = self._rng.copy(), self._sched_state.copy()
-            picks = np.empty(block, dtype=np.int64)
+            picks = ex.picks_buffer(block)
             self._loops.picks(self._sched_state, s.aux, self._rng, n, picks)
-            used, made, at = ex.run(picks.tolist(), max_collisions - collisions, until_frozen)
+            used, made, at = ex.run(picks, max_collisions - collisions, until_frozen, self.steps + taken + 1)
             if made and self.collision_listeners:
                 steps = self.steps + taken + 1 + np.asarray(at, dtype=np.int64)
                 contacts = picks[np.asarray(at, dtype=np.int64)]
@@ -311,11 +321,14 @@ class Simulation:
                     listener(steps, contacts)
             if used < block:
                 self._rng[:], self._sched_state[:] = rng, state
-                self._loops.picks(self._sched_state, s.aux, self._rng, n, np.empty(used, dtype=np.int64))
+                self._loops.picks(self._sched_state, s.aux, self._rng, n, picks[:used])
             taken, collisions = taken + used, collisions + made
         ex.sync()
         self._counters[STEPS] += taken
         self._counters[COLLISIONS], self._counters[LIVE] = collisions, ex.live
+        failure, ex.failure = ex.failure, None
+        if failure is not None:
+            raise failure
         return taken
 
     def _chain(self) -> Chain:
@@ -367,10 +380,17 @@ class Simulation:
     @property
     def exact_velocities(self) -> np.ndarray | None:
         """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.fields.Exact` numbers) of a run in
-        exact arithmetic; None in float arithmetic."""
-        if self._exact is None:
+        exact arithmetic; None in float or certified arithmetic."""
+        if self._exact is None or self.arithmetic != "exact":
             return None
         return self._exact.numbers()
+
+    @property
+    def error_bound(self) -> tuple[float, float] | None:
+        """A run in certified arithmetic: ``(G, largest)``, bounds on how far its velocities (before
+        rounding to floats) are from exact arithmetic's: ``G`` on the whole error vector, ``largest``
+        on any one ball's (0: all exact). None in other arithmetics."""
+        return self._exact.error_bound if self.arithmetic == "certified" else None
 
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
@@ -383,11 +403,12 @@ class Simulation:
     # ------------------------------------------------------------ state for checkpoints
     def get_state(self) -> RunState:
         """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
-        margin too: None in exact arithmetic, where it is not kept)."""
-        exact = None if self._exact is None else self._exact.coefficients()
+        margin too: None in exact or certified arithmetic, where it is not kept)."""
+        exact = self._exact.coefficients() if self.arithmetic == "exact" else None
+        certified = self._exact.certified_state() if self.arithmetic == "certified" else None
         margin = None if self._exact is not None else self._margin.copy()
         return RunState(self.velocities.copy(), self.steps, self.collisions, self._rng.copy(),
-                        self._sched_state.copy(), exact, margin)
+                        self._sched_state.copy(), exact, margin, certified)
 
     def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
@@ -415,8 +436,13 @@ class Simulation:
         if state.margin is not None and (problem := margin_problem(state.margin)) is not None:
             raise FieldError("margin", problem)
         exact = self._exact_state(state, velocities)
-        if exact is not None:
-            self._exact.set_velocities(exact)
+        if self.arithmetic == "certified":
+            self._exact.set_certified_state(self._certified_state(state, velocities))
+        elif exact is not None:
+            try:
+                self._exact.set_velocities(exact)
+            except ValueError as exc:
+                raise FieldError("exact", str(exc)) from None
         else:
             self.velocities = velocities
         self._rng = rng.copy()
@@ -427,7 +453,7 @@ class Simulation:
     def _exact_state(self, state: RunState, velocities: np.ndarray) -> list | None:
         """The exact velocities of ``state`` for an exact simulation (None for a float one), checked:
         they parse in this geometry's field and round to ``velocities``."""
-        if self._exact is None:
+        if self.arithmetic != "exact":
             return None
         if state.exact is None:
             raise FieldError("exact", "a simulation in exact arithmetic resumes only from an exact state "
@@ -469,6 +495,19 @@ class Simulation:
 
         return mimebundle(self, simulation_html, simulation_png, include, exclude)
 
+    def _certified_state(self, state: RunState, velocities: np.ndarray) -> CertifiedState:
+        """The `CertifiedState` of ``state`` for a certified simulation, checked: it fits this geometry
+        and its nearest floats are ``velocities``."""
+        c = state.certified
+        if not isinstance(c, CertifiedState):
+            raise FieldError("certified", "a simulation in certified arithmetic resumes only from a certified state "
+                                          f"(this one holds {'exact' if state.exact is not None else 'float'} velocities)")
+        ex = self._exact
+        c.check((*velocities.shape, ex.field.m), ex.B.shape[1])
+        if not np.array_equal(nearest_floats(from_limbs(c.limbs), int(c.scale), ex.field.basis[-1]), velocities):
+            raise FieldError("certified", "the fixed-point velocities do not round to the state's velocities")
+        return c
+
     def __repr__(self) -> str:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
                 f"steps={self.steps}, collisions={self.collisions})")
@@ -495,18 +534,31 @@ def _selector(scheduler: Scheduler, geometry: Geometry):
     return scheduler.selector(geometry)
 
 
-def _exact_chain(sim: Simulation) -> ExactChain:
-    """The `ExactChain` of ``sim``, or a `FieldError` on ``arithmetic`` saying why it cannot have one."""
+def _exact_chain(sim: Simulation, precision) -> FieldChain | None:
+    """The chain of ``sim``'s exact or certified arithmetic (None for floats), or a `FieldError` on
+    ``arithmetic`` (or ``precision``) saying why it cannot have one."""
+    name = sim.arithmetic
+    if precision is not None:
+        if name != "certified":
+            raise FieldError("precision", f"is the precision of certified arithmetic; this run's is {name!r}")
+        precision = checks.integer("precision", precision, 64, MAX_PRECISION)
+    if name == "float":
+        return None
     r = sim.rule.exact_restitution()
     if r is None:
-        raise FieldError("arithmetic", f"exact arithmetic runs the built-in rules (Elastic, Restitution); "
+        raise FieldError("arithmetic", f"{name} arithmetic runs the built-in rules (Elastic, Restitution); "
                                        f"{sim.rule!r} has no exact form")
     if sim._selector.tracks:
-        raise FieldError("arithmetic", f"exact arithmetic follows the picks of a scheduler that needs no live set; "
+        raise FieldError("arithmetic", f"{name} arithmetic follows the picks of a scheduler that needs no live set; "
                                        f"{sim.scheduler!r} picks among live contacts in float arithmetic "
                                        f"(UniformRandomPair has the same law)")
     try:
-        return ExactChain(sim.geometry, sim.velocities, sim._mass_array, r)
+        return field_chain(sim.geometry, sim.velocities, sim._mass_array, r, name, precision)
+    except NotFixed as exc:
+        raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "
+                                       f"whose normals have dyadic components in Q or one Q(sqrt d) (triangular "
+                                       f"lattices, FCC, square and cubic packings, chains), and {exc}; "
+                                       f"arithmetic=\"exact\" runs it") from None
     except NotExact as exc:
         raise FieldError("arithmetic", f"exact arithmetic needs every contact normal in a known number field "
                                        f"(q*sqrt(d) components), and {type(sim.geometry).__name__}'s are not: "

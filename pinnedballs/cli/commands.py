@@ -210,6 +210,7 @@ def info(args: argparse.Namespace) -> int:
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
         f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
+        *_arithmetic(res),
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few(res.snapshots.steps.tolist())}"
                                                 if len(res.snapshots) else ""),
         *_margin(res),
@@ -225,8 +226,8 @@ def _margin(res) -> list[str]:
     m = res.closing_margin
     if m is None:
         arithmetic = res.spec.arithmetic if res.spec is not None else res.run.get("arithmetic", "float")
-        if arithmetic == "exact":
-            return ["margin:      none kept (exact arithmetic: every closing speed's sign is exact)"]
+        if arithmetic in ("exact", "certified"):
+            return [f"margin:      none kept ({arithmetic} arithmetic: every closing speed's sign is exact)"]
         return ["margin:      unknown (this run began before runs kept their closing margin)"]
     from ..engine.margin import NEAR
     from ..rules import DEFAULT_RESOLUTION
@@ -243,6 +244,18 @@ def _margin(res) -> list[str]:
 
 def _counted(n: int, noun: str) -> str:
     return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
+def _arithmetic(res) -> list[str]:
+    """The arithmetic line: none for floats; for a certified run, what it proves and its error bound."""
+    name = res.run.get("arithmetic") or (res.spec.arithmetic if res.spec is not None else "float")
+    certified = res.latest.certified
+    if certified is not None:
+        G, largest = certified.error_bound()
+        return [f"arithmetic:  certified (every decision proved equal to exact arithmetic's: exact counts); "
+                f"velocities within {largest:.3g} of exact arithmetic's (error bound G = {G:.3g}), "
+                f"{64 * certified.limbs.shape[-1]} bits"]
+    return [] if name == "float" else [f"arithmetic:  {name}"]
 
 
 def _status(res) -> str:

@@ -22,7 +22,7 @@ from gmpy2 import mpq
 from .chain import incidence
 from .fields import Exact, recognise
 
-__all__ = ["ExactChain", "FILTER", "BLOCK"]
+__all__ = ["FieldChain", "ExactChain", "FILTER", "BLOCK"]
 
 #: picks drawn at a time from the compiled selector
 BLOCK = 1 << 14
@@ -32,34 +32,35 @@ FILTER = 64.0
 _U = 2.0 ** -53
 
 
-class ExactChain:
-    """The velocities of ``geometry``'s balls in exact arithmetic, and their collisions.
+class FieldChain:
+    """What every chain in the number field of ``geometry``'s contact normals shares: the field and
+    the exact unit vectors (`fields.recognise`), the rule in exact form, and the arithmetic of one
+    contact on any velocities. A subclass holds the velocities ``v`` (rows of field elements) and
+    runs picks in blocks of ``block`` (`run`); a run it cannot finish leaves ``failure``, the error
+    to raise once the picks it used are counted."""
 
-    velocities: ``(n_balls, dim)`` floats, taken exactly (a float is a rational); masses:
-    ``(n_balls,)`` floats; restitution: the rule's ``r`` (1: elastic). Raises `fields.NotExact`
-    when the contact normals lie in no known number field.
-    """
+    block = BLOCK
+    failure: Exception | None = None
+    _picks: np.ndarray | None = None
 
-    def __init__(self, geometry, velocities: np.ndarray, masses: np.ndarray, restitution: float):
+    def picks_buffer(self, size: int) -> np.ndarray:
+        """``(size,) int64``: room for a block of picks, the same memory every time (a fresh array
+        would cost the operating system's page faults on every block)."""
+        if self._picks is None or len(self._picks) < size:
+            self._picks = np.empty(max(size, self.block), dtype=np.int64)
+        return self._picks[:size]
+
+    def __init__(self, geometry, field, units: list, masses: np.ndarray, restitution: float):
         c = geometry.contacts
-        self.field, self.units = recognise(c.units)
-        F = self.field
+        self.field, self.units = field, units
         self.pairs = c.pairs.astype(np.int64).tolist()
         self.ends = c.ends.astype(np.int64).tolist()
         self.units_f = c.units.tolist()
         self.dim = geometry.dim
-        self.shadow = np.array(velocities, dtype=np.float64)  # written by `sync`
-        self.floats = self.shadow.tolist()  # the roundings the filter reads, as Python floats
-        self.v = [[F.of(x) for x in row] for row in self.floats]
-        self.rest = [not any(row) for row in self.floats]
         m = np.asarray(masses, dtype=np.float64)
         self.equal = bool(np.all(m == m[0]))
         self.masses = [mpq(x) for x in m.tolist()]
         self.factor = (1 + mpq(restitution)) / (2 if self.equal else 1)
-        ptr, inc = incidence(c.pairs, geometry.n_balls)
-        self.around = [inc[ptr[b]:ptr[b + 1]].astype(np.int64).tolist() for b in range(geometry.n_balls)]
-        self.flags: list[bool] | None = None
-        self.live = -1
 
     # ------------------------------------------------------------ one contact, in any state
     def closing_of(self, vi, vj, k: int) -> tuple:
@@ -85,6 +86,51 @@ class ExactChain:
         """``row - c t``: a velocity after a kick ``c`` along unit vector ``t``."""
         F = self.field
         return [F.sub(x, F.mul(c, td)) for x, td in zip(row, t)]
+
+    # ------------------------------------------------------------ the velocities as numbers and text
+    def numbers(self) -> np.ndarray:
+        """``(n_balls, dim)`` object array of `Exact` numbers: the velocities."""
+        rows = self.v
+        out = np.empty((len(rows), self.dim), dtype=object)
+        for i, row in enumerate(rows):
+            for d, x in enumerate(row):
+                out[i, d] = Exact(self.field, x)
+        return out
+
+    def coefficients(self) -> np.ndarray:
+        """``(n_balls, dim, m)`` strings: each velocity component's coefficients on the field's basis."""
+        return np.array([[[str(c) for c in x] for x in row] for row in self.v], dtype=object)
+
+    def parse(self, coefficients: np.ndarray) -> list[list[tuple]]:
+        """Exact velocities from `coefficients`' strings (a ValueError if they do not parse)."""
+        return [[self.field.parse(list(x)) for x in row] for row in np.asarray(coefficients).tolist()]
+
+
+class ExactChain(FieldChain):
+    """The velocities of ``geometry``'s balls in exact arithmetic, and their collisions.
+
+    velocities: ``(n_balls, dim)`` floats, taken exactly (a float is a rational); masses:
+    ``(n_balls,)`` floats; restitution: the rule's ``r`` (1: elastic). Raises `fields.NotExact`
+    when the contact normals lie in no known number field.
+    """
+
+    def __init__(self, geometry, velocities: np.ndarray, masses: np.ndarray, restitution: float):
+        field, units = recognise(geometry.contacts.units)
+        super().__init__(geometry, field, units, masses, restitution)
+        F = self.field
+        self.shadow = np.array(velocities, dtype=np.float64)  # written by `sync`
+        self.floats = self.shadow.tolist()  # the roundings the filter reads, as Python floats
+        self.v = [[F.of(x) for x in row] for row in self.floats]
+        self.rest = [not any(row) for row in self.floats]
+        ptr, inc = incidence(geometry.contacts.pairs, geometry.n_balls)
+        self.around = [inc[ptr[b]:ptr[b + 1]].astype(np.int64).tolist() for b in range(geometry.n_balls)]
+        self.flags: list[bool] | None = None
+        self.live = -1
+
+    def prepare(self, until_frozen: bool) -> None:
+        """Make ready for `run`: the live set known."""
+        if self.flags is None:
+            self.count_live()
 
     # ------------------------------------------------------------ one contact, in the chain's state
     def closing(self, k: int) -> tuple:
@@ -139,13 +185,14 @@ class ExactChain:
                 flags[c] = now
 
     # ------------------------------------------------------------ a run
-    def run(self, picks: list[int], collisions_left: int, until_frozen: bool) -> tuple[int, int, list[int]]:
+    def run(self, picks, collisions_left: int, until_frozen: bool, first_step: int = 1) -> tuple[int, int, list[int]]:
         """Try the contacts ``picks`` in turn, stopping right after the ``collisions_left``-th
         collision or, with ``until_frozen``, right after the one that leaves no live contact:
         ``(picks used, collisions, the index in picks of each collision)``. The live set must be
-        known (`count_live`)."""
+        known (`count_live`). (``first_step``, the step of ``picks[0]``, names the step of a failure
+        in chains that can fail.)"""
         at = []
-        for t, k in enumerate(picks):
+        for t, k in enumerate(np.asarray(picks).tolist()):
             if self.collide(k):
                 at.append(t)
                 i, j = self.pairs[k]
@@ -168,19 +215,3 @@ class ExactChain:
         """The float roundings written into ``shadow`` (the simulation's velocities), which it returns."""
         self.shadow[:] = self.floats
         return self.shadow
-
-    def numbers(self) -> np.ndarray:
-        """``(n_balls, dim)`` object array of `Exact` numbers: the velocities."""
-        out = np.empty((len(self.v), self.dim), dtype=object)
-        for i, row in enumerate(self.v):
-            for d, x in enumerate(row):
-                out[i, d] = Exact(self.field, x)
-        return out
-
-    def coefficients(self) -> np.ndarray:
-        """``(n_balls, dim, m)`` strings: each velocity component's coefficients on the field's basis."""
-        return np.array([[[str(c) for c in x] for x in row] for row in self.v], dtype=object)
-
-    def parse(self, coefficients: np.ndarray) -> list[list[tuple]]:
-        """Exact velocities from `coefficients`' strings (a ValueError if they do not parse)."""
-        return [[self.field.parse(list(x)) for x in row] for row in np.asarray(coefficients).tolist()]

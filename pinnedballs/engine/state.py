@@ -14,6 +14,7 @@ import numpy as np
 
 from .errors import FieldError, FieldTypeError
 from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
+from .fixed_state import CertifiedState
 
 __all__ = ["RunState", "as_state", "mass_array", "margin_problem"]
 
@@ -27,7 +28,9 @@ class RunState:
     run in exact arithmetic, the exact velocities as ``(n_balls, dim, m)`` strings, each velocity
     component's coefficients on its number field's basis (``velocities`` are then their roundings);
     margin: the closing margin so far, ``(4,) float64`` (`engine.margin`), of a float run (None: not
-    kept, as in exact arithmetic or a results file written before margins were).
+    kept, as in exact arithmetic or a results file written before margins were); certified: for a run
+    in certified arithmetic, its fixed-point velocities and error bounds
+    (`pinnedballs.engine.fixed_state.CertifiedState`; ``velocities`` are their nearest floats).
     """
 
     velocities: np.ndarray
@@ -37,6 +40,7 @@ class RunState:
     scheduler_state: np.ndarray
     exact: np.ndarray | None = None
     margin: np.ndarray | None = None
+    certified: CertifiedState | None = None
 
     #: the arrays among the fields (the rest are counts)
     ARRAYS = ("velocities", "rng_state", "scheduler_state")
@@ -45,7 +49,8 @@ class RunState:
         """A copy whose arrays share no memory with this one's."""
         return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
                         self.scheduler_state.copy(), None if self.exact is None else self.exact.copy(),
-                        None if self.margin is None else self.margin.copy())
+                        None if self.margin is None else self.margin.copy(),
+                        None if self.certified is None else self.certified.copy())
 
     def replace(self, **changes) -> "RunState":
         """This state with the fields named in ``changes`` replaced."""
@@ -60,7 +65,7 @@ class RunState:
 
     def _keys(self) -> tuple[str, ...]:
         names = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
-        return names + tuple(n for n in ("exact", "margin") if getattr(self, n) is not None)
+        return names + tuple(n for n in ("exact", "margin", "certified") if getattr(self, n) is not None)
 
     def __getitem__(self, name: str):
         """Deprecated: ``state["velocities"]``; use ``state.velocities``."""
@@ -95,9 +100,11 @@ class RunState:
 
     def identical(self, other: "RunState") -> bool:
         """True when ``other`` is this state bit for bit (every array, dtype and count, the exact
-        velocities and the margin)."""
+        velocities, the margin and the certified state)."""
         return (self.steps, self.collisions) == (other.steps, other.collisions) \
-            and _same(self.exact, other.exact) and _same(self.margin, other.margin) and all(
+            and _same(self.exact, other.exact) and _same(self.margin, other.margin) \
+            and (self.certified is None) == (other.certified is None) \
+            and (self.certified is None or self.certified.identical(other.certified)) and all(
                 getattr(self, name).dtype == getattr(other, name).dtype
                 and np.array_equal(getattr(self, name), getattr(other, name)) for name in self.ARRAYS)
 
@@ -123,7 +130,7 @@ def as_state(state) -> RunState:
         warnings.warn("Simulation.set_state: a dict is deprecated and will be removed; pass the RunState that "
                       "get_state gives (RunState(**d) makes one of a dict)", DeprecationWarning, stacklevel=3)
         names = [f.name for f in dataclasses.fields(RunState)]
-        missing = [n for n in names if n not in ("exact", "margin") and n not in state]
+        missing = [n for n in names if n not in ("exact", "margin", "certified") and n not in state]
         if missing:
             raise FieldError("state", f"the dict lacks {', '.join(missing)}")
         unknown = sorted(str(k) for k in state if k not in names)

@@ -131,6 +131,8 @@ def _check(f: h5py.File) -> None:
         _check_exact(f, n, d)
     if "margin" in f["state"]:
         _check_margin(f)
+    if "certified" in f["state"]:
+        _check_certified(f, n, d)
     _check_snapshots(f, n, d, steps, collisions, scan=int(f.attrs["format_version"]) < 3)
 
 
@@ -231,6 +233,28 @@ def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int, 
         ds = _dataset(f, f"observables/{name}")
         if ds.shape[:1] != (count,):
             raise Damage(f"observables/{name}", f"must have {count} rows, got shape {ds.shape}")
+
+
+def _check_certified(f: h5py.File, n: int, d: int) -> None:
+    """The fixed point and bounds of a run in certified arithmetic (`CertifiedState`): limbs
+    ``(n, d, m, P) uint64``, bounds ``(n, 2, L)`` floats >= 0, an integer scale, a rounding >= 0."""
+    limbs, bounds = _dataset(f, "state/certified/limbs"), _dataset(f, "state/certified/bounds")
+    if limbs.ndim != 4 or limbs.shape[:2] != (n, d) or limbs.dtype != np.uint64:
+        raise Damage("state/certified/limbs", f"must be uint64 of shape ({n}, {d}, m, P), got {limbs.dtype} {limbs.shape}")
+    if bounds.ndim != 3 or bounds.shape[:2] != (n, 2) or bounds.dtype.kind != "f":
+        raise Damage("state/certified/bounds", f"must be floats of shape ({n}, 2, L), got {bounds.dtype} {bounds.shape}")
+    b = bounds[()]
+    if not (np.isfinite(b).all() and (b >= 0).all()):
+        raise Damage("state/certified/bounds", "must be finite and >= 0")
+    attrs = f["state/certified"].attrs
+    for name in ("scale", "rounding"):
+        if name not in attrs:
+            raise Damage("state/certified", f"has no {name}")
+    scale, rounding = attrs["scale"], attrs["rounding"]
+    if not (np.issubdtype(np.asarray(scale).dtype, np.integer) and 0 <= scale < 64 * limbs.shape[3]):
+        raise Damage("state/certified", f"scale must be an integer in [0, {64 * limbs.shape[3]}), got {scale!r}")
+    if not (np.isfinite(rounding) and rounding >= 0):
+        raise Damage("state/certified", f"rounding must be a finite number >= 0, got {rounding!r}")
 
 
 def _check_exact(f: h5py.File, n: int, d: int) -> None:

@@ -19,6 +19,7 @@ from ..engine.state import RunState
 from ..simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.errors import InputError
+from ..engine.fixed_state import CertifiedState
 from ..specs.errors import SpecError, UserCodeError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
@@ -281,8 +282,12 @@ def read(p: Path, f: h5py.File) -> Results:
     s, o = f["state"], f["observables"]
     exact = s["exact"].asstr()[()] if "exact" in s else None
     margin = s["margin"][()] if "margin" in s else None  # checked by check_results
+    certified = None
+    if "certified" in s:
+        c = s["certified"]
+        certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]))
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
-                      s["scheduler_state"][()], exact, margin)
+                      s["scheduler_state"][()], exact, margin, certified)
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
     observables = {name: o[name][()] for name in names}
     steps, collisions = observables["steps"], observables["collisions"]

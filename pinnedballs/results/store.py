@@ -214,6 +214,10 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
     s.attrs["keys"] = json.dumps(list(STATE_KEYS))  # what format 2 has always listed
     if state.exact is not None:  # a run in exact arithmetic: each component's coefficients, as text
         s.create_dataset("exact", data=np.asarray(state.exact, dtype=object), dtype=h5py.string_dtype())
+    if state.certified is not None:  # a run in certified arithmetic: its fixed point and bounds
+        c = s.create_group("certified")
+        c["limbs"], c["bounds"] = state.certified.limbs, state.certified.bounds
+        c.attrs.update(scale=state.certified.scale, rounding=state.certified.rounding)
     s["momentum"] = record.momentum
     s.attrs.update(energy=record.energy, approaching=record.approaching, frozen=record.frozen)
     if criterion is not None and state.margin is not None:

@@ -41,7 +41,8 @@ def _known_observable(name: str) -> str:
 
 class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, the
-    arithmetic (``"float"``, or ``"exact"``: `Simulation`'s ``arithmetic``) and the resolution.
+    arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
+    certified arithmetic's bits per coefficient, None for its default) and the resolution.
 
     ``resolution``: the collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
     exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model
@@ -66,7 +67,8 @@ class RunSpec(_Spec):
     trajectory: SnapshotsSpec | None = None
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
-    arithmetic: Literal["float", "exact"] = "float"
+    arithmetic: Literal["float", "exact", "certified"] = "float"
+    precision: Count | None = None
     resolution: float | None = None
     description: str = ""
 
@@ -155,11 +157,11 @@ class RunSpec(_Spec):
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
                                     "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
-                                    "resolution": "resolution"}):
+                                    "resolution": "resolution", "precision": "precision"}):
                 try:
                     return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
                                       masses=masses, seed=seq, arithmetic=self.arithmetic,
-                                      resolution=self.resolution)
+                                      resolution=self.resolution, precision=self.precision)
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code

@@ -69,7 +69,7 @@ def test_what_exact_arithmetic_cannot_run_is_refused_saying_why(make, words):
     with pytest.raises(ValueError) as info:
         pb.Simulation(g, v, arithmetic="exact", **kwargs)
     assert str(info.value).startswith("arithmetic: ") and words in str(info.value)
-    with pytest.raises(ValueError, match=r"^arithmetic: must be 'float' or 'exact', got 'rational'"):
+    with pytest.raises(ValueError, match=r"^arithmetic: must be 'float' or 'exact' or 'certified', got 'rational'"):
         pb.Simulation(g, v, arithmetic="rational")
 
 

@@ -1,0 +1,41 @@
+"""Which chain runs a simulation's arithmetic beyond floats.
+
+``"exact"``: the fixed-point chain (`fixed.FixedChain`, exact policy) where it applies (equal masses,
+elastic collisions, flat contacts whose normals have dyadic components in Q or one Q(sqrt d):
+the triangular lattices, FCC, square and cubic packings, chains), else the rational chain
+(`exact.ExactChain`: unequal masses, restitution, HCP's Q(sqrt 2, sqrt 3), other graphs).
+``"certified"``: the fixed-point chain's certified policy, which only it has.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .exact import ExactChain, FieldChain
+from .fixed import FixedChain, NotFixed, lines_of
+
+__all__ = ["field_chain", "ARITHMETICS", "MAX_PRECISION"]
+
+#: the values of `Simulation`'s ``arithmetic``
+ARITHMETICS = ("float", "exact", "certified")
+#: the largest certified precision, in bits: the error bounds, floats of about 2^-precision, must
+#: stay far from float underflow (2^-1022), or a bound would round to 0
+MAX_PRECISION = 960
+
+
+def field_chain(geometry, velocities: np.ndarray, masses: np.ndarray, restitution: float, arithmetic: str,
+                precision: int | None = None) -> FieldChain:
+    """The chain of ``arithmetic`` (``"exact"`` or ``"certified"``); `NotFixed` saying why the
+    certified one cannot run these, `fields.NotExact` why no exact one can."""
+    if not np.all(masses == masses[0]):
+        reason = "the masses are not all equal"
+    elif restitution != 1.0:
+        reason = f"collisions are not elastic (restitution {restitution})"
+    else:
+        try:
+            return FixedChain(geometry, velocities, lines_of(geometry), arithmetic, precision)
+        except NotFixed as exc:
+            reason = str(exc)
+    if arithmetic == "certified":
+        raise NotFixed(reason)
+    return ExactChain(geometry, velocities, masses, restitution)

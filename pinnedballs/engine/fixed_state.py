@@ -1,0 +1,100 @@
+"""What a run in certified arithmetic resumes from (`CertifiedState`), and its velocities rounded
+to the nearest floats (`nearest_floats`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import FieldError
+
+__all__ = ["CertifiedState", "nearest_floats", "error_bound"]
+
+#: (as `fixed_kernels.UP` and `SQRT2_UP`: this module stays free of numba)
+_UP = 1.0 + 2.0 ** -50
+_SQRT2_UP = math.sqrt(2.0) * _UP
+
+
+def error_bound(bounds: np.ndarray, rounding: float) -> tuple[float, float]:
+    """``(G, largest)`` from a certified state's ``bounds (n_balls, 2, L)`` and ``rounding`` (the sum
+    of every ``|rho|``): ``G = sqrt(2) * rounding`` bounds the whole error vector (rounded up as the
+    chain computes it), ``largest`` every ball's error ``|V_i(exact) - V~_i|`` (the least over lines
+    of ``hypot(B, Pp)``, rounded up, and at most ``G``)."""
+    G = rounding * _SQRT2_UP * _UP
+    if bounds.size == 0:
+        return G, 0.0
+    per_ball = np.min(np.hypot(bounds[:, 0], bounds[:, 1]), axis=1) * _UP
+    return G, float(min(G, per_ball.max()))
+
+
+@dataclass(frozen=True, eq=False)
+class CertifiedState:
+    """The state of a run in certified arithmetic (`pinnedballs.engine.fixed`), bit for bit.
+
+    limbs: ``(n_balls, dim, m, P) uint64``, each velocity component's ``m`` coefficients on the
+    field's basis as integers over ``2^scale`` in ``P`` little-endian 64-bit limbs, two's complement;
+    scale: ``S``; bounds: ``(n_balls, 2, L) float64``, each ball's error bounds along (``[:, 0]``,
+    ``B``) and across (``[:, 1]``, ``Pp``) each of the geometry's ``L`` contact lines; rounding: the
+    sum of every ``|rho|`` so far, rounded up (``G = sqrt(2)`` times it).
+    """
+
+    limbs: np.ndarray
+    scale: int
+    bounds: np.ndarray
+    rounding: float
+
+    def copy(self) -> "CertifiedState":
+        return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding)
+
+    def identical(self, other: "CertifiedState") -> bool:
+        return (self.scale, self.rounding) == (other.scale, other.rounding) and all(
+            a.dtype == b.dtype and np.array_equal(a, b) for a, b in ((self.limbs, other.limbs),
+                                                                      (self.bounds, other.bounds)))
+
+    def error_bound(self) -> tuple[float, float]:
+        """``(G, largest)``: see `error_bound`."""
+        return error_bound(self.bounds, self.rounding)
+
+    def check(self, shape: tuple[int, int, int], lines: int) -> None:
+        """A `FieldError` on ``certified`` unless this state fits ``shape = (n_balls, dim, m)`` and
+        ``lines``: limbs of that shape and ``scale < 64 P``, bounds finite and >= 0, rounding too."""
+        limbs, bounds = np.asarray(self.limbs), np.asarray(self.bounds)
+        if limbs.dtype != np.uint64 or limbs.ndim != 4 or limbs.shape[:3] != shape or limbs.shape[3] < 1:
+            raise FieldError("certified", f"limbs must be uint64 of shape (n_balls, dim, m, P) = {shape + ('P',)}, "
+                                          f"got {limbs.dtype} {limbs.shape}")
+        if not (isinstance(self.scale, (int, np.integer)) and 0 <= self.scale < 64 * limbs.shape[3]):
+            raise FieldError("certified", f"scale must be an integer in [0, {64 * limbs.shape[3]}), got {self.scale!r}")
+        if bounds.dtype != np.float64 or bounds.shape != (shape[0], 2, lines):
+            raise FieldError("certified", f"bounds must be float64 of shape ({shape[0]}, 2, {lines}), "
+                                          f"got {bounds.dtype} {bounds.shape}")
+        if not (np.isfinite(bounds).all() and (bounds >= 0).all()):
+            raise FieldError("certified", "bounds must be finite and >= 0")
+        if not (isinstance(self.rounding, float) and math.isfinite(self.rounding) and self.rounding >= 0):
+            raise FieldError("certified", f"rounding must be a finite float >= 0, got {self.rounding!r}")
+
+
+def nearest_floats(ints: np.ndarray, scale: int, d: int) -> np.ndarray:
+    """``(rows, dim)`` floats: each ``(a + b sqrt(d)) / 2^scale`` rounded to the nearest float, for the
+    integer coefficients ``ints (rows, dim, m)`` (``m`` 1 or 2). A rational is Python's correctly
+    rounded division of integers; an irrational lies between two integers over ``2^(scale + k)``
+    (``math.isqrt``), and ``k`` doubles until both round to the same float (the number is never
+    halfway between floats, so this ends)."""
+    out = np.empty(ints.shape[:2])
+    for n, row in enumerate(ints.tolist()):
+        for c, coefficients in enumerate(row):
+            a, b = (coefficients + [0])[:2]
+            out[n, c] = a / (1 << scale) if b == 0 else _nearest(a, b, scale, d)
+    return out
+
+
+def _nearest(a: int, b: int, scale: int, d: int) -> float:
+    k = 128
+    while True:
+        root = math.isqrt(d * b * b << (2 * k))  # root <= |b| sqrt(d) 2^k < root + 1
+        low = (a << k) + (root if b > 0 else -root - 1)
+        one = 1 << (scale + k)
+        if low / one == (low + 1) / one:
+            return low / one
+        k *= 2

@@ -1,0 +1,299 @@
+"""The fixed-point chain against the rational one (`ExactChain`), collision for collision: the same
+collisions at the same steps, the same velocities bit for bit and the same exact values; its exact
+policy widening without changing a bit; its certified policy making exact arithmetic's decisions,
+or saying in one line that it cannot."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import pinnedballs as pb
+from helpers import SQRT3, chain, chain_along, cubic, fcc_cluster
+from pinnedballs.engine.exact import ExactChain
+from pinnedballs.engine.fixed import FixedChain, UncertifiedDecision, lines_of
+
+FEW = settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+
+
+def rational(g, v, **kwargs) -> pb.Simulation:
+    """An exact simulation run by the rational chain (today's `ExactChain`), whatever the geometry."""
+    sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
+    sim._exact = ExactChain(g, sim.velocities.copy(), sim._mass_array, 1.0)
+    sim.velocities = sim._exact.shadow
+    return sim
+
+
+def with_chain(sim: pb.Simulation, **chain_kwargs) -> pb.Simulation:
+    """``sim`` with its fixed-point chain built again with ``chain_kwargs`` (a starting width)."""
+    sim._exact = FixedChain(sim.geometry, sim.velocities.copy(), lines_of(sim.geometry), sim.arithmetic, **chain_kwargs)
+    sim.velocities = sim._exact.shadow
+    return sim
+
+
+class Log:
+    """A collision listener keeping every collision's step and contact."""
+
+    def __init__(self, sim: pb.Simulation):
+        self.steps, self.contacts = [], []
+        sim.collision_listeners.append(self)
+
+    def __call__(self, steps, contacts):
+        self.steps += steps.tolist()
+        self.contacts += contacts.tolist()
+
+
+def run_both(g, v, seed, steps, others=("exact",), chunk=None, **kwargs):
+    """The rational chain and the fixed-point ones (``others``) on the same picks, to frozen or
+    ``steps``, in calls of ``chunk`` steps: each pair has the same collisions at the same steps."""
+    sims = [rational(g, v, seed=seed, **kwargs)] + [
+        pb.Simulation(g, v, seed=seed, arithmetic=a, **kwargs) for a in others]
+    logs = [Log(s) for s in sims]
+    for s in sims:
+        if chunk is None:
+            s.run_until_frozen(max_steps=steps)
+        else:
+            while s.steps < steps and not s.run(steps=chunk, until_frozen=True) == 0 and not s.is_frozen():
+                pass
+    for s, log in zip(sims[1:], logs[1:]):
+        assert (log.steps, log.contacts) == (logs[0].steps, logs[0].contacts)
+        assert (s.steps, s.collisions, s.is_frozen()) == (sims[0].steps, sims[0].collisions, sims[0].is_frozen())
+    return sims
+
+
+def assert_same_exactly(a: pb.Simulation, b: pb.Simulation) -> None:
+    """The same velocities bit for bit and, for two exact runs, the same exact numbers."""
+    np.testing.assert_array_equal(a.velocities, b.velocities)
+    if a.arithmetic == b.arithmetic == "exact":
+        assert np.array_equal(a.get_state().exact, b.get_state().exact)
+
+
+def inward(g, scale=np.sqrt(200.0)) -> np.ndarray:
+    v = np.zeros((g.n_balls, g.dim))
+    b = g.boundary_center()
+    v[b] = -scale * g.boundary.outward[b]
+    return v
+
+
+# ---------------------------------------------------------------- collision for collision
+
+
+@FEW
+@given(rows=st.integers(2, 8), cols=st.integers(2, 10), across=st.booleans(), seed=st.integers(0, 2**20),
+       start=st.sampled_from(["inward", "oblique", "several"]))
+def test_half_planes_collision_for_collision_with_the_rational_chain(rows, cols, across, seed, start):
+    g = pb.HalfPlane(rows, cols, orientation="across" if across else "along")
+    rng = np.random.default_rng(seed)
+    v = inward(g) if start == "inward" else np.zeros((g.n_balls, 2))
+    if start == "oblique":
+        v[g.boundary_center()] = np.sqrt(200.0) * np.array([rng.uniform(-0.8, 0.8), 1.0])
+    elif start == "several":
+        v[rng.choice(g.n_balls, size=min(4, g.n_balls), replace=False)] = rng.normal(size=(min(4, g.n_balls), 2))
+    old, exact, certified = run_both(g, v, seed, 10**6, others=("exact", "certified"))
+    assert old.is_frozen()
+    assert_same_exactly(old, exact)
+    assert certified.error_bound[1] > 0 or np.array_equal(certified.velocities, old.velocities)
+    np.testing.assert_allclose(certified.velocities, old.velocities, rtol=0, atol=1e-60)
+
+
+@FEW
+@given(seed=st.integers(0, 2**20), n=st.sampled_from([4, 6]), chunk=st.sampled_from([None, 37]))
+def test_tori_at_equilibrium_collision_for_collision(seed, n, chunk):
+    """Gaussian velocities (every ball moving, every float mantissa full), for 3,000 steps, in one
+    call or in calls of 37 steps."""
+    g = pb.FlatTorus(n, n)
+    v = np.random.default_rng(seed).normal(size=(g.n_balls, 2))
+    old, exact, certified = run_both(g, v, seed, 3_000, others=("exact", "certified"), chunk=chunk or 3_000)
+    assert old.collisions > 100
+    assert_same_exactly(old, exact)
+    G, largest = certified.error_bound
+    assert np.abs(certified.velocities - old.velocities).max() <= largest + 1e-15 * np.abs(old.velocities).max()
+
+
+@pytest.mark.parametrize("make", [lambda: chain(9), lambda: cubic(3), lambda: fcc_cluster(2),
+                                  lambda: pb.FCC(2, 2, 2), lambda: pb.FlatTorus(4, 6)], ids=["chain", "cubic", "fcc cluster", "fcc", "torus"])
+def test_every_field_the_chain_takes_agrees_with_the_rational_chain(make):
+    """Q (chains, cubic packings), Q(sqrt 2) (FCC, 3-D), Q(sqrt 3) (the triangular lattice)."""
+    g = make()
+    v = np.random.default_rng(3).normal(size=(g.n_balls, g.dim))
+    old, exact, certified = run_both(g, v, 5, 5_000, others=("exact", "certified"))
+    assert old.collisions > 5
+    assert_same_exactly(old, exact)
+
+
+def test_closing_speeds_far_below_the_float_criterion_are_collisions():
+    """Two balls approaching at 2^-60 and 2^-1070 (a subnormal float) of each other's speed, and a
+    pair whose exact closing speed is zero although their velocities differ in the last bit."""
+    g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [10.0, 0.0], [12.0, 0.0], [20.0, 0.0], [22.0, 0.0]])
+    v = np.array([[1.0 + 2.0**-52, 0.5], [1.0, 0.0],
+                  [2.0**-1070, 0.0], [0.0, 1.0],
+                  [3.0, 1.0], [3.0, 1.0 + 2.0**-52]])
+    old, exact, certified = run_both(g, v, 0, 100, others=("exact", "certified"))
+    assert old.collisions == exact.collisions == 2  # contacts 0 and 1 collide, contact 2 (w = 0) never
+    assert_same_exactly(old, exact)
+    assert_same_exactly(old, certified)
+
+
+@pytest.mark.parametrize("direction", [(1.0, 0.0), (0.5, SQRT3 / 2)], ids=["horizontal", "slanted"])
+def test_a_cradle_stays_exact_in_certified_arithmetic(direction):
+    """One ball sent along a line of balls at rest passes everything on: in certified arithmetic at the
+    smallest precision the kicks are never rounded (each hands on an omega already rounded), so the
+    bounds stay 0 and the run is exact arithmetic's, bit for bit."""
+    g = chain_along(12, direction)
+    v = np.zeros((12, 2))
+    v[0] = 0.7390851332151607 * np.asarray(direction)  # a full mantissa
+    v[0, 1] += 0.1  # and a component across the line, kept
+    old = rational(g, v, seed=1)
+    certified = pb.Simulation(g, v, seed=1, arithmetic="certified", precision=64)
+    for s in (old, certified):
+        assert s.run_until_frozen(max_steps=10**5)
+    assert certified.collisions == old.collisions >= 11 and certified.error_bound == (0.0, 0.0)
+    assert_same_exactly(old, certified)
+
+
+# ---------------------------------------------------------------- exact policy: widening
+
+
+@pytest.mark.parametrize("start", ["inward", "equilibrium"])
+def test_widening_changes_nothing(start):
+    """Started one limb wide, the exact policy widens many times; started wide, it never needs to:
+    the same collisions, steps and exact numbers."""
+    g = pb.HalfPlane.from_size(40, 20) if start == "inward" else pb.FlatTorus(6, 6)
+    v = inward(g) if start == "inward" else np.random.default_rng(2).normal(size=(g.n_balls, 2))
+    narrow = with_chain(pb.Simulation(g, v, seed=4, arithmetic="exact"))
+    wide = with_chain(pb.Simulation(g, v, seed=4, arithmetic="exact"), precision=64 * 40)
+    assert narrow._exact.P == 1 or start == "equilibrium"
+    logs = [Log(narrow), Log(wide)]
+    for s in (narrow, wide):
+        s.run(steps=20_000, until_frozen=True)
+    assert narrow._exact.widenings >= 2 and wide._exact.widenings == 0
+    assert (logs[0].steps, logs[0].contacts) == (logs[1].steps, logs[1].contacts) and narrow.collisions > 50
+    assert_same_exactly(narrow, wide)
+
+
+# ---------------------------------------------------------------- certified policy
+
+
+def test_a_precision_too_small_to_decide_stops_the_run_in_one_line():
+    """At 64 bits the rounding of the half-plane's kicks soon hides an exactly zero closing speed: the
+    run stops at the pick it cannot decide, with its counts those of exact arithmetic up to the pick
+    before."""
+    g = pb.HalfPlane.from_size(20, 10)
+    v = inward(g)
+    certified = pb.Simulation(g, v, seed=1, arithmetic="certified", precision=64)
+    with pytest.raises(UncertifiedDecision) as info:
+        certified.run_until_frozen(max_steps=10**6)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("arithmetic: certified arithmetic cannot decide contact ")
+    assert 'use arithmetic="exact" or a larger precision (now 64 bits)' in message
+    step = int(message.split(" at step ")[1].split(":")[0].replace(",", ""))
+    assert certified.steps == step - 1
+    old = rational(g, v, seed=1)
+    old.run(steps=certified.steps)
+    assert old.collisions == certified.collisions
+    assert isinstance(info.value, ValueError) and info.value.field == "arithmetic"
+    certified.run(steps=0)  # the state stays usable, and the same decision fails again
+    with pytest.raises(UncertifiedDecision):
+        certified.run(steps=10)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("length, depth, collisions, steps", [(100, 50, 48_022, 243_682), (200, 100, 492_708, 3_085_842)])
+def test_certified_counts_are_the_exact_counts_of_the_paper_half_plane(length, depth, collisions, steps):
+    """docs/collisions.md's half-plane (seed 1): the counts of the rational chain, and every collision
+    at its step (against the exact policy), in certified arithmetic at 256 bits, where kicks are
+    rounded (the velocities need 286 bits at 100x50, 718 at 200x100)."""
+    g = pb.HalfPlane.from_size(length, depth)
+    v = inward(g)
+    exact = pb.Simulation(g, v, seed=1, arithmetic="exact")
+    certified = pb.Simulation(g, v, seed=1, arithmetic="certified", precision=256)
+    logs = [Log(exact), Log(certified)]
+    for s in (exact, certified):
+        assert s.run_until_frozen(max_steps=10**9)
+        assert (s.collisions, s.steps) == (collisions, steps)
+    assert logs[0].steps == logs[1].steps and logs[0].contacts == logs[1].contacts
+    G, largest = certified.error_bound
+    assert 0 < largest <= G < 1e-60
+    assert np.abs(certified.velocities - exact.velocities).max() <= 1e-15 * np.sqrt(200.0)
+
+
+# ---------------------------------------------------------------- choosing the arithmetic
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"masses": np.r_[1.0, 2.0, np.ones(10)]}, "the masses are not all equal"),
+    ({"rule": pb.Restitution(0.5)}, "collisions are not elastic (restitution 0.5)"),
+])
+def test_certified_arithmetic_refuses_what_only_the_rational_chain_runs(kwargs, words):
+    g = pb.HalfPlane(3, 4)
+    v = inward(g)
+    with pytest.raises(ValueError) as info:
+        pb.Simulation(g, v, arithmetic="certified", **kwargs)
+    assert str(info.value).startswith("arithmetic: certified arithmetic needs equal masses") and words in str(info.value)
+    assert 'arithmetic="exact" runs it' in str(info.value)
+    assert isinstance(pb.Simulation(g, v, arithmetic="exact", **kwargs)._exact, ExactChain)
+
+
+def test_hcp_keeps_the_rational_chain_and_certified_says_why():
+    g = pb.HCP(3, 3, 2, periodic=False)
+    v = np.random.default_rng(0).normal(size=(g.n_balls, 3))
+    assert isinstance(pb.Simulation(g, v, arithmetic="exact")._exact, ExactChain)
+    with pytest.raises(ValueError, match=r"^arithmetic: certified .* not in Q or one Q\(sqrt d\)"):
+        pb.Simulation(g, v, arithmetic="certified")
+
+
+@pytest.mark.parametrize("arithmetic, precision, message", [
+    ("certified", 32, "precision: must be an integer in [64, 960], got 32"),
+    ("certified", 2.5, "precision: must be an integer, got 2.5"),
+    ("exact", 256, "precision: is the precision of certified arithmetic; this run's is 'exact'"),
+    ("float", 256, "precision: is the precision of certified arithmetic; this run's is 'float'"),
+])
+def test_a_bad_precision_is_named(arithmetic, precision, message):
+    g = pb.HalfPlane(3, 4)
+    with pytest.raises(ValueError) as info:
+        pb.Simulation(g, inward(g), arithmetic=arithmetic, precision=precision)
+    assert str(info.value) == message
+
+
+@pytest.mark.parametrize("arithmetic", ["exact", "certified"])
+def test_a_system_at_rest_is_frozen_at_once(arithmetic):
+    g = pb.HalfPlane(3, 4)
+    sim = pb.Simulation(g, np.zeros((g.n_balls, 2)), arithmetic=arithmetic)
+    assert sim.run_until_frozen(max_steps=100) and sim.steps == 0 and sim.approaching() == 0
+    assert sim.run(steps=50) == 50 and sim.collisions == 0 and not sim.velocities.any()
+
+
+_PLAIN = r"""
+import json, sys
+import numpy as np
+import pinnedballs as pb
+g = pb.HalfPlane(3, 4)
+v = np.zeros((g.n_balls, 2))
+v[g.boundary_center()] = [0.3, 14.0]
+out = {}
+for arithmetic, options in (("exact", {}), ("certified", {"precision": 128})):
+    sim = pb.Simulation(g, v, seed=2, arithmetic=arithmetic, **options)
+    sim.run_until_frozen(10**5)
+    state = sim.get_state()
+    out[arithmetic] = [sim.steps, sim.collisions, sim.velocities.tolist(),
+                       state.exact.tolist() if state.exact is not None else state.certified.limbs.tolist()]
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.slow
+def test_the_compiled_chain_and_its_plain_python_twin_agree_bit_for_bit():
+    """With NUMBA_DISABLE_JIT=1 every kernel runs as plain Python (the limbs' accumulator on Python's
+    integers): the same steps, collisions, velocities and fixed-point integers as compiled."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1", PYTHONWARNINGS="ignore::RuntimeWarning")
+    plain = subprocess.run([sys.executable, "-c", _PLAIN], capture_output=True, text=True, env=env, check=True)
+    compiled = subprocess.run([sys.executable, "-c", _PLAIN], capture_output=True, text=True, check=True)
+    a, b = json.loads(plain.stdout), json.loads(compiled.stdout)
+    assert a == b and a["exact"][1] > 10 and a["exact"][:2] == a["certified"][:2]
