@@ -15,7 +15,7 @@ from .results.format import ResultsError
 from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
-from .run.driver import Stop, Writer
+from .engine.driver import Stop, Writer
 from .run.ensemble import run_ensemble
 from .run.gsd_writer import GSDWriter
 from .run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger

@@ -1,9 +1,11 @@
-"""The engine: the plain data of a chain, its compiled loops, the random stream, numba's disk
-cache for the loops, and the checks that keep every input inside what the machine can hold.
+"""The engine: the plain data of a chain, its compiled loops, the driver that runs them in chunks,
+the random stream, numba's disk cache for the loops, and the checks that keep every input inside
+what the machine can hold.
 
 One module per idea: `errors` (errors naming the argument at fault), `checks` (the one helper
 that validates arguments), `limits` (memory and the float64 range), `random` (xoshiro256**),
 `jitcache` (the loops' disk cache), `threads` (how the parallel sweep's threads wait, and how
 many), `intrinsics` (LLVM hints for the hot loop), `chain` (the
-data every loop reads) and `loops` (the compiled loops).
+data every loop reads), `loops` (the compiled loops), `driver` (a run in chunks to its stop, with
+writers), `sigint` (Ctrl-C between chunks) and `progress` (the bar every long call shows).
 """

@@ -1,2 +1,3 @@
-"""Running: the one run driver (`driver`) with its triggers and writers, a spec run into a directory
-(`execute`), and ensembles of replicas (`ensemble`) on local processes or Dask (`executors`)."""
+"""Running: the triggers and writers the run driver (`pinnedballs.engine.driver`) fires, a spec run
+into a directory (`execute`), and ensembles of replicas (`ensemble`) on local processes or Dask
+(`executors`)."""

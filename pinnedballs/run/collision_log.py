@@ -27,7 +27,7 @@ import numpy as np
 
 from ..engine.errors import FieldError, InputError
 from ..results.files import h5_image, virtual_rows, write_bytes_atomic
-from .driver import Writer
+from ..engine.driver import Writer
 
 __all__ = ["CollisionLog", "FORMAT"]
 

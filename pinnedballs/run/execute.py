@@ -15,11 +15,11 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import sys
 import threading
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
+from ..engine.driver import Stop, Writer, drive
 from ..engine.errors import InputError
 from ..results.files import remove, write_text_atomic
 from ..results.format import RESULTS_NAME, Record
@@ -28,7 +28,6 @@ from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec
-from .driver import Stop, Writer, drive
 from .gsd_writer import GSDWriter
 from .writers import OnSnapshot, ResultsWriter
 
@@ -54,10 +53,6 @@ class Interrupted(RuntimeError):
     or "done" if the run had finished)."""
 
 
-def _counter(sim: Simulation, name: str) -> int:
-    return sim.steps if name == "steps" else sim.collisions
-
-
 def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record], None] | None = None,
                 writers: Sequence[Writer] = (), after_chunk: Callable[[Simulation], None] | None = None) -> str:
     """Run ``sim`` (built from ``spec``) to ``spec.stop`` with ``writers``, calling ``on_snapshot``
@@ -79,9 +74,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     before anything is written: bad input fails first. A non-empty ``out_dir`` is refused
     (`InputError`) unless ``force`` (which replaces our files) or ``resume`` (which continues
     from the last checkpoint of the same spec; a finished run is left as it is; a missing or empty
-    ``out_dir`` is refused, `check_resumable`). ``progress``: a
-    tqdm bar on stderr; None means only if stderr is a terminal. ``status``: a callable told each
-    stage (building, compiling, drawing).
+    ``out_dir`` is refused, `check_resumable`). ``progress``: the run driver's bar (True, False, or
+    None: in a terminal or a notebook, once the run has taken 2 s; `pinnedballs.engine.progress`).
+    ``status``: a callable told each stage (building, compiling, drawing).
 
     SIGINT/SIGTERM (main thread) ask the run to stop at the end of its chunk: the state is saved,
     marked "interrupted", and `Interrupted` raised. A second SIGINT raises KeyboardInterrupt at once,
@@ -148,25 +143,23 @@ def _trajectory(spec: RunSpec, out: Path, fresh: bool) -> list[GSDWriter]:
 def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | None, status,
            stop_requested: Callable[[], bool]) -> None:
     """``sim`` to ``stop`` recording into ``writers`` (the `ResultsWriter` last, so every other writer
-    has recorded a state before it is checkpointed), with a progress bar; a stop requested by a signal
-    raises `Interrupted` between chunks (the driver has the writers save the state first)."""
+    has recorded a state before it is checkpointed), with the driver's progress; a stop requested by a
+    signal raises `Interrupted` between chunks (the driver has the writers save the state first)."""
     writer = writers[-1]
     status("compiling the loop (once: numba caches it on disk)")
-    sim.run(steps=0, until_frozen=stop.until_frozen)  # compiles; changes no bit of the state
+    sim.run(steps=0, until_frozen=stop.until_frozen, progress=False)  # compiles; changes no bit of the state
     status.clear()
-    with _progress_bar(stop, sim, progress) as bar:
-        def after_chunk(s: Simulation) -> None:
-            bar(s)
-            if stop_requested():
-                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
-                                  f"continue with --resume")
 
-        try:
-            drive(sim, stop, writers, after_chunk=after_chunk)
-        finally:
-            for other in writers[:-1]:
-                other.close()
-        bar(sim)
+    def after_chunk(s: Simulation) -> None:
+        if stop_requested():
+            raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
+                              f"continue with --resume")
+
+    try:
+        drive(sim, stop, writers, after_chunk=after_chunk, progress=progress)
+    finally:
+        for other in writers[:-1]:
+            other.close()
 
 
 def _check_same_run(res: Results, spec: RunSpec) -> None:
@@ -215,26 +208,6 @@ def _deferred_signals() -> Iterator[Callable[[], bool]]:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-
-
-@contextlib.contextmanager
-def _progress_bar(stop: Stop, sim: Simulation, show: bool | None) -> Iterator[Callable[[Simulation], None]]:
-    """A callable updating a tqdm bar on stderr (steps, collisions, rate, ETA); a no-op when not shown."""
-    if show is None:
-        show = sys.stderr.isatty()
-    if not show:
-        yield lambda s: None
-        return
-    from tqdm import tqdm
-
-    unit, total = ("collisions", stop.collisions) if stop.collisions is not None else ("steps", stop.steps)
-    other = "steps" if unit == "collisions" else "collisions"
-    with tqdm(total=total, initial=_counter(sim, unit), unit=f" {unit}", unit_scale=True, file=sys.stderr,
-              dynamic_ncols=True, smoothing=0.1, desc="running") as bar:
-        def update(s: Simulation) -> None:
-            bar.update(_counter(s, unit) - bar.n)
-            bar.set_postfix_str(f"{other}={_counter(s, other):,}", refresh=False)
-        yield update
 
 
 # ---------------------------------------------------------------- figures

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..analysis import observables as named
 from ..results.trajectory import Layout, Trajectory
-from .driver import Writer
+from ..engine.driver import Writer
 from .triggers import Counts
 from .writers import _trigger
 

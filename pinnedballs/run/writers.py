@@ -34,7 +34,7 @@ from ..results.files import held_signals
 from ..results.format import DATA_DIR, RESULTS_NAME, Record
 from ..results.rundir import DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
-from .driver import Writer
+from ..engine.driver import Writer
 from .triggers import Counts, Trigger
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from pydantic import AfterValidator, Field, model_validator
 
-from ..run.driver import Stop
+from ..engine.driver import Stop
 from ..run.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .base import Count, _only_one, _Spec
 
