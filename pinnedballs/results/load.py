@@ -164,11 +164,12 @@ class Results:
         return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"))
 
-    def animate(self, out=None, fps: float = 4) -> Path:
-        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`."""
+    def animate(self, out=None, fps: float = 4, max_frames: int | None = None) -> Path:
+        """A movie of this run's snapshots (default ``<run dir>/movie.gif``; at most ``max_frames`` frames, 300
+        by default); see `pinnedballs.plot.animation.animate`."""
         from ..plot.animation import animate
 
-        return animate(self, out, fps)
+        return animate(self, out, fps, max_frames)
 
     def __repr__(self) -> str:
         return (f"Results({str(self.path)!r}, {self.status}, steps={self.steps}, collisions={self.collisions}, "
