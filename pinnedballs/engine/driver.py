@@ -41,7 +41,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from .progress import Progress
+from .progress import Progress, shown
 from .sigint import Deferred, deferred
 
 __all__ = ["CHUNK_SECONDS", "FIRST_CHUNK", "GROWTH", "CHUNK_STEPS", "CHUNK_PER_CONTACT", "NO_LIMIT", "Stop",
@@ -169,11 +169,13 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Calla
     ``progress`` (`pinnedballs.engine.progress`): a bar over the steps, or the collisions for a
     collision target; a count of steps and collisions when the run goes until frozen (its end unknown).
     """
+    shown(progress)  # a bad argument is refused before anything starts
     checked: list[Counts | None] = []
     try:
         for w in writers:
             checked.append(w.attach(sim))
-        sim._run(0, NO_LIMIT if stop.collisions is None else stop.collisions, stop.until_frozen)  # compiles
+        _, collisions = _next_chunk(sim, stop, 0, [w.trigger for w in writers if w.trigger is not None])
+        sim._run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)  # compiles the chunks' loop
         with _progress(sim, stop, progress) as bar, deferred() as held:
             return _loop(sim, stop, writers, checked, after_chunk, bar, held)
     except BaseException:
