@@ -46,6 +46,7 @@ import numpy as np
 from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
 from ..engine.progress import Progress
+from ..engine.sigint import deferred
 from ..geometry.base import Geometry
 from ..schedulers.replay import Replay
 from ..simulation import Simulation
@@ -282,13 +283,15 @@ def search_max_collisions(geometry: Geometry, trials: int = 1000, seed=0, *, sta
     arithmetic = _arithmetic(geometry, arithmetic)
     rng = np.random.default_rng(seed)
     climbs = _Climbs(geometry, start, patience, max_states, max_collisions, rng)
-    with Progress(progress, trials, "trials", "most collisions", scale=False) as bar:
-        for trial in range(1, trials + 1):
-            climbs.step()
-            bar.update(trial, f"best={climbs.best[0]}")
-    _, v, found_at, found = climbs.best
-    final = _most(geometry, v, final_states, max_collisions, int(rng.integers(2**63)), arithmetic, progress)
-    order = _verified(geometry, v, final, found)
+    with deferred() as held:  # Ctrl-C between trials, states and collisions, never inside a compiled kernel
+        with Progress(progress, trials, "trials", "most collisions", scale=False) as bar:
+            for trial in range(1, trials + 1):
+                held.deliver()
+                climbs.step()
+                bar.update(trial, f"best={climbs.best[0]}")
+        _, v, found_at, found = climbs.best
+        final = _most(geometry, v, final_states, max_collisions, int(rng.integers(2**63)), arithmetic, progress)
+        order = _verified(geometry, v, final, found)
     v.setflags(write=False)
     return MaxCollisionsResult(len(order), v, order, final.exhaustive, final.min_collisions,
                                final.states, climbs.trials, climbs.climbs, found_at, final.arithmetic)

@@ -27,6 +27,7 @@ from ..engine import checks
 from ..engine.errors import FieldError
 from ..engine.limits import check_memory
 from ..engine.progress import Progress
+from ..engine.sigint import Deferred, deferred
 from ..geometry.base import Geometry
 from ..schedulers.simple import UniformRandomPair
 from ..simulation import Simulation
@@ -117,7 +118,8 @@ def _never_freezes(limit: int) -> ValueError:
                       "unless this system can collide forever (a torus or a sphere can)")
 
 
-def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progress) -> tuple[dict, list[_Frame], int]:
+def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progress,
+            held: Deferred) -> tuple[dict, list[_Frame], int]:
     """Depth-first search from ``root`` over at most ``max_states`` distinct states (and a path
     of at most `PATH_BYTES` of velocities).
 
@@ -128,6 +130,7 @@ def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progr
     memo: dict[int, tuple[int, int, int, int]] = {}
     path, on_path, states, path_bytes = [_Frame(root)], {root.key}, 1, root.nbytes
     while path:
+        held.deliver()  # Ctrl-C between states (never inside a compiled kernel: `engine.sigint`)
         f = path[-1]
         if f.next == len(f.node.ks):
             memo[f.node.key] = f.result()
@@ -223,10 +226,11 @@ class _Budget:
 class _Tally:
     """Collisions counted on ``bar`` (call it for each one; `shown` when done)."""
 
-    def __init__(self, bar: Progress):
-        self.bar, self.count = bar, 0
+    def __init__(self, bar: Progress, held: Deferred):
+        self.bar, self.count, self.held = bar, 0, held
 
     def __call__(self) -> None:
+        self.held.deliver()  # Ctrl-C between collisions
         self.count += 1
         if self.count % _SHOW_EVERY == 0:
             self.bar.update(self.count)
@@ -334,9 +338,15 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
                  f"a search of {max_states:,} states of {geometry.n_balls:,} balls")
     system = (ExactSystem if sim.arithmetic == "exact" else FloatSystem)(sim, min_closing_speed)
+    with deferred() as held:  # Ctrl-C at the next state or collision, never inside a compiled kernel
+        return _explore(system, max_states, max_collisions, seed, restarts, progress, held)
+
+
+def _explore(system, max_states: int, max_collisions: int, seed, restarts: int, progress, held: Deferred) -> OrdersResult:
+    """`explore_orders` once its arguments are checked: the search over states, then sampled orders."""
     root = system.root()
     with Progress(progress, max_states, "states", "orders", scale=False) as bar:
-        memo, path, states = _search(system, root, max_states, max_collisions, bar)
+        memo, path, states = _search(system, root, max_states, max_collisions, bar, held)
     if not path:
         return OrdersResult(*_root_result(system, root, memo), states=states, exhaustive=True,
                             arithmetic=system.arithmetic)
@@ -347,7 +357,7 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     chosen += [lambda ks, ws: int(rng.integers(len(ks)))] * restarts
     sampled = 0
     with Progress(progress, None, "collisions", "sampled orders", scale=False) as bar:
-        tally = _Tally(bar)
+        tally = _Tally(bar, held)
         budget = _Budget(max(max_states, WALK_FLOOR), tally)
         for choose in chosen:
             if not _walk(system, root, memo, choose, best, max_collisions, budget):

@@ -8,6 +8,9 @@ chunks, when the state is one the chain passed through: each noted signal then g
 that was there before, which for Python's default raises KeyboardInterrupt (a command line's own
 handler may only ask the run to stop). Signals still noted when the block ends are delivered then.
 
+A block inside another's shares the outer one's `Deferred`: a signal noted anywhere reaches the
+handler at the first `Deferred.deliver` of either (each is a point where the state is whole).
+
 Nothing is deferred off the main thread (Python delivers signals to the main thread only), nor
 when SIGINT is ignored or left to the operating system (`SIG_IGN`, `SIG_DFL`): that choice stands.
 """
@@ -49,6 +52,10 @@ def deferred() -> Iterator[Deferred]:
     """SIGINT noted, not acted on, inside the block (see the module's docstring); the block calls
     `Deferred.deliver` wherever the state is complete."""
     previous = _get(signal.SIGINT) if threading.current_thread() is threading.main_thread() else None
+    outer = getattr(previous, "__self__", None)
+    if isinstance(outer, Deferred):  # inside another block: share its notes
+        yield outer
+        return
     if not callable(previous):  # off the main thread, SIG_IGN, SIG_DFL or a handler set outside Python
         yield Deferred(None)
         return
