@@ -18,7 +18,7 @@ from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
 from .engine.stop import Stop
-from .run.driver import Writer
+from .engine.driver import Writer
 from .run.ensemble import EnsembleResult, run_ensemble
 from .run.ensemble_dir import load_ensemble
 from .run.execute import run_spec

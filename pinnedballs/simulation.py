@@ -10,6 +10,8 @@ import numpy as np
 
 from .engine import checks
 from .engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
+from .engine.driver import check_writers, drive
+from .engine.stop import Stop
 from .engine.errors import FieldError, FieldTypeError, check_jitted
 from .engine.arithmetic import ARITHMETICS, MAX_PRECISION, field_chain
 from .engine.exact import FieldChain
@@ -187,35 +189,42 @@ class Simulation:
 
     # ------------------------------------------------------------ running
     def run(self, steps: int | None = None, collisions: int | None = None, *, until_frozen: bool = False,
-            writers=None) -> int:
+            writers=None, progress: bool | None = None) -> int:
         """Pick ``steps`` more contacts, or run until ``collisions`` in total, whichever comes first.
 
         With ``until_frozen`` (implied when only ``collisions`` is given, which a frozen
         system could never reach) the run also stops right after the collision that
         leaves no live contact (see `approaching`). Returns the number of steps taken.
-        ``writers`` (e.g. `ResultsWriter`) record the run, in chunks, to the same final state.
+        ``writers`` (e.g. `ResultsWriter`) record the run, to the same final state.
+
+        The run goes in chunks of about 0.2 s (`pinnedballs.engine.driver`), which change no bit.
+        Ctrl-C stops it at the end of its chunk with KeyboardInterrupt, the simulation whole:
+        continuing it gives the bits of a run never interrupted. ``progress``: a bar over the
+        steps (the collisions for a collision target; a count when running until frozen):
+        True shows it, False never, None where it helps (in a terminal or a notebook, once the run
+        has taken 2 s; `pinnedballs.engine.progress`).
         """
         if steps is None and collisions is None:
             raise FieldError("run", "give steps= or collisions= (or use run_until_frozen)")
-        max_steps = NO_LIMIT if steps is None else _count("steps", steps)
-        max_collisions = NO_LIMIT if collisions is None else _count("collisions", collisions)
-        if writers is not None:
-            from .run.driver import drive_run
-            return drive_run(self, steps, collisions, until_frozen, writers)
-        return self._run(max_steps, max_collisions, until_frozen or steps is None)
+        if steps is not None:
+            _count("steps", steps)
+        if collisions is not None:
+            _count("collisions", collisions)
+        start = self.steps
+        stop = Stop(steps=None if steps is None else min(start + steps, NO_LIMIT), collisions=collisions,
+                    until_frozen=until_frozen or steps is None)
+        drive(self, stop, check_writers(writers or ()), progress=progress)
+        return self.steps - start
 
-    def run_until_frozen(self, max_steps: int, *, writers=None) -> bool:
+    def run_until_frozen(self, max_steps: int, *, writers=None, progress: bool | None = None) -> bool:
         """Run until no contact approaches, for at most ``max_steps`` more steps.
 
         Stops right after the collision that freezes the system, so ``steps`` is the
-        exact step of the last collision. Returns True if frozen.
+        exact step of the last collision. Returns True if frozen. Ctrl-C, ``writers`` and
+        ``progress`` as for `run` (the progress is a count of steps and collisions: the end is unknown).
         """
-        if writers is not None:
-            from .run.driver import drive_run
-            drive_run(self, _count("max_steps", max_steps), None, True, writers)
-            return self.is_frozen()
-        self._run(_count("max_steps", max_steps), NO_LIMIT, True)
-        return bool(self._counters[LIVE] == 0)
+        stop = Stop(steps=min(self.steps + _count("max_steps", max_steps), NO_LIMIT), until_frozen=True)
+        return drive(self, stop, check_writers(writers or ()), progress=progress) == "frozen"
 
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken. A

@@ -28,7 +28,7 @@ def loaded_after(code: str) -> set[str]:
 def test_import_pinnedballs_loads_no_front_end():
     loaded = loaded_after("import pinnedballs")
     assert not {m for m in loaded if m in FRONT_ENDS or m.startswith(("pinnedballs.reproduction.", "pinnedballs.cli."))}
-    assert {"pinnedballs.run.writers", "pinnedballs.run.driver", "pinnedballs.engine.triggers"} <= loaded
+    assert {"pinnedballs.run.writers", "pinnedballs.engine.driver", "pinnedballs.engine.triggers"} <= loaded
 
 
 @pytest.mark.slow

@@ -45,6 +45,8 @@ import numpy as np
 
 from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
+from ..engine.progress import Progress
+from ..engine.sigint import deferred
 from ..geometry.base import Geometry
 from ..schedulers.replay import Replay
 from ..simulation import Simulation
@@ -139,11 +141,11 @@ def perturbed(v: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def _most(geometry: Geometry, v: np.ndarray, max_states: int, max_collisions: int, seed: int,
-          arithmetic: str) -> OrdersResult:
+          arithmetic: str, progress: bool | None = False) -> OrdersResult:
     """`explore_orders` of ``v`` for the search; a system that never freezes is refused on ``geometry``."""
     try:
         return explore_orders(geometry, v, max_states=max_states, restarts=SAMPLED_ORDERS, seed=seed,
-                              max_collisions=max_collisions, arithmetic=arithmetic)
+                              max_collisions=max_collisions, arithmetic=arithmetic, progress=progress)
     except FieldError:
         raise
     except ValueError as exc:  # explore_orders: an order came back to a state, or ran on unfrozen
@@ -244,7 +246,7 @@ def _verified(geometry: Geometry, v: np.ndarray, final: OrdersResult, found: tup
 
 def search_max_collisions(geometry: Geometry, trials: int = 1000, seed=0, *, start=None, patience: int = 50,
                           max_states: int = 20_000, final_states: int = 200_000, max_collisions: int = 10**5,
-                          arithmetic: str = "auto") -> MaxCollisionsResult:
+                          arithmetic: str = "auto", progress: bool | None = None) -> MaxCollisionsResult:
     """The most collisions until frozen found over initial velocities and orders of collisions.
 
     Equal masses, elastic collisions. ``trials`` velocities are evaluated, each by its most
@@ -262,6 +264,12 @@ def search_max_collisions(geometry: Geometry, trials: int = 1000, seed=0, *, sta
     count, frozen, before returning. Returns a `MaxCollisionsResult`. A system that never
     freezes (a torus, a sphere) is refused with a `FieldError` on ``geometry``: an order came back
     to a state it passed, or one of ``max_collisions`` collisions had not frozen.
+
+    The bounds bound the call: ``trials`` searches of at most ``max_states`` states each and one of
+    ``final_states`` (`explore_orders` says what a state costs). ``progress``: a bar over the trials,
+    the most found so far beside it, then the final search's (True, False, or None: in a terminal or a
+    notebook, once the call has taken 2 s). Ctrl-C stops it with KeyboardInterrupt, the search so far
+    discarded.
     """
     if not isinstance(geometry, Geometry):
         raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
@@ -275,11 +283,15 @@ def search_max_collisions(geometry: Geometry, trials: int = 1000, seed=0, *, sta
     arithmetic = _arithmetic(geometry, arithmetic)
     rng = np.random.default_rng(seed)
     climbs = _Climbs(geometry, start, patience, max_states, max_collisions, rng)
-    for _ in range(trials):
-        climbs.step()
-    _, v, found_at, found = climbs.best
-    final = _most(geometry, v, final_states, max_collisions, int(rng.integers(2**63)), arithmetic)
-    order = _verified(geometry, v, final, found)
+    with deferred() as held:  # Ctrl-C between trials, states and collisions, never inside a compiled kernel
+        with Progress(progress, trials, "trials", "most collisions", scale=False) as bar:
+            for trial in range(1, trials + 1):
+                held.deliver()
+                climbs.step()
+                bar.update(trial, f"best={climbs.best[0]}")
+        _, v, found_at, found = climbs.best
+        final = _most(geometry, v, final_states, max_collisions, int(rng.integers(2**63)), arithmetic, progress)
+        order = _verified(geometry, v, final, found)
     v.setflags(write=False)
     return MaxCollisionsResult(len(order), v, order, final.exhaustive, final.min_collisions,
                                final.states, climbs.trials, climbs.climbs, found_at, final.arithmetic)

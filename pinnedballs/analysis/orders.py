@@ -3,176 +3,46 @@
 The paper's scheduler follows one random order; the theory (Athreya-Burdzy-Duarte
 2018, Burdzy-Duarte 2022) bounds the number of collisions over *every* order.
 `explore_orders` searches them: depth first over the live contacts of each state,
-with states merged by the exact bits of their velocities (two commuting
-collisions reach the same state), so the search is over states, not sequences.
-Each state's fewest and most collisions until frozen are kept once known.
-
-A collision here is exactly the engine's: the rule's own jitted ``collide``, with
-the same compile-time ``dim`` and ``flat``, and a contact is *live* when colliding
-it would change a bit of a velocity. So every returned order replays through
-`Simulation` with the `Replay` scheduler to the reported count, ending frozen.
+with states merged by their velocities (two commuting collisions reach the same
+state), so the search is over states, not sequences. Each state's fewest and most
+collisions until frozen are kept once known. The states, their keys and what each
+costs are those of `order_systems` (float64 or exact arithmetic); every returned order
+replays through `Simulation` with the `Replay` scheduler to the reported count, ending frozen.
 
 When ``max_states`` stops the search, the figures become bounds reached by real
 orders (fewest: at most; most: at least), improved by greedy orders (largest or
-smallest closing speed first) and seeded random orders.
+smallest closing speed first) and seeded random orders, which together take at most
+``max(max_states, 10,000)`` more collisions: the bounds bound the whole call's time and
+memory (memory beyond what the machine has is refused at once).
 """
 
 from __future__ import annotations
 
-import functools
-import hashlib
 from dataclasses import dataclass
-from typing import Callable, NamedTuple
+from typing import Callable
 
 import numpy as np
-from numba import njit
 
 from ..engine import checks
 from ..engine.errors import FieldError
-from ..engine.jitcache import jit_cached_if_possible
+from ..engine.limits import check_memory
+from ..engine.progress import Progress
+from ..engine.sigint import Deferred, deferred
 from ..geometry.base import Geometry
-from ..rules import closing_speed
 from ..schedulers.simple import UniformRandomPair
 from ..simulation import Simulation
+from .order_systems import NODE_BYTES, ExactSystem, FloatSystem, Node, order_kernels
 
 __all__ = ["explore_orders", "OrdersResult", "order_kernels", "orders_against_random"]
 
-
-# ---------------------------------------------------------------- kernels
-
-
-class OrderKernels(NamedTuple):
-    """Compiled helpers of the search, for one rule's ``collide``, ``dim`` and ``flat``.
-
-    live(v, pairs, ends, units, masses, params, min_w) -> (contacts (L,) int64, closing speeds (L,))
-        the live contacts (colliding would change a bit of a velocity) closing faster than
-        ``min_w`` (0: every live contact), in contact order;
-    child(v, pairs, ends, units, masses, params, k) -> (n_balls, dim)
-        a copy of ``v`` after colliding contact ``k``;
-    collide_at(v, pairs, ends, units, masses, params, k) -> bool
-        collides contact ``k`` in place; True if a velocity changed.
-
-    ``v`` is ``(n_balls, dim)``; the tables are those of `pinnedballs.geometry.Contacts`.
-    """
-
-    live: Callable
-    child: Callable
-    collide_at: Callable
-
-
-@functools.cache
-def order_kernels(collide: Callable, dim: int, flat: bool) -> OrderKernels:
-    """`OrderKernels` calling ``collide`` exactly as the engine's loop does."""
-    D, FLAT = dim, flat  # compile-time constants, as in engine.loops.chain_kernel
-
-    @njit(inline="always")
-    def attempt(v, pairs, ends, units, masses, params, k, write):
-        return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT, write)
-
-    @jit_cached_if_possible
-    def live(v, pairs, ends, units, masses, params, min_w):
-        ks = np.empty(pairs.shape[0], dtype=np.int64)
-        ws = np.empty(pairs.shape[0], dtype=np.float64)
-        n = 0
-        for k in range(pairs.shape[0]):
-            if attempt(v, pairs, ends, units, masses, params, k, False):
-                w = closing_speed(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], D, FLAT)
-                if w > min_w:
-                    ks[n], ws[n] = k, w
-                    n += 1
-        return ks[:n], ws[:n]
-
-    @jit_cached_if_possible
-    def child(v, pairs, ends, units, masses, params, k):
-        out = v.copy()
-        attempt(out, pairs, ends, units, masses, params, k, True)
-        return out
-
-    @jit_cached_if_possible
-    def collide_at(v, pairs, ends, units, masses, params, k):
-        return attempt(v, pairs, ends, units, masses, params, k, True)
-
-    return OrderKernels(live, child, collide_at)
-
-
-class _FloatSystem:
-    """A float64 system: the engine's compiled ``collide`` on velocity arrays, states keyed by their bits."""
-
-    arithmetic = "float"
-
-    def __init__(self, sim: Simulation, min_closing_speed: float = 0.0):
-        c, masses = sim.geometry.contacts, sim._mass_array
-        self.min_w = float(min_closing_speed)
-        self.tables = (c.pairs, c.ends, c.units, masses, sim._params)  # the rule's params and the threshold
-        self.kernels = order_kernels(sim._collide, sim.geometry.dim, c.flat)
-        self.start = np.ascontiguousarray(sim.velocities)
-
-    def live(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.kernels.live(v, *self.tables, self.min_w)
-
-    def child(self, v: np.ndarray, k: int) -> np.ndarray:
-        return self.kernels.child(v, *self.tables, k)
-
-    @staticmethod
-    def key(v: np.ndarray) -> bytes:
-        return _key(v)
-
-    @staticmethod
-    def size(v: np.ndarray) -> int:
-        return v.nbytes
-
-
-class _ExactSystem:
-    """An exact system (`pinnedballs.engine.exact`): states are the exact velocities, tuples of field
-    elements, merged by exact equality; a contact is live when its exact closing speed is positive."""
-
-    arithmetic = "exact"
-
-    def __init__(self, sim: Simulation, min_closing_speed: float = 0.0):
-        self.chain, self.min_w = sim._exact, float(min_closing_speed)
-        self.start = tuple(tuple(row) for row in self.chain.v)
-
-    def live(self, v: tuple) -> tuple[np.ndarray, np.ndarray]:
-        chain, F = self.chain, self.chain.field
-        ks, ws = [], []
-        for k, (i, j) in enumerate(chain.pairs):
-            w = chain.closing_of(v[i], v[j], k)
-            if F.sign(w) > 0 and (not self.min_w or F.to_float(w) > self.min_w):
-                ks.append(k)
-                ws.append(F.to_float(w))
-        return np.array(ks, dtype=np.int64), np.array(ws, dtype=np.float64)
-
-    def child(self, v: tuple, k: int) -> tuple:
-        chain, (i, j), (a, b) = self.chain, self.chain.pairs[k], self.chain.ends[k]
-        ci, cj = chain.kicks(chain.closing_of(v[i], v[j], k), k)
-        out = list(v)
-        out[i] = tuple(chain.kicked(v[i], ci, chain.units[a]))
-        out[j] = tuple(chain.kicked(v[j], cj, chain.units[b]))
-        return tuple(out)
-
-    @staticmethod
-    def key(v: tuple) -> tuple:
-        return v
-
-    def size(self, v: tuple) -> int:
-        """About the bytes a state holds (its rationals grow with the collisions behind it)."""
-        return sum(len(str(c)) + 64 for row in v for x in row for c in x)
-
-
-#: states up to this many bytes are keyed by their bits; larger ones by a 128-bit digest of them
-_EXACT_KEY_BYTES = 64
-
 #: the search path keeps each open state's velocities: it stops before they take more than this
 PATH_BYTES = 512 << 20
-
-
-def _key(v: np.ndarray) -> bytes:
-    """A state's identity: the bits of its velocities, or above `_EXACT_KEY_BYTES` their
-    BLAKE2b-128 digest (two of a million states share one with probability below 1e-26),
-    so that a million states of a thousand balls take 16 MB of keys, not 16 GB."""
-    if v.nbytes <= _EXACT_KEY_BYTES:
-        return v.tobytes()
-    return hashlib.blake2b(v, digest_size=16).digest()
+#: the default bound on the states searched, in float64 and in exact arithmetic (a minute or two each)
+MAX_STATES, MAX_EXACT_STATES = 10**6, 10**5
+#: the sampled orders may take at least this many collisions in all, whatever ``max_states``
+WALK_FLOOR = 10_000
+#: states between two updates of the progress bar
+_SHOW_EVERY = 64
 
 
 # ---------------------------------------------------------------- the result
@@ -223,12 +93,12 @@ class OrdersResult:
 
 
 class _Frame:
-    """A state on the search path: its live contacts, the next to try, the best so far."""
+    """A state on the search path: its node, the next live contact to try, the best so far."""
 
-    __slots__ = ("v", "key", "ks", "next", "lo", "hi", "k_lo", "k_hi")
+    __slots__ = ("node", "next", "lo", "hi", "k_lo", "k_hi")
 
-    def __init__(self, v: np.ndarray, key: bytes, ks: np.ndarray):
-        self.v, self.key, self.ks, self.next = v, key, ks.tolist(), 0
+    def __init__(self, node: Node):
+        self.node, self.next = node, 0
         self.lo, self.hi, self.k_lo, self.k_hi = -1, -1, -1, -1
 
     def take(self, k: int, lo: int, hi: int) -> None:
@@ -240,59 +110,72 @@ class _Frame:
 
     def result(self) -> tuple[int, int, int, int]:
         """``(fewest, most, contact to the fewest, contact to the most)``; -1 contacts when frozen."""
-        return (0, 0, -1, -1) if not self.ks else (self.lo, self.hi, self.k_lo, self.k_hi)
+        return (0, 0, -1, -1) if len(self.node.ks) == 0 else (self.lo, self.hi, self.k_lo, self.k_hi)
 
 
-def _search(system, v0, max_states: int) -> tuple[dict, list[_Frame], int]:
-    """Depth-first search from ``v0`` over at most ``max_states`` distinct states (and a path
+def _never_freezes(limit: int) -> ValueError:
+    return ValueError(f"max_collisions: an order of {limit:,} collisions has not frozen; raise max_collisions, "
+                      "unless this system can collide forever (a torus or a sphere can)")
+
+
+def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progress,
+            held: Deferred) -> tuple[dict, list[_Frame], int]:
+    """Depth-first search from ``root`` over at most ``max_states`` distinct states (and a path
     of at most `PATH_BYTES` of velocities).
 
     Returns ``(memo, path, states)``: ``memo[key] = (fewest, most, k_fewest, k_most)`` for
     every state fully explored, and the path of frames still open (empty when exhaustive).
     An explicit stack: orders can be longer than Python's recursion limit.
     """
-    memo: dict[bytes, tuple[int, int, int, int]] = {}
-    root = _Frame(v0, system.key(v0), system.live(v0)[0])
-    path, on_path, states = [root], {root.key}, 1
+    memo: dict[int, tuple[int, int, int, int]] = {}
+    path, on_path, states, path_bytes = [_Frame(root)], {root.key}, 1, root.nbytes
     while path:
+        held.deliver()  # Ctrl-C between states (never inside a compiled kernel: `engine.sigint`)
         f = path[-1]
-        if f.next == len(f.ks):
-            memo[f.key] = f.result()
-            on_path.discard(f.key)
+        if f.next == len(f.node.ks):
+            memo[f.node.key] = f.result()
+            on_path.discard(f.node.key)
+            path_bytes -= f.node.nbytes
             path.pop()
             if path:
                 parent = path[-1]
-                r = memo[f.key]
-                parent.take(parent.ks[parent.next], r[0], r[1])
+                r = memo[f.node.key]
+                parent.take(int(parent.node.ks[parent.next]), r[0], r[1])
                 parent.next += 1
             continue
-        k = f.ks[f.next]
-        v = system.child(f.v, k)
-        key = system.key(v)
-        known = memo.get(key)
+        k = int(f.node.ks[f.next])
+        child = system.child(f.node, k)
+        known = memo.get(child.key)
         if known is not None:
             f.take(k, known[0], known[1])
             f.next += 1
-        elif key in on_path:
+        elif child.key in on_path:
             raise ValueError(f"velocities: an order returns to a state it passed (by contact {k}), so this "
                              "system can collide forever (a torus or a sphere can): nothing freezes it")
-        elif states >= max_states or (len(path) + 1) * system.size(v) > PATH_BYTES:
+        elif states >= max_states or path_bytes + child.nbytes > PATH_BYTES:
+            bar.update(states)
             return memo, path, states
+        elif len(path) >= max_collisions and len(child.ks):
+            raise _never_freezes(max_collisions)
         else:
             states += 1
-            path.append(_Frame(v, key, system.live(v)[0]))
-            on_path.add(key)
+            path.append(_Frame(child))
+            on_path.add(child.key)
+            path_bytes += child.nbytes
+            if states % _SHOW_EVERY == 0:
+                bar.update(states)
+    bar.update(states)
     return memo, [], states
 
 
-def _follow(system, v, memo: dict, which: int) -> list[int]:
-    """The order the memo records from the fully explored state ``v``: ``which`` 2 for the fewest, 3 the most."""
+def _follow(system, node: Node, memo: dict, which: int) -> list[int]:
+    """The order the memo records from the fully explored state ``node``: ``which`` 2 for the fewest, 3 the most."""
     order = []
-    k = memo[system.key(v)][which]
+    k = memo[node.key][which]
     while k >= 0:
         order.append(k)
-        v = system.child(v, k)
-        k = memo[system.key(v)][which]
+        node = system.child(node, k)
+        k = memo[node.key][which]
     return order
 
 
@@ -317,33 +200,67 @@ def _from_path(system, memo: dict, path: list[_Frame], best: _Best) -> None:
     prefix: list[int] = []
     for f in path:
         if f.hi >= 0:
-            lo = prefix + [f.k_lo] + _follow(system, system.child(f.v, f.k_lo), memo, 2)
-            hi = prefix + [f.k_hi] + _follow(system, system.child(f.v, f.k_hi), memo, 3)
+            lo = prefix + [f.k_lo] + _follow(system, system.child(f.node, f.k_lo), memo, 2)
+            hi = prefix + [f.k_hi] + _follow(system, system.child(f.node, f.k_hi), memo, 3)
             best.offer(len(lo), lo, len(hi), hi)
-        if f.next < len(f.ks):
-            prefix = prefix + [f.ks[f.next]]
+        if f.next < len(f.node.ks):
+            prefix = prefix + [int(f.node.ks[f.next])]
 
 
-def _walk(system, v, memo: dict, choose: Callable, best: _Best, limit: int) -> None:
-    """One order from ``v`` to frozen, each contact chosen by ``choose(contacts, closing speeds)``;
-    it ends early at a fully explored state, whose fewest and most complete it both ways.
-    Raises ValueError after ``limit`` collisions without freezing."""
+class _Budget:
+    """The collisions orders may still take, all together (`explore_orders`' bound); ``tally()`` is
+    told of each one (the progress)."""
+
+    def __init__(self, collisions: int, tally: Callable[[], None]):
+        self.left, self.tally = collisions, tally
+
+    def spend(self) -> bool:
+        """One collision more, if any is left."""
+        if self.left <= 0:
+            return False
+        self.left -= 1
+        self.tally()
+        return True
+
+
+class _Tally:
+    """Collisions counted on ``bar`` (call it for each one; `shown` when done)."""
+
+    def __init__(self, bar: Progress, held: Deferred):
+        self.bar, self.count, self.held = bar, 0, held
+
+    def __call__(self) -> None:
+        self.held.deliver()  # Ctrl-C between collisions
+        self.count += 1
+        if self.count % _SHOW_EVERY == 0:
+            self.bar.update(self.count)
+
+    def shown(self) -> None:
+        self.bar.update(self.count)
+
+
+def _walk(system, node: Node, memo: dict, choose: Callable, best: _Best, limit: int, budget: _Budget) -> bool:
+    """One order from ``node`` to frozen, each contact chosen by ``choose(contacts, closing speeds)``;
+    it ends early at a fully explored state, whose fewest and most complete it both ways. False when
+    it was given up because the ``budget`` ran out. Raises ValueError after ``limit`` collisions
+    without freezing."""
     order: list[int] = []
     while len(order) < limit:
-        known = memo.get(system.key(v))
+        known = memo.get(node.key)
         if known is not None:
-            best.offer(len(order) + known[0], order + _follow(system, v, memo, 2),
-                       len(order) + known[1], order + _follow(system, v, memo, 3))
-            return
-        ks, ws = system.live(v)
+            best.offer(len(order) + known[0], order + _follow(system, node, memo, 2),
+                       len(order) + known[1], order + _follow(system, node, memo, 3))
+            return True
+        ks, ws = system.speeds(node)
         if len(ks) == 0:
             best.offer(len(order), order, len(order), order)
-            return
+            return True
+        if not budget.spend():
+            return False
         k = int(ks[choose(ks, ws)])
         order.append(k)
-        v = system.child(v, k)
-    raise ValueError(f"max_collisions: an order of {limit:,} collisions has not frozen; raise max_collisions, "
-                     "unless this system can collide forever (a torus or a sphere can)")
+        node = system.child(node, k, speeds=True)
+    raise _never_freezes(limit)
 
 
 def _check_count(name: str, value, minimum: int) -> int:
@@ -371,53 +288,89 @@ def _check_speed(speed) -> None:
 # ---------------------------------------------------------------- the public function
 
 
-def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_states: int = 10**6,
+def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_states: int | None = None,
                    *, restarts: int = 100, seed=0, min_closing_speed: float = 0.0,
-                   max_collisions: int = 10**6, arithmetic: str = "auto") -> OrdersResult:
+                   max_collisions: int = 10**6, arithmetic: str = "auto", progress: bool | None = None) -> OrdersResult:
     """Fewest and most collisions until frozen over every order of collisions.
 
     geometry, velocities ``(n_balls, dim)``, masses ``(n_balls,)`` or None, rule (default
     `Elastic()`): as for `Simulation`. Searches every order when the system has at most
     ``max_states`` distinct states; otherwise returns bounds (``exhaustive=False``) from the
-    part searched, two greedy orders (largest, then smallest closing speed first) and
+    part searched, two greedy orders (largest, then smallest closing speed first) and up to
     ``restarts`` orders choosing a live contact uniformly at random (``seed``: int or
-    ``numpy.random.SeedSequence``). Same inputs give the same result.
+    ``numpy.random.SeedSequence``), these sampled orders taking at most ``max(max_states, 10,000)``
+    collisions in all (`WALK_FLOOR`), each at most ``max_collisions``. Same inputs give the same result.
+
+    ``max_states`` bounds the call: at most ``max_states`` states are searched and
+    ``max(max_states, 10,000)`` more made along the sampled orders, each in about 2-30 us (float64,
+    ten to a thousand balls) or 0.3-1 ms (exact arithmetic, any size: the numbers grow along an
+    order), and the search keeps about 300 bytes per state (a bound needing more memory than the
+    machine has is refused at once, a `FieldError` on ``max_states``); when no order reaches frozen
+    within the bound, a ValueError says so (raise ``max_states``). None, the default: `MAX_STATES`
+    in float64 (10^6), `MAX_EXACT_STATES` in exact arithmetic (10^5), a minute or two either way.
+    ``progress``: a bar over the states, then a count of the sampled orders' collisions (True,
+    False, or None: in a terminal or a notebook, once the call has taken 2 s). Ctrl-C stops it with
+    KeyboardInterrupt, the partial search discarded.
 
     ``arithmetic``: ``"exact"`` searches in exact arithmetic (`pinnedballs.engine.exact`): states
-    are merged by exact equality and a contact is live when its exact closing speed is positive,
+    are merged by their exact values and a contact is live when its exact closing speed is positive,
     so the fewest and the most are exact; ``"float"`` uses the engine's float64 loop (states merged
     by their bits, rounding remnants below the engine's threshold left out); ``"auto"`` (default):
     exact where the geometry's normals lie in a known number field, float elsewhere. The result
-    says which (``arithmetic``).
+    says which (``arithmetic``). States are told apart by a 128-bit key of their velocities
+    (`order_systems`): two of a million distinct states share one with probability below 1e-26.
 
     ``min_closing_speed`` > 0 also leaves out contacts closing at or below it, in velocity units;
     the orders still replay collision for collision, but end with only such slow contacts live.
 
-    Raises ValueError when an order returns to a state it passed, or when a sampled order of
+    Raises ValueError when an order returns to a state it passed, or when an order of
     ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever.
     """
     sim = _simulation(geometry, velocities, masses, rule, checks.choice("arithmetic", arithmetic,
                                                                          ("auto", "exact", "float")))
+    if max_states is None:
+        max_states = MAX_EXACT_STATES if sim.arithmetic == "exact" else MAX_STATES
     max_states = _check_count("max_states", max_states, 1)
     restarts = _check_count("restarts", restarts, 0)
     max_collisions = _check_count("max_collisions", max_collisions, 1)
     _check_seed(seed)
     _check_speed(min_closing_speed)
-    system = (_ExactSystem if sim.arithmetic == "exact" else _FloatSystem)(sim, min_closing_speed)
-    v0 = system.start
-    memo, path, states = _search(system, v0, max_states)
+    check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
+                 f"a search of {max_states:,} states of {geometry.n_balls:,} balls")
+    system = (ExactSystem if sim.arithmetic == "exact" else FloatSystem)(sim, min_closing_speed)
+    with deferred() as held:  # Ctrl-C at the next state or collision, never inside a compiled kernel
+        return _explore(system, max_states, max_collisions, seed, restarts, progress, held)
+
+
+def _explore(system, max_states: int, max_collisions: int, seed, restarts: int, progress, held: Deferred) -> OrdersResult:
+    """`explore_orders` once its arguments are checked: the search over states, then sampled orders."""
+    root = system.root()
+    with Progress(progress, max_states, "states", "orders", scale=False) as bar:
+        memo, path, states = _search(system, root, max_states, max_collisions, bar, held)
     if not path:
-        return OrdersResult(*_root_result(system, v0, memo), states=states, exhaustive=True,
+        return OrdersResult(*_root_result(system, root, memo), states=states, exhaustive=True,
                             arithmetic=system.arithmetic)
     best = _Best()
     _from_path(system, memo, path, best)
-    _walk(system, v0, memo, lambda ks, ws: int(np.argmax(ws)), best, max_collisions)
-    _walk(system, v0, memo, lambda ks, ws: int(np.argmin(ws)), best, max_collisions)
     rng = np.random.default_rng(seed)
-    for _ in range(restarts):
-        _walk(system, v0, memo, lambda ks, ws: int(rng.integers(len(ks))), best, max_collisions)
+    chosen = [lambda ks, ws: int(np.argmax(ws)), lambda ks, ws: int(np.argmin(ws))]
+    chosen += [lambda ks, ws: int(rng.integers(len(ks)))] * restarts
+    sampled = 0
+    with Progress(progress, None, "collisions", "sampled orders", scale=False) as bar:
+        tally = _Tally(bar, held)
+        budget = _Budget(max(max_states, WALK_FLOOR), tally)
+        for choose in chosen:
+            if not _walk(system, root, memo, choose, best, max_collisions, budget):
+                break
+            sampled += 1
+        tally.shown()
+    if best.lo is None:
+        raise ValueError(f"max_states: no order reached frozen within the bound: the search of {states:,} states, then "
+                         f"{max(max_states, WALK_FLOOR):,} collisions along sampled orders; this system's orders are "
+                         f"longer (raise max_states), or never end (inelastic collisions on a torus or a sphere never "
+                         f"freeze in exact arithmetic)")
     return OrdersResult(best.lo[0], best.hi[0], tuple(best.lo[1]), tuple(best.hi[1]),
-                        states=states, exhaustive=False, sampled=restarts + 2, arithmetic=system.arithmetic)
+                        states=states, exhaustive=False, sampled=sampled, arithmetic=system.arithmetic)
 
 
 def _simulation(geometry, velocities, masses, rule, arithmetic: str) -> Simulation:
@@ -432,9 +385,9 @@ def _simulation(geometry, velocities, masses, rule, arithmetic: str) -> Simulati
     return Simulation(geometry, velocities, rule=rule, masses=masses)
 
 
-def _root_result(system, v0, memo: dict) -> tuple:
-    lo, hi = memo[system.key(v0)][:2]
-    return lo, hi, tuple(_follow(system, v0, memo, 2)), tuple(_follow(system, v0, memo, 3))
+def _root_result(system, root: Node, memo: dict) -> tuple:
+    lo, hi = memo[root.key][:2]
+    return lo, hi, tuple(_follow(system, root, memo, 2)), tuple(_follow(system, root, memo, 3))
 
 
 # ---------------------------------------------------------------- against the random order
@@ -454,7 +407,8 @@ def orders_against_random(geometry: Geometry, velocities, replicas: int = 200, s
     """
     replicas = _check_count("replicas", replicas, 1)
     _check_count("seed", seed, 0)
-    orders = explore_orders(geometry, velocities, masses=masses, rule=rule, max_states=max_states, seed=seed)
+    orders = explore_orders(geometry, velocities, masses=masses, rule=rule, max_states=max_states, seed=seed,
+                            progress=False)
     counts = np.empty(replicas, dtype=np.int64)
     for k in range(replicas):
         sim = Simulation(geometry, velocities, rule=rule, scheduler=UniformRandomPair(), masses=masses,

@@ -149,18 +149,26 @@ def plot(args: argparse.Namespace) -> int:
 @subcommand("animate", "a movie of a run's snapshots (GIF; MP4 with the 'movies' extra)",
             arg("dir", metavar="DIR", help="a run directory (or its results.h5)"),
             arg("--out", metavar="MOVIE", help="movie.gif or movie.mp4 (default: DIR/movie.gif)"),
-            arg("--fps", type=float, default=4.0, metavar="N", help="frames per second (default 4)"))
+            arg("--fps", type=float, default=4.0, metavar="N", help="frames per second (default 4)"),
+            arg("--max-frames", type=int, metavar="N", help="at most N frames, evenly spaced among the states "
+                                                            "(default 300)"))
 def animate(args: argparse.Namespace) -> int:
+    import warnings
+
     from ..engine.errors import FieldError
     from ..results.load import load
 
     res = load(args.dir)
     try:
-        path = res.animate(args.out, args.fps)
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always", UserWarning)
+            path = res.animate(args.out, args.fps, args.max_frames)
     except FieldError as exc:  # name the flag, not the Python argument
-        if exc.field not in ("out", "fps"):
+        if exc.field not in ("out", "fps", "max_frames"):
             raise
-        raise UsageError(f"animate: --{exc.field}: {exc.problem}") from None
+        raise UsageError(f"animate: --{exc.field.replace('_', '-')}: {exc.problem}") from None
+    for warning in said:  # the frames chosen when the run has more states than the movie takes
+        print(f"pinnedballs: {str(warning.message).replace('max_frames=', '--max-frames ')}", file=sys.stderr)
     print(path)
     return EXIT_OK
 

@@ -15,11 +15,25 @@ import inspect
 from pathlib import Path
 from typing import Callable
 
+import itertools
+import secrets
+
 from numba import njit
+from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
 
 __all__ = ["jit_cached_if_possible", "njit_cached"]
+
+
+#: numba names a compiled function's symbols (its code and its environment, which holds the objects
+#: it returns: an array's dtype) after its qualified name, argument types and a per-process counter.
+#: Two closures of one function (one loop for two rules, one order kernel for two dimensions)
+#: compiled by two processes at the same count share every name, and once both are loaded from the
+#: disk cache into one process the second resolves to the first's environment: a wrong dtype, a
+#: SystemError, or worse. Counting from a random 62-bit start in each process makes names shared by
+#: two processes' compilations as unlikely as a 62-bit collision; the cache's keys do not use it.
+FunctionIdentity._unique_ids = itertools.count(secrets.randbits(62))
 
 
 class _KeyedCache(FunctionCache):

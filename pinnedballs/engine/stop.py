@@ -1,6 +1,6 @@
 """`Stop`: when a run ends, as a predicate of the simulation's counters and its freeze.
 
-The run driver (`pinnedballs.run.driver`) runs to a `Stop`; a run spec's ``"stop"`` builds one
+The run driver (`pinnedballs.engine.driver`) runs to a `Stop`; a run spec's ``"stop"`` builds one
 (`pinnedballs.specs.stop.StopSpec.build`).
 """
 

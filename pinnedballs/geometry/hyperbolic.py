@@ -14,10 +14,13 @@ Velocities have 2 components, in each ball's Minkowski-orthonormal frame (`frame
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..engine import checks
 from ..engine.errors import FieldError
+from ..engine.limits import check_memory, format_bytes, format_count, run_bytes
 
 from .base import Boundary, Contacts, Geometry, checked_radius
 
@@ -27,6 +30,9 @@ __all__ = ["HyperbolicPlane", "contact_length", "MINKOWSKI"]
 MINKOWSKI = np.array([-1.0, 1.0, 1.0])
 #: at most this many balls
 MAX_BALLS = 20_000_000
+#: peak bytes per ball while the tiling is built (its polar coordinates in longdouble, the k-d trees of
+#: each ring, the candidates), besides the run's own arrays (`run_bytes`): measured 0.93 to 1.06 kB
+BUILD_BYTES = 1_100
 
 
 def contact_length(q: int) -> float:
@@ -53,6 +59,7 @@ class HyperbolicPlane(Geometry):
         self.layers = checks.integer("layers", layers, 0)
         self.radius = checked_radius(radius)  # the balls' size: the centres lie on the unit surface
         self.length = contact_length(self.q)
+        _check_size(self.q, self.layers)
         self._r, self._phi, self.ring, self.pairs = _tiling(self.q, self.layers)
         self.positions = _hyperboloid(self._r, self._phi).astype(np.float64)
 
@@ -92,6 +99,32 @@ class HyperbolicPlane(Geometry):
         units[0::2] = np.column_stack([np.cos(psi_i), np.sin(psi_i)]).astype(np.float64)
         units[1::2] = np.column_stack([np.cos(psi_j), np.sin(psi_j)]).astype(np.float64)
         return Contacts.build(self.pairs, np.arange(2 * e).reshape(e, 2), units)
+
+
+def ring_sizes(q: int, layers: int, most: int = MAX_BALLS) -> list[int]:
+    """The balls of rings 0, 1, ..., ``layers`` of the {3,q} tiling (1, q, q(q - 4), then each ring
+    ``(q - 4)`` times the one before less the one before that), stopping once they hold more than ``most``."""
+    sizes = [1, q, q * (q - 4)][:layers + 1]
+    while len(sizes) <= layers and sum(sizes) <= most:
+        sizes.append((q - 4) * sizes[-1] - sizes[-2])
+    return sizes
+
+
+def _check_size(q: int, layers: int) -> None:
+    """Refuse at once, from `ring_sizes`, a tiling of more than `MAX_BALLS` balls or more memory than there is."""
+    sizes = ring_sizes(q, layers, most=10**15)
+    n, what = sum(sizes), f"{layers:,} rings of the {{3,{q}}} tiling"
+    if n <= MAX_BALLS:
+        check_memory(n * BUILD_BYTES + run_bytes(n, q * n // 2, dim=2, embed=3), "layers", f"{what} ({n:,} balls)")
+        return
+    if len(sizes) == layers + 1:
+        count, memory = f"{n:,}" if n < 10**15 else format_count(n), format_bytes(n * BUILD_BYTES)
+    else:  # each ring (q - 4 + sqrt((q - 4)^2 - 4)) / 2 times the one before, nearly: a geometric sum
+        growth = ((q - 4) + math.sqrt((q - 4) ** 2 - 4)) / 2
+        log_n = math.log10(sizes[-1]) + (layers + 1 - len(sizes)) * math.log10(growth) - math.log10(1 - 1 / growth)
+        count, memory = f"~10^{math.floor(log_n):,}", f"10^{math.floor(log_n + math.log10(BUILD_BYTES)):,} bytes"
+    raise FieldError("layers", f"{what} hold {count} balls, more than the {MAX_BALLS:,} a tiling is built with "
+                               f"(they would need about {memory} of memory)")
 
 
 def _ld_length(q: int) -> np.longdouble:

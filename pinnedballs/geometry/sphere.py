@@ -14,6 +14,7 @@ import numpy as np
 
 from ..engine import checks
 from ..engine.errors import FieldError, FieldTypeError
+from ..engine.limits import check_memory, format_count, run_bytes
 
 from .base import Contacts, Geometry, tangent_contacts, checked_radius
 
@@ -24,6 +25,11 @@ _PHI = (1.0 + np.sqrt(5.0)) / 2.0
 _ICO_VERTICES = np.array([[-1, _PHI, 0], [1, _PHI, 0], [-1, -_PHI, 0], [1, -_PHI, 0],
                           [0, -1, _PHI], [0, 1, _PHI], [0, -1, -_PHI], [0, 1, -_PHI],
                           [_PHI, 0, -1], [_PHI, 0, 1], [-_PHI, 0, -1], [-_PHI, 0, 1]])
+#: at most this many balls in a geodesic grid (frequency 1,414)
+MAX_BALLS = 20_000_000
+#: peak bytes per ball while the geodesic grid is built (its points, their keys and index, the edge set),
+#: besides the run's own arrays (`run_bytes`): measured 0.98 to 1.03 kB
+BUILD_BYTES = 1_100
 _ICO_FACES = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
               (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
               (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
@@ -54,6 +60,7 @@ class Sphere(Geometry):
         shared by faces are merged by exact integer barycentric keys, never by rounding.
         """
         f = checks.integer("frequency", frequency, 1)
+        _check_size(f)
         keys, points, index = [], [], {}
         edges = set()
         for face in _ICO_FACES:
@@ -124,6 +131,16 @@ class Sphere(Geometry):
     def _build_contacts(self) -> Contacts:
         T_i, T_j = self.great_circle_tangents()
         return tangent_contacts(self.pairs, T_i, T_j, self.frames(), np.ones(3))
+
+
+def _check_size(f: int) -> None:
+    """Refuse at once a geodesic grid of frequency ``f`` above `MAX_BALLS` balls or the memory there is."""
+    n, what = 10 * f * f + 2, f"a geodesic sphere of frequency {f:,}"
+    check_memory(n * BUILD_BYTES + run_bytes(n, 30 * f * f, dim=2, embed=3), "frequency",
+                 f"{what} ({format_count(n) if n >= 10**15 else f'{n:,}'} balls)")
+    if n > MAX_BALLS:
+        raise FieldError("frequency", f"{what} has {n:,} balls, more than the {MAX_BALLS:,} a grid is built with "
+                                      f"(frequency at most 1,414)")
 
 
 def _unit(a: np.ndarray) -> np.ndarray:

@@ -175,12 +175,13 @@ class Results:
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"),
                           resolution=self.run.get("resolution"))
 
-    def animate(self, out=None, fps: float = 4) -> Path:
-        """A movie of this run's snapshots (default ``<run dir>/movie.gif``); see `pinnedballs.plot.animation.animate`.
-        Its path shows the movie when a notebook displays it."""
+    def animate(self, out=None, fps: float = 4, max_frames: int | None = None) -> Path:
+        """A movie of this run's snapshots (default ``<run dir>/movie.gif``; at most ``max_frames`` frames, 300
+        by default); see `pinnedballs.plot.animation.animate`. Its path shows the movie when a notebook
+        displays it."""
         from ..plot.animation import animate
 
-        return animate(self, out, fps)
+        return animate(self, out, fps, max_frames)
 
     def plot(self, what: str = "final", *, snapshot: int | None = None, ax=None):
         """A figure of this run as ``pinnedballs plot`` draws it: ``what`` = ``"final"`` (the final state),

@@ -28,7 +28,7 @@ import numpy as np
 from ..engine.errors import FieldError, InputError
 from ..engine.atomic import write_bytes_atomic
 from ..results.files import h5_image, virtual_rows
-from .driver import Writer
+from ..engine.driver import Writer
 
 __all__ = ["CollisionLog", "FORMAT"]
 

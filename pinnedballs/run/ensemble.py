@@ -25,7 +25,6 @@ import io
 import json
 import math
 import os
-import sys
 import time
 import warnings
 from dataclasses import dataclass
@@ -40,6 +39,7 @@ from ..engine.errors import InputError
 from ..engine.limits import check_memory
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
 from ..rules import DEFAULT_RESOLUTION
+from ..engine.progress import Progress
 from ..geometry.base import Geometry
 from ..engine.atomic import write_text_atomic
 from ..specs.run import RunSpec
@@ -250,15 +250,21 @@ def _check_replicas_memory(replicas: int, name: str) -> None:
 
 
 def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, dask_address: str | None = None,
-                 cluster=None, progress: bool | None = False, task: Task | None = None) -> EnsembleResult:
+                 cluster=None, progress: bool | None = None, task: Task | None = None) -> EnsembleResult:
     """Run ``replicas`` independent replicas of ``spec``; see the module docstring for seeds and rows.
 
     Where: ``workers`` local processes (default ``os.cpu_count()``; 1 runs in this
     process); or the Dask scheduler at ``dask_address``; or ``cluster`` (a Dask
-    cluster or ``Client``). ``progress``: a tqdm bar over replicas on stderr (None:
-    only if stderr is a terminal). ``task(spec, index, seed) -> rows`` replaces
-    `run_replica` (e.g. ``functools.partial(run_replica, observe=f)``); it must be
-    picklable to run elsewhere. Raises `InputError` on bad arguments.
+    cluster or ``Client``). ``progress``: a bar over the replicas (True, False, or None:
+    in a terminal or a notebook, once the ensemble has taken 2 s; `pinnedballs.engine.progress`).
+    ``task(spec, index, seed) -> rows`` replaces `run_replica` (e.g.
+    ``functools.partial(run_replica, observe=f)``); it must be picklable to run elsewhere.
+    Raises `InputError` on bad arguments.
+
+    Ctrl-C stops it within a second or so and raises KeyboardInterrupt; the replicas done so far
+    are discarded (each can be run again alone, `run_replica`, to the same rows). Local processes are
+    killed at once; on Dask the jobs not finished are cancelled (one already running on a worker runs
+    to its end there: Dask cannot stop it).
     """
     if not isinstance(spec, RunSpec):
         raise InputError(f"spec: must be a RunSpec, got {type(spec).__name__}")
@@ -275,7 +281,13 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
         return [_error_row(k, seeds[k], exc)]
 
     start = time.perf_counter()
-    with _progress(replicas, progress) as tick:
+    with Progress(progress, replicas, "replicas", "replicas", scale=False) as bar:
+        done = []
+
+        def tick() -> None:
+            done.append(1)
+            bar.update(len(done))
+
         if dask_address is not None or cluster is not None:
             client, own = executors.dask_client(dask_address, cluster)
             try:
@@ -306,26 +318,6 @@ def _thin_note(result: EnsembleResult) -> str:
             f"{NEAR:,.0f} of the threshold, the smallest at {smallest:.3g} thresholds; replicas.csv has each "
             f"replica's margin): their collision counts depend on the float criterion (resolution "
             f"{DEFAULT_RESOLUTION:.3g}); count them exactly with \"arithmetic\": \"exact\" on the same seed")
-
-
-class _progress:
-    """Context manager giving ``tick()``: one replica done (a tqdm bar, or nothing)."""
-
-    def __init__(self, total: int, show: bool | None):
-        self.total, self.show = total, sys.stderr.isatty() if show is None else show
-        self.bar = None
-
-    def __enter__(self) -> Callable[[], None]:
-        if not self.show:
-            return lambda: None
-        from tqdm import tqdm
-
-        self.bar = tqdm(total=self.total, unit=" replicas", file=sys.stderr, dynamic_ncols=True, desc="replicas")
-        return lambda: self.bar.update(1)
-
-    def __exit__(self, *exc) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 # ---------------------------------------------------------------- output

@@ -15,11 +15,11 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import sys
 import threading
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
+from ..engine.driver import Writer, drive
 from ..engine.errors import InputError
 from ..engine.atomic import remove, write_text_atomic
 from ..results.format import RESULTS_NAME, Record
@@ -29,7 +29,6 @@ from ..results.trajectory import TRAJECTORY_NAME
 from ..simulation import Simulation
 from ..specs.run import RunSpec, load_spec
 from ..engine.stop import Stop
-from .driver import Writer, drive
 from .gsd_writer import GSDWriter, layout as gsd_layout
 from .writers import OnSnapshot, ResultsWriter
 
@@ -53,10 +52,6 @@ SILENT = _Silent()
 class Interrupted(RuntimeError):
     """The run was stopped by SIGINT/SIGTERM after writing a complete checkpoint (marked "interrupted",
     or "done" if the run had finished)."""
-
-
-def _counter(sim: Simulation, name: str) -> int:
-    return sim.steps if name == "steps" else sim.collisions
 
 
 def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record], None] | None = None,
@@ -83,9 +78,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     unless ``force`` (which replaces our files) or ``resume``: that continues the run there from its
     last checkpoint (the same spec; a finished run is left as it is), or starts it where none is yet
     (a missing or empty ``out_dir``, or one a run killed before its first checkpoint left), telling
-    ``log`` so in one line; anything else is refused (`check_resumable`). ``progress``: a
-    tqdm bar on stderr; None means only if stderr is a terminal. ``status``: a callable told each
-    stage (building, compiling, drawing).
+    ``log`` so in one line; anything else is refused (`check_resumable`). ``progress``: the run
+    driver's bar (True, False, or None: in a terminal or a notebook, once the run has taken 2 s;
+    `pinnedballs.engine.progress`). ``status``: a callable told each stage (building, compiling, drawing).
 
     SIGINT/SIGTERM (main thread) while the spec is built or a checkpoint read (a user's factory
     may run there) raise KeyboardInterrupt at once: nothing has been written. During the run they ask
@@ -182,25 +177,23 @@ def _trajectory(spec: RunSpec, out: Path, fresh: bool) -> list[GSDWriter]:
 def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | None, status,
            stop_requested: Callable[[], bool]) -> None:
     """``sim`` to ``stop`` recording into ``writers`` (the `ResultsWriter` last, so every other writer
-    has recorded a state before it is checkpointed), with a progress bar; a stop requested by a signal
-    raises `Interrupted` between chunks (the driver has the writers save the state first)."""
+    has recorded a state before it is checkpointed), with the driver's progress; a stop requested by a
+    signal raises `Interrupted` between chunks (the driver has the writers save the state first)."""
     writer = writers[-1]
     status("compiling the loop (once: numba caches it on disk)")
-    sim.run(steps=0, until_frozen=stop.until_frozen)  # compiles; changes no bit of the state
+    sim.run(steps=0, until_frozen=stop.until_frozen, progress=False)  # compiles; changes no bit of the state
     status.clear()
-    with _progress_bar(stop, sim, progress) as bar:
-        def after_chunk(s: Simulation) -> None:
-            bar(s)
-            if stop_requested():
-                raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
-                                  f"continue with --resume")
 
-        try:
-            drive(sim, stop, writers, after_chunk=after_chunk)
-        finally:
-            for other in writers[:-1]:
-                other.close()
-        bar(sim)
+    def after_chunk(s: Simulation) -> None:
+        if stop_requested():
+            raise Interrupted(f"interrupted at step {s.steps:,}; the checkpoint in {writer.out_dir} is complete: "
+                              f"continue with --resume")
+
+    try:
+        drive(sim, stop, writers, after_chunk=after_chunk, progress=progress)
+    finally:
+        for other in writers[:-1]:
+            other.close()
 
 
 def _check_same_run(res: Results, spec: RunSpec) -> None:
@@ -268,26 +261,6 @@ def _deferred_signals() -> Iterator[_Signals]:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-
-
-@contextlib.contextmanager
-def _progress_bar(stop: Stop, sim: Simulation, show: bool | None) -> Iterator[Callable[[Simulation], None]]:
-    """A callable updating a tqdm bar on stderr (steps, collisions, rate, ETA); a no-op when not shown."""
-    if show is None:
-        show = sys.stderr.isatty()
-    if not show:
-        yield lambda s: None
-        return
-    from tqdm import tqdm
-
-    unit, total = ("collisions", stop.collisions) if stop.collisions is not None else ("steps", stop.steps)
-    other = "steps" if unit == "collisions" else "collisions"
-    with tqdm(total=total, initial=_counter(sim, unit), unit=f" {unit}", unit_scale=True, file=sys.stderr,
-              dynamic_ncols=True, smoothing=0.1, desc="running") as bar:
-        def update(s: Simulation) -> None:
-            bar.update(_counter(s, unit) - bar.n)
-            bar.set_postfix_str(f"{other}={_counter(s, other):,}", refresh=False)
-        yield update
 
 
 # ---------------------------------------------------------------- figures

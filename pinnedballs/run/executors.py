@@ -5,11 +5,17 @@ A job is ``(fn, *args)``; each executor returns ``{index: fn(*args)}`` for the j
 a Dask worker lost) gives ``on_error(index, exc)`` instead of its result, and the others go on.
 
 A worker that dies (killed, out of memory) takes no other job down with it. Dask reschedules
-the jobs of a lost worker itself, and gives up on one whose workers died `MAX_DEATHS` + 1
-times (``KilledWorker``). A local pool breaks as a whole when one of its processes dies, failing
-every job still in it: `on_processes` runs again those that had not started, and runs each one
-that was running alone, so that a death there is its own; a job whose process dies `MAX_DEATHS`
+the jobs of a lost worker itself, and gives up (``KilledWorker``) on one that was on workers that
+died more often than its scheduler allows (``distributed.scheduler.allowed-failures``): `on_dask`
+runs each of those again alone, so that a death there is its own. A local pool breaks as a whole
+when one of its processes dies, failing every job still in it: `on_processes` runs again those that
+had not started, and runs each one that was running alone; a job whose process dies `MAX_DEATHS`
 times is reported (`WorkerDied`). Jobs are deterministic, so a job run again gives the same bits.
+
+A Ctrl-C in the main process stops the ensemble at once: local processes are killed (they ignore
+SIGINT themselves, so a terminal's Ctrl-C, which reaches them too, is handled in one place), the
+jobs a Dask cluster has not finished are cancelled. A local process also ends when the process that
+started it dies (`watch_parent`): a ``kill -9`` of the main process leaves no orphan at work.
 
 Before Dask connects to a ``tcp://`` address, `check_scheduler` reads the server's greeting itself.
 A Dask listener speaks first: on every new connection it sends its handshake, one
@@ -26,10 +32,15 @@ Only plain ``tcp://`` addresses are probed (TLS and other transports are left to
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import os
+import signal
 import socket
 import struct
+import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -38,11 +49,16 @@ from typing import Callable
 
 from ..engine.errors import InputError
 
-__all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "WorkerDied", "MAX_DEATHS",
-           "MAX_GREETING", "CONNECT_TIMEOUT"]
+__all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "watch_parent", "WorkerDied",
+           "MAX_DEATHS", "MAX_GREETING", "CONNECT_TIMEOUT", "PARENT_POLL", "ORPHANED"]
 
 #: deaths of the process running a job, alone, after which the job is reported instead of run again
 MAX_DEATHS = 3
+#: seconds between a pool process's checks that the process that started it is alive
+PARENT_POLL = 0.5
+#: the exit status of a pool process whose parent died
+ORPHANED = 70
+_PR_SET_PDEATHSIG = 1  # <sys/prctl.h>
 
 #: largest handshake accepted, in bytes (a real one is about 100)
 MAX_GREETING = 1 << 16
@@ -61,20 +77,6 @@ def in_process(jobs: dict, tick: Callable[[], None]) -> dict:
     results = {}
     for k, (fn, *args) in jobs.items():
         results[k] = fn(*args)
-        tick()
-    return results
-
-
-def _collect(finished, futures: dict, tick, on_error: OnError) -> dict:
-    """The result of each future in ``finished`` (an iterator in completion order), by index; a future
-    that raised (a worker process died, a worker was lost) gives ``on_error``'s result."""
-    results = {}
-    for future in finished:
-        k = futures[future]
-        try:
-            results[k] = future.result()
-        except Exception as exc:  # noqa: BLE001 - reported by on_error, the others kept
-            results[k] = on_error(k, exc)
         tick()
     return results
 
@@ -106,7 +108,7 @@ def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: O
 def _pool(jobs: dict, workers: int, marks: Path, results: dict, tick, on_error: OnError) -> list:
     """Run ``jobs`` on a pool of ``workers`` processes, adding to ``results``; if a process died, the
     jobs that were running then (each marks the file ``<index>`` in ``marks`` while it runs), else []."""
-    pool = ProcessPoolExecutor(max_workers=workers)
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_starts, initargs=(os.getpid(),))
     try:
         futures = {pool.submit(_marked, marks / str(k), *job): k for k, job in jobs.items()}
         finished = as_completed(futures)
@@ -121,8 +123,47 @@ def _pool(jobs: dict, workers: int, marks: Path, results: dict, tick, on_error: 
                 results[k] = on_error(k, exc)
             tick()
         return []
+    except BaseException:  # Ctrl-C (or any failure here): the workers stop now, not after their jobs
+        _kill_workers(pool)
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _kill_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill the pool's processes at once (``shutdown`` alone would wait for the jobs they run)."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            process.kill()
+
+
+def _worker_starts(parent: int) -> None:
+    """A pool process's start: Ctrl-C is the main process's to handle (it stops the workers), and the
+    process dies with its parent (`watch_parent`), so a ``kill -9`` of the main process leaves no orphan."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    watch_parent(parent)
+
+
+def watch_parent(parent: int, every: float = PARENT_POLL) -> None:
+    """End this process (exit status `ORPHANED`) as soon as the process ``parent`` that started it is gone.
+
+    Two guards: on Linux, ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` has the kernel kill this process when
+    the thread that forked it ends (which holds for our pools: they live inside one call of the thread
+    that made them), even while it runs compiled code that holds the GIL; everywhere, a daemon thread
+    checks every ``every`` seconds that this process's parent is still ``parent`` (an orphan is
+    re-parented to init or a subreaper)."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:  # it died before the guards were up
+        os._exit(ORPHANED)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(every)
+        os._exit(ORPHANED)
+
+    threading.Thread(target=watch, name="pinnedballs-watch-parent", daemon=True).start()
 
 
 def _after_break(futures: dict, marks: Path, results: dict, tick) -> list:
@@ -148,12 +189,45 @@ def _marked(mark: Path, fn, *args):
 
 
 def on_dask(client, jobs: dict, tick: Callable[[], None], on_error: OnError) -> dict:
-    """Run the jobs on the Dask cluster of ``client``."""
+    """Run the jobs on the Dask cluster of ``client``.
+
+    Dask gives up on a job (``KilledWorker``) whose workers died while it was on them, whether it
+    killed them or only waited beside the job that did; each such job is run again alone, one after
+    the other, so that a death is then its own (a job is deterministic: run again, it gives the same
+    bits), and only one whose worker dies when it runs alone is reported. A Ctrl-C cancels every job
+    not yet done (Dask cannot stop one already running on a worker)."""
+    from distributed import KilledWorker
+
+    results: dict = {}
+    suspects: list[int] = []
+
+    def settle(k: int, future) -> None:
+        try:
+            results[k] = future.result()
+        except KilledWorker as exc:
+            if k not in suspects:  # the first time: run it again alone
+                suspects.append(k)
+                return
+            results[k] = on_error(k, exc)
+        except Exception as exc:  # noqa: BLE001 - reported by on_error, the others kept
+            results[k] = on_error(k, exc)
+        tick()
+
+    _submitted(client, jobs, settle)
+    for k in suspects:
+        _submitted(client, {k: jobs[k]}, settle)
+    return results
+
+
+def _submitted(client, jobs: dict, settle: Callable) -> None:
+    """Submit the jobs to the cluster of ``client``, calling ``settle(index, future)`` as each ends;
+    the jobs not done are cancelled if this stops early (a Ctrl-C)."""
     from dask.distributed import as_completed as dask_completed
 
     futures = {client.submit(*job, pure=False): k for k, job in jobs.items()}
     try:
-        return _collect(dask_completed(list(futures), loop=client.loop), futures, tick, on_error)
+        for future in dask_completed(list(futures), loop=client.loop):
+            settle(futures[future], future)
     finally:
         client.cancel([f for f in futures if not f.done()])
 

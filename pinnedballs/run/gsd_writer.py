@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..analysis import observables as named
 from ..results.trajectory import Layout, Trajectory, check_speeds_fit
-from .driver import Writer
+from ..engine.driver import Writer
 from ..engine.triggers import Counts
 from .writers import _trigger
 

@@ -35,7 +35,7 @@ from ..results.format import RESULTS_NAME, Record
 from ..results.rundir import BIRTH, DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from ..rules import DEFAULT_RESOLUTION
-from .driver import Writer
+from ..engine.driver import Writer
 from ..engine.triggers import Counts, Trigger
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]

@@ -371,3 +371,86 @@ def test_docs_example_runs_and_says_what_the_page_says():
     assert str(ns["r"]) in page.read_text()
     assert (ns["r"].min_collisions, ns["r"].max_collisions) == (2, 6)
     assert ns["sim"].collisions == 6 and ns["sim"].is_frozen()
+
+
+# ---------------------------------------------------------------- bounds that bound (issue 26, item 5)
+
+
+def test_a_search_bound_beyond_the_memory_there_is_is_refused_at_once():
+    """320 bytes a state: 10^13 states need 3.2 PB. Refused before any state is made."""
+    import tracemalloc
+
+    geom = pb.HalfPlane(rows=3, cols=3)
+    v = np.zeros((geom.n_balls, 2))
+    v[geom.boundary_center()] = [0.0, 1.0]
+    tracemalloc.start()
+    with pytest.raises(pb.FieldError, match=r"^max_states: a search of 10,000,000,000,000 states of 9 balls needs "
+                                            r"about 3.2 PB of memory, more than the ") as info:
+        pb.explore_orders(geom, v, max_states=10**13)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert info.value.field == "max_states" and peak < 1 << 20
+
+
+def count_calls(monkeypatch, cls, name: str) -> list:
+    """Every call of ``cls.name`` recorded (its arguments after self), the method still doing its work."""
+    calls, method = [], getattr(cls, name)
+
+    def recorded(self, *args, **kwargs):
+        calls.append(args)
+        return method(self, *args, **kwargs)
+
+    monkeypatch.setattr(cls, name, recorded)
+    return calls
+
+
+def test_an_exact_state_retests_only_the_contacts_at_its_two_balls(monkeypatch):
+    """Before, every state of an exact search tested every contact (4,193 on the paper's half-plane,
+    about 100 ms a state): a state now tests the at most 11 contacts at the two balls that collided,
+    the others keeping their parent's answer, and finds the same states (34,547 on the 3x3 half-plane)."""
+    from pinnedballs.analysis.order_systems import ExactSystem
+
+    tested = count_calls(monkeypatch, ExactSystem, "_approaching")
+    made = count_calls(monkeypatch, ExactSystem, "child")
+    geom = pb.HalfPlane(rows=3, cols=3)
+    v = np.zeros((geom.n_balls, 2))
+    v[geom.boundary_center()] = [0.0, math.sqrt(200.0)]
+    r = pb.explore_orders(geom, v)
+    assert (r.min_collisions, r.max_collisions, r.states, r.exhaustive) == (5, 21, 34_547, True)
+    assert len(tested) <= geom.n_contacts + 11 * len(made)
+
+
+@pytest.mark.slow
+def test_a_small_bound_on_a_1450_ball_half_plane_ends_within_it_and_says_why():
+    """Issue 26: max_states=1000 on HalfPlane.from_size(100, 50) (1,450 balls) ran more than 300 s (every
+    sampled order tested every contact at every step, for up to 10^6 collisions each). Now the whole
+    call makes at most 1,000 states and 10,000 more along the sampled orders; this system's orders
+    are longer (48,022 collisions at random), so no order reaches frozen within the bound: it says so."""
+    from pinnedballs.analysis import order_systems
+
+    geom = pb.HalfPlane.from_size(100, 50)
+    v = np.zeros((geom.n_balls, 2))
+    v[geom.boundary_center()] = [0.0, math.sqrt(200.0)]
+    made = []
+    child = order_systems.ExactSystem.child
+    order_systems.ExactSystem.child = lambda self, *a, **k: made.append(1) or child(self, *a, **k)
+    try:
+        with pytest.raises(ValueError, match=r"^max_states: no order reached frozen within the bound: the search of "
+                                             r"1,000 states, then 10,000 collisions along sampled orders; this "
+                                             r"system's orders are longer \(raise max_states\), or never end"):
+            pb.explore_orders(geom, v, max_states=1000)
+    finally:
+        order_systems.ExactSystem.child = child
+    assert len(made) <= 1_000 + 10_000
+
+
+def test_progress_counts_the_states_then_the_sampled_orders(capfd):
+    geom = pb.HalfPlane(rows=3, cols=3)
+    v = np.zeros((geom.n_balls, 2))
+    v[geom.boundary_center()] = [0.0, math.sqrt(200.0)]
+    pb.explore_orders(geom, v, max_states=500, restarts=5, progress=True)
+    err = capfd.readouterr().err
+    assert "orders: 100%" in err and "| 500/500 [" in err and " states/s]" in err
+    assert re.search(r"sampled orders: [1-9]\d* collisions \[", err)
+    pb.explore_orders(geom, v, max_states=500, restarts=5)
+    assert capfd.readouterr().err == ""  # None: not on a terminal, not in a notebook

@@ -30,7 +30,7 @@ RUN = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gaussi
 CHILD = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.results import store
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 when, checkpoint = os.environ.get("SIGNAL_AT_DONE", ""), store.ResultsStore.checkpoint

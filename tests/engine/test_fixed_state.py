@@ -18,7 +18,7 @@ from helpers import HALF_PLANE, call, spec, write
 from pinnedballs.engine.exact import ExactChain
 from pinnedballs.engine.fixed import FixedChain
 from pinnedballs.engine.fixed_state import CertifiedState, nearest_floats
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 
 
 def inward(g) -> np.ndarray:

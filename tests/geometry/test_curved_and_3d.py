@@ -133,6 +133,43 @@ def test_from_points_refuses_bad_points(points, match):
         pb.Sphere.from_points(points)
 
 
+def peak_bytes(make) -> tuple[int, BaseException]:
+    """The most memory Python held while ``make()`` raised, and what it raised."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        make()
+    except Exception as exc:  # noqa: BLE001 - returned to be checked
+        raised = exc
+    else:
+        raised = None
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert raised is not None, "not refused"
+    return peak, raised
+
+
+def test_a_geodesic_sphere_too_large_is_refused_from_its_size_before_building():
+    """Issue 26: frequency 10^6 was refused after a minute and 3.5 GB. Its size is known at once:
+    10 f^2 + 2 balls and 30 f^2 contacts, about 1.1 kB a ball while built plus the run's arrays
+    (`run_bytes`), 1.79 kB a ball in all; nothing is allocated before the refusal."""
+    peak, raised = peak_bytes(lambda: pb.Sphere.geodesic(10**6))
+    assert isinstance(raised, pb.FieldError) and raised.field == "frequency"
+    assert str(raised).startswith("frequency: a geodesic sphere of frequency 1,000,000 (10,000,000,000,002 balls) "
+                                  "needs about 17.9 PB of memory, more than the ")
+    assert peak < 1 << 20
+
+
+def test_a_geodesic_sphere_beyond_what_a_grid_is_built_with_is_refused(monkeypatch):
+    from pinnedballs.engine import limits
+
+    monkeypatch.setattr(limits, "available_memory", lambda: None)  # a machine that does not say
+    with pytest.raises(pb.FieldError, match=r"^frequency: a geodesic sphere of frequency 1,415 has 20,022,252 balls, "
+                                            r"more than the 20,000,000 a grid is built with \(frequency at most 1,414\)$"):
+        pb.Sphere.geodesic(1415)
+
+
 def test_geodesic_refuses_frequency_0():
     with pytest.raises(ValueError, match="frequency: must be an integer >= 1, got 0"):
         pb.Sphere.geodesic(0)
@@ -200,6 +237,37 @@ def test_hyperbolic_boundary_is_the_outermost_ring():
 def test_hyperbolic_refuses_bad_arguments(kwargs, error, match):
     with pytest.raises(error, match=match):
         pb.HyperbolicPlane(**kwargs)
+
+
+@pytest.mark.parametrize("q, layers", [(7, 6), (8, 5), (9, 4), (12, 3)])
+def test_ring_sizes_count_the_balls_of_each_ring(q, layers):
+    """1, q, q (q - 4), then each ring (q - 4) times the one before less the one before that."""
+    from pinnedballs.geometry.hyperbolic import ring_sizes
+
+    assert ring_sizes(q, layers) == np.bincount(pb.HyperbolicPlane(q, layers).ring).tolist()
+
+
+@pytest.mark.parametrize("layers, words", [
+    (10**6, "layers: 1,000,000 rings of the {3,7} tiling hold ~10^417,975 balls, more than the 20,000,000 a tiling "
+            "is built with (they would need about 10^417,979 bytes of memory)"),
+    (17, "layers: 17 rings of the {3,7} tiling hold 64,592,249 balls, more than the 20,000,000 a tiling is built "
+         "with (they would need about 71.1 GB of memory)"),
+])
+def test_a_tiling_too_large_is_refused_from_its_ring_sizes_before_building(layers, words):
+    """Issue 26: layers = 10^6 was refused after 60-120 s and 3.5 GB (ring after ring, up to 20
+    million balls). Rings grow by a factor 2.618 for q = 7: the size is known at once."""
+    peak, raised = peak_bytes(lambda: pb.HyperbolicPlane(7, layers))
+    assert isinstance(raised, pb.FieldError) and str(raised) == words
+    assert peak < 1 << 20
+
+
+def test_a_tiling_beyond_the_memory_there_is_is_refused_with_both(monkeypatch):
+    from pinnedballs.engine import limits
+
+    monkeypatch.setattr(limits, "available_memory", lambda: 10**6)
+    with pytest.raises(pb.FieldError, match=r"^layers: 10 rings of the \{3,7\} tiling \(76,616 balls\) needs about "
+                                            r"1[0-9][0-9]\.\d MB of memory, more than the 1\.0 MB this machine has"):
+        pb.HyperbolicPlane(7, 10)
 
 
 # ---------------------------------------------------------------- conservation on curved surfaces
@@ -398,6 +466,10 @@ def test_boundary_center_works_for_any_geometry_with_a_boundary():
 
 @pytest.mark.parametrize("geometry, message", [
     ({"kind": "sphere", "frequency": 0}, "geometry.frequency: must be an integer >= 1, got 0"),
+    ({"kind": "sphere", "frequency": 10**6}, "geometry.frequency: a geodesic sphere of frequency 1,000,000 "
+                                             "(10,000,000,000,002 balls) needs about 17.9 PB of memory"),
+    ({"kind": "hyperbolic_plane", "layers": 10**6}, "geometry.layers: 1,000,000 rings of the {3,7} tiling hold "
+                                                    "~10^417,975 balls"),
     ({"kind": "sphere"}, "geometry: give exactly one of frequency or points"),
     ({"kind": "hyperbolic_plane", "q": 6, "layers": 2}, "geometry.q: must be an integer >= 7, got 6"),
     ({"kind": "hyperbolic_plane", "layers": -1}, "geometry.layers: must be an integer >= 0, got -1"),

@@ -184,3 +184,57 @@ def test_the_cli_prints_the_movie_it_wrote(tmp_path, capsys):
     assert out == f"{tmp_path / 'run' / 'movie.gif'}\n"
     assert Image.open(tmp_path / "run" / "movie.gif").info["duration"] == 100
     assert plot_run.figure_files(tmp_path / "run") == []   # a movie is not one of the run's figures
+
+
+# ---------------------------------------------------------------- bounded: 10,000 snapshots (issue 26, item 5)
+
+
+def test_a_long_run_makes_a_movie_of_at_most_max_frames_evenly_spaced_and_says_so(tmp_path, drawn, capsys):
+    """41 states (the initial one and 40 snapshots) into 9 frames: every 5th state, the first and the last
+    among them, in Python (a UserWarning) and from the command line (one line on stderr)."""
+    res = record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=25, steps=1_000)
+    with pytest.warns(UserWarning, match=r"^animate: 9 of the run's 41 states drawn, evenly spaced \(the first and "
+                                         r"the last among them\); max_frames=9 allows 9$"):
+        frames = gif_frames(res.animate(tmp_path / "short.gif", max_frames=9))
+    assert len(frames) == len(drawn) == 9
+    titles = [fig.axes[0].get_title() for fig in drawn]
+    assert titles[0] == "step 0, 0 collisions" and titles[-1].startswith("step 1,000,") and titles[-1].endswith("(final)")
+    assert [int(t.split()[1].rstrip(",").replace(",", "")) for t in titles] == list(range(0, 1_001, 125))
+    assert cli.main(["animate", str(tmp_path / "run"), "--max-frames", "9"]) == 0
+    assert capsys.readouterr().err == ("pinnedballs: animate: 9 of the run's 41 states drawn, evenly spaced (the first "
+                                       "and the last among them); --max-frames 9 allows 9\n")
+    assert cli.main(["animate", str(tmp_path / "run"), "--max-frames", "1"]) == 2
+    assert capsys.readouterr().err == "pinnedballs: error: animate: --max-frames: must be an integer >= 2, got 1\n"
+
+
+def test_evenly_keeps_the_first_and_the_last():
+    assert animation.evenly(10_001, 300)[:3] == [0, 33, 67] and animation.evenly(10_001, 300)[-1] == 10_000
+    assert len(animation.evenly(10_001, 300)) == 300
+    assert animation.evenly(5, 300) == [0, 1, 2, 3, 4]
+    assert animation.evenly(7, 2) == [0, 6]
+
+
+def test_frames_are_drawn_and_written_one_at_a_time(tmp_path, monkeypatch):
+    """The writer is handed a generator: each frame is drawn when the writer asks for it, so a movie
+    holds one picture at a time, not all of them (4 GB for 10,000 snapshots before)."""
+    res = record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=100)
+    events, rgb, write = [], animation.render, animation._write_gif
+    monkeypatch.setattr(animation, "render", lambda fig: events.append("drawn") or rgb(fig))
+
+    def writing(images, path, fps):
+        def told():
+            for im in images:
+                events.append("written")
+                yield im
+        write(told(), path, fps)
+
+    monkeypatch.setattr(animation, "_write_gif", writing)
+    res.animate(tmp_path / "m.gif")
+    assert events == ["drawn", "written"] * 16
+
+
+def test_a_large_system_gets_fewer_frames_within_the_movie_memory(monkeypatch, tmp_path):
+    res = record(tmp_path, pb.FlatTorus(rows=4, cols=6), every=100)
+    assert animation.frames_allowed(res, 300) == 300
+    monkeypatch.setattr(animation, "MOVIE_BYTES", 24 * 2 * 8 * 10)  # ten frames' velocities of 24 balls
+    assert animation.frames_allowed(res, 300) == 10

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.run import execute as runner
 from pinnedballs.results.format import ResultsError
 from pinnedballs.results.load import load

@@ -125,7 +125,7 @@ def test_output_in_an_unwritable_directory_is_refused(command):
 STOP_AT_FIRST_CHECKPOINT = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.engine import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 commit, count = io._commit, [0]

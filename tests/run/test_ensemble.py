@@ -193,6 +193,14 @@ def test_a_failing_replica_on_dask_is_reported_too(cluster):
     assert len(result.rows) == 3 * 2 + 1
 
 
+def test_progress_counts_the_replicas(capfd):
+    ens.run_ensemble(parse_spec(TORUS), 3, workers=1, progress=True)
+    err = capfd.readouterr().err
+    assert "replicas: 100%" in err and "| 3/3 [" in err
+    ens.run_ensemble(parse_spec(TORUS), 2, workers=1)
+    assert capfd.readouterr().err == ""  # None: not on a terminal, not in a notebook
+
+
 def test_bad_arguments_are_input_errors():
     spec = parse_spec(TORUS)
     with pytest.raises(InputError, match="replicas: must be an integer >= 1, got 0"):

@@ -27,7 +27,7 @@ import pinnedballs as pb
 from pinnedballs.analysis import observables as observe
 from pinnedballs.engine import atomic
 from pinnedballs.results.rundir import DirLock
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 
 ROOT = Path(__file__).resolve().parents[2]
 STEPS = 6_000
@@ -215,7 +215,7 @@ CHILD = """
 import sys
 import numpy as np
 import pinnedballs as pb
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 200, 0
 g = pb.FlatTorus(6, 6)
 sim = pb.Simulation(g, np.random.default_rng(8).standard_normal((g.n_balls, 2)), seed=3)

@@ -35,7 +35,7 @@ RUN = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gaussi
 CHILD = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.engine import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 at, when = int(os.environ.get("KILL_AT", "0")), os.environ.get("KILL_WHEN", "")

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.run import execute as runner
 from pinnedballs.results.load import load
 from pinnedballs.specs import parse_spec
@@ -34,7 +34,7 @@ LONG = spec(TORUS, geometry__rows=8, geometry__cols=8, initial={"kind": "gaussia
 CHILD = """
 import sys
 from pinnedballs.cli import main as cli
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0  # many small chunks, a checkpoint after each
 sys.exit(cli.main(sys.argv[1:]))
 """

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from pinnedballs.results.load import load
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec

@@ -13,7 +13,7 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.cli import main as cli
-from pinnedballs.run import driver
+from pinnedballs.engine import driver
 from pinnedballs.analysis import observables as observe
 from pinnedballs.run import execute as runner
 from pinnedballs.results.store import ResultsStore

@@ -1,0 +1,253 @@
+"""The one run driver: a simulation run in chunks to a `Stop`, its writers fired on their triggers,
+its progress shown, a Ctrl-C honoured between chunks.
+
+`drive` is what every run goes through: ``Simulation.run`` and ``run_until_frozen`` (with writers
+or without), ``pinnedballs run``, ensembles and the paper's reproduction. Each chunk is one call of
+the engine's loop, ``sim._run(max_steps, max_collisions, until_frozen)``; the engine gives the same
+bits however a run is split into calls, so how it is chunked changes no bit.
+
+Chunks last about `CHUNK_SECONDS`: the first is `FIRST_CHUNK` steps, each next one is sized from
+the speed of the one before (at most `GROWTH` times longer), never less than `CHUNK_PER_CONTACT`
+steps per contact (so per-chunk work over the contacts stays small) nor more than `CHUNK_STEPS`
+(tests lower it for many small chunks), and cut short at the stop and at the next count any trigger
+names. Before the first chunk, a call of no steps compiles the loop (once per process: numba caches
+it on disk) and changes no bit of the state.
+
+Each pass of the loop, in this order:
+
+0. (once, at the start) every writer whose trigger fires at the current counts records a
+   snapshot (`Writer.write`);
+1. if the `Stop` is reached, every writer closes the run (`Writer.finish`) and the loop ends;
+2. the simulation runs one chunk;
+3. every writer whose trigger fires at the new counts records a snapshot;
+4. every writer may checkpoint (`Writer.after_chunk`); the progress is shown; a Ctrl-C that came
+   meanwhile is handed on (`sigint`): by default it raises KeyboardInterrupt here; then
+   ``after_chunk(sim)`` is called. A checkpoint is thus always of a state whose snapshots are recorded.
+
+Ctrl-C. While the chunks run (main thread), SIGINT is held to the end of the chunk it came in
+(`sigint.deferred`), so a run always stops on a state the chain passed through, whole: continuing
+it gives the bits of a run never interrupted. The compiling call comes before, outside: a Ctrl-C
+there stops at once, the state untouched.
+
+If anything raises on the way (Ctrl-C's KeyboardInterrupt, a writer's error, ...), every writer
+already attached is told (`Writer.abort`, with the counts at which the driver last checked its
+trigger) before the exception goes on: a `ResultsWriter` saves the state the simulation stopped
+in, with any snapshot due at it that was not yet recorded.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Sequence
+
+from .progress import Progress, shown
+from .sigint import Deferred, deferred
+from .stop import Stop
+from .triggers import Counts
+
+__all__ = ["CHUNK_SECONDS", "FIRST_CHUNK", "GROWTH", "CHUNK_STEPS", "CHUNK_PER_CONTACT", "NO_LIMIT", "Stop",
+           "Writer", "Counts", "advance", "drive", "check_writers"]
+
+#: a chunk lasts about this many seconds: a Ctrl-C stops a run within about this long
+CHUNK_SECONDS = 0.2
+#: the first chunk's steps, before the speed is known
+FIRST_CHUNK = 1 << 12
+#: a chunk is at most this many times longer than the one before
+GROWTH = 4
+#: a chunk is at least this many steps per contact ...
+CHUNK_PER_CONTACT = 2
+#: ... and at most this many steps
+CHUNK_STEPS = 1 << 62
+#: no limit on a counter (the engine's counters are int64)
+NO_LIMIT = 2**63 - 1
+
+
+class Writer:
+    """Something a run records into. Subclasses override what they need.
+
+    ``trigger``: when `write` is called (None: never); a `pinnedballs.engine.triggers.Trigger`, or any
+    object with its ``fires``, ``next_steps`` and ``next_collisions``.
+    """
+
+    trigger = None
+
+    def attach(self, sim) -> Counts | None:
+        """The run starts (take the output, write what is static). Returns the counts at which
+        the trigger was already checked (a resumed or continued run), else None."""
+        return None
+
+    def write(self, sim) -> None:
+        """The trigger fired at the current state."""
+
+    def after_chunk(self, sim) -> None:
+        """Between chunks (e.g. checkpoint when due)."""
+
+    def finish(self, sim, reason: str) -> None:
+        """The run reached its stop for ``reason``."""
+
+    def abort(self, sim, checked: Counts | None) -> None:
+        """The run stopped on an exception (which goes on after this): save what is consistent.
+        ``checked``: the counts at which the driver last finished checking the trigger (None: never)."""
+
+
+def check_writers(writers) -> list[Writer]:
+    """``writers`` as a list, each a `Writer` (a TypeError naming ``writers`` otherwise)."""
+    writers = list(writers)
+    for w in writers:
+        if not isinstance(w, Writer):
+            raise TypeError(f"writers: must be Writer objects such as ResultsWriter, got {type(w).__name__}")
+    return writers
+
+
+def advance(sim, steps: int, collisions: int | None = None, until_frozen: bool = False) -> bool:
+    """One chunk: at most ``steps`` more steps, stopping at ``collisions`` in total if given, and at the
+    exact freeze if ``until_frozen``. Returns True if it stopped because the system froze.
+
+    The engine's loop stops early only at the collision target or, with ``until_frozen``, at the
+    freeze; a chunk that ends on its last step is checked afresh (`Simulation.is_frozen`) when the
+    run would otherwise end there for its steps (`_loop`), or by the next chunk, which takes no step.
+    """
+    limit = NO_LIMIT if collisions is None else collisions
+    taken = sim._run(steps, limit, until_frozen)
+    short = taken < steps and sim.collisions < limit
+    if short and until_frozen and sim.is_frozen():
+        return True
+    if short and (until_frozen or taken == 0):
+        raise RuntimeError(f"the engine's loop stopped at step {sim.steps:,}, {steps - taken:,} steps short of its "
+                           f"chunk, neither frozen nor at its collision target")
+    return False
+
+
+class _Chunks:
+    """The steps of the next chunk, from the speed of the last (see the module's docstring)."""
+
+    def __init__(self, n_contacts: int):
+        self.least = CHUNK_PER_CONTACT * n_contacts
+        self.size = max(FIRST_CHUNK, self.least)
+
+    def next(self) -> int:
+        return max(1, min(CHUNK_STEPS, self.size))
+
+    def measured(self, asked: int, taken: int, seconds: float) -> None:
+        """A chunk asked for ``asked`` steps and took ``taken`` in ``seconds``. Only a whole chunk of the
+        planned size tells the speed (one cut short at a trigger, the stop or the freeze does not)."""
+        if asked < self.next() or taken < asked or seconds <= 0:
+            return
+        self.size = int(max(self.least, min(taken * CHUNK_SECONDS / seconds, GROWTH * self.size)))
+
+
+def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Callable[[object], None] | None = None,
+          progress: bool | None = False) -> str:
+    """Run ``sim`` to ``stop``, firing ``writers``; returns the stop reason (see the module's docstring).
+
+    ``progress`` (`pinnedballs.engine.progress`): a bar over the steps, or the collisions for a
+    collision target; a count of steps and collisions when the run goes until frozen (its end unknown).
+    """
+    shown(progress)  # a bad argument is refused before anything starts
+    checked: list[Counts | None] = []
+    try:
+        for w in writers:
+            checked.append(w.attach(sim))
+        _, collisions = _next_chunk(sim, stop, 0, [w.trigger for w in writers if w.trigger is not None])
+        sim._run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)  # compiles the chunks' loop
+        with _progress(sim, stop, progress) as bar, deferred() as held:
+            return _loop(sim, stop, writers, checked, after_chunk, bar, held)
+    except BaseException:
+        _abort(sim, writers[:len(checked)], checked)
+        raise
+
+
+def _progress(sim, stop: Stop, progress) -> Progress:
+    if stop.collisions is not None:
+        return Progress(progress, stop.collisions, "collisions", "running", sim.collisions)
+    if stop.until_frozen:
+        return Progress(progress, None, "steps", "until frozen", sim.steps)
+    return Progress(progress, stop.steps, "steps", "running", sim.steps)
+
+
+def _shown(bar: Progress, sim, stop: Stop) -> None:
+    if not bar.visible:
+        return
+    if stop.collisions is not None:
+        bar.update(sim.collisions, f"steps={sim.steps:,}")
+    else:
+        bar.update(sim.steps, f"collisions={sim.collisions:,}")
+
+
+def _counts(sim) -> Counts:
+    return sim.steps, sim.collisions
+
+
+def _least(*values: int | None) -> int | None:
+    given = [v for v in values if v is not None]
+    return min(given) if given else None
+
+
+def _next_chunk(sim, stop: Stop, chunk: int, triggers: list) -> tuple[int, int | None]:
+    """``(steps, collisions)`` limits of the next chunk: never past the stop or a trigger's next count."""
+    s, c = _counts(sim)
+    step_target = _least(stop.steps, *(t.next_steps(s) for t in triggers))
+    steps = chunk if step_target is None else min(chunk, step_target - s)
+    return steps, _least(stop.collisions, *(t.next_collisions(c) for t in triggers))
+
+
+def _check_missed(trigger, prev: Counts, now: Counts) -> None:
+    for k, (name, nxt) in enumerate((("steps", trigger.next_steps), ("collisions", trigger.next_collisions))):
+        target = nxt(prev[k])
+        if target is not None and target < now[k]:
+            raise RuntimeError(f"a snapshot at {name} = {target} was missed (now at {now[k]})")
+
+
+def _loop(sim, stop: Stop, writers: Sequence[Writer], checked: list, after_chunk, bar: Progress,
+          held: Deferred) -> str:
+    triggers = [w.trigger for w in writers if w.trigger is not None]
+    chunks = _Chunks(sim.geometry.n_contacts)
+    frozen = False
+    _fire(sim, writers, checked)
+    while True:
+        reason = stop.reason(sim, frozen)
+        if reason == stop.steps_reason and stop.until_frozen and sim.is_frozen():
+            reason = stop.reason(sim, True)  # froze on the very last step
+        if reason:
+            for w in writers:
+                w.finish(sim, reason)
+            _shown(bar, sim, stop)
+            return reason
+        steps, collisions = _next_chunk(sim, stop, chunks.next(), triggers)
+        start, before = time.perf_counter(), sim.steps
+        frozen = advance(sim, steps, collisions, stop.until_frozen)
+        chunks.measured(steps, sim.steps - before, time.perf_counter() - start)
+        _fire(sim, writers, checked)  # before any checkpoint of this state
+        for w in writers:
+            w.after_chunk(sim)
+        _shown(bar, sim, stop)
+        held.deliver()
+        if after_chunk is not None:
+            after_chunk(sim)
+
+
+def _abort(sim, writers: Sequence[Writer], checked: list) -> None:
+    """Tell each writer the run stopped; the first writer's own failure (after all were told) is raised
+    instead of the exception that stopped the run, which becomes its context."""
+    failed = None
+    for w, counts in zip(writers, checked):
+        try:
+            w.abort(sim, counts)
+        except BaseException as exc:  # noqa: BLE001 - the others must still be told
+            failed = failed or exc
+    if failed is not None:
+        raise failed
+
+
+def _fire(sim, writers: Sequence[Writer], checked: list[Counts | None]) -> None:
+    """Call `Writer.write` of each writer whose trigger fires at the current counts; ``checked``
+    holds, per writer, the counts of its previous check and is updated."""
+    now = _counts(sim)
+    for k, w in enumerate(writers):
+        prev = checked[k]
+        if w.trigger is not None and prev != now:
+            if prev is not None:
+                _check_missed(w.trigger, prev, now)
+            if w.trigger.fires(prev, now):
+                w.write(sim)
+        checked[k] = now
