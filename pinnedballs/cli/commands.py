@@ -93,7 +93,7 @@ def _run(args: argparse.Namespace) -> int:
         from ..specs.run import load_spec
 
         spec = load_spec(args.spec)
-        path = execute(spec, args.out, force=args.force, resume=args.resume, progress=False if args.quiet else None,
+        path = execute(spec, args.out, force=args.force, resume=args.resume, progress=_progress(args),
                        figures=not args.no_figures and _plots_available(), status=status,
                        log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True))
     if not args.quiet:
@@ -229,6 +229,12 @@ def info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _progress(args) -> bool | None:
+    """A command's bar: none with ``--quiet``; on a terminal at once, beside the status line (a Python
+    call waits 2 s before showing one); elsewhere none (`pinnedballs.engine.progress`)."""
+    return False if args.quiet else (True if sys.stderr.isatty() else None)
+
+
 def _margin(res) -> list[str]:
     """The closing margin of a run (`engine.margin`) in two lines, or why it has none."""
     m = res.closing_margin
@@ -350,7 +356,7 @@ def _ensemble(args, status) -> int:
     with DirLock(out, "--out"):  # one ensemble at a time writes into a directory
         try:
             result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
-                                  progress=False if args.quiet else None)
+                                  progress=_progress(args))
         finally:
             if client is not None:
                 client.close()

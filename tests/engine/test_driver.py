@@ -147,7 +147,7 @@ np.savez(out, velocities=st.velocities, counts=[st.steps, st.collisions], rng=st
 """
 
 #: the steps of each run: 3 to 4 s on a quiet machine (a signal within 1 s finds it running)
-RUNS = {"torus": 300_000_000, "until frozen": 300_000_000, "exact": 90_000, "log": 150_000_000}
+RUNS = {"torus": 300_000_000, "until frozen": 300_000_000, "exact": 800_000, "log": 150_000_000}
 
 
 def child_run(tmp_path: Path, kind: str, signals: list[float] | None):

@@ -88,6 +88,10 @@ from pinnedballs.results import rundir
 from pinnedballs import specs
 from numba.core.registry import cpu_target
 cpu_target.target_context.refresh()  # numba's registries (cmath, ...): a Simulation's contact checks load a kernel
+# whatever a run imports on its first compile (numba.core.runtime.context, ...), imported now: a CI's
+# Python may live under /root, which nobody cannot read once the privileges drop
+warm = specs.load_spec(os.environ["PB_SPEC"]).build()
+warm.run(steps=100); warm.run_until_frozen(100)
 os.setgid({uid}); os.setuid({uid})
 sys.exit(cli.main(sys.argv[1:]))
 """
@@ -107,7 +111,7 @@ def test_output_in_an_unwritable_directory_is_refused(command):
         for p in (base, locked, s):
             p.chmod(0o555 if p.is_dir() else 0o444)
         uid = NOBODY if os.getuid() == 0 else os.getuid()
-        env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(base / "numba")}
+        env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(base / "numba"), "PB_SPEC": str(s)}
         for out in (locked / "out", locked):
             argv = [str(a) for a in COMMANDS[command](s, out)]
             r = subprocess.run([sys.executable, "-c", CHILD_AS_NOBODY.format(uid=uid), *argv], env=env,
