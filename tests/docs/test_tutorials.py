@@ -7,11 +7,13 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 TUTORIALS = sorted((ROOT / "docs" / "tutorials").glob("*.py"))
-#: a cell that runs longer is a hang (the longest, the Dask cluster's start, takes about 15 s)
+#: a cell that runs longer is a hang (the longest, `check_rule` compiling a rule defined in a notebook
+#: in own_components, takes about 45 s on 2 cores under a load of 10)
 CELL_SECONDS = 120
 
 
@@ -45,7 +47,8 @@ def kinds(nb) -> list[str]:
 
 
 def test_every_tutorial_is_a_percent_script_and_a_page_of_the_site():
-    assert [p.name for p in TUTORIALS] == ["ensembles_scaling.py", "first_run.py"]
+    assert [p.name for p in TUTORIALS] == ["ensembles_scaling.py", "exact_counts.py", "first_run.py",
+                                           "own_components.py"]
     nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
     for path in TUTORIALS:
         source = path.read_text(encoding="utf-8")
@@ -73,3 +76,72 @@ def test_ensembles_and_the_scaling_law(tmp_path):
     assert text(outputs(nb, "pb.load_ensemble(")).startswith("True\nEnsembleResult(8 replicas of half_plane")
     scaling = text(outputs(nb, "scaling = pd.DataFrame"))
     assert all(f"{size} " in scaling for size in ("10x5", "20x10", "30x15", "60x30", "100x50"))
+
+
+@pytest.mark.slow
+def test_your_own_geometry_rule_and_scheduler(tmp_path):
+    nb = executed(ROOT / "docs" / "tutorials" / "own_components.py", tmp_path)
+    assert printed(outputs(nb, "check_geometry(honeycomb)")) == "honeycomb: every geometry check passed\n"
+    assert printed(outputs(nb, "star = Star(arms=5, length=6)")) == (
+        "Star(arms=5, length=6): 31 balls, 30 contacts; every geometry check passed\n")
+    assert printed(outputs(nb, "check_rule(ByDirection(1.0, 0.5))")) == "ByDirection: every rule check passed\n"
+    assert printed(outputs(nb, "check_scheduler(Wander())")) == "Wander: every scheduler check passed\n"
+    # the star's three runs (the text: all frozen; the elastic one keeps 100 over three arms; the
+    # lossy one loses energy, the wandering picks far less, nearly all of it down arm 0 along x)
+    table = text(outputs(nb, "table = pd.DataFrame.from_dict(rows"))
+    elastic, uniform, wandering = (re.search(rf"{name}\s+True\s+\d+\s+\d+\s+([\d.]+)\s+([\d.]+)", table)
+                                   for name in ("elastic, uniform picks", "ByDirection, uniform picks",
+                                                "ByDirection, wandering picks"))
+    assert float(elastic.group(1)) == pytest.approx(100.0, abs=1e-9)
+    assert float(uniform.group(1)) < 90 < float(wandering.group(1)) < 100
+    assert float(wandering.group(2)) == pytest.approx(100 * np.cos(np.pi / 12) ** 2, abs=0.1)  # arm 0: cos²15°
+    assert re.fullmatch(r"frozen True after \d+ collisions: energy 44.981 -> \d+\.\d+\n",
+                        printed(outputs(nb, "honeycomb.n_balls, 2))")))
+    broken = printed(outputs(nb, "check_rule(ByDirection(1.0, 1.2))"))     # the kit's message for a rule that makes energy
+    assert re.fullmatch(r"energy never created: 2-D flat, equal masses, pair \d+: t_i = .*: energy ([\d.]+) "
+                        r"became ([\d.]+)\n", broken)
+    before, after = map(float, re.search(r"energy ([\d.]+) became ([\d.]+)", broken).groups())
+    assert after > before
+    assert printed(outputs(nb, "CheckedByDirection(1.0, 1.2)")) == (
+        "r_y: a coefficient of restitution must be in [0, 1], got 1.2\n")
+    tests = printed(outputs(nb, "mark = parametrize_with_checks")).splitlines()
+    assert tests[0] == "15 tests:" and "Wander()-check_scheduler_split_run" in tests
+    assert kinds(nb).count("image/png") >= 4                               # two geometries, the runs, a simulation
+
+
+@pytest.mark.slow
+def test_exact_counts_and_every_order(tmp_path):
+    nb = executed(ROOT / "docs" / "tutorials" / "exact_counts.py", tmp_path)
+    same = printed(outputs(nb, "float_run, exact_run = "))
+    assert same.startswith("same count: True | last collision on the same step: True\n")
+    difference = float(re.search(r"exact ones: ([\d.e+-]+)", same).group(1))
+    assert 0 < difference < 1e-14                                          # a few ULP of speeds up to 14
+    counts = text(outputs(nb, "counts = pd.DataFrame(rows).T"))
+    assert re.search(r"float\s+True\s+48417\s+8321\s+100.0", counts)
+    assert re.search(r"exact\s+True\s+48417\s+8321\s+100.0", counts)
+    margin = printed(outputs(nb, "margin = float_run.closing_margin()"))
+    smallest, largest = map(float, re.search(r"smallest collision ([\d.e+-]+) thresholds, largest remnant "
+                                             r"([\d.e+-]+) thresholds", margin).groups())
+    assert smallest / largest > 1e10 and margin.endswith("thin: False\n")  # "about ten orders of magnitude"
+    thin = printed(outputs(nb, "big_run = pb.Simulation("))
+    assert thin.startswith("476553 collisions; smallest collision 1.19 thresholds, largest remnant 0.0707")
+    assert "\nMarginWarning: the closing margin is thin (" in thin
+    near = text(outputs(nb, "EXACT_BIG = 476_553"))
+    assert re.search(r"60x30\s+8321\s+8321\s+8321\s+8321\s+8321\s+8321", near)
+    assert re.search(r"200x100\s+476555\s+476553\s+476553\s+476551\s+476540\s+476553", near)
+    assert printed(outputs(nb, "agree = n_e.index[")) == (
+        "60 x 30: N_e - exact = +43 at e = 1e-30 and -3,442 at e = 1e-2; N_e = exact at 21 of 57 resolutions, "
+        "from 3.2e-17 to 3.2e-07\n"
+        "200 x 100: N_e - exact = +1,686 at e = 1e-30 and -423,078 at e = 1e-2; N_e = exact at 3 of 57 "
+        "resolutions, from 3.2e-17 to 3.2e-16\n")
+    assert printed(outputs(nb, "orders = pb.explore_orders(tiny, v_tiny)")).startswith(
+        "Collisions until frozen over every order (1,652 distinct states): fewest 7, most 15.\n")
+    assert printed(outputs(nb, "scheduler=pb.Replay(orders.max_order)")) == "frozen True after 15 steps, 15 collisions\n"
+    random_order = re.fullmatch(r"random order: (\d+) to (\d+) collisions, mean ([\d.]+); every order: 7 to 15\n",
+                                printed(outputs(nb, "random_counts = []")))
+    assert 7 <= int(random_order.group(1)) and int(random_order.group(2)) < 15  # the text: never the most
+    best = printed(outputs(nb, "best = pb.search_max_collisions(")).splitlines()
+    assert best[0] == "Collisions until frozen over every order (3 distinct states): fewest 2, most 2."
+    assert best[1].startswith("Most collisions found: 7 (best of 200 trials")
+    assert printed(outputs(nb, "scheduler=pb.Replay(best.order)")) == "True 7\n"
+    assert kinds(nb).count("image/png") >= 3                               # N_e, the replayed state, the orders
