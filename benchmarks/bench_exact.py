@@ -14,6 +14,8 @@ why: a certified decision it cannot prove (the step and contact), or a time limi
     python benchmarks/bench_exact.py                                   # 100x50 ... 1000x500, seed 1
     python benchmarks/bench_exact.py --sizes 500x250 --arithmetics float certified:384 certified:512
     python benchmarks/bench_exact.py --limit 1800                      # CPU seconds before giving up
+    python benchmarks/bench_exact.py --json runs.json                  # every row also as JSON (for
+                                                                       # docs/figures/make_exactness_figure.py)
 """
 
 from __future__ import annotations
@@ -33,8 +35,11 @@ import pinnedballs as pb
 from pinnedballs.rules import threshold
 
 length, depth, seed, spec, limit = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], float(sys.argv[5])
+spec, _, resolution = spec.partition("@")
 arithmetic, _, bits = spec.partition(":")
 options = {"precision": int(bits)} if bits else {}
+if resolution:
+    options["resolution"] = float(resolution)
 
 def half_plane(length, depth):
     g = pb.HalfPlane.from_size(length, depth)
@@ -70,6 +75,9 @@ if chain is not None:
     out["margin"] = [smallest / T, largest / T, int(zeros)]
 if sim.error_bound is not None:
     out["bound"] = list(sim.error_bound)
+m = sim.closing_margin() if arithmetic == "float" else None
+if m is not None:  # a float run: how near its criterion its picks came
+    out["float_margin"] = [m.smallest_collision, m.largest_remnant, m.near_collisions, m.near_remnants]
 print(json.dumps(out))
 """
 
@@ -96,6 +104,10 @@ def row(size: str, spec: str, r: dict, floats: dict | None) -> str:
     if "margin" in r:
         smallest, largest, zeros = r["margin"]
         text += f"  margin: smallest collision {smallest:.3g} T, largest set aside {largest:.3g} T, {zeros:,} zeros"
+    if "float_margin" in r:
+        smallest, largest, near, rest = r["float_margin"]
+        text += (f"  margin: smallest collision {smallest if smallest is not None else float('nan'):.3g} T, largest "
+                 f"remnant {largest if largest is not None else 0:.3g} T, {near:,} collisions near T")
     if r["outcome"] != "frozen":
         text += f"\n{'':>26}{r['outcome']}"
     return text
@@ -106,17 +118,23 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="+", default=["100x50", "200x100", "500x250", "1000x500"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[1])
     parser.add_argument("--arithmetics", nargs="+", default=["float", "certified", "exact"],
-                        help="float, exact, certified or certified:BITS")
+                        help="float, exact, certified, certified:BITS, or float@E (the float criterion "
+                             "with resolution E: the counts N_e)")
     parser.add_argument("--limit", type=float, default=1800.0, help="CPU seconds a run may take (default 30 min)")
+    parser.add_argument("--json", type=Path, help="also write every row to this file, as JSON")
     args = parser.parse_args()
+    rows = []
     print(f"{'size':>9} {'arithmetic':>14} {'CPU':>11} {'/float':>8} {'collisions':>13} {'steps':>15} {'peak':>11}")
     for size in args.sizes:
         for seed in args.seeds:
             floats = None
             for spec in args.arithmetics:
                 r = measure(size, seed, spec, args.limit)
-                floats = r if spec == "float" else floats
+                floats = r if spec == "float" else floats  # the ratios are to the default criterion's run
                 print(row(f"{size}/{seed}" if len(args.seeds) > 1 else size, spec, r, floats), flush=True)
+                rows.append({"size": size, "seed": seed, "arithmetic": spec, **r})
+                if args.json is not None:
+                    args.json.write_text(json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":

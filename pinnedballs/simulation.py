@@ -11,6 +11,7 @@ import numpy as np
 from .engine import checks
 from .engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
 from .engine.driver import check_writers, drive
+from .engine.sigint import deferred
 from .engine.stop import Stop
 from .engine.errors import FieldError, FieldTypeError, check_jitted
 from .engine.arithmetic import ARITHMETICS, MAX_PRECISION, field_chain
@@ -124,7 +125,8 @@ class Simulation:
                                               f"got {type(scheduler).__name__}")
         if geometry.n_contacts == 0:
             raise FieldError("geometry", "has no contacts, so nothing can ever collide")
-        check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
+        with deferred():  # compiles the check on a first call: a Ctrl-C waits for numba (see `engine.sigint`)
+            check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
         self._mass_array = mass_array(masses, geometry.n_balls)
         self.masses = None if masses is None else self._mass_array

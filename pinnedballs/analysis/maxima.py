@@ -279,11 +279,11 @@ def search_max_collisions(geometry: Geometry, trials: int = 1000, seed=0, *, sta
     max_states = checks.integer("max_states", max_states, 1)
     final_states = checks.integer("final_states", final_states, 1)
     max_collisions = checks.integer("max_collisions", max_collisions, 1)
-    start = _start(geometry, start)
-    arithmetic = _arithmetic(geometry, arithmetic)
-    rng = np.random.default_rng(seed)
-    climbs = _Climbs(geometry, start, patience, max_states, max_collisions, rng)
-    with deferred() as held:  # Ctrl-C between trials, states and collisions, never inside a compiled kernel
+    with deferred() as held:  # Ctrl-C between trials, states and collisions, never inside numba (compiling or running)
+        start = _start(geometry, start)
+        arithmetic = _arithmetic(geometry, arithmetic)
+        rng = np.random.default_rng(seed)
+        climbs = _Climbs(geometry, start, patience, max_states, max_collisions, rng)
         with Progress(progress, trials, "trials", "most collisions", scale=False) as bar:
             for trial in range(1, trials + 1):
                 held.deliver()

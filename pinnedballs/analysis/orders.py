@@ -326,19 +326,19 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     Raises ValueError when an order returns to a state it passed, or when an order of
     ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever.
     """
-    sim = _simulation(geometry, velocities, masses, rule, checks.choice("arithmetic", arithmetic,
-                                                                         ("auto", "exact", "float")))
-    if max_states is None:
-        max_states = MAX_EXACT_STATES if sim.arithmetic == "exact" else MAX_STATES
-    max_states = _check_count("max_states", max_states, 1)
-    restarts = _check_count("restarts", restarts, 0)
-    max_collisions = _check_count("max_collisions", max_collisions, 1)
-    _check_seed(seed)
-    _check_speed(min_closing_speed)
-    check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
-                 f"a search of {max_states:,} states of {geometry.n_balls:,} balls")
-    system = (ExactSystem if sim.arithmetic == "exact" else FloatSystem)(sim, min_closing_speed)
-    with deferred() as held:  # Ctrl-C at the next state or collision, never inside a compiled kernel
+    with deferred() as held:  # Ctrl-C at the next state or collision, never inside numba (compiling or running)
+        sim = _simulation(geometry, velocities, masses, rule, checks.choice("arithmetic", arithmetic,
+                                                                             ("auto", "exact", "float")))
+        if max_states is None:
+            max_states = MAX_EXACT_STATES if sim.arithmetic == "exact" else MAX_STATES
+        max_states = _check_count("max_states", max_states, 1)
+        restarts = _check_count("restarts", restarts, 0)
+        max_collisions = _check_count("max_collisions", max_collisions, 1)
+        _check_seed(seed)
+        _check_speed(min_closing_speed)
+        check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
+                     f"a search of {max_states:,} states of {geometry.n_balls:,} balls")
+        system = (ExactSystem if sim.arithmetic == "exact" else FloatSystem)(sim, min_closing_speed)
         return _explore(system, max_states, max_collisions, seed, restarts, progress, held)
 
 

@@ -149,8 +149,10 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Calla
         for w in writers:
             checked.append(w.attach(sim))
         _, collisions = _next_chunk(sim, stop, 0, [w.trigger for w in writers if w.trigger is not None])
-        sim._run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)  # compiles the chunks' loop
         with _progress(sim, stop, progress) as bar, deferred() as held:
+            # compiles the chunks' loop; a Ctrl-C meanwhile waits for the compiler (numba's registries
+            # are left half made by an exception inside it, and the process could compile nothing more)
+            sim._run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)
             return _loop(sim, stop, writers, checked, after_chunk, bar, held)
     except BaseException:
         _abort(sim, writers[:len(checked)], checked)

@@ -11,6 +11,10 @@ handler may only ask the run to stop). Signals still noted when the block ends a
 A block inside another's shares the outer one's `Deferred`: a signal noted anywhere reaches the
 handler at the first `Deferred.deliver` of either (each is a point where the state is whole).
 
+Compiling counts as a chunk: numba's typing registries are left half made by an exception raised
+inside the compiler (a later compile in the process fails with StopIteration), so a first call's
+compilation runs inside a block too.
+
 Nothing is deferred off the main thread (Python delivers signals to the main thread only), nor
 when SIGINT is ignored or left to the operating system (`SIG_IGN`, `SIG_DFL`): that choice stands.
 """
