@@ -96,17 +96,27 @@ warm.run(steps=10); warm.run_until_frozen(10**6)
 rule = userparts.Sticky(0.9) if case == "rule" else pb.Elastic()
 scheduler = userparts.Among(np.arange(g.n_contacts)) if case == "scheduler" else pb.UniformRandomPair()
 sim = pb.Simulation(g, v, rule=rule, scheduler=scheduler, seed=0)
-t = time.perf_counter(); sim.run(steps=10); steps = time.perf_counter() - t
-t = time.perf_counter(); sim.run_until_frozen(max_steps=10**6); frozen = time.perf_counter() - t
-print(json.dumps(dict(steps=steps, frozen=frozen, collisions=sim.collisions)))
+t, c = time.perf_counter(), time.process_time(); sim.run(steps=10)
+steps, steps_cpu = time.perf_counter() - t, time.process_time() - c
+t, c = time.perf_counter(), time.process_time(); sim.run_until_frozen(max_steps=10**6)
+frozen, frozen_cpu = time.perf_counter() - t, time.process_time() - c
+print(json.dumps(dict(steps=steps, frozen=frozen, steps_cpu=steps_cpu, frozen_cpu=frozen_cpu,
+                      collisions=sim.collisions)))
 '''
 
 
 def first_runs(tree: Path, case: str, cache: Path, user: Path) -> dict:
     env = {**os.environ, "PYTHONPATH": f"{tree}{os.pathsep}{user}", "NUMBA_CACHE_DIR": str(cache)}
-    out = subprocess.run([sys.executable, "-c", _CHILD, case], capture_output=True, text=True, check=True,
-                         cwd=user, env=env)
+    out = subprocess.run([sys.executable, "-c", _CHILD, case], capture_output=True, text=True, cwd=user, env=env)
+    if out.returncode:
+        raise SystemExit(f"the {case} child on {tree} failed:\n{out.stderr}")
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _median(runs: list[dict]) -> dict:
+    """The run of median total CPU time."""
+    runs = sorted(runs, key=lambda r: r["steps_cpu"] + r["frozen_cpu"])
+    return runs[len(runs) // 2]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,24 +124,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tree", action="append", type=Path, help="a checkout of pinnedballs (default: this one)")
     parser.add_argument("--repeats", type=int, default=3, help="fresh caches per case (the median is shown)")
     args = parser.parse_args(argv)
-    trees = args.tree or [ROOT]
-    print("| checkout | user part | first run(steps) s | first run_until_frozen s | total s | cached: total s |")
+    trees = [tree.resolve() for tree in args.tree or [ROOT]]
+    fresh = {(tree, case): [] for tree in trees for case in ("rule", "scheduler")}
+    cached = {key: [] for key in fresh}
+    for _ in range(args.repeats):  # the trees interleaved: a shared machine's load falls on each alike
+        for tree, case in fresh:
+            with tempfile.TemporaryDirectory() as tmp:
+                user = Path(tmp) / "user"
+                user.mkdir()
+                (user / "userparts.py").write_text(_USER)
+                fresh[tree, case].append(first_runs(tree, case, Path(tmp) / "cache", user))
+                cached[tree, case].append(first_runs(tree, case, Path(tmp) / "cache", user))
+    print("CPU seconds in the child (time.process_time), wall seconds in brackets; the median of "
+          f"{args.repeats} fresh caches")
+    print()
+    print("| checkout | user part | first run(steps) | first run_until_frozen | total | cached: total |")
     print("|---|---|---|---|---|---|")
-    for tree in trees:
-        for case in ("rule", "scheduler"):
-            fresh, cached = [], []
-            for _ in range(args.repeats):
-                with tempfile.TemporaryDirectory() as tmp:
-                    user = Path(tmp) / "user"
-                    user.mkdir()
-                    (user / "userparts.py").write_text(_USER)
-                    fresh.append(first_runs(tree.resolve(), case, Path(tmp) / "cache", user))
-                    cached.append(first_runs(tree.resolve(), case, Path(tmp) / "cache", user))
-            fresh.sort(key=lambda r: r["steps"] + r["frozen"])
-            cached.sort(key=lambda r: r["steps"] + r["frozen"])
-            f, c = fresh[len(fresh) // 2], cached[len(cached) // 2]
-            print(f"| {tree.resolve().name} | {case} | {f['steps']:.2f} | {f['frozen']:.2f} | "
-                  f"{f['steps'] + f['frozen']:.2f} | {c['steps'] + c['frozen']:.2f} |", flush=True)
+    for (tree, case), runs in fresh.items():
+        f, c = _median(runs), _median(cached[tree, case])
+        print(f"| {tree.name} | {case} | {f['steps_cpu']:.2f} ({f['steps']:.2f}) | {f['frozen_cpu']:.2f} "
+              f"({f['frozen']:.2f}) | {f['steps_cpu'] + f['frozen_cpu']:.2f} ({f['steps'] + f['frozen']:.2f}) | "
+              f"{c['steps_cpu'] + c['frozen_cpu']:.2f} ({c['steps'] + c['frozen']:.2f}) |")
     return 0
 
 

@@ -6,6 +6,11 @@ A loop computes ``w`` once per pick and hands it to the rule's *closing form*
 ``collide_at(v, units, i, j, a, b, masses, params, dim, flat, write, w) -> bool``: the built-in
 rules register theirs (`register_closing_form`), the same arithmetic as their ``collide`` given its
 first step; any other rule's ``collide`` is wrapped and recomputes ``w`` itself (`closing_form`).
+
+**Compiled once per rule.** `compiled_form` compiles a rule's closing form for one ``dim`` and
+``flat`` on its own (and caches it on disk), with ``write`` a run-time flag: every loop, freeze scan
+and live-set update calls it, and LLVM inlines it there, where ``write`` is a constant again. A new
+rule therefore goes through numba's pipeline once, not once per loop that tries a contact.
 """
 
 from __future__ import annotations
@@ -13,11 +18,16 @@ from __future__ import annotations
 import functools
 from typing import Callable
 
+import numpy as np
 from numba import njit
 
-from .jitcache import njit_cached
+from .jitcache import INLINED, jit_cached_if_possible, njit_cached
 
-__all__ = ["closing_speed", "t_j", "closing_form", "register_closing_form"]
+__all__ = ["closing_speed", "t_j", "closing_form", "register_closing_form", "compiled_form", "WRITE", "TEST"]
+
+#: ``write`` as run-time flags (numba compiles a function once for all values of a ``numpy.bool_``,
+#: but once per value of a ``bool`` constant): True writes the collision, False only tests for one
+WRITE, TEST = np.bool_(True), np.bool_(False)
 
 #: ``collide -> collide_at`` for the rules that compute ``w`` with `closing_speed` first
 _FORMS: dict = {}
@@ -37,6 +47,20 @@ def closing_form(collide: Callable) -> Callable:
     @njit(inline="always")
     def collide_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
         return collide(v, units, i, j, a, b, masses, params, dim, flat, write)
+
+    return collide_at
+
+
+@functools.cache
+def compiled_form(collide: Callable, dim: int, flat: bool) -> Callable:
+    """``collide_at(v, units, i, j, a, b, masses, params, write, w) -> bool``: the closing form of a
+    rule's ``collide`` with ``dim`` and ``flat`` built in, compiled once (``write`` a `WRITE` or `TEST`
+    flag) and inlined by LLVM into its callers."""
+    form, D, FLAT = closing_form(collide), dim, flat
+
+    @jit_cached_if_possible(**INLINED)
+    def collide_at(v, units, i, j, a, b, masses, params, write, w):
+        return form(v, units, i, j, a, b, masses, params, D, FLAT, write, w)
 
     return collide_at
 

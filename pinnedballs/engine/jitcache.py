@@ -23,7 +23,11 @@ from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
 
-__all__ = ["jit_cached_if_possible", "njit_cached"]
+__all__ = ["jit_cached_if_possible", "njit_cached", "INLINED"]
+
+#: the options of a kernel compiled on its own and inlined by LLVM into every function that calls it
+#: (``forceinline``), never called from Python (no wrappers to build)
+INLINED = dict(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 #: numba names a compiled function's symbols (its code and its environment, which holds the objects
@@ -145,15 +149,15 @@ def njit_cached(py_func: Callable | None = None, **options) -> Callable:
     return dispatcher
 
 
-def jit_cached_if_possible(py_func: Callable | None = None, *, parallel: bool = False) -> Callable:
-    """``njit`` with `_ClosureCache` on disk, or no disk cache when a captured
+def jit_cached_if_possible(py_func: Callable | None = None, **options) -> Callable:
+    """``njit(**options)`` with `_ClosureCache` on disk, or no disk cache when a captured
     function has no source file to key it by (it is then compiled once per process).
 
     ``parallel=True`` compiles ``prange`` loops for all numba threads; the cached code
     does not depend on the number of threads, which is chosen at run time."""
     if py_func is None:
-        return functools.partial(jit_cached_if_possible, parallel=parallel)
-    dispatcher = njit(py_func, parallel=parallel)
+        return functools.partial(jit_cached_if_possible, **options)
+    dispatcher = njit(py_func, **options)
     if all(_source_file(f) for f in reachable_functions(py_func)):
         dispatcher._cache = _ClosureCache(py_func)
     return dispatcher

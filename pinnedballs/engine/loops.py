@@ -53,9 +53,9 @@ import numpy as np
 from numba import njit
 
 from .chain import COLLISIONS, LAST, LIVE, STEPS
-from .closing import closing_form, closing_speed
+from .closing import WRITE, closing_speed, compiled_form
 from .intrinsics import fixed_width, prefetch
-from .jitcache import jit_cached_if_possible, njit_cached
+from .jitcache import INLINED, jit_cached_if_possible, njit_cached
 from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
 from .random import load, store
 from .rows import decode
@@ -125,7 +125,7 @@ NO_AUX = np.zeros(0, dtype=np.int64)
 def pick_selector(pick: Callable) -> Selector:
     """The `Selector` of a scheduler that picks one contact per step: ``pick(state, rng, n) -> (k, rng)``."""
 
-    @njit(inline="always")
+    @jit_cached_if_possible(**INLINED)
     def select(state, aux, rng, n, left):
         k, rng = pick(state, rng, n)
         return k, 1, rng
@@ -191,12 +191,17 @@ def contact_kernels(collide: Callable, dim: int, flat: bool) -> tuple[Callable, 
     refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball, skip, changed, state, aux) -> int
         re-test the contacts of ``ball`` but ``skip``, update ``flags``, tell ``changed`` of each
         change; returns the change in the number of live contacts.
+
+    Both call the rule's `compiled_form` (``collide`` is ``collide_at`` given its closing speed).
     """
+    collide_at = compiled_form(collide, dim, flat)
     D, FLAT = dim, flat  # constants of the compiled loops: component loops unroll
 
     @njit(inline="always")
     def attempt(v, pairs, ends, units, masses, params, k, write):
-        return collide(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], masses, params, D, FLAT, write)
+        i, j, a, b = pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1]
+        return collide_at(v, units, i, j, a, b, masses, params, np.bool_(write),
+                          closing_speed(v, units, i, j, a, b, D, FLAT))
 
     @njit(inline="always")
     def refresh(v, pairs, ends, units, masses, params, ptr, inc, flags, ball, skip, changed, state, aux):
@@ -213,6 +218,23 @@ def contact_kernels(collide: Callable, dim: int, flat: bool) -> tuple[Callable, 
         return delta
 
     return attempt, refresh
+
+
+@functools.cache
+def trial_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
+    """``tried(v, units, masses, params, i, j, a, b, tau, m) -> (hit, m)``, inlined into the loops:
+    collide the contact ``(i, j, a, b)`` if it approaches; ``m``, the running margin ``(smallest,
+    largest, near_hits, near_rest)``, is returned updated beside it (`engine.margin`)."""
+    collide_at = compiled_form(collide, dim, flat)
+    D, FLAT = dim, flat
+
+    @njit(inline="always")
+    def tried(v, units, masses, params, i, j, a, b, tau, m):
+        w = closing_speed(v, units, i, j, a, b, D, FLAT)
+        hit = collide_at(v, units, i, j, a, b, masses, params, WRITE, w)
+        return hit, track(hit, w, tau, m[0], m[1], m[2], m[3])
+
+    return tried
 
 
 @functools.cache
@@ -291,19 +313,11 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
     _, any_live = live_kernel(collide, dim, flat)
-    collide_at = closing_form(collide)
+    tried = trial_kernel(collide, dim, flat)
     picks = selector_picks(select, begin)
     replay = selector_replay(select)
     shaped = fixed_rows(dim)
     SKIPS, D, FLAT = skips, dim, flat
-
-    @njit(inline="always")
-    def tried(v, units, masses, params, i, j, a, b, tau, m):
-        """Collide the contact ``(i, j, a, b)`` if it approaches; True if it did. ``m``, the running
-        margin ``(smallest, largest, near_hits, near_rest)``, is returned updated beside it."""
-        w = closing_speed(v, units, i, j, a, b, D, FLAT)
-        hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
-        return hit, track(hit, w, tau, m[0], m[1], m[2], m[3])
 
     @njit(inline="always")
     def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
@@ -421,13 +435,6 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             if until_frozen and not any_live(v, pairs, ends, units, masses, params):
                 frozen = True
             last_step = np.int64(-1)
-            if not until_frozen and max_collisions - collisions >= max_steps and not AHEAD and not LOG:
-                # plain steps: the loop without a collision target (the same picks; no count to stop at)
-                taken, made, last, rng, m, _ = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
-                                                  max_steps, -1, False, log, base, tau, m)
-                collisions += made
-                if last >= 0:
-                    last_step = base + last + 1
             while not frozen and taken < max_steps and collisions < max_collisions:
                 count = min(chunk_steps, max_steps - taken)
                 start = rng
