@@ -128,6 +128,7 @@ class Simulation:
         with deferred():  # compiles the check on a first call: a Ctrl-C waits for numba (see `engine.sigint`)
             check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
+        self._exact = None  # the exact or certified chain, made below (None in float arithmetic)
         self._mass_array = mass_array(masses, geometry.n_balls)
         self.masses = None if masses is None else self._mass_array
         self.velocities = self._check_velocities(velocities)
@@ -177,6 +178,19 @@ class Simulation:
             raise FieldError("velocities", f"ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
         check_speeds(v, self._mass_array, "velocities")  # no collision can overflow float64
         return _sparse_copy(v)
+
+    # ------------------------------------------------------------ state
+    @property
+    def velocities(self) -> np.ndarray:
+        """``(n_balls, dim) float64``: the velocities now (in exact or certified arithmetic, the exact
+        values rounded, brought up to date when read: a run in chunks rounds only once at its end)."""
+        if self._exact is not None:
+            return self._exact.sync()
+        return self._velocities
+
+    @velocities.setter
+    def velocities(self, value: np.ndarray) -> None:
+        self._velocities = value
 
     # ------------------------------------------------------------ counters
     @property
@@ -334,8 +348,7 @@ class Simulation:
                 self._rng[:], self._sched_state[:] = rng, state
                 self._loops.picks(self._sched_state, s.aux, self._rng, n, picks[:used])
             taken, collisions = taken + used, collisions + made
-        ex.sync()
-        self._counters[STEPS] += taken
+        self._counters[STEPS] += taken  # the velocities are rounded when read (`velocities`)
         self._counters[COLLISIONS], self._counters[LIVE] = collisions, ex.live
         failure, ex.failure = ex.failure, None
         if failure is not None:
