@@ -5,3 +5,12 @@ import pathlib
 import sys
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
+
+import signal
+
+# The tests send SIGINT to themselves and to the processes they start. A suite started as a
+# background job (`cmd &` in a script, nohup) inherits SIGINT ignored, which Python then leaves
+# ignored and every child inherits: the interrupt tests would test nothing. Python's own handler
+# here (in the main process and in each xdist worker) gives every child the default again.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)

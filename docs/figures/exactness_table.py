@@ -33,10 +33,12 @@ def counting(arithmetic: str) -> str:
 def by_size(rows: list[dict]) -> dict[str, dict[str, dict]]:
     """``{counting: {size: {balls, collisions_mean, collisions_se, replicas}}}`` over frozen runs."""
     runs = defaultdict(lambda: defaultdict(list))
-    balls = {}
+    balls, seen = {}, set()
     for r in rows:
-        if r.get("outcome") == "frozen":
-            runs[counting(r["arithmetic"])][r["size"]].append(r["collisions"])
+        key = (counting(r["arithmetic"]), r["size"], r["seed"])  # exact and certified: one run's count
+        if r.get("outcome") == "frozen" and key not in seen:
+            seen.add(key)
+            runs[key[0]][r["size"]].append(r["collisions"])
             balls[r["size"]] = r["balls"]
     out = {}
     for name, sizes in runs.items():
@@ -51,7 +53,7 @@ def by_size(rows: list[dict]) -> dict[str, dict[str, dict]]:
 
 def main(path: Path) -> None:
     table = by_size(json.loads(path.read_text()))
-    names = ["exact", "float"] + sorted(n for n in table if n.startswith("N_"))
+    names = ["exact", "float"] + sorted((n for n in table if n.startswith("N_")), key=lambda n: -float(n[2:]))
     names = [n for n in names if n in table]
     sizes = sorted({s for n in names for s in table[n]}, key=lambda s: table[names[0]].get(s, {"balls": 0})["balls"])
     print("| half-plane | balls | replicas | " + " | ".join(names) + " |")

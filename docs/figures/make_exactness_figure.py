@@ -22,6 +22,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -62,8 +63,12 @@ def draw(rows: list[dict], out: Path) -> None:
     right.axhline(0.0, color="black", lw=1)
     right.set(xscale="log", xlabel="balls N", ylabel="(exact - float) / exact, %",
               title="Collisions the float run misses, until frozen")
+    sizes = sorted({(e["balls"], e["size"]) for _, e in both})
     for ax in (left, right):
         ax.grid(True, which="major", alpha=0.3)
+        ax.set_xticks([n for n, _ in sizes], [f"{n:,}\n{size}" for n, size in sizes])
+        ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+        ax.set_xlim(sizes[0][0] / 1.6, sizes[-1][0] * 1.6)
     fig.savefig(out, dpi=110)
     plt.close(fig)
 

@@ -102,7 +102,7 @@ def _same_scheduler(prop: str, a, b, equal: bool) -> None:
     v = np.random.default_rng(SEED).standard_normal((g.n_balls, 2))
     runs = [simulation(prop, g, v, scheduler=s, seed=SEED) for s in (a, b)]
     for sim in runs:
-        sim.run(steps=2000)
+        sim.run(steps=2000, progress=False)
     if not runs[0].get_state().identical(runs[1].get_state()):
         fail(prop, f"{a!r} and what came back run 2,000 steps on {g!r} (seed {SEED}) differently")
 

@@ -59,7 +59,7 @@ def _samples(flat_only: bool = False):
 def _collide_once(prop: str, rule, t_i, t_j, v, masses, swapped: bool = False):
     """Velocities after trying each pair's contact once, and the simulation's collision count."""
     sim = simulation(prop, pair_geometry(t_i, t_j, swapped), v, rule=rule, scheduler=Sweep(), masses=masses, seed=0)
-    sim.run(steps=len(t_i))
+    sim.run(steps=len(t_i), progress=False)
     return sim.velocities, sim.collisions
 
 
@@ -199,7 +199,7 @@ def check_exact_agrees(rule) -> None:
     runs = [simulation(prop, g, v, rule=rule, scheduler=UniformRandomPair(), seed=SEED, arithmetic=a)
             for a in ("float", "exact")]
     for sim in runs:
-        sim.run(steps=3000)
+        sim.run(steps=3000, progress=False)
     f, x = runs
     gap = np.abs(f.velocities - x.velocities).max(axis=1)
     if gap.max() > REL * float(np.linalg.norm(v)):

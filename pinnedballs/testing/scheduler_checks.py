@@ -84,8 +84,8 @@ def _run(prop: str, scheduler, make, seed: int = SEED, *calls):
     for how, n in calls:
         try:
             if how == "steps":
-                sim.run(steps=n)
-            elif not sim.run_until_frozen(max_steps=n):
+                sim.run(steps=n, progress=False)
+            elif not sim.run_until_frozen(max_steps=n, progress=False):
                 fail(prop, f"{g!r} did not freeze within {n} steps")
         except PickOutOfRange as error:
             fail(prop, f"on {g!r}: {error.problem}")
@@ -114,7 +114,7 @@ def check_scheduler_picks_in_range(scheduler) -> None:
     seen: list[np.ndarray] = []
     sim.collision_listeners.append(lambda steps, contacts: seen.append(np.asarray(contacts).copy()))
     try:
-        sim.run_until_frozen(max_steps=10**6)
+        sim.run_until_frozen(max_steps=10**6, progress=False)
     except PickOutOfRange as error:
         fail(prop, f"on {sim.geometry!r}: {error.problem}")
     contacts = np.concatenate(seen) if seen else np.zeros(0, dtype=np.int64)
@@ -165,7 +165,7 @@ def check_scheduler_state_round_trip(scheduler) -> None:
     except (ValueError, TypeError) as error:
         fail(prop, f"after 1,500 steps on {sim.geometry!r} its own state was refused: {type(error).__name__}: {error}")
     for s in (sim, other):
-        s.run(steps=1500)
+        s.run(steps=1500, progress=False)
     if not sim.get_state().identical(other.get_state()):
         fail(prop, f"1,500 steps on {sim.geometry!r}, state moved to another simulation, 1,500 more: "
                    f"{_differ(sim.get_state(), other.get_state())}")
@@ -230,7 +230,7 @@ def _uniform_chain(scheduler, replicas: int = 400) -> None:
         steps, collisions = np.empty(replicas), np.empty(replicas)
         for r in range(replicas):
             sim.set_state(start.replace(rng_state=seed_state(SEED + r)))
-            sim.run_until_frozen(max_steps=10**6)
+            sim.run_until_frozen(max_steps=10**6, progress=False)
             steps[r], collisions[r] = sim.steps, sim.collisions
         counts[name] = (steps, collisions)
     for k, what in enumerate(("steps", "collisions")):

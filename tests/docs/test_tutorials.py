@@ -39,7 +39,16 @@ def text(outs: list[dict]) -> str:
 
 
 def printed(outs: list[dict]) -> str:
-    return "".join(o.get("text", "") for o in outs if o.get("output_type") == "stream")
+    """What the cell printed (stdout and stderr), without progress bars: a call that takes more than
+    2 s shows one in a notebook (tqdm's text on stderr, each redraw after a carriage return)."""
+    return "".join(_without_bars(o) for o in outs if o.get("output_type") == "stream")
+
+
+def _without_bars(out: dict) -> str:
+    text = out.get("text", "")
+    if out.get("name") != "stderr" or "\r" not in text:
+        return text
+    return "".join(line for line in text.splitlines(keepends=True) if "\r" not in line)
 
 
 def kinds(nb) -> list[str]:

@@ -97,21 +97,30 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
+@pytest.fixture(scope="module")
+def kernels_nobody_may_write():
+    """A numba cache that nobody may write, shared by the module's children (the first compiles, the
+    others load: each compiling afresh cost 15-35 s a test)."""
+    cache = Path(tempfile.mkdtemp(prefix="pb-nobody-numba-"))
+    cache.chmod(0o777)
+    yield cache
+    shutil.rmtree(cache, ignore_errors=True)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("command", list(COMMANDS))
-def test_output_in_an_unwritable_directory_is_refused(command):
+def test_output_in_an_unwritable_directory_is_refused(command, kernels_nobody_may_write):
     """As a user without write permission on the parent (root ignores permissions, so as nobody)."""
     base = Path(tempfile.mkdtemp(prefix="pb-unwritable-"))  # pytest's tmp_path is closed to nobody
     try:
         s = write(base / "s.json", TORUS)
         locked = base / "locked"
         locked.mkdir()
-        (base / "numba").mkdir(mode=0o777)  # the kernels' cache, which nobody may write
-        (base / "numba").chmod(0o777)
         for p in (base, locked, s):
             p.chmod(0o555 if p.is_dir() else 0o444)
         uid = NOBODY if os.getuid() == 0 else os.getuid()
-        env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(base / "numba"), "PB_SPEC": str(s)}
+        env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(kernels_nobody_may_write),
+               "PB_SPEC": str(s)}
         for out in (locked / "out", locked):
             argv = [str(a) for a in COMMANDS[command](s, out)]
             r = subprocess.run([sys.executable, "-c", CHILD_AS_NOBODY.format(uid=uid), *argv], env=env,
