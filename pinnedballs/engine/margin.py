@@ -102,11 +102,12 @@ class ClosingMargin:
 
     def describe(self) -> str:
         """One line: the margin on both sides and the counts near the threshold."""
-        low = "no collision" if self.smallest_collision is None else f"{self.smallest_collision:.3g}"
-        high = "none" if self.largest_remnant is None else f"{self.largest_remnant:.3g}"
-        return (f"smallest collision {low} thresholds, largest remnant {high} thresholds; "
-                f"{self.near_collisions} collisions and {self.near_remnants} remnants within a factor "
-                f"{NEAR:.0e} of it")
+        low = "no collision yet" if self.smallest_collision is None else \
+            f"smallest collision {self.smallest_collision:.3g} thresholds"
+        high = "no remnant set aside" if self.largest_remnant is None else \
+            f"largest remnant {self.largest_remnant:.3g} thresholds"
+        return (f"{low}, {high}; {_counted(self.near_collisions, 'collision')} and "
+                f"{_counted(self.near_remnants, 'remnant')} within a factor {NEAR:.0e} of it")
 
     def warning(self) -> str:
         """The one line a thin float run says."""
@@ -119,3 +120,8 @@ class ClosingMargin:
         return {"smallest_collision": self.smallest_collision, "largest_remnant": self.largest_remnant,
                 "near_collisions": self.near_collisions, "near_remnants": self.near_remnants,
                 "threshold": self.threshold, "resolution": self.resolution}
+
+
+def _counted(n: int, noun: str) -> str:
+    """``n noun(s)``: "1 collision", "12 collisions"."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
