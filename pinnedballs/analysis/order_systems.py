@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..engine.chain import incidence
-from ..engine.exact import FILTER
+from ..engine.exact import filtered_sign
 from ..engine.jitcache import jit_cached_if_possible
 from ..rules import closing_speed
 
@@ -46,7 +46,6 @@ SMALL_BYTES = 64
 #: ... and up to this many by a BLAKE2b-128 digest of all their bits (faster than Zobrist's four digests)
 WHOLE_BYTES = 4096
 _MOD = 1 << 128
-_U = 2.0 ** -53
 
 
 # ---------------------------------------------------------------- kernels
@@ -194,16 +193,10 @@ class ExactSystem:
         """True when contact ``k``'s exact closing speed is positive: the float filter, then exactly."""
         i, j = self.pairs[k]
         a, b = self.ends[k]
-        ti, tj, fi, fj = self.units_f[a], self.units_f[b], floats[i], floats[j]
-        w = size = 0.0
-        for d in range(self.dim):
-            x, y = fi[d] * ti[d], fj[d] * tj[d]
-            w += x + y
-            size += abs(x) + abs(y)
-        band = FILTER * _U * size
-        if w > band:
-            return True
-        if w < -band or size == 0 and not any(map(any, v[i])) and not any(map(any, v[j])):  # or both at rest
+        sign, size = filtered_sign(self.units_f[a], self.units_f[b], floats[i], floats[j], self.dim)
+        if sign:
+            return sign > 0
+        if size == 0 and not any(map(any, v[i])) and not any(map(any, v[j])):  # both at rest
             return False
         return self.field.sign(self.chain.closing_of(v[i], v[j], k)) > 0
 

@@ -32,6 +32,19 @@ FILTER = 64.0
 _U = 2.0 ** -53
 
 
+
+def filtered_sign(ti, tj, vi, vj, dim: int) -> tuple[int, float]:
+    """The float filter on a closing speed ``vi.ti + vj.tj`` from the rounded velocities: ``(+1 or -1,
+    size)`` when its sign is certain (outside ``FILTER`` ulp of ``size = sum |v t|``), ``(0, size)``
+    when the exact value must decide."""
+    w = size = 0.0
+    for d in range(dim):
+        x, y = vi[d] * ti[d], vj[d] * tj[d]
+        w += x + y
+        size += abs(x) + abs(y)
+    band = FILTER * _U * size
+    return (1 if w > band else -1 if w < -band else 0), size
+
 class FieldChain:
     """What every chain in the number field of ``geometry``'s contact normals shares: the field and
     the exact unit vectors (`fields.recognise`), the rule in exact form, and the arithmetic of one
@@ -144,18 +157,8 @@ class ExactChain(FieldChain):
         if self.rest[i] and self.rest[j]:
             return False
         a, b = self.ends[k]
-        ti, tj, vi, vj = self.units_f[a], self.units_f[b], self.floats[i], self.floats[j]
-        w = size = 0.0
-        for d in range(self.dim):
-            x, y = vi[d] * ti[d], vj[d] * tj[d]
-            w += x + y
-            size += abs(x) + abs(y)
-        band = FILTER * _U * size
-        if w > band:
-            return True
-        if w < -band:
-            return False
-        return self.field.sign(self.closing(k)) > 0
+        sign, _ = filtered_sign(self.units_f[a], self.units_f[b], self.floats[i], self.floats[j], self.dim)
+        return sign > 0 if sign else self.field.sign(self.closing(k)) > 0
 
     def collide(self, k: int) -> bool:
         """Collide contact ``k`` if it is live (exactly); True if it was."""
