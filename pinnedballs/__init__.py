@@ -26,7 +26,7 @@ from .run.gsd_writer import GSDWriter
 from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
-from .simulation import RunState, Simulation
+from .run.simulation import RunState, Simulation
 from .specs.errors import SpecError
 from .specs.run import RunSpec, load_spec
 

@@ -26,7 +26,7 @@ from ..results.format import RESULTS_NAME, Record
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
-from ..simulation import Simulation
+from .simulation import Simulation
 from ..specs.run import RunSpec, load_spec
 from ..engine.stop import Stop
 from .gsd_writer import GSDWriter, layout as gsd_layout

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs import simulation
+from pinnedballs.run import simulation
 from reference import ReferenceSimulation
 
 

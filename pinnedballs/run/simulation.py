@@ -8,34 +8,34 @@ import warnings
 
 import numpy as np
 
-from .engine import checks
-from .engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
-from .engine.driver import check_writers, drive
-from .engine.sigint import deferred
-from .engine.stop import Stop
-from .engine.errors import FieldError, FieldTypeError, check_jitted
-from .engine.arithmetic import ARITHMETICS, MAX_PRECISION, field_chain
-from .engine.exact import FieldChain
-from .engine.fields import NotExact
-from .engine.fixed import NotFixed
-from .engine.fixed_state import CertifiedState, nearest_floats
-from .engine.limbs import from_limbs
-from .engine.limits import check_speeds
-from .engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
-from .engine.margin import ClosingMargin, MarginWarning, new_margin
-from .engine.state import RunState, as_state, margin_problem, mass_array
-from .engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain
-from .engine.threads import most_threads
+from ..engine import checks
+from ..engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
+from ..engine.driver import check_writers, drive
+from ..engine.sigint import deferred
+from ..engine.stop import Stop
+from ..engine.errors import FieldError, FieldTypeError, check_jitted
+from ..engine.arithmetic import ARITHMETICS, MAX_PRECISION, field_chain
+from ..engine.exact import FieldChain
+from ..engine.fields import NotExact
+from ..engine.fixed import NotFixed
+from ..engine.fixed_state import CertifiedState, nearest_floats
+from ..engine.limbs import from_limbs
+from ..engine.limits import check_speeds
+from ..engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
+from ..engine.margin import ClosingMargin, MarginWarning, new_margin
+from ..engine.state import RunState, as_state, margin_problem, mass_array
+from ..engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain
+from ..engine.threads import most_threads
 
 #: collisions a logging loop records before handing them to the listeners
 LOG_CAPACITY = 1 << 16
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
-from .engine.random import seed_state
-from .geometry.base import Geometry
-from .geometry.checks import check_contacts
-from .rules import CollisionRule, Elastic, check_resolution, threshold
-from .schedulers.base import Scheduler
-from .schedulers.simple import UniformRandomPair
+from ..engine.random import seed_state
+from ..geometry.base import Geometry
+from ..geometry.checks import check_contacts
+from ..rules import CollisionRule, Elastic, check_resolution, threshold
+from ..schedulers.base import Scheduler
+from ..schedulers.simple import UniformRandomPair
 
 __all__ = ["Simulation", "RunState", "mass_array"]
 
@@ -499,23 +499,23 @@ class Simulation:
     def plot(self, ax=None, title: str | None = None):
         """The current state in the geometry's own view (`pinnedballs.plot.states.state_picture`: arrows,
         or a field above 5,000 balls), drawn into ``ax`` or a new figure; the matplotlib `Figure`."""
-        from .plot.states import state_picture
+        from ..plot.states import state_picture
 
         title = f"after {self.steps:,} steps, {self.collisions:,} collisions" if title is None else title
         return state_picture(self.geometry)(self.velocities, title, ax=ax)
 
     def _repr_html_(self) -> str:  # notebooks: the counters beside the picture of the state
-        from .plot.display import simulation_html, simulation_png
+        from ..plot.display import simulation_html, simulation_png
 
         return simulation_html(self, simulation_png(self))
 
     def _repr_png_(self) -> bytes | None:
-        from .plot.display import simulation_png
+        from ..plot.display import simulation_png
 
         return simulation_png(self)
 
     def _repr_mimebundle_(self, include=None, exclude=None) -> dict:  # the picture drawn once for both
-        from .plot.display import mimebundle, simulation_html, simulation_png
+        from ..plot.display import mimebundle, simulation_html, simulation_png
 
         return mimebundle(self, simulation_html, simulation_png, include, exclude)
 

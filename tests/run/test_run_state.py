@@ -91,9 +91,9 @@ def test_an_exact_state_lists_its_exact_velocities():
 
 def test_the_record_lives_below_the_simulation_and_keeps_its_old_names():
     """`RunState` and `mass_array` moved to `engine.state`; ``pb.RunState`` and the import scripts use
-    (``from pinnedballs.simulation import RunState``) name the same objects."""
+    (``from pinnedballs.run.simulation import RunState``) name the same objects."""
     from pinnedballs.engine import state
-    from pinnedballs.simulation import RunState, mass_array
+    from pinnedballs.run.simulation import RunState, mass_array
 
     assert pb.RunState is RunState is state.RunState and mass_array is state.mass_array
 
