@@ -89,10 +89,11 @@ def state_row(geometry: Geometry, velocities: np.ndarray, masses=None) -> dict[s
 def margin_columns(sim, margin: np.ndarray | None) -> dict:
     """`MARGIN_COLUMNS` of a state of ``sim`` whose margin is ``margin (4,)`` (`engine.margin`):
     ``smallest_collision`` and ``largest_remnant`` in thresholds (left out while there is none),
-    ``near_collisions`` and ``near_remnants``; none at all for a state that keeps no margin (exact
-    arithmetic)."""
+    ``near_collisions`` and ``near_remnants``; for a state that keeps no margin (exact or certified
+    arithmetic) only ``smallest_collision``, where the engine keeps it (`Simulation.smallest_exact_collision`)."""
     if margin is None:
-        return {}
+        smallest = sim.smallest_exact_collision
+        return {} if smallest is None else {"smallest_collision": smallest}
     m = ClosingMargin.of(margin, sim.threshold, sim.resolution).to_dict()
     return {name: m[name] for name in MARGIN_COLUMNS if m[name] is not None}
 

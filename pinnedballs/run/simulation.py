@@ -416,6 +416,13 @@ class Simulation:
         on any one ball's (0: all exact). None in other arithmetics."""
         return self._exact.error_bound if self.arithmetic == "certified" else None
 
+    @property
+    def smallest_exact_collision(self) -> float | None:
+        """Exact or certified arithmetic (fixed-point engine): the smallest closing speed counted as a collision
+        since the run was built or loaded, in thresholds (`threshold`); None otherwise or before one."""
+        margin = getattr(self._exact, "margin", None)
+        return float(margin[0] / self.threshold) if margin is not None and np.isfinite(margin[0]) else None
+
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
         return float(0.5 * np.dot(self._mass_array, np.einsum("ij,ij->i", self.velocities, self.velocities)))

@@ -20,7 +20,11 @@ class ExtendedPlan:
     #: half-plane ``(length, depth, replicas)``, by size
     scaling: tuple[tuple[float, float, int], ...] = (
         (10, 5, 16), (30, 15, 16), (60, 30, 16), (100, 50, 16), (200, 100, 8), (300, 150, 8), (500, 250, 8),
-        (1000, 500, 8), (2000, 1000, 8))
+        (1000, 500, 8), (2000, 1000, 2))
+    #: sizes up to this many balls are also counted exactly (certified arithmetic on the same seeds: every
+    #: decision proven, docs/collisions.md) and by the float chain at each of `resolutions` (the model N_e)
+    exact_max_balls: int = 150_000
+    resolutions: tuple[float, ...] = (1e-6, 1e-9, 1e-12)   #: criteria e of the N_e counts
     torus_sides: tuple[int, ...] = (16, 38, 76, 128)   #: square tori ``side x side``
     torus_times: tuple[int, ...] = (100, 300, 1000, 3000, 10000, 30000)   #: steps per ball
     torus_replicas: int = 24
@@ -48,6 +52,11 @@ Ensemble = Callable[..., ens.EnsembleResult]
 
 def check_extended_plan(plan: ExtendedPlan) -> None:
     """`InputError` naming the field of a plan that cannot run."""
+    if isinstance(plan.exact_max_balls, bool) or not isinstance(plan.exact_max_balls, int) or plan.exact_max_balls < 0:
+        raise InputError(f"exact_max_balls: must be a whole number of balls >= 0, got {plan.exact_max_balls!r}")
+    for e in plan.resolutions:
+        if isinstance(e, bool) or not isinstance(e, (int, float)) or not 0.0 < e < 1.0:
+            raise InputError(f"resolutions: each must be a criterion e in (0, 1), got {e!r}")
     for name in ("torus_replicas", "hyperbolic_replicas", "fcc_replicas", "orders_replicas", "orders_max_states"):
         ens._check_count(name, getattr(plan, name))
     if len(plan.scaling) < 2 or any(len(s) != 3 or s[2] < 2 for s in plan.scaling):

@@ -1,7 +1,12 @@
 """The scaling study: collisions and steps until frozen against the number of balls on half-planes,
 one boundary ball moving inward, `UniformRandomPair`; fitted exponents (`fit.fit_exponent`), local
 exponents between consecutive sizes, the frozen energy profile by decile of depth, and the closing
-margin of each size's counts (`engine.margin`: how near the float criterion their picks came)."""
+margin of each size's counts (`engine.margin`: how near the float criterion their picks came).
+
+Up to `ExtendedPlan.exact_max_balls` each size is counted three ways on the same seeds: by the float
+chain (the paper's criterion, 4 ulp), exactly (``arithmetic="certified"``: every decision proven,
+docs/collisions.md), and by the float chain at each coarser criterion e of `ExtendedPlan.resolutions`
+(the model N_e); each count has its local exponents."""
 
 from __future__ import annotations
 
@@ -11,41 +16,113 @@ from pathlib import Path
 
 import numpy as np
 
+from ...run import ensemble as ens
 from ...specs.run import RunSpec
 from ..fit import fit_exponent
-from .common import DECILES, _frozen_row, _inward_spec, _margin_row, _observing, _profile, decile_row
+from .common import DECILES, _frozen_row, _inward_spec, _margin_row, _observing, _profile, _stats, decile_row
 from .plan import Ensemble, ExtendedPlan
 
+#: the exact count's name in rows and fits (``exact_collisions_mean``, ...)
+EXACT = "exact"
 
-def scaling_spec(length: float, depth: float, plan: ExtendedPlan) -> RunSpec:
+
+def count_name(resolution: float) -> str:
+    """The name of the count N_e in rows and fits: ``N_1e-06`` for e = 1e-6."""
+    return f"N_{resolution:.0e}"
+
+
+def scaling_spec(length: float, depth: float, plan: ExtendedPlan, **counting) -> RunSpec:
     """Half-plane ``length x depth``: the boundary-centre ball moving inward, the paper's chain
-    (`UniformRandomPair`: until frozen it runs untracked, 4-5x faster than `RejectionFree` on these
-    half-planes, docs/performance.md), until frozen."""
-    return _inward_spec({"kind": "half_plane", "length": float(length), "depth": float(depth)}, plan,
+    (`UniformRandomPair` on one thread, since the ensemble runs replicas side by side; until frozen it runs
+    untracked, 4-5x faster than `RejectionFree` on these half-planes, docs/performance.md), until frozen.
+    ``counting``: ``arithmetic=`` and ``resolution=`` of the spec (default: float, the paper's criterion)."""
+    spec = _inward_spec({"kind": "half_plane", "length": float(length), "depth": float(depth)}, plan,
                         f"scaling: half-plane {length:g}x{depth:g}", "uniform_random_pair")
+    return spec.model_copy(update={"scheduler": spec.scheduler.model_copy(update={"threads": 1}), **counting})
 
 
 def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
-    """Collisions and steps until frozen against balls; exponents; the energy profile by decile of depth."""
+    """Collisions and steps until frozen against balls; exponents; the energy profile by decile of depth;
+    the exact count and N_e beside the float count up to `ExtendedPlan.exact_max_balls`."""
     rows, profiles = [], {}
     for length, depth, replicas in plan.scaling:
         spec = scaling_spec(length, depth, plan)
         g = spec.build().geometry
         t0 = time.perf_counter()
-        res = ensemble(f"scaling_{length:g}x{depth:g}", spec, replicas, task=_observing(decile_row))
+        name = f"scaling_{length:g}x{depth:g}"
+        res = ensemble(name, spec, replicas, task=_observing(decile_row))
         row = {"length": float(length), "depth": float(depth), "rows": g.rows, "cols": g.cols, "balls": g.n_balls,
                **_frozen_row(res), **_margin_row(res), "seconds": time.perf_counter() - t0}
         row["collisions_se"] = row["collisions_sd"] / math.sqrt(row["replicas"])
         row["steps_se"] = row["steps_sd"] / math.sqrt(row["replicas"])
+        if g.n_balls <= plan.exact_max_balls:
+            row.update(_other_counts(plan, length, depth, replicas, name, res, ensemble))
         rows.append(row)
         profiles[f"{length:g}x{depth:g}"] = _profile(res, "decile_")
     fits = {what: fit_exponent([r["balls"] for r in rows], [r[f"{what}_mean"] for r in rows],
                                [r[f"{what}_se"] for r in rows]) for what in ("collisions", "steps")}
     for what in ("collisions", "steps"):  # slopes between consecutive sizes: does one power law hold?
         fits[what].update(local_exponents(rows, what))
-    figures = [_scaling_figure(rows, fits, out / "extended_scaling.png"),
+    counted = {name: local_exponents([r for r in rows if f"{name}_collisions_mean" in r], f"{name}_collisions")
+               for name in (EXACT, *map(count_name, plan.resolutions))}
+    figures = [_scaling_figure(rows, fits, counted, out / "extended_scaling.png"),
                _profiles_figure(profiles, out / "extended_scaling_profiles.png")]
-    return {"rows": rows, "fit": fits, "profiles": profiles, "figures": figures}
+    return {"rows": rows, "fit": fits, "counts": counted, "verdict": exact_verdict(rows, fits),
+            "profiles": profiles, "figures": figures}
+
+
+def _other_counts(plan: ExtendedPlan, length: float, depth: float, replicas: int, name: str,
+                  floats: ens.EnsembleResult, ensemble: Ensemble) -> dict:
+    """The exact count (certified arithmetic) and N_e of one size on the float ensemble's seeds: for each,
+    mean, sd and se of the collisions, replicas counted, and the seconds it took; for the exact count also
+    the float chain's misses per replica (``float_misses_*``: exact minus float, over the exact count) and
+    the smallest genuine closing speed over the replicas, in thresholds of the float criterion."""
+    out: dict = {}
+    counts = [(EXACT, {"arithmetic": "certified"})] + [(count_name(e), {"resolution": e}) for e in plan.resolutions]
+    for count, counting in counts:
+        t0 = time.perf_counter()
+        res = ensemble(f"{name}_{count}", scaling_spec(length, depth, plan, **counting), replicas)
+        collisions = res.column("collisions")
+        mean, sd, se = _stats(collisions)
+        out.update({f"{count}_collisions_mean": mean, f"{count}_collisions_sd": sd, f"{count}_collisions_se": se,
+                    f"{count}_replicas": int(len(collisions)), f"{count}_seconds": time.perf_counter() - t0})
+        if count == EXACT:
+            exact, floated = _by_replica(res, "collisions"), _by_replica(floats, "collisions")
+            misses = np.array([(exact[k] - floated[k]) / exact[k] for k in exact if k in floated and exact[k] > 0])
+            out["float_misses_mean"], _, out["float_misses_se"] = _stats(misses)
+            out["float_misses_max"] = float(misses.max()) if len(misses) else math.nan
+            smallest = res.column("smallest_collision")
+            out["exact_smallest_collision_min"] = float(smallest.min()) if len(smallest) else math.nan
+    return out
+
+
+def _by_replica(res: ens.EnsembleResult, column: str) -> dict[int, float]:
+    """``{replica: value}`` of ``column`` in the final rows of the replicas that finished."""
+    return {int(row["replica"]): float(row[column]) for row in res.rows
+            if not row.get(ens.ERROR_COLUMN) and row["at"] == ens.FINAL and column in row}
+
+
+def exact_verdict(rows: list[dict], fits: dict) -> dict:
+    """Whether the float counts' rise of the local exponent past 2 survives in exact counts, between the two
+    largest sizes counted exactly: the exact and the float local exponents there, each with its z from 2
+    (``(slope - 2) / se``), and the float one between the two largest sizes of all. ``survives``: whether
+    the exact slope lies more than 3 se above 2, when the float one does there; None when the float slope
+    does not pass 2 between those sizes (nothing to survive) or fewer than two sizes were counted exactly."""
+    exact_rows = [r for r in rows if f"{EXACT}_collisions_mean" in r]
+    if len(exact_rows) < 2:
+        return {"survives": None, "exact_sizes": len(exact_rows)}
+    pair = exact_rows[-2:]
+    exact, flt = local_exponents(pair, f"{EXACT}_collisions"), local_exponents(pair, "collisions")
+    z = lambda a, e: (a - 2.0) / e if e > 0 else math.nan  # noqa: E731
+    out = {"exact_sizes": len(exact_rows), "between": [pair[0]["balls"], pair[1]["balls"]],
+           "exact": exact["local_exponents"][0], "exact_se": exact["local_exponents_se"][0],
+           "float": flt["local_exponents"][0], "float_se": flt["local_exponents_se"][0],
+           "float_last": fits["collisions"]["local_exponents"][-1],
+           "float_last_se": fits["collisions"]["local_exponents_se"][-1],
+           "float_last_between": [rows[-2]["balls"], rows[-1]["balls"]]}
+    out["exact_z"], out["float_z"] = z(out["exact"], out["exact_se"]), z(out["float"], out["float_se"])
+    out["survives"] = bool(out["exact_z"] > 3) if out["float_z"] > 3 else None
+    return out
 
 
 def local_exponents(rows: list[dict], what: str) -> dict[str, list[float]]:
@@ -63,9 +140,10 @@ def local_exponents(rows: list[dict], what: str) -> dict[str, list[float]]:
             "local_at_balls": np.sqrt(np.exp(n[1:] + n[:-1])).tolist()}
 
 
-def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
-    """Left: collisions and steps until frozen against balls, with the fitted power laws. Right: the
-    local exponents between consecutive sizes, ± their standard errors, against 2."""
+def _scaling_figure(rows: list[dict], fits: dict, counted: dict, path: Path) -> str:
+    """Left: collisions and steps until frozen against balls, with the fitted power laws, and the exact
+    collisions where counted. Right: the local exponents between consecutive sizes, ± their standard
+    errors, against 2: steps, float collisions, exact collisions and N_e."""
     from ...plot import base as plots
 
     fig = plots.new_figure((12.0, 5.0))
@@ -80,7 +158,22 @@ def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
         left.plot(n, f["prefactor"] * n ** f["exponent"], color=colour, linestyle="--",
                   label=f"one power law: {f['prefactor']:.3g} N^({f['exponent']:.3f} ± {f['exponent_se']:.3f})")
         right.errorbar(f["local_at_balls"], f["local_exponents"], yerr=np.nan_to_num(f["local_exponents_se"]),
-                       fmt="o-", color=colour, capsize=3, label=f"{what}")
+                       fmt="o-", color=colour, capsize=3, label=f"{what}" + (", float count" if what == "collisions" else ""))
+    exact = [r for r in rows if f"{EXACT}_collisions_mean" in r]
+    if exact:
+        left.errorbar([r["balls"] for r in exact], [r[f"{EXACT}_collisions_mean"] for r in exact],
+                      yerr=np.nan_to_num([r[f"{EXACT}_collisions_se"] for r in exact]), fmt="s", mfc="none",
+                      color="tab:green", capsize=3, label="collisions, exact count (certified arithmetic)")
+    styles = {EXACT: ("tab:green", "s-", "collisions, exact")}
+    for k, name in enumerate(n for n in counted if n != EXACT):
+        styles[name] = (plt_grey(k), ".--", f"collisions, N_e with e = {name[2:]}")
+    for name, f in counted.items():
+        if f["local_exponents"]:
+            colour, fmt, label = styles[name]
+            right.errorbar(f["local_at_balls"], f["local_exponents"], yerr=np.nan_to_num(f["local_exponents_se"]),
+                           fmt=fmt, color=colour, capsize=2, label=label, mfc="none")
+    from matplotlib.ticker import NullFormatter
+
     left.set_xscale("log")
     left.set_yscale("log")
     left.set_xlabel("balls N")
@@ -89,6 +182,8 @@ def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
     left.legend(fontsize="small")
     right.axhline(2.0, color="k", linestyle=":", linewidth=1, label="slope 2")
     right.set_xscale("log")
+    for ax in (left, right):
+        ax.xaxis.set_minor_formatter(NullFormatter())  # minor ticks' labels overlap over 1-2 decades
     right.set_xlabel("balls N (geometric mean of the two sizes)")
     right.set_ylabel("local exponent d log(count) / d log N")
     right.set_title("local exponents, consecutive sizes (± se, replicas)")
@@ -96,6 +191,11 @@ def _scaling_figure(rows: list[dict], fits: dict, path: Path) -> str:
     fig.suptitle("half-plane, one boundary ball sent inward with energy 100, run until frozen")
     plots.save(fig, path)
     return path.name
+
+
+def plt_grey(k: int) -> str:
+    """The k-th of the greys the N_e curves are drawn in (darker for finer criteria)."""
+    return str(round(0.7 - 0.2 * (k % 3), 2))
 
 
 def _profiles_figure(profiles: dict, path: Path) -> str:
