@@ -260,7 +260,10 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     in a terminal or a notebook, once the ensemble has taken 2 s; `pinnedballs.engine.progress`).
     ``task(spec, index, seed) -> rows`` replaces `run_replica` (e.g.
     ``functools.partial(run_replica, observe=f)``); it must be picklable to run elsewhere.
-    Raises `InputError` on bad arguments.
+    Raises `InputError` on bad arguments. Local processes are forked, except after this process
+    has run numba's threads (a `ColoredSweep`, a chain on >= 65,536 contacts), which a forked child
+    cannot run again: they then start from a fork server, so a script must keep its top level under
+    ``if __name__ == "__main__":``, as with any multiprocessing start method but fork.
 
     Ctrl-C stops it within a second or so and raises KeyboardInterrupt; the replicas done so far
     are discarded (each can be run again alone, `run_replica`, to the same rows). Local processes are

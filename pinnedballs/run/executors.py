@@ -108,7 +108,10 @@ def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: O
 def _pool(jobs: dict, workers: int, marks: Path, results: dict, tick, on_error: OnError) -> list:
     """Run ``jobs`` on a pool of ``workers`` processes, adding to ``results``; if a process died, the
     jobs that were running then (each marks the file ``<index>`` in ``marks`` while it runs), else []."""
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_starts, initargs=(os.getpid(),))
+    context = _start_method()
+    parent = os.getpid() if context is None else None  # forkserver: the server is the parent
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_starts,
+                               initargs=(parent,))
     try:
         futures = {pool.submit(_marked, marks / str(k), *job): k for k, job in jobs.items()}
         finished = as_completed(futures)
@@ -137,11 +140,35 @@ def _kill_workers(pool: ProcessPoolExecutor) -> None:
             process.kill()
 
 
-def _worker_starts(parent: int) -> None:
+def _start_method():
+    """How a pool starts its processes: None (the platform's default, fork on Linux: fast, the children
+    inherit what this process loaded) unless this process has started numba's GNU OpenMP threads, which
+    a forked child cannot use again (numba ends it: "fork() called from a process already using GNU
+    OpenMP"; a run on >= 65,536 contacts uses threads). Then the forkserver context: children forked from
+    a server process that never started them. The server preloads pinnedballs, not the user's script
+    (which, unguarded by ``if __name__ == "__main__"``, would run again there); a job must then be
+    importable by name, as a spec's components are."""
+    import multiprocessing
+
+    import numba
+
+    try:
+        layer = numba.threading_layer()
+    except ValueError:  # not started in this process
+        return None
+    if layer != "omp":
+        return None
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(["pinnedballs"])
+    return context
+
+
+def _worker_starts(parent: int | None) -> None:
     """A pool process's start: Ctrl-C is the main process's to handle (it stops the workers), and the
-    process dies with its parent (`watch_parent`), so a ``kill -9`` of the main process leaves no orphan."""
+    process dies with its parent (`watch_parent`; None: the process that forked it, a forkserver, which
+    ends with the main process), so a ``kill -9`` of the main process leaves no orphan."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    watch_parent(parent)
+    watch_parent(os.getppid() if parent is None else parent)
 
 
 def watch_parent(parent: int, every: float = PARENT_POLL) -> None:

@@ -154,3 +154,45 @@ def test_a_replica_whose_dask_worker_always_dies_is_the_only_one_reported(cluste
     assert (failed["replica"], failed["spawn_key"]) == (2, "[2]")
     assert failed[ens.ERROR_COLUMN].startswith("KilledWorker: Attempted to run task")
     assert [r for r in result.rows if r["replica"] != 2] == [r for r in undisturbed(SHORT, 4) if r["replica"] != 2]
+
+
+_AFTER_THREADS = '''
+import json, sys
+import numba
+import pinnedballs as pb
+from pinnedballs.run import executors
+
+def main():
+    spec = pb.load_spec(sys.argv[1])
+    first = executors._start_method()
+    spec.build().run(1000)  # a ColoredSweep: numba's OpenMP threads start in this process
+    layer = numba.threading_layer()
+    res = pb.run_ensemble(spec, 3, workers=2, progress=False)
+    then = executors._start_method()
+    print(json.dumps({"first": first is None, "layer": layer, "then": then and then.get_start_method(),
+                      "failures": len(res.failures), "collisions": res.column("collisions").tolist()}))
+
+if __name__ == "__main__":
+    main()
+'''
+
+
+def test_an_ensemble_after_threads_in_this_process_runs(tmp_path):
+    """GNU OpenMP does not survive fork: once this process has run numba's threads (a ColoredSweep, a chain
+    on >= 65,536 contacts), a forked worker that runs them again is ended by numba ("fork() called from a
+    process already using GNU OpenMP"), and every replica failed. The pool then starts its processes from
+    a fork server, and the replicas give the bits they give in this process."""
+    import subprocess
+
+    spec = {**SHORT, "scheduler": {"kind": "colored_sweep", "shuffle": True}}
+    (tmp_path / "spec.json").write_text(json.dumps(spec))
+    (tmp_path / "after_threads.py").write_text(_AFTER_THREADS)
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, "after_threads.py", "spec.json"], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=600, env={**os.environ, "PYTHONPATH": str(root)})
+    assert out.returncode == 0, out.stderr
+    got = json.loads(out.stdout.splitlines()[-1])
+    assert got["first"] and got["layer"] == "omp" and got["then"] == "forkserver"
+    assert "GNU OpenMP" not in out.stderr and got["failures"] == 0
+    alone = ens.run_ensemble(parse_spec(spec), 3, workers=1, progress=False)
+    assert got["collisions"] == alone.column("collisions").tolist()
