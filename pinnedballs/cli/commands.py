@@ -380,8 +380,8 @@ def _ensemble(args, status) -> int:
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
             arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about 10 seconds on 2 cores)"),
             arg("--extended", action="store_true",
-                help="then the studies beyond the paper (about 75 minutes on 2 cores, an hour of it the "
-                     "2000x1000 half-plane; with --quick about 2)"),
+                help="then the studies beyond the paper (31 minutes on 2 cores, 15 of them the exact "
+                     "counts of 1000x500 and 6 the 2000x1000 half-plane; with --quick under a minute)"),
             arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
             arg("--quiet", action="store_true", help="no progress messages"))
