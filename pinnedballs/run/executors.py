@@ -145,9 +145,9 @@ def _start_method():
     inherit what this process loaded) unless this process has started numba's GNU OpenMP threads, which
     a forked child cannot use again (numba ends it: "fork() called from a process already using GNU
     OpenMP"; a run on >= 65,536 contacts uses threads). Then the forkserver context: children forked from
-    a server process that never started them. The server preloads pinnedballs, not the user's script
-    (which, unguarded by ``if __name__ == "__main__"``, would run again there); a job must then be
-    importable by name, as a spec's components are."""
+    a server process that never started them (preloading pinnedballs, so each starts fast). As with
+    spawn, each child imports the main script: a script must keep its top level under
+    ``if __name__ == "__main__":``, and a job must be picklable by name or by value."""
     import multiprocessing
 
     import numba

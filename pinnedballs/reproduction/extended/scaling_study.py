@@ -166,7 +166,7 @@ def _scaling_figure(rows: list[dict], fits: dict, counted: dict, path: Path) -> 
                       color="tab:green", capsize=3, label="collisions, exact count (certified arithmetic)")
     styles = {EXACT: ("tab:green", "s-", "collisions, exact")}
     for k, name in enumerate(n for n in counted if n != EXACT):
-        styles[name] = (plt_grey(k), ".--", f"collisions, N_e with e = {name[2:]}")
+        styles[name] = (_grey(k), ".--", f"collisions, N_e with e = {name[2:]}")
     for name, f in counted.items():
         if f["local_exponents"]:
             colour, fmt, label = styles[name]
@@ -193,7 +193,7 @@ def _scaling_figure(rows: list[dict], fits: dict, counted: dict, path: Path) -> 
     return path.name
 
 
-def plt_grey(k: int) -> str:
+def _grey(k: int) -> str:
     """The k-th of the greys the N_e curves are drawn in (darker for finer criteria)."""
     return str(round(0.7 - 0.2 * (k % 3), 2))
 
