@@ -396,19 +396,22 @@ class ParallelChain:
 
     def _whole(self, chain, pattern, rng, counters, margin, count: int, sequential: Callable) -> int:
         """``count`` blocks' worth of steps on all threads or, where the tuner finds one thread faster, on
-        the sequential loop (``sequential(steps)``: the same picks); the steps taken."""
+        the sequential loop (``sequential(steps)``: the same picks), in the segments the tuner takes
+        (a trial is shorter); the steps taken."""
         if self.tuner is None:
             return self._blocks(chain, pattern, rng, counters, margin, count)
         taken = []
 
-        def segment(steps):
+        def segment(blocks):
             if self.tuner.choose() == 1:
-                taken.append(sequential(steps))
+                taken.append(sequential(blocks * self.block))
             else:
-                taken.append(self._blocks(chain, pattern, rng, counters, margin, count))
+                taken.append(self._blocks(chain, pattern, rng, counters, margin, blocks))
 
-        self.tuner.run(segment, count * self.block)
-        return taken[0]
+        left = count
+        while left > 0:
+            left -= self.tuner.run(segment, left)
+        return sum(taken)
 
     def _blocks(self, chain, pattern, rng, counters, margin, count: int) -> int:
         """``count`` blocks; the picks they took. The counters (``LAST`` too), stream and margin advanced."""

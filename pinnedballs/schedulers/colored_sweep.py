@@ -272,8 +272,9 @@ def _threaded_steps(collide: Callable, dim: int, flat: bool, shuffle: bool, thre
         if tuner is None or len(tuner.candidates) == 1 or max_steps < 4 * TUNED_SEGMENT:
             with using(threads):
                 return loop(*args)
-        for start in range(0, max_steps, TUNED_SEGMENT):
-            tuner.run(lambda n: loop(*chain, n), min(TUNED_SEGMENT, max_steps - start))
+        done = 0
+        while done < max_steps:
+            done += tuner.run(lambda n: loop(*chain, n), min(TUNED_SEGMENT, max_steps - done))
         return max_steps
 
     steps.loop = loop  # the compiled loop (its cache statistics, its signatures)

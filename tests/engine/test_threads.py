@@ -45,17 +45,19 @@ def test_more_threads_than_numba_has_is_refused():
 
 
 class _Clock:
-    """A fake ``time.perf_counter`` whose segments take ``seconds[count]`` on ``count`` threads."""
+    """A fake ``time.perf_counter`` whose segments take ``seconds[count]`` per 100 units on ``count``
+    threads; ``units`` lists what each segment was handed."""
 
     def __init__(self, seconds):
-        self.now, self.seconds, self.count = 0.0, seconds, None
+        self.now, self.seconds, self.count, self.units = 0.0, seconds, None, []
 
     def __call__(self):
         return self.now
 
     def segment(self, steps):
         self.count = numba.get_num_threads()
-        self.now += self.seconds[self.count]
+        self.now += self.seconds[self.count] * steps / 100
+        self.units.append(steps)
 
 
 def _tune(tuner, clock, segments: int) -> list[int]:
@@ -74,11 +76,31 @@ def test_tuner_times_each_count_then_runs_on_the_faster_and_tries_again(monkeypa
     p = ThreadTuner.PERIOD
     used = _tune(tuner, clock, p)
     assert used == [2, 1] + [2] * (p - 2)  # timed both, then the faster until the period ends
+    assert clock.units == [100 // ThreadTuner.TRIAL_SHARE] * 2 + [100] * (p - 2)  # trials are short
     assert tuner.rates == {2: 100.0} and tuner.winner == 2 and tuner.period == p
     used = _tune(tuner, clock, p)
     assert used == [1] + [2] * (p - 1)  # 1 thread tried once more, then 2; 2 won again: a longer period
     assert tuner.period == 2 * p
     assert _tune(tuner, clock, 2 * p) == [1] + [2] * (2 * p - 1)
+
+
+def test_a_trial_runs_a_share_of_the_units_and_says_how_many(monkeypatch):
+    """A count without a fresh rate runs ``units // TRIAL_SHARE`` (at least 1), the winner all it is
+    offered; `run` returns what it ran, so a caller offering the rest again runs every unit once."""
+    clock = _Clock({2: 1.0, 1: 3.0})
+    monkeypatch.setattr(threads.time, "perf_counter", clock)
+    monkeypatch.setattr(threads, "using", _pretend_using(clock))
+    tuner = ThreadTuner(candidates=(2, 1))
+    left, ran = 1000, []
+    while left > 0:
+        ran.append(tuner.run(clock.segment, left))
+        left -= ran[-1]
+    share = ThreadTuner.TRIAL_SHARE
+    assert ran == clock.units == [1000 // share, (1000 - 1000 // share) // share,
+                                  1000 - 1000 // share - (1000 - 1000 // share) // share]
+    assert tuner.run(clock.segment, 3) == 3  # the winner's rate is fresh: no trial
+    tuner.rates.pop(1)
+    assert tuner.choose() == 1 and tuner.run(clock.segment, 3) == 1  # a trial of fewer units than the share
 
 
 def test_tuner_backs_off_to_its_longest_period_and_resets_on_a_new_winner(monkeypatch):
