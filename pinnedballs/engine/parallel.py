@@ -49,8 +49,8 @@ from .threads import TUNED_SEGMENT, ThreadTuner, using
 from .random import load, next_uint64, store
 from .rows import decode
 
-__all__ = ["ParallelChain", "region_cuts", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE", "MIN_PARALLEL_CONTACTS",
-           "TUNED_SEGMENT"]
+__all__ = ["ParallelChain", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
+           "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
 
 #: words of the stream each thread turns into picks per block
 WORDS = 1 << 14
@@ -63,6 +63,10 @@ AHEAD = 16
 #: the bands watched for the wake of a crossing reach this many contacts from a cut (in ball index:
 #: ``BAND_HOPS`` times the largest ``|j - i|`` of a contact)
 BAND_HOPS = 8
+#: regions are not worth it when the watched bands would hold more than this share of the balls: a
+#: contact joining balls far apart in index (a torus's wrap-around) makes every pick a watched one,
+#: and two threads then ran a 1520x1520 torus at 0.35 times one (docs/performance.md)
+MAX_BAND_SHARE = 0.25
 
 # the shared counters (`sync`), each on its own cache line
 _LINE = 8
@@ -85,6 +89,14 @@ def region_cuts(pairs: np.ndarray, n_balls: int, threads: int) -> np.ndarray | N
         return None
     crossing = (np.searchsorted(cuts, low, side="right") != np.searchsorted(cuts, high, side="right")).mean()
     return cuts if crossing <= MAX_CROSSING_SHARE else None
+
+
+def bands_pay(pairs: np.ndarray, n_balls: int, threads: int) -> bool:
+    """Whether the bands watched around ``threads - 1`` cuts hold at most `MAX_BAND_SHARE` of the
+    ``n_balls`` balls (each reaches ``BAND_HOPS`` times the largest ``|j - i|`` of a contact on
+    either side of its cut): false on a torus, whose wrap-around contacts join balls ``N - 1`` apart."""
+    reach = int(np.abs(pairs[:, 1].astype(np.int64) - pairs[:, 0].astype(np.int64)).max(initial=0))
+    return 2 * BAND_HOPS * reach * (threads - 1) <= MAX_BAND_SHARE * n_balls
 
 
 @njit_cached(inline="always")
@@ -360,7 +372,8 @@ def _defer(recs, watch, nwatch, cuts, band, marks, deferred, p):
 class ParallelChain:
     """`parallel_blocks` for one simulation: its regions, scratch and the limits of a run.
 
-    Built by `build` (None where regions do not pay: a crossing share above `MAX_CROSSING_SHARE`).
+    Built by `build` (None where regions do not pay: a crossing share above `MAX_CROSSING_SHARE`); a
+    simulation also asks `bands_pay` first.
     `run` takes the place of the sequential limited loop, with its bits.
     """
 

@@ -24,7 +24,7 @@ from ..engine.limits import check_speeds
 from ..engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
 from ..engine.margin import ClosingMargin, MarginWarning, new_margin
 from ..engine.state import RunState, as_state, margin_problem, mass_array
-from ..engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain
+from ..engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
 from ..engine.threads import most_threads
 
 #: collisions a logging loop records before handing them to the listeners
@@ -273,13 +273,15 @@ class Simulation:
 
     def _parallel_chain(self):
         """The chain on several threads (`engine.parallel.ParallelChain`) where the scheduler allows it
-        and it pays (a large system, regions with few crossings), built once; else None."""
+        and it pays (a large system, regions with few crossings, narrow bands around the cuts: not a
+        torus), built once; else None."""
         if self._parallel is None:
             self._parallel = False
             s, c = self._selector, self.geometry.contacts
             wanted = self.scheduler.threads if hasattr(self.scheduler, "threads") else None
             threads = most_threads() if wanted is None else wanted
-            if s.uniform and not s.tracks and threads > 1 and len(c) >= MIN_PARALLEL_CONTACTS:
+            if (s.uniform and not s.tracks and threads > 1 and len(c) >= MIN_PARALLEL_CONTACTS
+                    and bands_pay(c.pairs, self.geometry.n_balls, threads)):
                 built = ParallelChain.build(self._collide, self.geometry.dim, c.flat, c.pairs, self.geometry.n_balls,
                                             self._limited(logged=False)[1] is not NO_PATTERN, threads,
                                             tuned=wanted is None)

@@ -55,7 +55,9 @@ class UniformRandomPair(Scheduler):
     ``threads``: how many of numba's threads a run may use (`engine.parallel`: the lattice cut into
     regions, the same bits on any number); None (the default) lets long runs on large systems use
     every core, each stretch on the count a `ThreadTuner` finds faster (never slower than one thread
-    on a busy machine); 1 runs the sequential loop only."""
+    on a busy machine); 1 runs the sequential loop only. Whatever the count, a system runs on one
+    thread where regions do not pay: fewer than 65,536 contacts, many contacts joining the regions,
+    or contacts joining balls far apart in index (a torus's wrap-around)."""
 
     def __init__(self, threads: int | None = None):
         self.threads = None if threads is None else checks.integer("threads", threads, minimum=1)

@@ -11,7 +11,7 @@ from pinnedballs.engine.chain import COUNTERS, NO_LIMIT
 from pinnedballs.engine.jump import jump, jump_polynomial
 from pinnedballs.engine.loops import NO_PATTERN, live_kernel
 from pinnedballs.engine.margin import new_margin
-from pinnedballs.engine.parallel import ParallelChain, region_cuts
+from pinnedballs.engine.parallel import MIN_PARALLEL_CONTACTS, ParallelChain, bands_pay, region_cuts
 from pinnedballs.engine.random import load, next_uint64, seed_state
 from pinnedballs.engine.rows import row_pattern
 from pinnedballs.engine.threads import using
@@ -50,6 +50,22 @@ def test_regions_cut_a_lattice_into_halves_of_contacts_with_few_crossings():
     assert 2 * 60 - 2 <= crossing <= 2 * 60 + 2  # about an up-left and an up-right contact per ball of one row
     random_pairs = np.random.default_rng(1).integers(0, 2000, size=(6000, 2))
     assert region_cuts(random_pairs, 2000, 2) is None  # random contacts: half of them cross any cut
+
+
+def test_no_regions_where_a_contact_reaches_across_the_balls():
+    """A torus's wrap-around contacts join balls N - 1 apart in index: the bands watched around a cut
+    would hold every ball (every pick watched: 0.35x of one thread), so a simulation on 2 threads runs
+    one; a half-plane of the same size gets its regions (its bands: 11 % of the balls)."""
+    torus, half = pb.FlatTorus(160, 160), pb.HalfPlane.from_size(500, 250)
+    assert min(len(torus.contacts), len(half.contacts)) >= MIN_PARALLEL_CONTACTS
+    for geometry, pays in ((torus, False), (half, True)):
+        c = geometry.contacts
+        assert region_cuts(c.pairs, geometry.n_balls, 2) is not None  # few crossings on both
+        assert bands_pay(c.pairs, geometry.n_balls, 2) == pays
+        v = np.random.default_rng(2).normal(size=(geometry.n_balls, 2))
+        sim = pb.Simulation(geometry, v, seed=3, scheduler=pb.UniformRandomPair(threads=2))
+        assert (sim._parallel_chain() is not None) == pays
+    assert bands_pay(np.array([[0, 9]]), 10, 2) is False and bands_pay(np.array([[0, 1]]), 64, 2) is True
 
 
 def _sequential(geometry, v, masses, params, pattern, loops, kwargs, seed):
