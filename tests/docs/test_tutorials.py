@@ -40,15 +40,20 @@ def text(outs: list[dict]) -> str:
 
 def printed(outs: list[dict]) -> str:
     """What the cell printed (stdout and stderr), without progress bars: a call that takes more than
-    2 s shows one in a notebook (tqdm's text on stderr, each redraw after a carriage return)."""
+    2 s shows one in a notebook (tqdm's text on stderr, each redraw after a carriage return, which
+    the kernel's stream may have dropped: a busy machine's CI showed the redraws run together)."""
     return "".join(_without_bars(o) for o in outs if o.get("output_type") == "stream")
+
+
+#: a tqdm bar's text: "label:  46%|████▌     | 92/200 [...]"; kernels may have dropped its carriage returns
+_BAR = re.compile(r"\d+%\|")
 
 
 def _without_bars(out: dict) -> str:
     text = out.get("text", "")
-    if out.get("name") != "stderr" or "\r" not in text:
+    if out.get("name") != "stderr":
         return text
-    return "".join(line for line in text.splitlines(keepends=True) if "\r" not in line)
+    return "".join(line for line in text.splitlines(keepends=True) if "\r" not in line and not _BAR.search(line))
 
 
 def kinds(nb) -> list[str]:
