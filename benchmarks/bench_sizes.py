@@ -41,16 +41,16 @@ import pinnedballs as pb
 length, depth, steps = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 threads = None if sys.argv[4] == "tuned" else int(sys.argv[4])
 tables = sys.argv[5] == "tables"
-half = pb.FlatTorus(length, depth) if sys.argv[6] == "torus" else pb.HalfPlane.from_size(length, depth)
+geometry = pb.FlatTorus(length, depth) if sys.argv[6] == "torus" else pb.HalfPlane.from_size(length, depth)
 if tables:
-    half.__dict__["row_pattern"] = None           # the loops read the (E, 2) tables instead
-v = np.random.default_rng(1).normal(size=(half.n_balls, 2))
-sim = pb.Simulation(half, v, seed=1, scheduler=pb.UniformRandomPair(threads=threads))
+    geometry.__dict__["row_pattern"] = None           # the loops read the (E, 2) tables instead
+v = np.random.default_rng(1).normal(size=(geometry.n_balls, 2))
+sim = pb.Simulation(geometry, v, seed=1, scheduler=pb.UniformRandomPair(threads=threads))
 sim.run(steps=min(steps, 4_000_000))              # load the loops, fill the caches
 t0, c0, made = time.perf_counter(), time.process_time(), sim.collisions
 sim.run(steps=steps)
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-print(json.dumps(dict(balls=half.n_balls, contacts=half.n_contacts, steps=steps, wall=wall, cpu=cpu,
+print(json.dumps(dict(balls=geometry.n_balls, contacts=geometry.n_contacts, steps=steps, wall=wall, cpu=cpu,
                       hits=(sim.collisions - made) / steps,
                       checksum=float(np.abs(sim.velocities).sum()) + sim.collisions)))
 """

@@ -91,12 +91,16 @@ def region_cuts(pairs: np.ndarray, n_balls: int, threads: int) -> np.ndarray | N
     return cuts if crossing <= MAX_CROSSING_SHARE else None
 
 
+def _reach(pairs: np.ndarray) -> int:
+    """The largest ``|j - i|`` of a contact: how far in ball index one hop can go."""
+    return int(np.abs(pairs[:, 1].astype(np.int64) - pairs[:, 0].astype(np.int64)).max(initial=0))
+
+
 def bands_pay(pairs: np.ndarray, n_balls: int, threads: int) -> bool:
     """Whether the bands watched around ``threads - 1`` cuts hold at most `MAX_BAND_SHARE` of the
     ``n_balls`` balls (each reaches ``BAND_HOPS`` times the largest ``|j - i|`` of a contact on
     either side of its cut): false on a torus, whose wrap-around contacts join balls ``N - 1`` apart."""
-    reach = int(np.abs(pairs[:, 1].astype(np.int64) - pairs[:, 0].astype(np.int64)).max(initial=0))
-    return 2 * BAND_HOPS * reach * (threads - 1) <= MAX_BAND_SHARE * n_balls
+    return 2 * BAND_HOPS * _reach(pairs) * (threads - 1) <= MAX_BAND_SHARE * n_balls
 
 
 @njit_cached(inline="always")
@@ -399,8 +403,7 @@ class ParallelChain:
         cuts = region_cuts(pairs, n_balls, threads) if threads > 1 else None
         if cuts is None:
             return None
-        reach = int(np.abs(pairs[:, 1].astype(np.int64) - pairs[:, 0].astype(np.int64)).max())
-        return cls(parallel_blocks(collide, dim, flat, rows), cuts, BAND_HOPS * reach, threads, words, tuned)
+        return cls(parallel_blocks(collide, dim, flat, rows), cuts, BAND_HOPS * _reach(pairs), threads, words, tuned)
 
     @property
     def block(self) -> int:
