@@ -13,6 +13,7 @@ why: a certified decision it cannot prove (the step and contact), or a time limi
 
     python benchmarks/bench_exact.py                                   # 100x50 ... 1000x500, seed 1
     python benchmarks/bench_exact.py --sizes 500x250 --arithmetics float certified:384 certified:512
+    python benchmarks/bench_exact.py --sizes 1000x500 --arithmetics certified certified:768/256   # late_precision
     python benchmarks/bench_exact.py --limit 1800                      # CPU seconds before giving up
     python benchmarks/bench_exact.py --json runs.json                  # every row also as JSON (for
                                                                        # docs/figures/make_exactness_figure.py)
@@ -37,7 +38,10 @@ from pinnedballs.rules import threshold
 length, depth, seed, spec, limit = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], float(sys.argv[5])
 spec, _, resolution = spec.partition("@")
 arithmetic, _, bits = spec.partition(":")
+bits, _, late = bits.partition("/")
 options = {"precision": int(bits)} if bits else {}
+if late:
+    options["late_precision"] = int(late)
 if resolution:
     options["resolution"] = float(resolution)
 
@@ -70,6 +74,7 @@ out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 chain = sim._exact
 if chain is not None:
     out["limbs"], out["widenings"] = chain.P, chain.widenings
+    out["narrowed"] = getattr(chain, "narrowed", None)
     T = threshold(v, np.ones(g.n_balls))
     smallest, largest, zeros = chain.margin
     out["margin"] = [smallest / T, largest / T, int(zeros)]
@@ -99,6 +104,7 @@ def row(size: str, spec: str, r: dict, floats: dict | None) -> str:
             f"{r['peak_mb']:8.0f} MB")
     if "limbs" in r:
         text += f"  P={r['limbs']}" + (f" ({r['widenings']} widenings)" if r["widenings"] else "")
+        text += f" (narrowed at step {r['narrowed']:,})" if r.get("narrowed") else ""
     if "bound" in r:
         text += f"  G={r['bound'][0]:.2e} largest={r['bound'][1]:.2e}"
     if "margin" in r:
@@ -118,8 +124,8 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="+", default=["100x50", "200x100", "500x250", "1000x500"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[1])
     parser.add_argument("--arithmetics", nargs="+", default=["float", "certified", "exact"],
-                        help="float, exact, certified, certified:BITS, or float@E (the float criterion "
-                             "with resolution E: the counts N_e)")
+                        help="float, exact, certified, certified:BITS, certified:BITS/LATE (late_precision "
+                             "LATE), or float@E (the float criterion with resolution E: the counts N_e)")
     parser.add_argument("--limit", type=float, default=1800.0, help="CPU seconds a run may take (default 30 min)")
     parser.add_argument("--json", type=Path, help="also write every row to this file, as JSON")
     args = parser.parse_args()

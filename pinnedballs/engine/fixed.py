@@ -30,7 +30,15 @@ Two policies:
   on an ``omega`` already rounded, so ``rho = 0``: Newton's cradles stay exact (bounds 0). But an
   exact zero of ``w`` between balls whose velocities were rounded can never be certified (``|w~|``
   is then the error itself): such zeros occur early in large runs (the paper's half-plane, seed 1:
-  at 500x250 with 256 bits, at 1000x500 with 512), hence the default `PRECISION`.
+  at 500x250 with 256 bits, at 1000x500 with 512), hence the default `PRECISION`. They occur at
+  the front of the first wave, between a ball exactly at rest and one moving exactly across their
+  line, whose coefficients lengthen by about 2.2 bits per row the front has crossed. With a
+  ``late_precision``, the certified policy narrows the state to it (`narrow`: the rounding added
+  to the bounds) once the wave has passed (`settled`: no ball at rest, and at most a thousandth of
+  the balls still exact, bounds 0, but too long for the narrower state), checked before each step
+  that is a multiple of `LATE_EVERY_PER_CONTACT` picks per contact, so the step it narrows at
+  depends on the state alone, not on how the run is split. The paper's 1000x500 half-plane needs
+  768 bits through its front and 256 behind it (docs/performance.md).
 
 Headroom: the conjugate map ``sqrt(d) -> -sqrt(d)`` sends normals to normals, so the conjugate
 velocities keep the conjugate energy, which is the energy (floats are rational): every
@@ -50,8 +58,8 @@ from gmpy2 import mpq
 from .errors import FieldError
 from .exact import FieldChain
 from .fields import Field, NotExact, recognise
-from .fixed_kernels import (DONE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables, count_live,
-                            refresh_shadows, run_picks)
+from .fixed_kernels import (DONE, DUE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables,
+                            count_live, refresh_shadows, run_picks)
 from .fixed_state import CertifiedState, error_bound, nearest_floats
 from .limbs import from_limbs, to_limbs
 from .loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT
@@ -60,6 +68,9 @@ __all__ = ["FixedChain", "NotFixed", "UncertifiedDecision", "Lines", "lines_of",
 
 #: bits above the speed scale V (sign, 2V closing speeds, and slack)
 HEADROOM = 6
+#: the certified policy with a ``late_precision`` checks whether to narrow (`FixedChain.settled`) before
+#: every step that is a multiple of this many picks per contact
+LATE_EVERY_PER_CONTACT = 16
 #: the certified policy's default bits per coefficient (12 limbs). The paper's half-plane (seed 1)
 #: needs more than 256 at 500x250 and more than 512 at 1000x500 (768 suffice): early in a run,
 #: exact zeros of the closing speed between balls whose velocities were rounded (benchmarks/bench_exact.py)
@@ -72,7 +83,10 @@ class NotFixed(ValueError):
 
 class UncertifiedDecision(FieldError):
     """A decision certified arithmetic cannot prove equal to exact arithmetic's: ``|w~|`` is within
-    the error bound. The run stops consistent as of the pick before it."""
+    the error bound. The run stops consistent as of the pick before it. ``narrowed``: whether the
+    state had been narrowed to its ``late_precision`` (in the process that raised it)."""
+
+    narrowed = False
 
 
 class Lines(NamedTuple):
@@ -163,10 +177,13 @@ class FixedChain(FieldChain):
     velocities: ``(n_balls, dim)`` floats, taken exactly; lines: the geometry's (`lines_of`);
     policy: ``"exact"`` or ``"certified"``; precision: bits per coefficient, rounded up to a
     multiple of 64 and raised to what the velocities given need to be held exactly: the certified
-    policy's (None: `PRECISION`), or the width the exact policy starts from (None: the least).
+    policy's (None: `PRECISION`), or the width the exact policy starts from (None: the least);
+    late_precision: the certified policy's bits once the first wave has passed (`settled`, `narrow`;
+    None: ``precision`` throughout).
     """
 
-    def __init__(self, geometry, velocities: np.ndarray, lines: Lines, policy: str, precision: int | None = None):
+    def __init__(self, geometry, velocities: np.ndarray, lines: Lines, policy: str, precision: int | None = None,
+                 late_precision: int | None = None):
         super().__init__(geometry, lines.field, lines.units, np.ones(geometry.n_balls), 1.0)
         self.policy, self.tables = policy, lines.tables
         self.certify = policy == "certified"
@@ -178,6 +195,15 @@ class FixedChain(FieldChain):
         wanted = PRECISION if precision is None and self.certify else (precision or 0)
         self.P = max(1, -(-wanted // 64), -(-(self.top + fraction) // 64))
         self.S = 64 * self.P - self.top
+        #: the limbs the certified policy narrows to once the first wave has passed (`narrow`), or None
+        self.late_P = None
+        if self.certify and late_precision is not None:
+            self.late_P = min(self.P, max(-(-late_precision // 64), -(-(self.top + 1) // 64)))
+            self.late_P = None if self.late_P == self.P else self.late_P  # nothing to narrow
+        self.narrowed = None  #: the step before which the state was narrowed, in this object's life
+        #: picks between checks for `narrow` (steps that are multiples of it), and the last step checked
+        self.every = LATE_EVERY_PER_CONTACT * geometry.n_contacts if self.late_P is not None else 0
+        self._checked = -1
         self.shadow = v.copy()  # written by `sync`: the simulation's velocities
         L = self.tables.uf.shape[0]
         self.rows = np.zeros((n, dim + 2))
@@ -218,6 +244,44 @@ class FixedChain(FieldChain):
         self.widenings += 1
         self._scratch()
 
+    # ------------------------------------------------------------ certified policy: narrowing
+    def settled(self) -> bool:
+        """Whether the first wave has passed, as `narrow` asks: no ball is exactly at rest, and at most
+        a thousandth of the balls are exact (bounds 0) yet too long for ``late_P`` limbs."""
+        if np.any(self.rows[:, self.X.shape[1]] == 0.0):
+            return False
+        exact = ~(np.any(self.B, axis=1) | np.any(self.Pp, axis=1))
+        long = np.any(self.X[exact, ..., :self.P - self.late_P] != 0, axis=(1, 2, 3))
+        return int(np.count_nonzero(long)) <= self.X.shape[0] // 1000
+
+    def narrow(self, step: int | None = None) -> None:
+        """Round the state to ``late_P`` limbs (``S`` down by 64 per limb dropped), to nearest, ties
+        up, and widen each ball's bounds by its rounding: at most half a unit of the new last place
+        per coefficient, ``(1 + sqrt d) / 2^(S + 1)`` per component, ``sqrt(dim)`` times that per
+        ball (balls whose dropped limbs are 0, at rest among them, keep theirs); ``G`` grows by the
+        whole vector's, ``sqrt(balls rounded)`` times a ball's. ``step``: the first pick at the new
+        width, for messages."""
+        k = self.P - self.late_P
+        X = self.X
+        high = np.ascontiguousarray(X[..., k:])
+        carry = X[..., k - 1] >> np.uint64(63)  # the dropped part's top bit: round half up
+        for h in range(self.late_P):
+            high[..., h] += carry
+            carry = (carry & (high[..., h] == 0)).astype(np.uint64)
+        rounded = np.any(X[..., :k] != 0, axis=(1, 2, 3))
+        S = self.S - 64 * k
+        dim, m = X.shape[1], X.shape[2]
+        root = float(self.tables.root[2]) if m == 2 else 0.0
+        per = math.ldexp(math.sqrt(dim) * UP * (1.0 + root) * UP, -(S + 1)) * UP
+        self.B[rounded] = (self.B[rounded] + per) * UP
+        self.Pp[rounded] = (self.Pp[rounded] + per) * UP
+        self.acc[0] = (self.acc[0] + math.sqrt(int(rounded.sum())) * UP * per * UP) * UP
+        self.acc[1] = self.acc[0] * SQRT2_UP * UP
+        self.X, self.P, self.S = high, self.late_P, S
+        self._scratch()
+        self._reshadow()
+        self.narrowed = step
+
     # ------------------------------------------------------------ the live set and a run
     def prepare(self, until_frozen: bool) -> None:
         """Make ready for `run`: the live set known when the run stops at the freeze."""
@@ -244,14 +308,20 @@ class FixedChain(FieldChain):
         if self._at is None or len(self._at) < len(picks):
             self._at = np.empty(len(picks), dtype=np.int64)
         at = self._at
-        prog = np.array([0, -1, 0, self.live, self.chunk], dtype=np.int64)
+        prog = np.array([0, -1, 0, self.live, self.chunk, self._checked], dtype=np.int64)
         t, left = 0, min(collisions_left, len(picks) + 1)  # int64 in the kernel
         while True:
+            every = self.every if self.late_P is not None and self.P > self.late_P else 0
             status, t = run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left, until_frozen,
-                                  self.chunk, at, prog, self.scratch, self.info, self.margin)
-            if status != WIDEN:
+                                  self.chunk, at, prog, self.scratch, self.info, self.margin, first_step, every)
+            if status == WIDEN:
+                self.widen()
+            elif status == DUE:
+                self._checked = prog[5] = first_step + t
+                if self.settled():
+                    self.narrow(first_step + t)
+            else:
                 break
-            self.widen()
         made, self.live = int(prog[0]), int(prog[3])
         if status == DONE and until_frozen and self.live < 0:  # stopped by collisions_left: is it frozen?
             self.live = count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
@@ -284,10 +354,16 @@ class FixedChain(FieldChain):
         i, j = self.pairs[int(k)]
         where = f"step {step:,}" if step is not None else "a count of the live contacts" + (
             f" after step {after:,}" if after is not None else "")
-        return UncertifiedDecision("arithmetic", f"certified arithmetic cannot decide contact {int(k)} (balls {i}, {j}) at "
-                                                 f"{where}: its closing speed {w:.6g} is within the error bound "
-                                                 f"{bound:.3g}; use arithmetic=\"exact\" or a larger precision "
-                                                 f"(now {64 * self.P} bits)")
+        now = f"now {64 * self.P} bits"
+        narrowed = self.late_P is not None and self.P == self.late_P
+        if narrowed:
+            now += ", the late_precision it narrowed to once the first wave had passed"
+        failure = UncertifiedDecision("arithmetic", f"certified arithmetic cannot decide contact {int(k)} (balls {i}, {j}) "
+                                                    f"at {where}: its closing speed {w:.6g} is within the error bound "
+                                                    f"{bound:.3g}; use arithmetic=\"exact\" or a larger precision "
+                                                    f"({now})")
+        failure.narrowed = narrowed
+        return failure
 
     # ------------------------------------------------------------ values
     @property

@@ -3,9 +3,9 @@ every decision exact (policy "exact") or proved equal to exact arithmetic's (pol
 
 Plain data (shapes; ``L`` lines, ``m`` coefficients per component, ``P`` limbs): `Tables` (the
 geometry's contact lines), `State` (the velocities, their shadows and bounds) and `Scratch`.
-``info (3,)``: ``(w~, bound, contact)`` of an uncertified decision; ``prog (5,) int64``:
+``info (3,)``: ``(w~, bound, contact)`` of an uncertified decision; ``prog (6,) int64``:
 ``(collisions, index of the last, collided since the last scan, live contacts or -1, picks to the
-next scan)``, kept across calls.
+next scan, a step at which not to stop for a due check)``, kept across calls.
 
 The float filter: a shadow is within ``9 * 2^-53`` of its size of the number it stands for (two
 limbs read, rounded, and one product by ``sqrt d``), so the float closing speed computed from the
@@ -30,7 +30,7 @@ from .jitcache import njit_cached
 from .limbs import diff_combination, exchange, field_sign, low_bits, scaled_float, shift_round, sign
 
 __all__ = ["Tables", "State", "Scratch", "run_picks", "count_live", "refresh_shadows", "FILTER", "TINY", "UP",
-           "SQRT2_UP", "DONE", "FROZEN", "WIDEN", "UNCERTIFIED", "UNCOUNTED"]
+           "SQRT2_UP", "DONE", "FROZEN", "WIDEN", "UNCERTIFIED", "UNCOUNTED", "DUE"]
 
 #: the float filter's band, in units of 2^-53 times the sizes (its error bound is about 20)
 FILTER = 64.0
@@ -45,8 +45,8 @@ _SMALLEST = 5e-324
 
 #: how `run_picks` ends: the picks ran out (or ``collisions_left`` was reached); the run froze;
 #: a collision needs a wider state (exact policy); a pick, or a count of the live contacts, could
-#: not be certified
-DONE, FROZEN, WIDEN, UNCERTIFIED, UNCOUNTED = 0, 1, 2, 3, 4
+#: not be certified; a check is due (the certified policy's narrowing, `fixed.FixedChain.narrow`)
+DONE, FROZEN, WIDEN, UNCERTIFIED, UNCOUNTED, DUE = 0, 1, 2, 3, 4, 5
 
 #: how many picks ahead `run_picks` fetches a pick's contact, its balls' shadows, and (when the
 #: float filter does not rule it out) their coefficients and bounds (measured: bench_exact.py)
@@ -287,7 +287,7 @@ def _ahead(tables, state, certify, picks, t):
 
 @kernel
 def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog, scratch, info,
-              margin):
+              margin, first, every):
     """Try ``picks[t:]`` in turn: ``(how it ended, picks used)``; ``margin`` gathers the smallest
     closing speed of a collision, the largest (nonzero) of a pick set aside, and the number of picks
     set aside whose closing speed is exactly 0 between balls not both at rest.
@@ -297,12 +297,16 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
     picks and at the end, when a collision happened since the last) found no live contact, so the
     run ends right after its last collision; WIDEN: pick ``t`` needs a wider state (call again from
     it); UNCERTIFIED: pick ``t`` cannot be certified (``info`` says why); UNCOUNTED: the scan after
-    ``t`` picks cannot be.
+    ``t`` picks cannot be; DUE: with ``every > 0``, the step ``first + t`` of pick ``t`` is a multiple
+    of ``every`` other than ``prog[5]``: a check is due before it (call again from it).
     """
     made, last, fresh, countdown = prog[0], prog[1], prog[2], prog[4]
     n = picks.shape[0]
     status = DONE
     while t < n:
+        if every > 0 and (first + t) % every == 0 and first + t != prog[5]:
+            status = DUE
+            break
         _ahead(tables, state, certify, picks, t)
         k = picks[t]
         decision, computed, x = _decide(k, tables, state, scale, certify, scratch, info)

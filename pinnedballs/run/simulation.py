@@ -14,7 +14,7 @@ from ..engine.driver import check_writers, drive
 from ..engine.sigint import deferred
 from ..engine.stop import Stop
 from ..engine.errors import FieldError, FieldTypeError, check_jitted
-from ..engine.arithmetic import ARITHMETICS, MAX_PRECISION, field_chain
+from ..engine.arithmetic import ARITHMETICS, check_precisions, field_chain
 from ..engine.exact import FieldChain
 from ..engine.fields import NotExact
 from ..engine.fixed import NotFixed
@@ -99,7 +99,11 @@ class Simulation:
     ``precision`` (bits per coefficient, default 768), rounding allowed and every decision proved
     equal to exact arithmetic's, so the counts and steps are the exact ones (`error_bound` bounds
     how far the velocities are from exact arithmetic's); a decision it cannot prove stops the run
-    with `pinnedballs.engine.fixed.UncertifiedDecision` (a ValueError).
+    with `pinnedballs.engine.fixed.UncertifiedDecision` (a ValueError). ``late_precision`` (bits,
+    at most ``precision``; None: none): once the first wave has passed (no ball at rest, hardly any
+    still exact), the state is rounded to it, at a step that depends on the state alone, however the
+    run is split; ``precision`` is needed at the wave's front, and behind it the paper's half-plane
+    runs about twice as fast at 256 bits (`pinnedballs.engine.fixed`, docs/performance.md).
 
     Each step the scheduler picks a contact; if its balls approach, the rule
     collides them. ``steps`` counts picks, ``collisions`` the picks that changed
@@ -113,7 +117,7 @@ class Simulation:
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
                  scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float",
-                 resolution: float | None = None, precision: int | None = None):
+                 resolution: float | None = None, precision: int | None = None, late_precision: int | None = None):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -160,7 +164,7 @@ class Simulation:
         #: record them run a little slower
         self.collision_listeners: list = []
         self.arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
-        self._exact = _exact_chain(self, precision)  # None in float arithmetic
+        self._exact = _exact_chain(self, precision, late_precision)  # None in float arithmetic
         if self._exact is not None:
             self.velocities = self._exact.shadow  # the exact values rounded, kept by the exact chain
 
@@ -567,14 +571,11 @@ def _selector(scheduler: Scheduler, geometry: Geometry):
     return scheduler.selector(geometry)
 
 
-def _exact_chain(sim: Simulation, precision) -> FieldChain | None:
+def _exact_chain(sim: Simulation, precision, late_precision) -> FieldChain | None:
     """The chain of ``sim``'s exact or certified arithmetic (None for floats), or a `FieldError` on
-    ``arithmetic`` (or ``precision``) saying why it cannot have one."""
+    ``arithmetic`` (or ``precision``, ``late_precision``) saying why it cannot have one."""
     name = sim.arithmetic
-    if precision is not None:
-        if name != "certified":
-            raise FieldError("precision", f"is the precision of certified arithmetic; this run's is {name!r}")
-        precision = checks.integer("precision", precision, 64, MAX_PRECISION)
+    precision, late_precision = check_precisions(name, precision, late_precision)
     if name == "float":
         return None
     r = sim.rule.exact_restitution()
@@ -586,7 +587,7 @@ def _exact_chain(sim: Simulation, precision) -> FieldChain | None:
                                        f"{sim.scheduler!r} picks among live contacts in float arithmetic "
                                        f"(UniformRandomPair has the same law)")
     try:
-        return field_chain(sim.geometry, sim.velocities, sim._mass_array, r, name, precision)
+        return field_chain(sim.geometry, sim.velocities, sim._mass_array, r, name, precision, late_precision)
     except NotFixed as exc:
         raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "
                                        f"whose normals have dyadic components in Q or one Q(sqrt d) (triangular "

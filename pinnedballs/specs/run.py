@@ -42,7 +42,8 @@ def _known_observable(name: str) -> str:
 class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, the
     arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
-    certified arithmetic's bits per coefficient, None for its default) and the resolution.
+    certified arithmetic's bits per coefficient, None for its default; ``late_precision``: its bits once
+    no ball is at rest, None for ``precision`` throughout) and the resolution.
 
     ``resolution``: the collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
     exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model
@@ -69,6 +70,7 @@ class RunSpec(_Spec):
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
     arithmetic: Literal["float", "exact", "certified"] = "float"
     precision: Count | None = None
+    late_precision: Count | None = None
     resolution: float | None = None
     description: str = ""
 
@@ -157,11 +159,13 @@ class RunSpec(_Spec):
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
                                     "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
-                                    "resolution": "resolution", "precision": "precision"}):
+                                    "resolution": "resolution", "precision": "precision",
+                                    "late_precision": "late_precision"}):
                 try:
                     return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
                                       masses=masses, seed=seq, arithmetic=self.arithmetic,
-                                      resolution=self.resolution, precision=self.precision)
+                                      resolution=self.resolution, precision=self.precision,
+                                      late_precision=self.late_precision)
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code

@@ -219,6 +219,99 @@ def test_certified_counts_are_the_exact_counts_of_the_paper_half_plane(length, d
     assert np.abs(certified.velocities - exact.velocities).max() <= 1e-15 * np.sqrt(200.0)
 
 
+# ---------------------------------------------------------------- certified policy: narrowing behind the front
+
+
+def _at_rest(sim: pb.Simulation) -> int:
+    """The balls of ``sim``'s fixed-point chain exactly at rest."""
+    return int(np.count_nonzero(~np.any(sim._exact.X, axis=(1, 2, 3))))
+
+
+def late(g, v, seed, precision, late_precision, every) -> pb.Simulation:
+    """A certified simulation narrowing to ``late_precision`` checked every ``every`` steps (0: never)."""
+    sim = pb.Simulation(g, v, seed=seed, arithmetic="certified", precision=precision, late_precision=late_precision)
+    sim._exact.every = every
+    return sim
+
+
+def test_narrowing_behind_the_front_keeps_exact_arithmetics_collisions():
+    """The paper's half-plane 60x30, seed 5, certified at 384 bits with ``late_precision=128``: it
+    narrows to 2 limbs at the first step checked after which no ball is at rest and no ball (at most
+    a thousandth of its 510) is exact but too long for 2 limbs; it makes exact arithmetic's
+    collisions at the same steps, and every ball's velocity stays within the bound it reports of
+    the exact one."""
+    g = pb.HalfPlane.from_size(60, 30)
+    v = inward(g)
+    exact = pb.Simulation(g, v, seed=5, arithmetic="exact")
+    narrowing = late(g, v, 5, 384, 128, 1_000)
+    logs = [Log(exact), Log(narrowing)]
+    for s in (exact, narrowing):
+        assert s.run_until_frozen(max_steps=10**7)
+    assert (narrowing.collisions, narrowing.steps) == (exact.collisions, exact.steps) and exact.collisions > 5_000
+    assert (logs[0].steps, logs[0].contacts) == (logs[1].steps, logs[1].contacts)
+    chain = narrowing._exact
+    assert chain.P == 2 and chain.S == 128 - chain.top and chain.narrowed % 1_000 == 0
+    before = late(g, v, 5, 384, 128, 0)  # checked by hand: settled at that step, not at the one checked before
+    before.run(steps=chain.narrowed - 1_001)
+    assert not before._exact.settled()
+    before.run(steps=1_000)
+    assert _at_rest(before) == 0 and before._exact.settled()
+    G, largest = narrowing.error_bound
+    assert 0.0 < largest <= G < 2.0**-100
+    errors = [max(abs(float(sum(a - b for a, b in zip(x, y)))) for x, y in zip(row_a, row_b)) for row_a, row_b in
+              zip(exact._exact.v, chain.v)]
+    assert 0.0 < max(errors) <= largest
+
+
+def test_narrowing_happens_at_one_step_however_the_run_is_split():
+    """The same state bit for bit, narrowed at the same step, run whole, in calls of 997 steps, and
+    resumed from a state saved before the narrowing."""
+    g = pb.HalfPlane.from_size(60, 30)
+    v = inward(g)
+    whole = late(g, v, 5, 384, 128, 1_000)
+    whole.run_until_frozen(max_steps=10**7)
+    assert whole._exact.narrowed is not None and whole.get_state().certified.limbs.shape[-1] == 2
+    split, saved = late(g, v, 5, 384, 128, 1_000), None
+    while not split.run(steps=997, until_frozen=True) == 0 and not split.is_frozen():
+        if saved is None and split.steps > whole._exact.narrowed // 2:
+            saved = split.get_state()
+    assert saved is not None and saved.certified.limbs.shape[-1] == 6
+    resumed = late(g, v, 5, 384, 128, 1_000)
+    resumed.set_state(saved)
+    resumed.run_until_frozen(max_steps=10**7)
+    for s in (split, resumed):
+        assert (s.steps, s.collisions) == (whole.steps, whole.collisions)
+        assert s._exact.narrowed == whole._exact.narrowed
+        assert s.get_state().certified.identical(whole.get_state().certified)
+        assert np.array_equal(s.velocities, whole.velocities)
+
+
+def test_a_decision_failing_after_the_narrowing_says_so():
+    """Narrowed too early (by hand, in the middle of the first wave), the half-plane soon meets a closing
+    speed the rounding hides; the message names the narrowing."""
+    g = pb.HalfPlane.from_size(20, 10)
+    sim = late(g, inward(g), 1, 256, 64, 0)
+    sim.run(steps=200)
+    sim._exact.narrow(201)
+    assert sim._exact.P == 1 and sim._exact.narrowed == 201
+    with pytest.raises(UncertifiedDecision) as info:
+        sim.run_until_frozen(max_steps=10**6)
+    assert str(info.value).endswith('use arithmetic="exact" or a larger precision (now 64 bits, the late_precision '
+                                    'it narrowed to once the first wave had passed)')
+
+
+def test_no_narrowing_while_a_ball_rests():
+    """A chain whose middle ball is sent towards one end (a Newton's cradle: the balls behind it never
+    move, those it passes through come to rest again): balls rest at every step, so the state keeps its
+    precision to the freeze, checked at every step."""
+    g = chain_along(12, (1.0, 0.0))
+    v = np.zeros((12, 2))
+    v[5] = [0.7390851332151607, 0.1]
+    sim = late(g, v, 2, 256, 64, 1)
+    assert sim.run_until_frozen(max_steps=10**5)
+    assert _at_rest(sim) == 10 and sim.collisions == 6 and sim._exact.P == 4 and sim._exact.narrowed is None
+
+
 # ---------------------------------------------------------------- choosing the arithmetic
 
 
@@ -257,6 +350,22 @@ def test_a_bad_precision_is_named(arithmetic, precision, message):
     assert str(info.value) == message
 
 
+@pytest.mark.parametrize("arithmetic, options, message", [
+    ("certified", {"late_precision": 1024}, "late_precision: must be an integer in [64, 960], got 1024"),
+    ("certified", {"late_precision": 32}, "late_precision: must be an integer in [64, 960], got 32"),
+    ("certified", {"late_precision": 800}, "late_precision: must be at most precision (768 bits), got 800"),
+    ("certified", {"precision": 256, "late_precision": 320},
+     "late_precision: must be at most precision (256 bits), got 320"),
+    ("exact", {"late_precision": 128},
+     "late_precision: is certified arithmetic's precision once no ball is at rest; this run's is 'exact'"),
+])
+def test_a_bad_late_precision_is_named(arithmetic, options, message):
+    g = pb.HalfPlane(3, 4)
+    with pytest.raises(ValueError) as info:
+        pb.Simulation(g, inward(g), arithmetic=arithmetic, **options)
+    assert str(info.value) == message
+
+
 @pytest.mark.parametrize("arithmetic", ["exact", "certified"])
 def test_a_system_at_rest_is_frozen_at_once(arithmetic):
     g = pb.HalfPlane(3, 4)
@@ -273,12 +382,19 @@ g = pb.HalfPlane(3, 4)
 v = np.zeros((g.n_balls, 2))
 v[g.boundary_center()] = [0.3, 14.0]
 out = {}
-for arithmetic, options in (("exact", {}), ("certified", {"precision": 128})):
-    sim = pb.Simulation(g, v, seed=2, arithmetic=arithmetic, **options)
+late = pb.HalfPlane.from_size(10, 5)  # narrows at step 120 (checked every 8 steps)
+w = np.zeros((late.n_balls, 2))
+w[late.boundary_center()] = [0.0, np.sqrt(200.0)]  # inward
+for name, arithmetic, options in (("exact", "exact", {}), ("certified", "certified", {"precision": 128}),
+                                  ("late", "certified", {"precision": 128, "late_precision": 64})):
+    sim = pb.Simulation(*((late, w) if name == "late" else (g, v)), seed=3 if name == "late" else 2,
+                        arithmetic=arithmetic, **options)
+    if name == "late":
+        sim._exact.every = 8
     sim.run_until_frozen(10**5)
     state = sim.get_state()
-    out[arithmetic] = [sim.steps, sim.collisions, sim.velocities.tolist(),
-                       state.exact.tolist() if state.exact is not None else state.certified.limbs.tolist()]
+    out[name] = [sim.steps, sim.collisions, sim.velocities.tolist(), getattr(sim._exact, "narrowed", None),
+                 state.exact.tolist() if state.exact is not None else state.certified.limbs.tolist()]
 print(json.dumps(out))
 """
 
@@ -297,3 +413,4 @@ def test_the_compiled_chain_and_its_plain_python_twin_agree_bit_for_bit():
     compiled = subprocess.run([sys.executable, "-c", _PLAIN], capture_output=True, text=True, check=True)
     a, b = json.loads(plain.stdout), json.loads(compiled.stdout)
     assert a == b and a["exact"][1] > 10 and a["exact"][:2] == a["certified"][:2]
+    assert a["certified"][3] is None and a["late"][3] == 120 and a["late"][1] == 25  # narrowed, at the same step

@@ -166,6 +166,7 @@ def test_exact_counts_stand_beside_the_float_count(tiny):
         assert r["N_1e-06_collisions_mean"] == pytest.approx(np.mean(counts["_N_1e-06"]), rel=1e-12)
         assert r["float_misses_mean"] == 0.0 and r["float_misses_max"] == 0.0
         assert r["exact_smallest_collision_min"] > 1e4  # wide: far above the criterion
+        assert r["exact_reruns"] == 0  # no replica needed its full precision behind the first wave
         assert np.mean(counts["_N_1e-06"]) <= np.mean(counts["_N_1e-12"]) <= np.mean(counts[""])
     counted = x["scaling_counts"]
     assert set(counted) == {"exact", "N_1e-06", "N_1e-09", "N_1e-12"}
@@ -316,7 +317,40 @@ def test_bad_extended_plan_names_its_field(tmp_path):
     for bad in (-1, 1.5, None, True):
         with pytest.raises(InputError, match="exact_max_balls: must be a whole number of balls >= 0, got "):
             rp.reproduce(tmp_path / "x", extended=rp.ExtendedPlan(exact_max_balls=bad), **TINY)
+    for bad in (32, 800, 256.0, True, "256"):
+        with pytest.raises(InputError, match=r"exact_late_precision: must be a whole number of bits in \[64, 768\] "
+                                             r"or None, got "):
+            rp.reproduce(tmp_path / "x", extended=rp.ExtendedPlan(exact_late_precision=bad), **TINY)
     assert not (tmp_path / "x").exists()
+
+
+def test_a_certified_replica_failing_once_narrowed_runs_again_without_narrowing(monkeypatch):
+    """The exact count's task: narrowed too early (every check passes, in the middle of the first wave),
+    the 20x10 half-plane at 64 bits cannot decide a pick; the replica runs again at 256 bits throughout,
+    with the counts of exact arithmetic, and says so. A failure before any narrowing is the replica's."""
+    from pinnedballs.engine.fixed import FixedChain, UncertifiedDecision
+    from pinnedballs.reproduction.extended.scaling_study import RERUN, certified_replica, scaling_spec
+    from pinnedballs.run import ensemble as ens
+
+    plan = rp.ExtendedPlan(exact_late_precision=64)
+    spec = scaling_spec(20, 10, plan, arithmetic="certified", precision=256, late_precision=64)
+    exact = ens_final(ens.run_replica(scaling_spec(20, 10, plan, arithmetic="exact"), 1))
+    monkeypatch.setattr(FixedChain, "settled", lambda self: True)
+    with pytest.raises(UncertifiedDecision):
+        ens.run_replica(spec, 1)
+    rows = certified_replica(spec, 1)
+    assert rows[-1][RERUN] == 1 and (rows[-1]["steps"], rows[-1]["collisions"]) == exact
+    with pytest.raises(UncertifiedDecision) as info:  # 64 bits from the start: no narrowing to blame
+        certified_replica(spec.model_copy(update={"precision": 64}), 1)
+    assert not info.value.narrowed
+    monkeypatch.undo()
+    rows = certified_replica(spec.model_copy(update={"late_precision": 128}), 1)
+    assert rows[-1][RERUN] == 0 and (rows[-1]["steps"], rows[-1]["collisions"]) == exact
+
+
+def ens_final(rows: list[dict]) -> tuple[int, int]:
+    """The steps and collisions of a replica's final row."""
+    return rows[-1]["steps"], rows[-1]["collisions"]
 
 
 def test_cli_extended_refuses_a_non_empty_directory(tmp_path, capsys):

@@ -284,6 +284,10 @@ BAD = [
     (spec(initial__direction="inward"), "initial.direction",
      '"inward" needs a geometry with a boundary, got FlatTorus'),
     (spec(initial__direction="outward"), "initial.direction", "input should be"),
+    (spec(HALF_PLANE, arithmetic="certified", precision=256, late_precision=512), "late_precision",
+     "must be at most precision (256 bits), got 512"),
+    (spec(late_precision=128), "late_precision",
+     "is certified arithmetic's precision once no ball is at rest; this run's is 'float'"),
 ]
 
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ...engine.errors import InputError
+from ...engine.fixed import PRECISION
 from ...run import ensemble as ens
 
 #: the studies in the order they run; keys of ``results.json["extended"]``
@@ -24,6 +25,9 @@ class ExtendedPlan:
     #: sizes up to this many balls are also counted exactly (certified arithmetic on the same seeds: every
     #: decision proven, docs/collisions.md) and by the float chain at each of `resolutions` (the model N_e)
     exact_max_balls: int = 150_000
+    #: the exact count's certified arithmetic narrows to this many bits once the first wave has passed
+    #: (`Simulation`'s ``late_precision``; None: the default precision throughout)
+    exact_late_precision: int | None = 256
     resolutions: tuple[float, ...] = (1e-6, 1e-9, 1e-12)   #: criteria e of the N_e counts
     torus_sides: tuple[int, ...] = (16, 38, 76, 128)   #: square tori ``side x side``
     torus_times: tuple[int, ...] = (100, 300, 1000, 3000, 10000, 30000)   #: steps per ball
@@ -54,6 +58,9 @@ def check_extended_plan(plan: ExtendedPlan) -> None:
     """`InputError` naming the field of a plan that cannot run."""
     if isinstance(plan.exact_max_balls, bool) or not isinstance(plan.exact_max_balls, int) or plan.exact_max_balls < 0:
         raise InputError(f"exact_max_balls: must be a whole number of balls >= 0, got {plan.exact_max_balls!r}")
+    late = plan.exact_late_precision
+    if late is not None and (isinstance(late, bool) or not isinstance(late, int) or not 64 <= late <= PRECISION):
+        raise InputError(f"exact_late_precision: must be a whole number of bits in [64, {PRECISION}] or None, got {late!r}")
     for e in plan.resolutions:
         if isinstance(e, bool) or not isinstance(e, (int, float)) or not 0.0 < e < 1.0:
             raise InputError(f"resolutions: each must be a criterion e in (0, 1), got {e!r}")

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...engine.fixed import UncertifiedDecision
 from ...run import ensemble as ens
 from ...specs.run import RunSpec
 from ..fit import fit_exponent
@@ -35,7 +36,8 @@ def scaling_spec(length: float, depth: float, plan: ExtendedPlan, **counting) ->
     """Half-plane ``length x depth``: the boundary-centre ball moving inward, the paper's chain
     (`UniformRandomPair` on one thread, since the ensemble runs replicas side by side; until frozen it runs
     untracked, 4-5x faster than `RejectionFree` on these half-planes, docs/performance.md), until frozen.
-    ``counting``: ``arithmetic=`` and ``resolution=`` of the spec (default: float, the paper's criterion)."""
+    ``counting``: ``arithmetic=``, ``late_precision=`` and ``resolution=`` of the spec (default: float, the
+    paper's criterion)."""
     spec = _inward_spec({"kind": "half_plane", "length": float(length), "depth": float(depth)}, plan,
                         f"scaling: half-plane {length:g}x{depth:g}", "uniform_random_pair")
     return spec.model_copy(update={"scheduler": spec.scheduler.model_copy(update={"threads": 1}), **counting})
@@ -78,10 +80,12 @@ def _other_counts(plan: ExtendedPlan, length: float, depth: float, replicas: int
     the float chain's misses per replica (``float_misses_*``: exact minus float, over the exact count) and
     the smallest genuine closing speed over the replicas, in thresholds of the float criterion."""
     out: dict = {}
-    counts = [(EXACT, {"arithmetic": "certified"})] + [(count_name(e), {"resolution": e}) for e in plan.resolutions]
+    counts = [(EXACT, {"arithmetic": "certified", "late_precision": plan.exact_late_precision})] + [
+        (count_name(e), {"resolution": e}) for e in plan.resolutions]
     for count, counting in counts:
         t0 = time.perf_counter()
-        res = ensemble(f"{name}_{count}", scaling_spec(length, depth, plan, **counting), replicas)
+        task = {"task": certified_replica} if count == EXACT else {}
+        res = ensemble(f"{name}_{count}", scaling_spec(length, depth, plan, **counting), replicas, **task)
         collisions = res.column("collisions")
         mean, sd, se = _stats(collisions)
         out.update({f"{count}_collisions_mean": mean, f"{count}_collisions_sd": sd, f"{count}_collisions_se": se,
@@ -93,7 +97,25 @@ def _other_counts(plan: ExtendedPlan, length: float, depth: float, replicas: int
             out["float_misses_max"] = float(misses.max()) if len(misses) else math.nan
             smallest = res.column("smallest_collision")
             out["exact_smallest_collision_min"] = float(smallest.min()) if len(smallest) else math.nan
+            out["exact_reruns"] = int(res.column(RERUN).sum())
     return out
+
+
+#: the column of `certified_replica`'s rows: 1 when the replica ran again without narrowing
+RERUN = "full_precision_rerun"
+
+
+def certified_replica(spec: RunSpec, index: int, seed=None) -> list[dict]:
+    """An ensemble task: `ensemble.run_replica`, run again at ``spec.precision`` throughout when a decision
+    fails once its state was narrowed to ``spec.late_precision`` (the same exact counts, in more time);
+    its rows say which (`RERUN`)."""
+    try:
+        rows, rerun = ens.run_replica(spec, index, seed), 0
+    except UncertifiedDecision as exc:
+        if not exc.narrowed:
+            raise
+        rows, rerun = ens.run_replica(spec.model_copy(update={"late_precision": None}), index, seed), 1
+    return [{**row, RERUN: rerun} for row in rows]
 
 
 def _by_replica(res: ens.EnsembleResult, column: str) -> dict[int, float]:
