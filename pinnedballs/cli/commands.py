@@ -380,7 +380,7 @@ def _ensemble(args, status) -> int:
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
             arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about 10 seconds on 2 cores)"),
             arg("--extended", action="store_true",
-                help="then the studies beyond the paper (31 minutes on 2 cores, 15 of them the exact "
+                help="then the studies beyond the paper (about 25 minutes on 2 cores, 9 of them the exact "
                      "counts of 1000x500 and 6 the 2000x1000 half-plane; with --quick under a minute)"),
             arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
