@@ -314,6 +314,14 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     return blocks
 
 
+def _padded(used: int) -> int:
+    """A row length of int64 for ``used`` entries such that the used parts of two rows never share a
+    cache line (a line or more between them, whatever the array's alignment): each thread counts its
+    picks in its own row of ``counts``, a write per pick, which two threads sharing a line pass back
+    and forth between their cores."""
+    return (used + _LINE - 1) // _LINE * _LINE + _LINE
+
+
 #: the bit of a record's position that says it is deferred, and the position itself
 _DEFERRED = np.int64(1) << 62
 _POSITION = _DEFERRED - 1
@@ -389,7 +397,7 @@ class ParallelChain:
         self.poly = jump_polynomial(words)
         p = threads
         self.scratch = (np.empty((p, p + 1, words, 3), dtype=np.int64),  # recs: each segment's picks by region
-                        np.empty((p, p + 1), dtype=np.int64),  # counts
+                        np.empty((p, _padded(p + 1)), dtype=np.int64),  # counts (row t: thread t's, per pick)
                         np.empty((p, words), dtype=np.int64),  # watch: picks near a cut
                         np.empty(p, dtype=np.int64),  # nwatch
                         np.empty(p, dtype=np.int64),  # npick
