@@ -13,6 +13,7 @@ loads the loops; the median of ``--repeats``; every thread count must end on the
     python benchmarks/bench_sizes.py --part threads --sizes 2000x1000 4000x2000 --busy 0 1
     python benchmarks/bench_sizes.py --part torus                 # equal collision rates at every size, and C
     python benchmarks/bench_sizes.py --part torus-threads --busy 0 1
+    python benchmarks/bench_sizes.py --part split                 # the parallel chain's whole work on one thread
 
 A half-plane from a Gaussian state freezes: the longer the run and the smaller the system, the fewer
 of its picks collide (60x30: none in 200M steps after a warm-up of 4M; 4000x2000: 0.46 of them), so
@@ -39,7 +40,11 @@ import json, sys, time
 import numpy as np
 import pinnedballs as pb
 length, depth, steps = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
-threads = None if sys.argv[4] == "tuned" else int(sys.argv[4])
+if sys.argv[4] == "split":  # the parallel chain's regions (2), all run by one thread: its whole work
+    import numba
+    numba.set_num_threads(1)
+    numba.set_num_threads = lambda n: None
+threads = None if sys.argv[4] == "tuned" else 2 if sys.argv[4] == "split" else int(sys.argv[4])
 tables = sys.argv[5] == "tables"
 geometry = pb.FlatTorus(length, depth) if sys.argv[6] == "torus" else pb.HalfPlane.from_size(length, depth)
 if tables:
@@ -164,9 +169,23 @@ def part_threads(sizes: list[str], steps: int, repeats: int, busy_counts: list[i
     print("the same velocities and counts on every thread count: yes")
 
 
+def part_split(sizes: list[str], steps: int, repeats: int) -> None:
+    print(f"The parallel chain's work: its 2 regions' blocks run by one thread, against the sequential loop, "
+          f"half-planes from a Gaussian state, {steps:,} steps, CPU ns per step (median of {repeats}); two threads "
+          "can beat one only where the ratio is below 2")
+    print("| half-plane | collisions per step | sequential ns/step | regions on one thread ns/step | ratio |")
+    print("|---|---|---|---|---|")
+    for size in sizes:
+        one, split = (median_of(repeats, size, steps, t, "rows", 0) for t in ("1", "split"))
+        if one["checksum"] != split["checksum"]:
+            raise SystemExit(f"{size}: the split loop ends on other velocities")
+        a, b = one["cpu"] / steps * 1e9, split["cpu"] / steps * 1e9
+        print(f"| {size} | {one['hits']:.2g} | {a:.1f} | {b:.1f} | {b / a:.2f} |", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=["sizes", "torus", "threads", "torus-threads", "both"], default="both",
+    parser.add_argument("--part", choices=["sizes", "torus", "threads", "torus-threads", "split", "both"], default="both",
                         help="both: sizes and threads (half-planes)")
     parser.add_argument("--sizes", nargs="+", default=None, help="half-planes LxD or tori RxC (default: 60x30 ... "
                                                                  "4000x2000; tori 24x21 ... 1520x1520; threads: "
@@ -181,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
         part_torus(args.sizes or TORUS_SIDES, int(args.steps), args.repeats)
     if args.part in ("threads", "both"):
         part_threads(args.sizes or ["2000x1000", "4000x2000"], int(args.steps), args.repeats, args.busy)
+    if args.part == "split":
+        part_split(args.sizes or ["2000x1000", "4000x2000"], int(args.steps), args.repeats)
     if args.part == "torus-threads":
         part_threads(args.sizes or TORUS_SIDES[-2:], int(args.steps), args.repeats, args.busy, "torus")
     return 0
