@@ -43,7 +43,7 @@ class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, the
     arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
     certified arithmetic's bits per coefficient, None for its default; ``late_precision``: its bits once
-    no ball is at rest, None for ``precision`` throughout) and the resolution.
+    the first wave has passed, None for ``precision`` throughout) and the resolution.
 
     ``resolution``: the collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
     exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model

@@ -357,7 +357,7 @@ def test_a_bad_precision_is_named(arithmetic, precision, message):
     ("certified", {"precision": 256, "late_precision": 320},
      "late_precision: must be at most precision (256 bits), got 320"),
     ("exact", {"late_precision": 128},
-     "late_precision: is certified arithmetic's precision once no ball is at rest; this run's is 'exact'"),
+     "late_precision: is certified arithmetic's precision behind the first wave; this run's is 'exact'"),
 ])
 def test_a_bad_late_precision_is_named(arithmetic, options, message):
     g = pb.HalfPlane(3, 4)
