@@ -12,8 +12,11 @@ the velocities it would have seen.
 **Blocks.** The picks come in blocks of ``p * W`` words of the random stream. Phase G: thread ``t``
 jumps the stream ``t * W`` words ahead (`engine.jump`) and turns its ``W`` words into picks exactly
 as `random.bounded` does (Lemire's test rejects a word on its own, so the picks of a block are the
-accepted words in order), decodes each contact (tables or the lattice's row pattern) and files it
-under its region, or as a crossing; picks touching a ball near a cut are also put on a watch list.
+accepted words in order) and files each under its region, or as a crossing; picks touching a ball
+near a cut are also put on a watch list. Where the contacts are numbered by their lower ball (a
+lattice's are), a pick far from every cut is filed by its contact index alone (`contact_windows`);
+only those near a cut are decoded (tables or the lattice's row pattern) in phase G. Phase E decodes
+the rest as it runs them, a few records ahead, where the velocity rows' cache misses hide the work.
 Then one thread follows the crossings' wake through the watch list (`_defer`; if the wake ever
 leaves the watched bands, the block runs in time order instead). Phase E: each region's picks but
 the deferred ones; the thread that finishes last runs the deferred picks.
@@ -58,8 +61,9 @@ WORDS = 1 << 14
 MAX_CROSSING_SHARE = 0.02
 #: systems with fewer contacts run on one thread (a freeze scan's chunk holds a few blocks at least)
 MIN_PARALLEL_CONTACTS = 1 << 16
-#: records ahead whose velocity rows are fetched while a region runs
+#: records ahead whose contacts are decoded and velocity rows fetched while a region runs
 AHEAD = 16
+_RING = 32  # the ring of those contacts: a power of two above AHEAD
 #: the bands watched for the wake of a crossing reach this many contacts from a cut (in ball index:
 #: ``BAND_HOPS`` times the largest ``|j - i|`` of a contact)
 BAND_HOPS = 8
@@ -111,6 +115,32 @@ def _region(cuts, ball):
     return r
 
 
+def contact_windows(pairs: np.ndarray, cuts: np.ndarray, band: int) -> np.ndarray:
+    """``(cuts, 3) int64``: for each cut ``c``, the contact indices ``[w0, w2)`` whose lower ball lies in
+    ``[c - band - reach, c + band)`` (every contact that touches a ball within ``band`` of the cut, or may
+    cross it), and ``w1``, the first contact whose lower ball is at least ``c``. Where the contacts are
+    numbered by their lower ball (a lattice's are), a contact outside every window lies in region ``sum
+    (k >= w1)`` and near no cut, known from its index. Otherwise one window holds every contact."""
+    low = np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64)
+    if len(low) and np.any(np.diff(low) < 0):
+        return np.array([[0, 0, len(low)]] * len(cuts), dtype=np.int64)
+    reach = _reach(pairs)
+    return np.array([[np.searchsorted(low, c - band - reach), np.searchsorted(low, c), np.searchsorted(low, c + band)]
+                     for c in cuts], dtype=np.int64)
+
+
+@njit_cached(inline="always")
+def _by_index(windows, k):
+    """``(region, 0, False)`` of contact ``k`` when its index tells (`contact_windows`), else ``(0, 0, True)``:
+    it must be decoded."""
+    r = 0
+    for c in range(windows.shape[0]):
+        if windows[c, 0] <= k < windows[c, 2]:
+            return 0, np.int64(0), True
+        r += 1 if k >= windows[c, 1] else 0
+    return r, np.int64(0), False
+
+
 #: ``pause`` this many times before yielding the core
 SPINS = 1 << 10
 
@@ -133,13 +163,13 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     """The compiled blocks of the chain for one rule's ``collide``, ``dim``, ``flat`` and the contacts'
     source (``rows``: the row pattern, else the tables):
 
-    blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, scratch, history,
-           sync, out) -> picks
+    blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words, n, scratch,
+           history, sync, out) -> picks
 
     runs ``len(history)`` blocks of ``p * W`` words (``p = len(cuts) + 1`` regions, ``poly`` the jump
     polynomial of ``W`` words) on numba's threads, advances ``rng_words`` past them, and returns the
     picks taken. ``band``: the balls within ``band`` of a cut are watched for crossings (see the module
-    docstring); ``scratch`` = `Scratch` arrays. ``out (p, 6) float64`` receives each thread's
+    docstring); ``windows``: `contact_windows`; ``scratch`` = `Scratch` arrays. ``out (p, 6) float64`` receives each thread's
     collisions, the position of its last collision (-1: none; positions count the call's picks from
     0) and its margin (4). ``history (blocks, 6) int64`` receives each block's picks, deferred picks
     and final stream state (4 words). ``sync``: zeros, `SYNC` int64.
@@ -154,14 +184,14 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
         return np.int64(pairs[k, 0]), np.int64(pairs[k, 1]), np.int64(ends[k, 0]), np.int64(ends[k, 1])
 
     @njit_cached(inline="always")
-    def generate(s, n, pairs, ends, pattern, cuts, band, recs, counts, watch, nwatch, t, W, p):
+    def generate(s, n, pairs, ends, pattern, cuts, band, windows, recs, counts, watch, nwatch, t, W, p):
         """Segment ``t`` of a block: ``W`` words from state ``s`` into its regions' records (``recs[t, r]``,
         crossings under ``r = p``), those near a cut also listed in ``watch[t]`` as ``r << 32 | q``;
-        ``(picks, s')``."""
+        ``(picks, s')``. A record is ``(k, i << 32 | j, position)``; a contact outside every cut's
+        window (`contact_windows`) is filed by its index alone (``i, j`` not decoded: 0)."""
         n64 = np.uint64(n)
         threshold = (np.uint64(1 << 32) - n64) % n64
-        for r in range(p + 1):
-            counts[t, r] = 0
+        local = np.zeros(p + 1, np.int64)  # this segment's counts (a write per pick, kept off shared lines)
         picks, watched = 0, 0
         for _ in range(W):
             x, s = next_uint64(s)
@@ -169,49 +199,70 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
             low = m & np.uint64(0xFFFFFFFF)
             if low < n64 and low < threshold:  # Lemire's test, word by word: `random.bounded`
                 continue
-            i, j, a, b = contact(pairs, ends, pattern, np.int64(m >> np.uint64(32)))
-            ri, rj = _region(cuts, i), _region(cuts, j)
-            r = ri if ri == rj else p
-            q = counts[t, r]
-            recs[t, r, q, 0], recs[t, r, q, 1], recs[t, r, q, 2] = (i << 32) | j, (a << 32) | b, picks
-            counts[t, r] = q + 1
-            if r == p or _near(cuts, band, i) or _near(cuts, band, j):
+            k = np.int64(m >> np.uint64(32))
+            r, ij, near = _by_index(windows, k)
+            if near:
+                i, j, _, _ = contact(pairs, ends, pattern, k)
+                ri, rj = _region(cuts, i), _region(cuts, j)
+                r = ri if ri == rj else p
+                ij = (i << 32) | j
+                near = r == p or _near(cuts, band, i) or _near(cuts, band, j)
+            q = local[r]
+            recs[t, r, q, 0], recs[t, r, q, 1], recs[t, r, q, 2] = k, ij, picks
+            local[r] = q + 1
+            if near:
                 watch[t, watched] = (r << 32) | q
                 watched += 1
             picks += 1
+        for r in range(p + 1):
+            counts[t, r] = local[r]
         nwatch[t] = watched
         return picks, s
 
     @njit_cached(inline="always")
-    def attempt(v, units, masses, params, recs, t, r, q, base, tau, m, last, made):
-        """Try the record ``recs[t, r, q]`` (its position ``base + recs[t, r, q, 2]``): ``(m, last, made)``
-        updated. (Scalars, not the record's view: a view per pick costs numba reference counting.)"""
-        ij, ab = recs[t, r, q, 0], recs[t, r, q, 1]
-        i, j = ij >> 32, ij & 0xFFFFFFFF
-        a, b = ab >> 32, ab & 0xFFFFFFFF
+    def attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made):
+        """Try contact ``(i, j, a, b)``, the pick at ``position``: ``(m, last, made)`` updated."""
         w = closing_speed(v, units, i, j, a, b, D, FLAT)
         hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
         m = track(hit, w, tau, m[0], m[1], m[2], m[3])
         if hit:
             made += 1
-            last = max(last, base + (recs[t, r, q, 2] & _POSITION))
+            last = max(last, position)
         return m, last, made
 
     @njit_cached(inline="always")
-    def region(v, units, masses, params, recs, t, r, count, base, tau, m, last, made):
-        """Region ``r``'s records of segment ``t`` in order, deferred ones left out, rows fetched ahead."""
+    def record(v, units, masses, params, pairs, ends, pattern, recs, t, r, q, base, tau, m, last, made):
+        """Try the record ``recs[t, r, q]`` (its position ``base + recs[t, r, q, 2]``), its contact decoded.
+        (Scalars, not the record's view: a view per pick costs numba reference counting.)"""
+        i, j, a, b = contact(pairs, ends, pattern, recs[t, r, q, 0])
+        return attempt(v, units, masses, params, i, j, a, b, base + (recs[t, r, q, 2] & _POSITION), tau, m, last,
+                       made)
+
+    @njit_cached(inline="always")
+    def region(v, units, masses, params, pairs, ends, pattern, recs, ring, t, r, count, base, tau, m, last, made):
+        """Region ``r``'s records of segment ``t`` in order, deferred ones left out: each decoded `AHEAD`
+        records early (into ``ring``) and its velocity rows fetched then."""
+        for q in range(min(AHEAD, count)):
+            i, j, a, b = contact(pairs, ends, pattern, recs[t, r, q, 0])
+            ring[q, 0], ring[q, 1], ring[q, 2], ring[q, 3] = i, j, a, b
+            prefetch(v, i)
+            prefetch(v, j)
         for q in range(count):
             if q + AHEAD < count:
-                ahead = recs[t, r, q + AHEAD, 0]
-                prefetch(v, ahead >> 32)
-                prefetch(v, ahead & 0xFFFFFFFF)
+                i, j, a, b = contact(pairs, ends, pattern, recs[t, r, q + AHEAD, 0])
+                e = (q + AHEAD) % _RING
+                ring[e, 0], ring[e, 1], ring[e, 2], ring[e, 3] = i, j, a, b
+                prefetch(v, i)
+                prefetch(v, j)
             if recs[t, r, q, 2] & _DEFERRED:
                 continue
-            m, last, made = attempt(v, units, masses, params, recs, t, r, q, base, tau, m, last, made)
+            e = q % _RING
+            m, last, made = attempt(v, units, masses, params, ring[e, 0], ring[e, 1], ring[e, 2], ring[e, 3],
+                                    base + (recs[t, r, q, 2] & _POSITION), tau, m, last, made)
         return m, last, made
 
     @njit_cached(inline="always")
-    def in_order(v, units, masses, params, recs, counts, t, p, base, tau, m, last, made):
+    def in_order(v, units, masses, params, pairs, ends, pattern, recs, counts, t, p, base, tau, m, last, made):
         """Segment ``t``'s records, all of them, in time order (a merge of its ``p + 1`` lists by position)."""
         heads = np.zeros(p + 1, np.int64)
         total = 0
@@ -224,13 +275,14 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
                     position = recs[t, r, heads[r], 2] & _POSITION
                     if position < at:
                         best, at = r, position
-            m, last, made = attempt(v, units, masses, params, recs, t, best, heads[best], base, tau, m, last, made)
+            m, last, made = record(v, units, masses, params, pairs, ends, pattern, recs, t, best, heads[best], base,
+                                   tau, m, last, made)
             heads[best] += 1
         return m, last, made
 
     @jit_cached_if_possible
-    def worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, recs, counts,
-               watch, nwatch, npick, marks, deferred, history, sync, out):
+    def worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words, n, recs,
+               counts, watch, nwatch, npick, marks, deferred, history, sync, out):
         """One thread's share of `blocks` (a function of its own: numba's analysis of a parallel loop
         does not follow the tuples the margin travels in)."""
         p, W, n_blocks = cuts.shape[0] + 1, recs.shape[2], history.shape[0]
@@ -239,6 +291,7 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
         m = (np.inf, 0.0, 0.0, 0.0)
         last, made = np.int64(-1), np.int64(0)
         offsets = np.empty(p + 1, np.int64)
+        ring = np.empty((_RING, 4), np.int64)  # the contacts decoded ahead in `region`
         base = np.int64(0)  # picks before this block
         for blk in range(n_blocks):
             if atomic_load(sync, BLOCKS_DONE) > blk:  # done by the others: its numbers are in the history
@@ -255,8 +308,8 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
                     st = s_block
                     for _ in range(t):
                         st = jump(st, poly)
-                    npick[t], st = generate(st, n, pairs, ends, pattern, cuts, band, recs, counts, watch, nwatch, t,
-                                            W, p)
+                    npick[t], st = generate(st, n, pairs, ends, pattern, cuts, band, windows, recs, counts, watch,
+                                            nwatch, t, W, p)
                     if t == p - 1:  # the block's last word: where the next block starts
                         store(history[blk, 2:6].view(np.uint64), st)
                     atomic_add(sync, GEN_DONE, 1)
@@ -279,19 +332,19 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
                     continue
                 if not escaped:
                     for t in range(p):
-                        m, last, made = region(v, units, masses, params, recs, t, r, counts[t, r], offsets[t], tau,
-                                               m, last, made)
+                        m, last, made = region(v, units, masses, params, pairs, ends, pattern, recs, ring, t, r,
+                                               counts[t, r], offsets[t], tau, m, last, made)
                 if atomic_add(sync, FINISHED, 1) == (blk + 1) * p - 1:
                     if escaped:
                         for t in range(p):
-                            m, last, made = in_order(v, units, masses, params, recs, counts, t, p, offsets[t], tau,
-                                                     m, last, made)
+                            m, last, made = in_order(v, units, masses, params, pairs, ends, pattern, recs, counts, t,
+                                                     p, offsets[t], tau, m, last, made)
                     else:
                         for d in range(deferred[0]):
                             e = deferred[1 + d]
                             t, r2, q = e >> 48, (e >> 32) & 0xFFFF, e & 0xFFFFFFFF
-                            m, last, made = attempt(v, units, masses, params, recs, t, r2, q, offsets[t], tau, m,
-                                                    last, made)
+                            m, last, made = record(v, units, masses, params, pairs, ends, pattern, recs, t, r2, q,
+                                                   offsets[t], tau, m, last, made)
                     history[blk, 0], history[blk, 1] = offsets[p] - base, deferred[0]
                     atomic_store(sync, BLOCKS_DONE, blk + 1)
             _spin_until(sync, BLOCKS_DONE, blk + 1)
@@ -300,11 +353,11 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
         out[tid, 2], out[tid, 3], out[tid, 4], out[tid, 5] = m
 
     @jit_cached_if_possible(parallel=True)
-    def blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, recs, counts, watch,
-               nwatch, npick, marks, deferred, history, sync, out):
+    def blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words, n, recs, counts,
+               watch, nwatch, npick, marks, deferred, history, sync, out):
         for tid in prange(cuts.shape[0] + 1):
-            worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, poly, rng_words, n, recs, counts,
-                   watch, nwatch, npick, marks, deferred, history, sync, out)
+            worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words, n, recs,
+                   counts, watch, nwatch, npick, marks, deferred, history, sync, out)
         store(rng_words, load(history[history.shape[0] - 1, 2:6].view(np.uint64)))
         total = np.int64(0)
         for blk in range(history.shape[0]):
@@ -358,7 +411,7 @@ def _defer(recs, watch, nwatch, cuts, band, marks, deferred, p):
         for e in range(nwatch[t]):
             w = watch[t, e]
             r, q = w >> 32, w & 0xFFFFFFFF
-            ij = recs[t, r, q, 0]
+            ij = recs[t, r, q, 1]
             i, j = ij >> 32, ij & 0xFFFFFFFF
             mi, mj = _mark_index(cuts, band, i), _mark_index(cuts, band, j)
             if r == p or (mi >= 0 and marks[mi] != 0) or (mj >= 0 and marks[mj] != 0):
@@ -372,7 +425,7 @@ def _defer(recs, watch, nwatch, cuts, band, marks, deferred, p):
                 count += 1
     for d in range(count):  # clear the marks for the next block
         e = deferred[1 + d]
-        ij = recs[e >> 48, (e >> 32) & 0xFFFF, e & 0xFFFFFFFF, 0]
+        ij = recs[e >> 48, (e >> 32) & 0xFFFF, e & 0xFFFFFFFF, 1]
         for ball in (ij >> 32, ij & 0xFFFFFFFF):
             mk = _mark_index(cuts, band, ball)
             if mk >= 0:
@@ -390,13 +443,15 @@ class ParallelChain:
     """
 
     def __init__(self, blocks: Callable, cuts: np.ndarray, band: int, threads: int, words: int = WORDS,
-                 tuned: bool = False):
+                 tuned: bool = False, windows: np.ndarray | None = None):
         self.blocks, self.cuts, self.band, self.threads, self.words = blocks, cuts, band, threads, words
+        #: `contact_windows` (None: one window holds every contact: each is decoded when drawn)
+        self.windows = np.array([[0, 0, 1 << 62]] * len(cuts), dtype=np.int64) if windows is None else windows
         #: chooses, stretch by stretch, between all threads and one (None: always all)
         self.tuner = ThreadTuner((threads, 1)) if tuned else None
         self.poly = jump_polynomial(words)
         p = threads
-        self.scratch = (np.empty((p, p + 1, words, 3), dtype=np.int64),  # recs: each segment's picks by region
+        self.scratch = (np.empty((p, p + 1, words, 3), dtype=np.int64),  # recs: (k, i << 32 | j, position)
                         np.empty((p, _padded(p + 1)), dtype=np.int64),  # counts (row t: thread t's, per pick)
                         np.empty((p, words), dtype=np.int64),  # watch: picks near a cut
                         np.empty(p, dtype=np.int64),  # nwatch
@@ -411,7 +466,9 @@ class ParallelChain:
         cuts = region_cuts(pairs, n_balls, threads) if threads > 1 else None
         if cuts is None:
             return None
-        return cls(parallel_blocks(collide, dim, flat, rows), cuts, BAND_HOPS * _reach(pairs), threads, words, tuned)
+        band = BAND_HOPS * _reach(pairs)
+        return cls(parallel_blocks(collide, dim, flat, rows), cuts, band, threads, words, tuned,
+                   contact_windows(pairs, cuts, band))
 
     @property
     def block(self) -> int:
@@ -442,7 +499,8 @@ class ParallelChain:
         history = np.empty((count, 6), dtype=np.int64)
         sync = np.zeros(sync_length(self.threads), dtype=np.int64)
         picks = self.blocks(chain.v, chain.pairs, chain.ends, chain.units, chain.masses, chain.params, pattern,
-                            self.cuts, np.int64(self.band), self.poly, rng, np.int64(len(chain.pairs)), *self.scratch,
+                            self.cuts, np.int64(self.band), self.windows, self.poly, rng, np.int64(len(chain.pairs)),
+                            *self.scratch,
                             history, sync, self.out)
         made, last = int(self.out[:, 0].sum()), int(self.out[:, 1].max())
         for row in self.out:

@@ -11,7 +11,8 @@ from pinnedballs.engine.chain import COUNTERS, NO_LIMIT
 from pinnedballs.engine.jump import jump, jump_polynomial
 from pinnedballs.engine.loops import NO_PATTERN, live_kernel
 from pinnedballs.engine.margin import new_margin
-from pinnedballs.engine.parallel import MIN_PARALLEL_CONTACTS, ParallelChain, bands_pay, region_cuts
+from pinnedballs.engine.parallel import (BAND_HOPS, MIN_PARALLEL_CONTACTS, ParallelChain, _by_index, _reach, bands_pay,
+                                         contact_windows, region_cuts)
 from pinnedballs.engine.random import load, next_uint64, seed_state
 from pinnedballs.engine.rows import row_pattern
 from pinnedballs.engine.threads import using
@@ -179,3 +180,29 @@ def test_the_thread_count_is_part_of_the_scheduler_and_its_spec():
     assert repr(pb.UniformRandomPair(threads=3)) == "UniformRandomPair(threads=3)"
     with pytest.raises(pb.FieldError, match="^threads: must be an integer >= 1, got 0$"):
         pb.UniformRandomPair(threads=0)
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_a_contact_filed_by_its_index_is_in_its_region_and_far_from_every_cut(threads):
+    """Phase G files a pick outside every cut's window by its contact index alone: on a half-plane (contacts
+    numbered by their lower ball) that is its region exactly, and it neither crosses a cut nor touches a
+    ball within the watched band; the windows hold every contact that does. Contacts not numbered so
+    get one window holding them all (each decoded)."""
+    g = pb.HalfPlane.from_size(500, 250)
+    pairs = g.contacts.pairs.astype(np.int64)
+    cuts = region_cuts(pairs, g.n_balls, threads)
+    assert cuts is not None and len(cuts) == threads - 1
+    band = BAND_HOPS * _reach(pairs)
+    windows = contact_windows(pairs, cuts, band)
+    by_index = [_by_index(windows, np.int64(k)) for k in range(len(pairs))]
+    region = np.searchsorted(cuts, pairs, side="right")  # each ball's region
+    near = np.zeros(len(pairs), dtype=bool)
+    for c in cuts:
+        near |= ((pairs >= c - band) & (pairs < c + band)).any(axis=1)
+    decoded = np.array([d for _, _, d in by_index])
+    assert decoded.sum() < 0.5 * len(pairs) and (decoded | ~near).all()  # every pick near a cut is decoded
+    assert (decoded | (region[:, 0] == region[:, 1])).all()  # and every crossing
+    filed = np.array([r for r, _, _ in by_index])
+    assert np.array_equal(filed[~decoded], region[~decoded, 0])
+    shuffled = pairs[np.random.default_rng(0).permutation(len(pairs))]
+    assert all(_by_index(contact_windows(shuffled, cuts, band), np.int64(k))[2] for k in range(0, len(pairs), 97))
