@@ -131,14 +131,14 @@ def contact_windows(pairs: np.ndarray, cuts: np.ndarray, band: int) -> np.ndarra
 
 @njit_cached(inline="always")
 def _by_index(windows, k):
-    """``(region, 0, False)`` of contact ``k`` when its index tells (`contact_windows`), else ``(0, 0, True)``:
-    it must be decoded."""
+    """``(region, False)`` of contact ``k`` when its index tells (`contact_windows`), else ``(0, True)``: it
+    must be decoded."""
     r = 0
     for c in range(windows.shape[0]):
         if windows[c, 0] <= k < windows[c, 2]:
-            return 0, np.int64(0), True
+            return 0, True
         r += 1 if k >= windows[c, 1] else 0
-    return r, np.int64(0), False
+    return r, False
 
 
 #: ``pause`` this many times before yielding the core
@@ -200,7 +200,8 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
             if low < n64 and low < threshold:  # Lemire's test, word by word: `random.bounded`
                 continue
             k = np.int64(m >> np.uint64(32))
-            r, ij, near = _by_index(windows, k)
+            r, near = _by_index(windows, k)
+            ij = np.int64(0)
             if near:
                 i, j, _, _ = contact(pairs, ends, pattern, k)
                 ri, rj = _region(cuts, i), _region(cuts, j)
@@ -367,14 +368,6 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     return blocks
 
 
-def _padded(used: int) -> int:
-    """A row length of int64 for ``used`` entries such that the used parts of two rows never share a
-    cache line (a line or more between them, whatever the array's alignment): each thread counts its
-    picks in its own row of ``counts``, a write per pick, which two threads sharing a line pass back
-    and forth between their cores."""
-    return (used + _LINE - 1) // _LINE * _LINE + _LINE
-
-
 #: the bit of a record's position that says it is deferred, and the position itself
 _DEFERRED = np.int64(1) << 62
 _POSITION = _DEFERRED - 1
@@ -452,7 +445,7 @@ class ParallelChain:
         self.poly = jump_polynomial(words)
         p = threads
         self.scratch = (np.empty((p, p + 1, words, 3), dtype=np.int64),  # recs: (k, i << 32 | j, position)
-                        np.empty((p, _padded(p + 1)), dtype=np.int64),  # counts (row t: thread t's, per pick)
+                        np.empty((p, p + 1), dtype=np.int64),  # counts (row t: thread t's, once per segment)
                         np.empty((p, words), dtype=np.int64),  # watch: picks near a cut
                         np.empty(p, dtype=np.int64),  # nwatch
                         np.empty(p, dtype=np.int64),  # npick

@@ -199,10 +199,10 @@ def test_a_contact_filed_by_its_index_is_in_its_region_and_far_from_every_cut(th
     near = np.zeros(len(pairs), dtype=bool)
     for c in cuts:
         near |= ((pairs >= c - band) & (pairs < c + band)).any(axis=1)
-    decoded = np.array([d for _, _, d in by_index])
+    decoded = np.array([d for _, d in by_index])
     assert decoded.sum() < 0.5 * len(pairs) and (decoded | ~near).all()  # every pick near a cut is decoded
     assert (decoded | (region[:, 0] == region[:, 1])).all()  # and every crossing
-    filed = np.array([r for r, _, _ in by_index])
+    filed = np.array([r for r, _ in by_index])
     assert np.array_equal(filed[~decoded], region[~decoded, 0])
     shuffled = pairs[np.random.default_rng(0).permutation(len(pairs))]
-    assert all(_by_index(contact_windows(shuffled, cuts, band), np.int64(k))[2] for k in range(0, len(pairs), 97))
+    assert all(_by_index(contact_windows(shuffled, cuts, band), np.int64(k))[1] for k in range(0, len(pairs), 97))
