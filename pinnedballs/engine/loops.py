@@ -92,6 +92,9 @@ class Selector(NamedTuple):
     skips: ``select`` may take more than one step per pick, or return no contact (``k < 0``).
     uniform: its picks are the paper's, one word of the stream each through `random.bounded`, so the
     parallel chain (`engine.parallel`) may draw them ahead on several threads.
+    counter: its picks are the counter stream's (`engine.philox`): the stream words are ``(k0, k1, s, 0)``,
+    the pick of step ``s`` a function of the key and ``s``, so batches of picks may run by deterministic
+    reservations on threads (`engine.reservations`) or on a GPU (`engine.gpu`).
     steps: None, or ``steps(collide, dim, flat) -> loop``: its own compiled loop for plain steps
     (`ColoredSweep` runs a class in parallel), called as ``loop(v, pairs, ends, units, masses, params,
     state, aux, rng_words, counters, margin, max_steps) -> steps``.
@@ -105,6 +108,7 @@ class Selector(NamedTuple):
     skips: bool = False
     steps: Callable | None = None
     uniform: bool = False
+    counter: bool = False
 
 
 @njit_cached(inline="always")

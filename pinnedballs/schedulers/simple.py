@@ -9,9 +9,10 @@ import numpy as np
 
 from ..engine import checks
 from ..engine.jitcache import njit_cached
-from ..engine.loops import Selector, pick_selector
+from ..engine.loops import Selector, no_begin, no_change, pick_selector
 from ..engine.threads import check_threads
 from ..engine.errors import FieldError
+from ..engine.philox import CACHE_WORDS, pick_counter, select_counter
 from ..engine.random import bounded
 from .base import Scheduler
 
@@ -52,33 +53,49 @@ def pick_random_sweep(state, rng, n_contacts):
 class UniformRandomPair(Scheduler):
     """Each step tries one contact chosen uniformly at random (the paper's scheduler).
 
-    ``threads``: how many of numba's threads a run may use (`engine.parallel`: the lattice cut into
-    regions, the same bits on any number); None (the default) lets long runs on large systems use
-    every core, each stretch on the count a `ThreadTuner` finds faster (never slower than one thread
-    on a busy machine); 1 runs the sequential loop only. Whatever the count, a system runs on one
-    thread where regions do not pay: fewer than 65,536 contacts, many contacts joining the regions,
-    or contacts joining balls far apart in index (a torus's wrap-around)."""
+    ``stream``: where the picks come from. ``"xoshiro"`` (the default, every published seed's bits):
+    xoshiro256** words drawn in order. ``"counter"``: Philox4x64-10 keyed by the seed
+    (`engine.philox`), the pick of step ``s`` a function of ``(seed, s)`` alone, so any thread or a GPU
+    computes any step's pick; the same law, other picks, and the stream that runs on every core
+    (`engine.reservations`) and on a GPU (``Simulation(..., device="cuda")``) with the bits of one core.
 
-    def __init__(self, threads: int | None = None):
+    ``threads``: how many of numba's threads a run may use; None (the default) lets long runs on large
+    systems use every core, each stretch on the count a `ThreadTuner` finds faster (never slower than
+    one thread on a busy machine); 1 runs the sequential loop only. The bits never depend on it. On
+    the xoshiro stream the lattice is cut into regions (`engine.parallel`); a system runs on one thread
+    where regions do not pay: fewer than 65,536 contacts, many contacts joining the regions, or
+    contacts joining balls far apart in index (a torus's wrap-around). On the counter stream batches
+    of picks run by deterministic reservations (`engine.reservations`), on any geometry."""
+
+    #: the streams a `UniformRandomPair` draws from
+    STREAMS = ("xoshiro", "counter")
+
+    def __init__(self, threads: int | None = None, stream: str = "xoshiro"):
         self.threads = None if threads is None else checks.integer("threads", threads, minimum=1)
+        self.stream = checks.choice("stream", stream, self.STREAMS)
 
     law = "uniform"  #: `Scheduler.law`
 
     def kernel(self) -> Callable:
-        return pick_uniform
+        return pick_counter if self.stream == "counter" else pick_uniform
 
     def selector(self, geometry) -> Selector:
         check_threads(self.threads)
+        if self.stream == "counter":  # its own cache of the last Philox block: four steps' words
+            return Selector(select_counter, no_begin, no_change, np.zeros(CACHE_WORDS, dtype=np.uint64), counter=True)
         return pick_selector(pick_uniform)._replace(uniform=True)
 
     def to_spec(self) -> dict:
-        return {"kind": "uniform_random_pair", **({} if self.threads is None else {"threads": self.threads})}
+        return {"kind": "uniform_random_pair", **({} if self.threads is None else {"threads": self.threads}),
+                **({} if self.stream == "xoshiro" else {"stream": self.stream})}
 
     def __repr__(self) -> str:
-        return "UniformRandomPair()" if self.threads is None else f"UniformRandomPair(threads={self.threads})"
+        args = [f"threads={self.threads}"] * (self.threads is not None) + [f"stream={self.stream!r}"] * (
+            self.stream != "xoshiro")
+        return f"UniformRandomPair({', '.join(args)})"
 
     def __hash__(self) -> int:
-        return hash((type(self), self.threads))
+        return hash((type(self), self.threads, self.stream))
 
 
 class Sweep(Scheduler):

@@ -23,9 +23,12 @@ class UniformRandomPairSpec(_Spec):
     kind: Literal["uniform_random_pair"] = "uniform_random_pair"
     #: numba threads a run may use (None: every core, tuned; 1: the sequential loop); the results do not depend on it
     threads: Optional[Annotated[int, Field(ge=1)]] = None
+    #: "xoshiro" (the default): xoshiro256** words in order; "counter": Philox4x64-10, the pick of step s a
+    #: function of (seed, s) alone, which runs on every core and on a GPU with the same bits
+    stream: Literal["xoshiro", "counter"] = "xoshiro"
 
     def build(self) -> Scheduler:
-        return UniformRandomPair(threads=self.threads)
+        return UniformRandomPair(threads=self.threads, stream=self.stream)
 
 
 class SweepSpec(_Spec):
