@@ -9,7 +9,8 @@ import warnings
 import numpy as np
 
 from ..engine import checks
-from ..engine.chain import COLLISIONS, COUNTERS, LIVE, NO_LIMIT, STEPS, Chain, LiveSet, incidence
+from ..engine.backends import DEVICES, DeviceBackend, ExactBackend, LoopBackend
+from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS
 from ..engine.driver import check_writers, drive
 from ..engine.sigint import deferred
 from ..engine.stop import Stop
@@ -21,16 +22,10 @@ from ..engine.fixed import NotFixed
 from ..engine.fixed_state import CertifiedState, nearest_floats
 from ..engine.limbs import from_limbs
 from ..engine.limits import check_speeds
-from ..engine.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
 from ..engine.margin import ClosingMargin, MarginWarning, new_margin
 from ..engine.state import RunState, as_state, margin_problem, mass_array
-from ..engine.parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
-from ..engine.threads import most_threads
-
-#: collisions a logging loop records before handing them to the listeners
-LOG_CAPACITY = 1 << 16
-_NO_LOG = np.empty((0, 2), dtype=np.int64)
 from ..engine.random import seed_state
+from ..engine.philox import counter_stream
 from ..geometry.base import Geometry
 from ..geometry.checks import check_contacts
 from ..rules import CollisionRule, Elastic, check_resolution, threshold
@@ -110,14 +105,21 @@ class Simulation:
     velocities. Same inputs and seed give bit-identical velocities and counters,
     however the run is split into calls.
 
-    The engine's loops (`pinnedballs.engine.loops`) run the scheduler's selector on plain data
-    the simulation owns: the velocities, the counters, the random stream, the scheduler's state
-    and, for a selector that tracks them, the live contacts (`engine.chain.LiveSet`).
+    device: ``"cpu"`` (the default) or ``"cuda"``: the chain on an NVIDIA GPU (`pinnedballs.engine.gpu`;
+    ``python3 -m pip install ".[cuda]"`` from the checkout), for float arithmetic, the built-in rules and
+    ``UniformRandomPair(stream="counter")``, with the same velocities, counters, stop step and margin
+    as on the CPU. Its velocities stay on the GPU between runs; reading `velocities` copies them back.
+
+    The chain runs through one backend (`pinnedballs.engine.backends`), chosen here by the arithmetic
+    and the device: the engine's compiled loops (`pinnedballs.engine.loops`) run the scheduler's
+    selector on plain data the simulation owns (the velocities, the counters, the random stream, the
+    scheduler's state), exact arithmetic follows the same picks, and a GPU runs the counter stream.
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
                  scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float",
-                 resolution: float | None = None, precision: int | None = None, late_precision: int | None = None):
+                 resolution: float | None = None, precision: int | None = None, late_precision: int | None = None,
+                 device: str = "cpu"):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -133,6 +135,7 @@ class Simulation:
             check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
         self._exact = None  # the exact or certified chain, made below (None in float arithmetic)
+        self._backend = None  # how the chain runs (`engine.backends`), chosen below
         self._mass_array = mass_array(masses, geometry.n_balls)
         self.masses = None if masses is None else self._mass_array
         self.velocities = self._check_velocities(velocities)
@@ -144,21 +147,17 @@ class Simulation:
         self._params = np.append(np.asarray(params, dtype=np.float64), self.threshold)  # params[-1]: `approaching`
         check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
         self._selector = _selector(scheduler, geometry)
-        s, dim, flat = self._selector, geometry.dim, geometry.contacts.flat
-        self._loops = loops(self._collide, s.select, s.begin, s.changed, s.skips, dim, flat)
-        self._own_steps = None if s.steps is None else s.steps(self._collide, dim, flat)
-        self._live_flags, self._any_live = live_kernel(self._collide, dim, flat)
         self._sched_state = scheduler.initial_state(geometry.n_contacts)
         #: the seed used: the int given, the entropy drawn when none was (an int), or the SeedSequence
         #: given when its entropy alone would not repeat it (a spawned one); ``Simulation(..., seed=sim.seed)``
         #: repeats the run
         self.seed = _recorded_seed(seed)
         self._rng = seed_state(self.seed)
+        if self._selector.counter:  # the counter stream: its key, and no pick drawn yet
+            self._rng = counter_stream(self._rng)
         self._counters = np.zeros(COUNTERS, dtype=np.int64)
         self._margin = new_margin()  # every pick's closing speed against the threshold (`closing_margin`)
         self._margin_warned = False
-        self._live = None  # the LiveSet, built when a tracked run first needs it
-        self._parallel = None  # the ParallelChain, built when a run first asks (False: none)
         #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
         #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
         #: record them run a little slower
@@ -167,6 +166,11 @@ class Simulation:
         self._exact = _exact_chain(self, precision, late_precision)  # None in float arithmetic
         if self._exact is not None:
             self.velocities = self._exact.shadow  # the exact values rounded, kept by the exact chain
+        #: where the chain runs: ``"cpu"`` or ``"cuda"`` (an NVIDIA GPU: `engine.gpu`, floats on the counter
+        #: stream, the CPU's bits); information about a run, not part of its model
+        self.device = checks.choice("device", device, DEVICES)
+        self._backend = (DeviceBackend(self) if self.device == "cuda"
+                         else ExactBackend(self) if self._exact is not None else LoopBackend(self))
 
     # ------------------------------------------------------------ input checks
     def _check_velocities(self, velocities) -> np.ndarray:
@@ -188,13 +192,13 @@ class Simulation:
     def velocities(self) -> np.ndarray:
         """``(n_balls, dim) float64``: the velocities now (in exact or certified arithmetic, the exact
         values rounded, brought up to date when read: a run in chunks rounds only once at its end)."""
-        if self._exact is not None:
-            return self._exact.sync()
-        return self._velocities
+        return self._velocities if self._backend is None else self._backend.velocities(self)
 
     @velocities.setter
     def velocities(self, value: np.ndarray) -> None:
         self._velocities = value
+        if isinstance(self._backend, DeviceBackend):
+            self._backend.set_velocities(value)
 
     # ------------------------------------------------------------ counters
     @property
@@ -255,140 +259,18 @@ class Simulation:
 
     def _run_engine(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
-        if self._exact is not None:
-            return self._run_exact(max_steps, max_collisions, until_frozen)
-        if self.collision_listeners:
-            return self._run_logged(max_steps, max_collisions, until_frozen)
-        chain, s = self._chain(), self._selector
-        tables = (self._sched_state, s.aux, self._rng, self._counters, self._margin)
-        if s.tracks:
-            return self._loops.tracked(*chain, *tables, max_steps, max_collisions, until_frozen,
-                                       *self._refresh_live(), _NO_LOG)
-        plain = not until_frozen and max_collisions == NO_LIMIT
-        if plain and self._own_steps is not None:
-            return self._own_steps(*chain, *tables, max_steps)
-        limited, pattern = self._limited(logged=False)
-        parallel = self._parallel_chain()
-        if parallel is not None:
-            return parallel.run(chain, pattern, limited, self._any_live, *tables, max_steps,
-                                max_collisions, until_frozen, TUNED_SEGMENT if plain else self._freeze_chunk())
-        return limited(*chain, pattern, *tables, max_steps, max_collisions, until_frozen,
-                       max_steps if plain else self._freeze_chunk(), np.empty_like(self._sched_state), _NO_LOG)
-
-    def _parallel_chain(self):
-        """The chain on several threads (`engine.parallel.ParallelChain`) where the scheduler allows it
-        and it pays (a large system, regions with few crossings, narrow bands around the cuts: not a
-        torus), built once; else None."""
-        if self._parallel is None:
-            self._parallel = False
-            s, c = self._selector, self.geometry.contacts
-            wanted = self.scheduler.threads if hasattr(self.scheduler, "threads") else None
-            threads = most_threads() if wanted is None else wanted
-            if (s.uniform and not s.tracks and threads > 1 and len(c) >= MIN_PARALLEL_CONTACTS
-                    and bands_pay(c.pairs, self.geometry.n_balls, threads)):
-                built = ParallelChain.build(self._collide, self.geometry.dim, c.flat, c.pairs, self.geometry.n_balls,
-                                            self._limited(logged=False)[1] is not NO_PATTERN, threads,
-                                            tuned=wanted is None)
-                self._parallel = built if built is not None else False
-        return self._parallel or None
-
-    def _limited(self, logged: bool):
-        """``(loop, pattern)``: the engine's limited loop for this system's size, and the row pattern it
-        reads (`engine.rows`): the tables when they fit in cache, the tables prefetched, or the lattice's
-        row pattern prefetched when the tables do not."""
-        loops_, s, c = self._loops, self._selector, self.geometry.contacts
-        if c.pairs.nbytes + c.ends.nbytes + self.velocities.nbytes <= LOOKAHEAD_BYTES or s.skips:
-            return (loops_.limited_logged if logged else loops_.limited), NO_PATTERN
-        pattern = self.geometry.row_pattern
-        if pattern is None:
-            return (loops_.limited_prefetched_logged if logged else loops_.limited_prefetched), NO_PATTERN
-        return (loops_.limited_rows_logged if logged else loops_.limited_rows), pattern
-
-    def _freeze_chunk(self) -> int:
-        """Steps between two scans for the freeze in an untracked loop (`engine.loops`)."""
-        return max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.geometry.n_contacts)
-
-    def _run_logged(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
-        """`_run` telling `collision_listeners` of every collision: the engine's logging loops
-        (sequential: the same bits as the others), a log of `LOG_CAPACITY` collisions at a time."""
-        chain, s, loops_ = self._chain(), self._selector, self._loops
-        tables = (self._sched_state, s.aux, self._rng, self._counters, self._margin)
-        log, taken = np.empty((LOG_CAPACITY, 2), dtype=np.int64), 0
-        while True:
-            before = self.collisions
-            if s.tracks:
-                taken += loops_.tracked_logged(*chain, *tables, max_steps - taken, max_collisions, until_frozen,
-                                               *self._refresh_live(), log)
-            else:
-                limited, pattern = self._limited(logged=True)
-                taken += limited(*chain, pattern, *tables, max_steps - taken, max_collisions, until_frozen,
-                                 self._freeze_chunk(), np.empty_like(self._sched_state), log)
-            made = self.collisions - before
-            if made:
-                for listener in self.collision_listeners:
-                    listener(log[:made, 0].copy(), log[:made, 1].copy())
-            if made < len(log) or taken >= max_steps or self.collisions >= max_collisions:
-                return taken
-
-    def _run_exact(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
-        """`_run` in exact or certified arithmetic: the compiled selector's picks in blocks, each tried
-        by the chain (`FieldChain.run`); a block cut short is drawn again to its end, so the stream
-        and the scheduler's state are those of the float loop after the same steps. A decision
-        certified arithmetic cannot make raises once the picks before it are counted."""
-        ex, s, n = self._exact, self._selector, self.geometry.n_contacts
-        ex.prepare(until_frozen)
-        taken, collisions = 0, self.collisions
-        while taken < max_steps and collisions < max_collisions and not (until_frozen and ex.live == 0) \
-                and ex.failure is None:
-            block = int(min(ex.block, max_steps - taken))
-            rng, state = self._rng.copy(), self._sched_state.copy()
-            picks = ex.picks_buffer(block)
-            self._loops.picks(self._sched_state, s.aux, self._rng, n, picks)
-            used, made, at = ex.run(picks, max_collisions - collisions, until_frozen, self.steps + taken + 1)
-            if made and self.collision_listeners:
-                steps = self.steps + taken + 1 + np.asarray(at, dtype=np.int64)
-                contacts = picks[np.asarray(at, dtype=np.int64)]
-                for listener in self.collision_listeners:
-                    listener(steps, contacts)
-            if used < block:
-                self._rng[:], self._sched_state[:] = rng, state
-                self._loops.picks(self._sched_state, s.aux, self._rng, n, picks[:used])
-            taken, collisions = taken + used, collisions + made
-        self._counters[STEPS] += taken  # the velocities are rounded when read (`velocities`)
-        self._counters[COLLISIONS], self._counters[LIVE] = collisions, ex.live
-        failure, ex.failure = ex.failure, None
-        if failure is not None:
-            raise failure
-        return taken
-
-    def _chain(self) -> Chain:
-        c = self.geometry.contacts
-        return Chain(self.velocities, c.pairs, c.ends, c.units, self._mass_array, self._params)
-
-    def _refresh_live(self) -> LiveSet:
-        """The live set of the current velocities (flags and ``counters[LIVE]`` recomputed)."""
-        if self._live is None:
-            c = self.geometry.contacts
-            ptr, inc = incidence(c.pairs, self.geometry.n_balls)
-            self._live = LiveSet(ptr, inc, np.empty(len(c), dtype=np.uint8))
-        self._counters[LIVE] = self._live_flags(*self._chain(), self._live.flags)
-        return self._live
+        return self._backend.run(self, max_steps, max_collisions, until_frozen)
 
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
         """Number of live contacts: those whose balls approach, so that picking one would
         collide (0 means frozen). In float arithmetic a closing speed so small that the collision
         would change no bit of any velocity, a remnant of rounding, does not count."""
-        if self._exact is not None:
-            return self._exact.count_live()
-        flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
-        return int(self._live_flags(*self._chain(), flags))
+        return self._backend.approaching(self)
 
     def is_frozen(self) -> bool:
         """True when no contact is live, so no collision can ever happen again."""
-        if self._exact is not None:
-            return self.approaching() == 0
-        return not self._any_live(*self._chain())
+        return self._backend.is_frozen(self)
 
     def closing_margin(self) -> ClosingMargin:
         """How near the collision criterion this run's picks came (`engine.margin.ClosingMargin`): the
@@ -462,10 +344,7 @@ class Simulation:
         if sched.dtype != np.int64:
             raise FieldError("scheduler_state", f"must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
-        flags = None
-        if self._selector.tracks:
-            flags = np.empty(self.geometry.n_contacts, dtype=np.uint8)
-            self._live_flags(*self._chain()._replace(v=velocities), flags)
+        flags = self._backend.live_flags_of(self, velocities) if self._selector.tracks else None
         self.scheduler.check_resume(sched, self._selector, flags)
         steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
         if collisions > steps:

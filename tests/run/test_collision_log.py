@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.run import simulation
+from pinnedballs.engine import backends
 from reference import ReferenceSimulation
 
 
@@ -25,7 +25,7 @@ def half_plane(rows=5, cols=7):
 def test_the_log_is_the_twin_s_record_of_every_collision(tmp_path, scheduler, monkeypatch):
     """A log of 7 collisions at a time (so many flushes) holds the plain-Python twin's collision
     steps and picked contacts, one for one."""
-    monkeypatch.setattr(simulation, "LOG_CAPACITY", 7)
+    monkeypatch.setattr(backends, "LOG_CAPACITY", 7)
     g, v = half_plane()
     cls = {"uniform": pb.UniformRandomPair, "sweep": pb.Sweep, "random_sweep": pb.RandomSweep,
            "colored_sweep_shuffle": lambda: pb.ColoredSweep(shuffle=True)}[scheduler]
