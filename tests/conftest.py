@@ -1,8 +1,13 @@
 """Shared test setup: the helpers (`helpers.py`), the plain-Python twin (`reference.py`) and a
 user's module (`user_components.py`) are importable from every test folder."""
 
+import os
 import pathlib
 import sys
+
+# The GPU engine's kernels run under numba-cuda's simulator (Python threads on the CPU): CI has no GPU,
+# and the simulator runs the same kernel source. numba-cuda reads this when it is first imported.
+os.environ.setdefault("NUMBA_ENABLE_CUDASIM", "1")
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 

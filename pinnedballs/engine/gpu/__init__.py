@@ -1,0 +1,50 @@
+"""The chain on an NVIDIA GPU (numba-cuda), with the bits of the CPU loop on the counter stream.
+
+`load` imports numba-cuda (the optional ``[cuda]`` extra) and says in one line what is missing: the
+package, or a GPU its driver can see. Nothing here imports numba-cuda before a GPU run asks for it.
+Under numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernels run on the CPU, one block of
+Python threads: the tests run them so.
+
+Modules: `codes` (the built-in rules' numbers), `device` (the CPU's arithmetic as device functions), `kernels` (a chain by deterministic
+reservations; the freeze scan), `chain` (`DeviceChain`: one simulation's chain on the GPU),
+`replicas` (many small systems, one GPU thread each).
+"""
+
+from __future__ import annotations
+
+import numpy as _np
+
+from ..errors import FieldError
+from .codes import ELASTIC, EQUAL, MASSES, rule_code
+
+if not hasattr(_np, "row_stack"):  # numba-cuda 0.30 overloads np.row_stack, which numpy 2.5 removed:
+    _np.row_stack = _np.vstack     # without it, its first compile fails (AttributeError: row_stack)
+
+__all__ = ["load", "GPUUnavailable", "INSTALL", "ELASTIC", "EQUAL", "MASSES", "rule_code"]
+
+#: how to install what a GPU run needs
+INSTALL = 'python3 -m pip install ".[cuda]" (from the checkout)'
+
+class GPUUnavailable(FieldError):
+    """A GPU run was asked for where none can run: numba-cuda missing, or no GPU its driver sees (a
+    `FieldError` on ``device``: the command line says it in one line and exits with status 2)."""
+
+    def __init__(self, problem: str):
+        super().__init__("device", problem)
+
+    def __reduce__(self):
+        return type(self), (self.problem,)
+
+
+def load():
+    """numba-cuda's ``cuda`` module, ready to launch kernels; else `GPUUnavailable` saying why, in one line."""
+    try:
+        from numba import cuda
+    except ImportError as exc:
+        raise GPUUnavailable(f"'cuda' needs numba-cuda, which is not installed ({INSTALL}): {exc}") from None
+    from .device import SIMULATED
+
+    if not SIMULATED and not cuda.is_available():
+        raise GPUUnavailable("'cuda' found no GPU: numba-cuda sees no CUDA driver or device here (nvidia-smi "
+                             "should list one); device 'cpu' gives the same bits on the counter stream")
+    return cuda

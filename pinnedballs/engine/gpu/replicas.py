@@ -1,0 +1,173 @@
+"""Many small systems on one GPU: one replica a GPU thread, each the sequential chain on its own stream.
+
+A replica that fits a thread (its velocities in GPU memory, its picks a function of its own key and
+step) runs the engine's ``limited`` loop as the CPU runs it: chunks of steps, a scan for a live
+contact after a chunk with a collision, the chunk that froze ended at its last collision (the
+counter stream needs no rewind: its next pick is the one of that step), the margin's remnant side
+as of that collision. So each replica's velocities, counters and margin are those of a `Simulation`
+on the CPU with the same seed (`run.ensemble_gpu` builds the ensemble's rows from them).
+
+`ReplicaChains` holds the replicas of one geometry and rule: velocities ``(R, N, dim)``, keys, the
+per-replica thresholds, and runs them all, each to its own limits, in one launch.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from numba import cuda
+
+from . import load, rule_code
+from .device import INF, SIMULATED, collider, contact_reader, launching, lemire, philox_block, track, counter_pick
+
+__all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
+
+#: columns of the per-replica ``state (R, STATE_SIZE) int64``: steps (= the stream's position), collisions,
+#: the steps right after the last collision (0: none), 1 when the last launch ended at a freeze, and the
+#: contact the last scan found live (the next scan starts there: whether any is live does not depend on
+#: where a scan starts, and the wave's live contacts are rarely the first in index order)
+S_STEPS, S_COLLISIONS, S_LAST, S_FROZEN, S_HINT = range(5)
+STATE_SIZE = 5
+#: threads per block (a replica each)
+REPLICA_BLOCK = 4 if SIMULATED else 64
+_U0, _U2, _U3 = np.uint64(0), np.uint64(2), np.uint64(3)
+
+
+@functools.cache
+def replicas_kernel(rule: int, dim: int, flat: bool, rows: bool):
+    """``run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk)``: replica
+    ``r`` (thread ``r``) runs its chain on ``V[r] (N, dim)`` with ``params P[r]``, key ``keys[r]``,
+    counters ``state[r]`` and margin ``M[r] (4,)`` until ``limits[r] = (steps, collisions, until_frozen)``
+    (absolute counts) as the CPU's ``limited`` loop with freeze chunks of ``chunk`` steps."""
+    collide, contact = collider(rule, dim, flat), contact_reader(rows)
+
+    @cuda.jit(device=True)
+    def live_from(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, start):
+        """A live contact, looked for from ``start`` round the contacts, or -1 when none is live."""
+        for m in range(n_contacts):
+            k = start + m
+            if k >= n_contacts:
+                k -= n_contacts
+            i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(k))
+            hit, w = collide(v, units, masses, params, i, j, a, b, False)
+            if hit:
+                return k
+        return -1
+
+    @cuda.jit(device=True, inline="always")
+    def words(q, w0, w1, w2, w3, s, k0, k1):
+        """The Philox block of step ``s`` (block ``q`` kept while ``s`` is in it: one block, four steps)."""
+        if (s >> 2) != q:
+            q = s >> 2
+            w0, w1, w2, w3 = philox_block(np.uint64(q), _U0, _U0, _U0, k0, k1)
+        return q, w0, w1, w2, w3
+
+    @cuda.jit(device=True, inline="always")
+    def pick(w0, w1, w2, w3, s, k0, k1, n):
+        e = s & 3
+        c, accepted = lemire(w0 if e == 0 else (w1 if e == 1 else (w2 if e == 2 else w3)), n)
+        if not accepted:
+            c = counter_pick(k0, k1, np.uint64(s), n)
+        return np.int64(c)
+
+    @cuda.jit
+    def run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk):
+        r = cuda.grid(1)
+        if r >= V.shape[0]:
+            return
+        v, params = V[r], P[r]
+        n_contacts = pairs.shape[0]
+        n = np.uint64(n_contacts)
+        k0, k1, tau = keys[r, 0], keys[r, 1], params[1]
+        s, collisions, last = state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST]
+        m0, m1, m2, m3 = M[r, 0], M[r, 1], M[r, 2], M[r, 3]
+        max_steps, max_collisions, until_frozen = limits[r, 0], limits[r, 1], limits[r, 2] != 0
+        frozen, hint = False, state[r, S_HINT]
+        if until_frozen:
+            hint = live_from(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, max(hint, 0))
+            frozen = hint < 0
+        q = np.int64(-1)
+        w0 = w1 = w2 = w3 = _U0
+        while not frozen and s < max_steps and collisions < max_collisions:
+            end = min(s + chunk, max_steps)
+            made, at_last1, at_last3 = 0, m1, m3
+            # the contact of step s is decoded a step ahead: its table loads overlap the collision before it
+            q, w0, w1, w2, w3 = words(q, w0, w1, w2, w3, s, k0, k1)
+            i, j, a, b = contact(pairs, ends, table, meta, inverse, pick(w0, w1, w2, w3, s, k0, k1, n))
+            while s < end:
+                if s + 1 < end:
+                    q, w0, w1, w2, w3 = words(q, w0, w1, w2, w3, s + 1, k0, k1)
+                    i2, j2, a2, b2 = contact(pairs, ends, table, meta, inverse, pick(w0, w1, w2, w3, s + 1, k0, k1, n))
+                else:
+                    i2, j2, a2, b2 = i, j, a, b
+                hit, w = collide(v, units, masses, params, i, j, a, b, True)
+                m0, m1, m2, m3 = track(hit, w, tau, m0, m1, m2, m3)
+                s += 1
+                if hit:
+                    collisions += 1
+                    made += 1
+                    last = s
+                    at_last1, at_last3 = m1, m3
+                    if collisions == max_collisions:
+                        break
+                i, j, a, b = i2, j2, a2, b2
+            if until_frozen and made > 0:
+                hint = live_from(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, max(hint, 0))
+                frozen = hint < 0
+            if frozen:
+                s = last  # the run ends right after its last collision, and so does its margin
+                m1, m3 = at_last1, at_last3
+        state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST] = s, collisions, last
+        state[r, S_FROZEN], state[r, S_HINT] = (1 if frozen else 0), max(hint, 0)
+        M[r, 0], M[r, 1], M[r, 2], M[r, 3] = m0, m1, m2, m3
+
+    return run
+
+
+class ReplicaChains:
+    """``R`` replicas of one geometry, rule and masses on the GPU (module docstring).
+
+    v: ``(R, N, dim)`` velocities; ``params (R, P)`` each replica's rule params with its threshold last;
+    ``keys (R, 2) uint64`` their counter streams' keys; ``contacts``, ``pattern``, ``masses (N,)`` and
+    ``collide`` as for `chain.DeviceChain`.
+    """
+
+    def __init__(self, v: np.ndarray, params: np.ndarray, keys: np.ndarray, contacts, pattern, masses: np.ndarray,
+                 collide):
+        cuda_ = load()
+        rule = rule_code(collide)
+        if rule is None:
+            raise ValueError("the GPU runs the built-in rules (Elastic, Restitution) only")
+        self.replicas, self.n_balls, self.dim = v.shape
+        self.n_contacts = len(contacts.pairs)
+        rows = pattern is not None
+        table, meta, inverse = (pattern[0], np.array(pattern[1:4], dtype=np.int64), float(pattern[4])) if rows \
+            else (np.zeros(1, dtype=np.int64), np.zeros(3, dtype=np.int64), 1.0)
+        to = cuda_.to_device
+        self._v = to(np.ascontiguousarray(v, dtype=np.float64))
+        self._tables = (to(np.ascontiguousarray(contacts.pairs)), to(np.ascontiguousarray(contacts.ends)), to(table),
+                        to(meta), inverse, to(np.ascontiguousarray(contacts.units, dtype=np.float64)),
+                        to(np.ascontiguousarray(masses, dtype=np.float64)))
+        self._params = to(np.ascontiguousarray(params, dtype=np.float64))
+        self._keys = to(np.ascontiguousarray(keys, dtype=np.uint64))
+        self.state = np.zeros((self.replicas, STATE_SIZE), dtype=np.int64)
+        self.margin = np.tile(np.array([np.inf, 0.0, 0.0, 0.0]), (self.replicas, 1))
+        self._kernel = replicas_kernel(rule, self.dim, bool(contacts.flat), rows)
+        self._cuda = cuda_
+
+    def run(self, limits: np.ndarray, chunk: int) -> None:
+        """Run replica ``r`` to ``limits[r] = (steps, collisions, until_frozen)`` (absolute counts; a replica
+        already there takes no step); `state` and `margin` are updated."""
+        state, margin = self._cuda.to_device(self.state), self._cuda.to_device(self.margin)
+        blocks = -(-self.replicas // REPLICA_BLOCK)
+        with launching():
+            self._kernel[blocks, REPLICA_BLOCK](self._v, *self._tables, self._params, self._keys, state, margin,
+                                                self._cuda.to_device(np.ascontiguousarray(limits, dtype=np.int64)),
+                                                np.int64(chunk))
+            self._cuda.synchronize()
+        self.state[:], self.margin[:] = state.copy_to_host(), margin.copy_to_host()
+
+    def velocities(self, replica: int | None = None) -> np.ndarray:
+        """A host copy of replica ``replica``'s velocities ``(N, dim)``, or of all ``(R, N, dim)``."""
+        return self._v.copy_to_host() if replica is None else self._v[replica].copy_to_host()
