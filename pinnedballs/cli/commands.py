@@ -49,6 +49,10 @@ class UsageError(Exception):
 TRACEBACK = arg("--traceback", action="store_true",
                 help="when a user's code named by the spec fails, print its traceback too (for debugging it)")
 
+DEVICE = arg("--device", choices=("cpu", "cuda"), default="cpu",
+             help="where the chain runs: cpu, or cuda (an NVIDIA GPU, pip install \".[cuda]\"; the counter "
+                  "stream's scheduler, float arithmetic and a built-in rule; the same bits as on the CPU)")
+
 
 # ---------------------------------------------------------------- subcommands
 
@@ -62,7 +66,7 @@ TRACEBACK = arg("--traceback", action="store_true",
                                                       "requeued job)"),
             arg("--quiet", action="store_true", help="no progress bar, no summary"),
             arg("--no-figures", action="store_true", help="write no figures (draw them later with plot)"),
-            TRACEBACK)
+            DEVICE, TRACEBACK)
 def run(args: argparse.Namespace) -> int:
     """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
     (`interrupts.exit_status`)."""
@@ -95,7 +99,8 @@ def _run(args: argparse.Namespace) -> int:
         spec = load_spec(args.spec)
         path = execute(spec, args.out, force=args.force, resume=args.resume, progress=_progress(args),
                        figures=not args.no_figures and _plots_available(), status=status,
-                       log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True))
+                       log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True),
+                       device=args.device)
     if not args.quiet:
         from ..results.load import load
 
@@ -319,7 +324,7 @@ def _plots_available() -> bool:
             arg("--dask", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)"),
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
-            arg("--quiet", action="store_true", help="no progress bar, no summary line"), TRACEBACK)
+            arg("--quiet", action="store_true", help="no progress bar, no summary line"), DEVICE, TRACEBACK)
 def ensemble_command(args) -> int:
     """``pinnedballs ensemble``: exit 0, 1 if a replica failed (after writing the others), 2 on bad input."""
     from .status import Status
@@ -339,6 +344,8 @@ def _ensemble(args, status) -> int:
 
     replicas = _check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
+    if args.device == "cuda" and (args.workers is not None or args.dask is not None):
+        raise InputError("--device cuda runs the replicas on the GPU from this process: give no --workers or --dask")
     if args.workers is not None:
         _check_count("--workers", args.workers)
         if args.dask is not None:
@@ -356,7 +363,7 @@ def _ensemble(args, status) -> int:
     with DirLock(out, "--out"):  # one ensemble at a time writes into a directory
         try:
             result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
-                                  progress=_progress(args))
+                                  progress=_progress(args), device=args.device)
         finally:
             if client is not None:
                 client.close()

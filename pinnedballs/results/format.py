@@ -14,7 +14,9 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                              elapsed_seconds, checkpoints, checked (the snapshot trigger was
                              checked at the state's counts), observables (JSON names),
                              segments (JSON [[file, first, count], ...]),
-                             digests (JSON {file: SHA-256} of static.h5 and every segment)
+                             digests (JSON {file: SHA-256} of static.h5 and every segment),
+                             device ("cpu" | "cuda": where the run's last stretch ran; information only,
+                             absent from files written before 2026-11-27)
     /geometry         -> static.h5: positions (n, k), pairs (E, 2) int32, t_i (E, d), t_j (E, d),
                          masses (n,) [only if given], boundary_distance (n,) and boundary_outward
                          (n, d) [with a boundary], frames (n, d, k) [curved]; attrs radius, view

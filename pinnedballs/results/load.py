@@ -48,6 +48,8 @@ class Results:
     closing_margin: how near its collision criterion the run's picks came, at the latest state
     (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact
     arithmetic, or one begun before runs kept their margin).
+    device: where its last stretch ran, ``"cpu"`` or ``"cuda"`` (information: not part of the spec, and
+    no number depends on it).
     """
 
     path: Path
@@ -73,6 +75,7 @@ class Results:
     run: dict = field(default_factory=dict, repr=False)
     format_version: int = FORMAT_VERSION
     closing_margin: ClosingMargin | None = None
+    device: str = "cpu"
 
     @property
     def velocities(self) -> np.ndarray:
@@ -147,15 +150,16 @@ class Results:
         """A copy of the latest state, for `Simulation.set_state`."""
         return self.latest.copy()
 
-    def simulation(self, *, rule=None, scheduler=None) -> Simulation:
-        """A `Simulation` at the latest state, ready to go on exactly where this run stopped.
+    def simulation(self, *, rule=None, scheduler=None, device: str = "cpu") -> Simulation:
+        """A `Simulation` at the latest state, ready to go on exactly where this run stopped, on ``device``
+        (``"cpu"`` or ``"cuda"``: the same bits on the counter stream, whatever device wrote the file).
 
         A run built in Python with a rule or scheduler that has no spec needs them given. A run
         whose spec names a user's factory (``"kind": "python"``) needs its module importable: an
         `InputError` names the module and how otherwise.
         """
         try:
-            sim = self._build(rule, scheduler)
+            sim = self._build(rule, scheduler, device)
         except SpecError as exc:
             if not exc.path.endswith(".factory") or isinstance(exc, UserCodeError):  # that one names the factory
                 raise
@@ -163,9 +167,9 @@ class Results:
         sim.set_state(self.state())
         return sim
 
-    def _build(self, rule, scheduler) -> Simulation:
+    def _build(self, rule, scheduler, device: str = "cpu") -> Simulation:
         if self.spec is not None:
-            return self.spec.build_with(self.geometry, self.initial_velocities, self.masses)
+            return self.spec.build_with(self.geometry, self.initial_velocities, self.masses, device=device)
         from ..specs import RuleSpec, SchedulerSpec
 
         rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
@@ -173,7 +177,7 @@ class Results:
             _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
         return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"),
-                          resolution=self.run.get("resolution"))
+                          resolution=self.run.get("resolution"), device=device)
 
     def animate(self, out=None, fps: float = 4, max_frames: int | None = None) -> Path:
         """A movie of this run's snapshots (default ``<run dir>/movie.gif``; at most ``max_frames`` frames, 300
@@ -306,6 +310,7 @@ def read(p: Path, f: h5py.File) -> Results:
         latest=latest, run=json.loads(f.attrs.get("run", "") or "{}"), format_version=version,
         closing_margin=None if margin is None else ClosingMargin.of(
             margin, float(s["margin"].attrs["threshold"]), float(s["margin"].attrs["resolution"])),
+        device=str(f.attrs.get("device", "cpu")),
     )
 
 

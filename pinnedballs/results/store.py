@@ -59,10 +59,12 @@ class ResultsStore:
 
     @classmethod
     def create(cls, path: str | os.PathLike, *, spec: str, run: str, geometry: Geometry, masses,
-               initial: Record, version: str, criterion: tuple[float, float] | None = None) -> "ResultsStore":
+               initial: Record, version: str, criterion: tuple[float, float] | None = None,
+               device: str = "cpu") -> "ResultsStore":
         """Write ``static.h5`` and an index with no snapshots. ``spec``: the run spec as JSON, or "";
         ``run``: JSON describing a run built in Python, or ""; ``criterion``: the simulation's
-        ``(threshold, resolution)``, kept with the margin of each state that has one."""
+        ``(threshold, resolution)``, kept with the margin of each state that has one; ``device``: where the
+        run goes (information, in the attribute ``device``)."""
         path = Path(path)
         data = data_dir(path)
         data.mkdir(parents=True, exist_ok=True)
@@ -71,7 +73,7 @@ class ResultsStore:
         now = _now()
         attrs = dict(format=FORMAT, format_version=FORMAT_VERSION, version=version, spec=spec, run=run,
                      status="running", stop_reason="", created=now, updated=now, elapsed_seconds=0.0,
-                     checkpoints=0, checked=False, observables=json.dumps(list(initial.values)))
+                     checkpoints=0, checked=False, observables=json.dumps(list(initial.values)), device=device)
         columns = {k: (v.dtype.str, v.shape) for k, v in initial.values.items()}
         store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static}, criterion=criterion)
         store._write_index(initial, attrs, store.segments, store.digests)

@@ -36,6 +36,7 @@ import numpy as np
 from .._version import __version__
 from ..engine import checks
 from ..engine.errors import InputError
+from ..engine.backends import DEVICES
 from ..engine.limits import check_memory
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
 from ..rules import DEFAULT_RESOLUTION
@@ -45,7 +46,7 @@ from ..engine.atomic import write_text_atomic
 from ..specs.run import RunSpec
 from . import executors
 
-__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_seed", "state_row", "margin_columns",
+__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row", "margin_columns",
            "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS", "ERROR_COLUMN", "FINAL",
            "CORRELATIONS", "TABLE_NAME", "SUMMARY_NAME"]
 
@@ -114,21 +115,25 @@ def run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence | None =
     seed = replica_seed(spec, index) if seed is None else seed
     sim = spec.build(seed=seed)
     sim._margin_warned = True  # the ensemble says once that margins are thin, not each replica (`run_ensemble`)
-    head = _head(index, seed)
     rows: list[dict] = []
     counter = spec.snapshots.counter if spec.snapshots else ""
 
-    def row(at: str, state: dict, frozen: bool, reason: str) -> dict:
-        return {**head, "at": at, "steps": int(state.steps), "collisions": int(state.collisions),
-                "frozen": int(frozen), "stop_reason": reason, **margin_columns(sim, state.margin),
-                **observe(sim.geometry, state.velocities, sim.masses)}
-
     def on_snapshot(record) -> None:
-        rows.append(row(f"{counter}={getattr(record.state, counter)}", record.state, record.frozen, ""))
+        rows.append(replica_row(sim, index, seed, f"{counter}={getattr(record.state, counter)}", record.state,
+                                record.frozen, "", observe))
 
     reason = run_to_stop(spec, sim, on_snapshot=on_snapshot)
-    rows.append(row(FINAL, sim.get_state(), sim.is_frozen(), reason))
+    rows.append(replica_row(sim, index, seed, FINAL, sim.get_state(), sim.is_frozen(), reason, observe))
     return rows
+
+
+def replica_row(sim, index: int, seed: np.random.SeedSequence, at: str, state, frozen: bool, reason: str,
+                observe: Observe = state_row) -> dict:
+    """One row of replica ``index``: `KEY_COLUMNS` of ``state`` (a `RunState`), its margin (`margin_columns`,
+    with ``sim``'s threshold) and ``observe``'s columns of its velocities."""
+    return {**_head(index, seed), "at": at, "steps": int(state.steps), "collisions": int(state.collisions),
+            "frozen": int(frozen), "stop_reason": reason, **margin_columns(sim, state.margin),
+            **observe(sim.geometry, state.velocities, sim.masses)}
 
 
 def _error_row(index: int, seed: np.random.SeedSequence, exc: BaseException) -> dict:
@@ -251,7 +256,8 @@ def _check_replicas_memory(replicas: int, name: str) -> None:
 
 
 def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, dask_address: str | None = None,
-                 cluster=None, progress: bool | None = None, task: Task | None = None) -> EnsembleResult:
+                 cluster=None, progress: bool | None = None, task: Task | None = None,
+                 device: str = "cpu") -> EnsembleResult:
     """Run ``replicas`` independent replicas of ``spec``; see the module docstring for seeds and rows.
 
     Where: ``workers`` local processes (default ``os.cpu_count()``; 1 runs in this
@@ -265,6 +271,11 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     cannot run again: they then start from a fork server, so a script must keep its top level under
     ``if __name__ == "__main__":``, as with any multiprocessing start method but fork.
 
+    ``device="cuda"``: on an NVIDIA GPU (`run.ensemble_gpu`): small systems one replica a GPU thread,
+    large ones one after another on the whole GPU; the same rows as on the CPU for the same seeds. It
+    runs specs a GPU runs (float arithmetic, a built-in rule, ``UniformRandomPair(stream="counter")``),
+    with the built-in task, in this process (``workers`` and Dask do not apply).
+
     Ctrl-C stops it within a second or so and raises KeyboardInterrupt; the replicas done so far
     are discarded (each can be run again alone, `run_replica`, to the same rows). Local processes are
     killed at once; on Dask the jobs not finished are cancelled (one already running on a worker runs
@@ -277,6 +288,9 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     _check_replicas_memory(replicas, "replicas")
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
         raise InputError("workers, dask_address, cluster: give at most one")
+    device = checks.choice("device", device, DEVICES)
+    if device == "cuda" and (task is not None or dask_address is not None or cluster is not None):
+        raise InputError("device: 'cuda' runs the built-in replica task in this process (no task, Dask or cluster)")
     task = run_replica if task is None else task
     seeds = np.random.SeedSequence(spec.seed).spawn(replicas)
     jobs = {k: (_attempt, task, spec, k, seeds[k]) for k in range(replicas)}
@@ -292,7 +306,12 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
             done.append(1)
             bar.update(len(done))
 
-        if dask_address is not None or cluster is not None:
+        if device == "cuda":
+            from .ensemble_gpu import run_on_gpu
+
+            where = "GPU"
+            results = run_on_gpu(spec, seeds, state_row, replica_row, tick)
+        elif dask_address is not None or cluster is not None:
             client, own = executors.dask_client(dask_address, cluster)
             try:
                 where = f"dask {client.scheduler.address}"

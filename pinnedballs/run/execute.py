@@ -69,7 +69,7 @@ def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record
 
 def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, resume: bool = False,
             progress: bool | None = None, figures: bool = True, status=SILENT,
-            log: Callable[[str], None] | None = None) -> Path:
+            log: Callable[[str], None] | None = None, device: str = "cpu") -> Path:
     """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
 
     The spec is built once into what runs it (the simulation, its stop, the writer's trigger),
@@ -87,7 +87,8 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     it to stop at the end of its chunk: the state is saved, marked "interrupted", and `Interrupted`
     raised. A second SIGINT raises KeyboardInterrupt at once, and the state the simulation is in is
     saved the same way. A request that comes as the run finishes leaves it done, without its
-    figures (``pinnedballs plot`` draws them).
+    figures (``pinnedballs plot`` draws them). ``device``: where the chain runs (``"cpu"`` or ``"cuda"``,
+    `Simulation`), recorded as information in the results file; a run may resume on another device.
     """
     out = Path(out_dir)
     path = out / RESULTS_NAME
@@ -101,7 +102,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             spec = spec.seeded()  # a spec without a seed: one drawn now, recorded with the run
             status("building the geometry")
             with signals.at_once():
-                sim = spec.build()
+                sim = spec.build(device=device)
             if spec.trajectory is not None:
                 gsd_layout(sim)  # a trajectory GSD's 32-bit floats cannot hold is refused before anything is written
             if starting is not None and log is not None:
@@ -119,7 +120,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
                 else:
                     status("reading the last checkpoint")
                     with signals.at_once():
-                        sim = _resumed(spec, path)
+                        sim = _resumed(spec, path, device)
                 if sim is not None:         # None: that run had finished
                     _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status,
                            signals.requested)
@@ -138,13 +139,14 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
 
 
 def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resume: bool = False, force: bool = False,
-             progress: bool | None = None, figures: bool = True) -> Results:
+             progress: bool | None = None, figures: bool = True, device: str = "cpu") -> Results:
     """Run a spec (a `RunSpec`, or the path of its JSON file) into the directory ``out``, as
     ``pinnedballs run SPEC --out DIR`` does, and return its `Results`.
 
     The same driver and files as the command line (`execute`): ``resume`` continues the run in
     ``out`` from its last checkpoint, ``force`` replaces a run there; ``progress``: a bar on stderr
-    (None: only when stderr is a terminal); ``figures``: draw the figures beside the results. A bad
+    (None: only when stderr is a terminal); ``figures``: draw the figures beside the results;
+    ``device``: ``"cpu"`` or ``"cuda"`` (`Simulation`). A bad
     spec file raises `SpecError` (a ValueError) with the command line's one line, e.g.
     ``geometry.lenght: unknown key; did you mean 'length'?``.
     """
@@ -154,16 +156,16 @@ def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resum
         spec = load_spec(spec)
     if force and resume:
         raise InputError("force, resume: give one of them, not both")
-    return load(execute(spec, out, force=force, resume=resume, progress=progress, figures=figures))
+    return load(execute(spec, out, force=force, resume=resume, progress=progress, figures=figures, device=device))
 
 
-def _resumed(spec: RunSpec, path: Path) -> Simulation | None:
+def _resumed(spec: RunSpec, path: Path, device: str = "cpu") -> Simulation | None:
     """The simulation at the last checkpoint in ``path`` of the same ``spec``, or None if that run is complete."""
     res = load(path)
     _check_same_run(res, spec)
     if not (path.parent / "spec.json").exists():
         write_text_atomic(path.parent / "spec.json", res.spec.to_json() + "\n")
-    return None if res.complete else res.simulation()
+    return None if res.complete else res.simulation(device=device)
 
 
 def _trajectory(spec: RunSpec, out: Path, fresh: bool) -> list[GSDWriter]:

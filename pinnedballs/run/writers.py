@@ -204,6 +204,7 @@ class ResultsWriter(Writer):
         if self.resume and self.path.exists():
             store = ResultsStore.reopen(self.path)
             _check_continues(store, sim, self.path)
+            store.attrs["device"] = getattr(sim, "device", "cpu")
             self._elapsed0 = float(store.attrs["elapsed_seconds"])
             stored = tuple(json.loads(store.attrs["observables"]))
             if stored != self.names:
@@ -221,7 +222,8 @@ class ResultsWriter(Writer):
         spec = self.spec.model_dump_json() if self.spec is not None else ""
         run = "" if self.spec is not None else json.dumps(describe_run(sim, self))
         return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
-                                   initial=initial, version=__version__, criterion=(sim.threshold, sim.resolution))
+                                   initial=initial, version=__version__, criterion=(sim.threshold, sim.resolution),
+                                   device=getattr(sim, "device", "cpu"))
 
 
 

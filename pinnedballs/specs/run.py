@@ -132,15 +132,16 @@ class RunSpec(_Spec):
             raise SpecError("masses", f"{self.masses}: must all be finite and > 0")
         return m
 
-    def build(self, seed: int | np.random.SeedSequence | None = None) -> Simulation:
+    def build(self, seed: int | np.random.SeedSequence | None = None, device: str = "cpu") -> Simulation:
         """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``
-        (with neither, fresh entropy: see `Simulation`)."""
+        (with neither, fresh entropy: see `Simulation`). ``device``: where it runs (``"cpu"``, ``"cuda"``),
+        not part of the spec: the same spec gives the same bits on either."""
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
             raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
                                     f"got {_short(seed)}")
         if seed is None and self.seed is None:
-            return self.seeded().build()  # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
+            return self.seeded().build(device=device)  # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
             np.random.SeedSequence(self.seed if seed is None else seed)
         geometry = self.geometry.build()
@@ -148,11 +149,12 @@ class RunSpec(_Spec):
         with engine_errors("", {"masses": "masses"}):
             masses_all = mass_array(masses, geometry.n_balls)
         velocities = self.initial.build(geometry, masses_all, seq)
-        return self.build_with(geometry, velocities, masses, seq)
+        return self.build_with(geometry, velocities, masses, seq, device)
 
-    def build_with(self, geometry, velocities, masses, seed: np.random.SeedSequence | None = None) -> Simulation:
+    def build_with(self, geometry, velocities, masses, seed: np.random.SeedSequence | None = None,
+                   device: str = "cpu") -> Simulation:
         """A `Simulation` of this spec's rule, scheduler and seed on a ``geometry``, ``velocities`` and
-        ``masses`` already built (or read back from a results file)."""
+        ``masses`` already built (or read back from a results file), on ``device``."""
         seq = seed if seed is not None else np.random.SeedSequence(self.seed)
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         rule, scheduler = self.rule.build(), self.scheduler.build()
@@ -160,12 +162,12 @@ class RunSpec(_Spec):
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
                                     "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
                                     "resolution": "resolution", "precision": "precision",
-                                    "late_precision": "late_precision"}):
+                                    "late_precision": "late_precision", "device": "device"}):
                 try:
                     return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
                                       masses=masses, seed=seq, arithmetic=self.arithmetic,
                                       resolution=self.resolution, precision=self.precision,
-                                      late_precision=self.late_precision)
+                                      late_precision=self.late_precision, device=device)
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code

@@ -1,0 +1,55 @@
+"""Ensembles on a GPU (`run.ensemble_gpu`, under numba-cuda's simulator): the CPU's rows for the same seeds,
+replica for replica, whatever the stop and the snapshots, one replica a thread or one after another."""
+
+import json
+
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.engine.errors import InputError
+from pinnedballs.run import ensemble_gpu
+from pinnedballs.specs.run import parse_spec
+
+
+def spec(stop, snapshots=None, **more):
+    return parse_spec({"geometry": {"kind": "half_plane", "length": 20, "depth": 10},
+                       "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1],
+                                   "energy": 100},
+                       "scheduler": {"kind": "uniform_random_pair", "stream": "counter"},
+                       "stop": stop, "seed": 3, **({"snapshots": snapshots} if snapshots else {}), **more})
+
+
+def same_rows(a, b) -> bool:
+    """Row for row equal, a NaN equal to a NaN (a correlation over no moving ball)."""
+    return json.dumps(a.rows, sort_keys=True) == json.dumps(b.rows, sort_keys=True)
+
+
+@pytest.mark.parametrize("stop, snapshots", [
+    ({"frozen": True, "max_steps": 10**6}, {"every_steps": 500}),
+    ({"collisions": 150}, {"at_collisions": [0, 100]}),
+    ({"steps": 1700}, None)])
+def test_the_gpu_gives_the_cpus_rows(stop, snapshots):
+    s = spec(stop, snapshots)
+    cpu = pb.run_ensemble(s, 4, workers=1, progress=False)
+    gpu = pb.run_ensemble(s, 4, device="cuda", progress=False)
+    assert gpu.where == "GPU" and not gpu.failures
+    assert same_rows(cpu, gpu)
+
+
+def test_large_systems_run_one_replica_after_another(monkeypatch):
+    monkeypatch.setattr(ensemble_gpu, "MAX_THREAD_CONTACTS", 10)
+    s = spec({"frozen": True, "max_steps": 10**6}, {"every_collisions": 100})
+    assert same_rows(pb.run_ensemble(s, 2, workers=1, progress=False),
+                     pb.run_ensemble(s, 2, device="cuda", progress=False))
+
+
+def test_what_a_gpu_ensemble_refuses():
+    s = spec({"steps": 100})
+    with pytest.raises(InputError, match="device: 'cuda' runs the built-in replica task"):
+        pb.run_ensemble(s, 2, device="cuda", task=pb.run.ensemble.run_replica)
+    with pytest.raises(InputError, match="device: must be 'cpu' or 'cuda'"):
+        pb.run_ensemble(s, 2, device="tpu")
+    xoshiro = spec({"steps": 100}, scheduler={"kind": "uniform_random_pair"})
+    with pytest.raises(ValueError, match="runs UniformRandomPair\\(stream='counter'\\)"):
+        pb.run_ensemble(xoshiro, 2, device="cuda")
