@@ -289,8 +289,10 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
         raise InputError("workers, dask_address, cluster: give at most one")
     device = checks.choice("device", device, DEVICES)
-    if device == "cuda" and (task is not None or dask_address is not None or cluster is not None):
-        raise InputError("device: 'cuda' runs the built-in replica task in this process (no task, Dask or cluster)")
+    observe = _gpu_observe(task) if device == "cuda" else None
+    if device == "cuda" and (observe is None or dask_address is not None or cluster is not None):
+        raise InputError("device: 'cuda' runs the built-in replica task (run_replica, or a functools.partial of it "
+                         "giving observe=) in this process, without Dask or a cluster")
     task = run_replica if task is None else task
     seeds = np.random.SeedSequence(spec.seed).spawn(replicas)
     jobs = {k: (_attempt, task, spec, k, seeds[k]) for k in range(replicas)}
@@ -310,7 +312,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
             from .ensemble_gpu import run_on_gpu
 
             where = "GPU"
-            results = run_on_gpu(spec, seeds, state_row, replica_row, tick)
+            results = run_on_gpu(spec, seeds, observe, replica_row, tick)
         elif dask_address is not None or cluster is not None:
             client, own = executors.dask_client(dask_address, cluster)
             try:
@@ -330,6 +332,19 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     if spec.arithmetic == "float" and spec.resolution is None and result.thin():
         warnings.warn(_thin_note(result), MarginWarning, stacklevel=2)
     return result
+
+
+def _gpu_observe(task: Task | None) -> Observe | None:
+    """The ``observe`` of a task a GPU ensemble can run: `run_replica` itself (`state_row`), or a
+    ``functools.partial(run_replica, observe=f)`` (``f``); None for any other task."""
+    import functools
+
+    if task is None or task is run_replica:
+        return state_row
+    if isinstance(task, functools.partial) and task.func is run_replica and not task.args \
+            and set(task.keywords) <= {"observe"}:
+        return task.keywords.get("observe", state_row)
+    return None
 
 
 def _thin_note(result: EnsembleResult) -> str:

@@ -35,22 +35,23 @@ LAUNCH_STEPS = 1 << 26
 
 def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Callable[[], None]) -> dict[int, list]:
     """The rows of replicas ``0 .. len(seeds) - 1`` of ``spec``, by replica. ``row_of(sim, index, seed, at,
-    state, frozen, reason)`` builds one row (`ensemble.run_replica`'s), ``tick()`` is told of each replica done."""
+    state, frozen, reason, observe)`` builds one row (`ensemble.replica_row`) with ``observe``'s columns,
+    ``tick()`` is told of each replica done."""
     from ..engine.backends import check_device
 
     proto = spec.build(seed=seeds[0])
     check_device(proto)  # floats, a built-in rule, the counter stream, numba-cuda and a GPU: or one line why
     if proto.geometry.n_contacts > MAX_THREAD_CONTACTS:
-        return _one_at_a_time(spec, seeds, row_of, tick)
+        return _one_at_a_time(spec, seeds, observe, row_of, tick)
     out: dict[int, list] = {}
     for group in _groups(len(seeds), proto):
-        out.update(_Group(spec, proto, [(k, seeds[k]) for k in group], row_of).run())
+        out.update(_Group(spec, proto, [(k, seeds[k]) for k in group], observe, row_of).run())
         for _ in group:
             tick()
     return out
 
 
-def _one_at_a_time(spec, seeds, row_of, tick) -> dict[int, list]:
+def _one_at_a_time(spec, seeds, observe, row_of, tick) -> dict[int, list]:
     from ..engine.driver import drive
     from ..results.format import Record
     from .writers import OnSnapshot
@@ -63,11 +64,11 @@ def _one_at_a_time(spec, seeds, row_of, tick) -> dict[int, list]:
 
         def on_snapshot(record: Record) -> None:
             rows.append(row_of(sim, k, seed, f"{counter}={getattr(record.state, counter)}", record.state,
-                               record.frozen, ""))
+                               record.frozen, "", observe))
 
         writers = [OnSnapshot(spec.snapshots.build(), on_snapshot)] if spec.snapshots else []
         reason = drive(sim, spec.stop.build(), writers)
-        rows.append(row_of(sim, k, seed, "final", sim.get_state(), sim.is_frozen(), reason))
+        rows.append(row_of(sim, k, seed, "final", sim.get_state(), sim.is_frozen(), reason, observe))
         out[k] = rows
         tick()
     return out
@@ -92,10 +93,11 @@ def _groups(count: int, proto) -> list[range]:
 class _Group:
     """Replicas of one spec on the GPU, each driven to its snapshots and its stop (module docstring)."""
 
-    def __init__(self, spec, proto, members: list, row_of: Callable):
+    def __init__(self, spec, proto, members: list, observe: Callable, row_of: Callable):
         from ..engine.gpu.replicas import ReplicaChains
 
         self.spec, self.proto, self.members, self.row_of = spec, proto, members, row_of
+        self.observe = observe
         g, masses = proto.geometry, proto._mass_array
         v, params, keys, self.views = [], [], [], []
         for k, seed in members:
@@ -174,10 +176,11 @@ class _Group:
                 state = self._state(r, v)
                 k, seed = self.members[r]
                 rows[r].append(self.row_of(self.views[r], k, seed, f"{self.counter}={getattr(state, self.counter)}",
-                                           state, self._live(v) == 0, ""))
+                                           state, self._live(v) == 0, "", self.observe))
             checked[r] = now
 
     def _finish(self, rows, r: int, reason: str) -> None:
         v = self.chains.velocities(r)
         k, seed = self.members[r]
-        rows[r].append(self.row_of(self.views[r], k, seed, "final", self._state(r, v), self._live(v) == 0, reason))
+        rows[r].append(self.row_of(self.views[r], k, seed, "final", self._state(r, v), self._live(v) == 0, reason,
+                                   self.observe))

@@ -1,6 +1,7 @@
 """Ensembles on a GPU (`run.ensemble_gpu`, under numba-cuda's simulator): the CPU's rows for the same seeds,
 replica for replica, whatever the stop and the snapshots, one replica a thread or one after another."""
 
+import functools
 import json
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import pinnedballs as pb
 from pinnedballs.engine.errors import InputError
 from pinnedballs.run import ensemble_gpu
+from pinnedballs.run.ensemble import run_replica
 from pinnedballs.specs.run import parse_spec
 
 
@@ -44,10 +46,20 @@ def test_large_systems_run_one_replica_after_another(monkeypatch):
                      pb.run_ensemble(s, 2, device="cuda", progress=False))
 
 
+def test_a_task_that_observes_more_runs_on_the_gpu_too():
+    def observe(geometry, velocities, masses):
+        return {"largest_speed": float(np.sqrt((velocities**2).sum(axis=1)).max())}
+
+    s = spec({"frozen": True, "max_steps": 10**6}, {"every_steps": 700})
+    task = functools.partial(run_replica, observe=observe)
+    assert same_rows(pb.run_ensemble(s, 3, workers=1, progress=False, task=task),
+                     pb.run_ensemble(s, 3, device="cuda", progress=False, task=task))
+
+
 def test_what_a_gpu_ensemble_refuses():
     s = spec({"steps": 100})
     with pytest.raises(InputError, match="device: 'cuda' runs the built-in replica task"):
-        pb.run_ensemble(s, 2, device="cuda", task=pb.run.ensemble.run_replica)
+        pb.run_ensemble(s, 2, device="cuda", task=lambda spec, index, seed: [])
     with pytest.raises(InputError, match="device: must be 'cpu' or 'cuda'"):
         pb.run_ensemble(s, 2, device="tpu")
     xoshiro = spec({"steps": 100}, scheduler={"kind": "uniform_random_pair"})
