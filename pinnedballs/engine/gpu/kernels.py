@@ -145,13 +145,13 @@ def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "gr
         smallest, largest, near_hits, near_rest = INF, 0.0, 0.0, 0.0
         last = np.int64(0)
         made = np.int64(0)
+        done, g = ctl[C_DONE], ctl[C_GEN]  # every thread follows both: only the collisions are read back
         while True:
-            done, before = ctl[C_DONE], ctl[C_COLL]
+            before = ctl[C_COLL]
             if done >= count or before >= maxc:
                 break
             kb = min(size, count - done)
             s0 = step0 + done
-            g = ctl[C_GEN]
             if g < 1:  # the generations ran out: every owner word free again
                 for ball in range(tid, n_balls, nthr):
                     own0[ball] = EMPTY
@@ -260,14 +260,14 @@ def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "gr
                 cuda.atomic.add(ctl, C_COLL, shared[2])
                 shared[2] = 0
             sync(bar)
-            if tid == 0:
-                ctl[C_DONE] = done + kb
+            done += kb
+            if tid == 0:  # for the host (the threads read only the collisions, after the next barrier)
+                ctl[C_DONE] = done
                 ctl[C_GEN] = g
                 ctl[C_BATCH_S0] = s0
                 ctl[C_BATCH_C0] = before
                 ctl[C_BATCHES] += 1
                 ctl[C_ROUNDS] += r
-            sync(bar)
         cuda.atomic.min(shared_m, 0, smallest)
         cuda.atomic.max(shared_m, 1, largest)
         cuda.atomic.add(shared_m, 2, near_hits)
