@@ -391,7 +391,12 @@ def _ensemble(args, status) -> int:
                      "counts of 1000x500 and 6 the 2000x1000 half-plane; with --quick under a minute)"),
             arg("--workers", type=int, metavar="K", help="local processes for the ensembles (default: all cores)"),
             arg("--force", action="store_true", help="write into a non-empty directory"),
-            arg("--quiet", action="store_true", help="no progress messages"))
+            arg("--quiet", action="store_true", help="no progress messages"),
+            arg(*DEVICE[0], **{**DEVICE[1], "help": (
+                "cpu, or cuda (an NVIDIA GPU, pip install \".[cuda]\"): the paper's figures keep their published "
+                "seeds on the xoshiro stream and run on the CPU; --extended's scaling study runs on the counter stream "
+                "(the same law, other picks) on the GPU, up to 4000x2000 without --quick (measured figures: "
+                "docs/gpu.md), its exact counts (certified arithmetic) on the CPU")}))
 def reproduce_command(args) -> int:
     """``pinnedballs reproduce``: exit 0, 1 if a replica failed (the report is still written), 2 on bad input."""
     from .status import Status
@@ -408,7 +413,7 @@ def reproduce_command(args) -> int:
     shown = status.shown  # the stages and bars on a terminal only
     log = (lambda message: print(message, file=sys.stderr, flush=True)) if shown else None
     report = reproduction.reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
-                       progress=shown, log=log, extended=args.extended)
+                       progress=shown, log=log, extended=args.extended, device=args.device)
     results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
     if not args.quiet:
         print(f"wrote {report} in {results['wall_seconds']:.1f} s")

@@ -12,7 +12,9 @@ from typing import Callable
 import numpy as np
 
 from ..run import ensemble as ens
+from ..engine.checks import choice
 from ..engine.atomic import write_text_atomic
+from ..engine.backends import DEVICES, check_device
 from ..results.rundir import DirLock, check_out_dir
 from ..specs.run import RunSpec
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
@@ -20,7 +22,8 @@ from .figures import (_far_share_figure, _figure_paper_lattice, _figure_sizes, _
                       _figures_half_plane, _figures_torus, _frozen_collisions_figure)
 from .plan import (FULL, QUICK, REPORT_NAME, Plan, _Run, _check_plan, _label, _sizes, half_plane_spec,
                    paper_lattice_row, paper_lattice_spec, torus_row, torus_spec)
-from .extended.plan import EXTENDED_FULL, EXTENDED_QUICK, ExtendedPlan, check_extended_plan
+from .extended.plan import EXTENDED_FULL, EXTENDED_GPU, EXTENDED_QUICK, ExtendedPlan, check_extended_plan
+from .extended.scaling_study import scaling_spec
 from .extended.run import run_extended
 from .extended.report import extended_section
 from .report import _report
@@ -45,7 +48,7 @@ def _single(spec: RunSpec) -> _Run:
 
 def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool = False, workers: int | None = None,
               progress: bool | None = False, log: Callable[[str], None] | None = None,
-              extended: bool | ExtendedPlan = False, **overrides) -> Path:
+              extended: bool | ExtendedPlan = False, device: str = "cpu", **overrides) -> Path:
     """Run ``plan`` (default `QUICK` if ``quick`` else `FULL`, with ``overrides`` of its fields) into ``out``.
 
     Writes the PNGs of `expected_figures`, ``report.md``, ``results.json``, the specs
@@ -55,18 +58,26 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     table each in the report and ``results.json["extended"]``.
     ``workers``: local processes for the ensembles (default all cores). Refuses a
     non-empty ``out`` without ``force`` (`InputError`).
+    ``device="cuda"``: every ensemble whose spec a GPU runs (float arithmetic on the counter stream: the
+    extended scaling study, whose plan is then ``EXTENDED_GPU``, or the plan given, on the counter stream)
+    runs on the GPU; the rest, the paper's figures with their published seeds on the xoshiro stream among
+    them, on the CPU as with ``device="cpu"``. The log says so once.
     """
     from ..analysis import observables as obs
 
     t0 = time.perf_counter()
     plan = dataclasses.replace(plan or (QUICK if quick else FULL), **overrides)
     _check_plan(plan)
-    xplan = (EXTENDED_QUICK if quick else EXTENDED_FULL) if extended is True else (extended or None)
+    device = choice("device", device, DEVICES)
+    xplan = _extended_plan(extended, quick, device)
     if xplan is not None:
         check_extended_plan(xplan)
     out = check_out_dir(out, force)
     say = log or (lambda message: None)
     say_t = lambda message: say(f"[{time.perf_counter() - t0:6.1f} s] {message}")  # noqa: E731
+    if device == "cuda":
+        _check_gpu(xplan)  # numba-cuda and a GPU, before anything runs
+        say(_device_note(xplan))
     # every spec is built (and so validated) before anything is written
     detail_steps = half_plane_spec(plan.detail, plan, {"at_steps": list(plan.steps)})
     detail_collisions = half_plane_spec(plan.detail, plan, {"at_collisions": [plan.collisions]})
@@ -87,13 +98,14 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
             write_text_atomic(out / "specs" / f"{name}.json", spec.to_json() + "\n")
 
         checks: list[Check] = []
-        results: dict = {"plan": dataclasses.asdict(plan)}
+        results: dict = {"plan": dataclasses.asdict(plan), "device": device}
         failures: list[dict] = []
-        run_ensemble = functools.partial(ens.run_ensemble, workers=workers, progress=progress)
 
         def ensemble(name: str, spec: RunSpec, replicas: int, **kwargs) -> ens.EnsembleResult:
-            say_t(f"ensemble {name}: {replicas} replicas")
-            result = run_ensemble(spec, replicas, **kwargs)
+            on_gpu = device == "cuda" and _runs_on_gpu(spec)
+            say_t(f"ensemble {name}: {replicas} replicas{' on the GPU' if on_gpu else ''}")
+            where = {"device": "cuda"} if on_gpu else {"workers": workers}
+            result = ens.run_ensemble(spec, replicas, progress=progress, **where, **kwargs)
             ens.write_outputs(result, out / "ensembles" / name, figures=False)
             failures.extend({"ensemble": name, **row} for row in result.failures)
             return result
@@ -165,6 +177,38 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         say_t(f"wrote {report}")
         return report
 
+
+
+def _extended_plan(extended: bool | ExtendedPlan, quick: bool, device: str) -> ExtendedPlan | None:
+    """The extended studies' plan: for True ``EXTENDED_QUICK`` if ``quick`` else the full plan of ``device``
+    (``EXTENDED_GPU`` on cuda), or the plan given; on cuda its scaling study on the counter stream. None: none."""
+    if extended is False or extended is None:
+        return None
+    if extended is True:
+        extended = EXTENDED_QUICK if quick else (EXTENDED_GPU if device == "cuda" else EXTENDED_FULL)
+    return dataclasses.replace(extended, stream="counter") if device == "cuda" else extended
+
+
+def _runs_on_gpu(spec: RunSpec) -> bool:
+    """Whether ``device="cuda"`` runs ``spec``'s ensemble on the GPU: float arithmetic on the counter stream
+    (`engine.backends.check_device`; anything else it asks of a spec, it refuses in `run_ensemble` itself)."""
+    return spec.arithmetic == "float" and getattr(spec.scheduler, "stream", None) == "counter"
+
+
+def _check_gpu(xplan: ExtendedPlan | None) -> None:
+    """A `FieldError` on ``device`` now, not after the paper's sections, when no GPU can run the scaling study."""
+    if xplan is not None:
+        length, depth, _ = xplan.scaling[0]
+        check_device(scaling_spec(length, depth, xplan).build())
+
+
+def _device_note(xplan: ExtendedPlan | None) -> str:
+    """The log's one line on what runs where with ``device="cuda"``."""
+    paper = "device cuda: the paper's figures keep their published seeds on the xoshiro stream and run on the CPU"
+    if xplan is None:
+        return paper + "; nothing else runs here (the GPU runs the extended scaling study: extended=True, --extended)"
+    return (paper + "; the scaling study runs on the GPU on the counter stream (its exact counts, certified "
+            "arithmetic, on the CPU on the same picks), the other extended studies on the CPU")
 
 
 def _plain(value):

@@ -39,7 +39,7 @@ def _scaling(x: dict) -> list[str]:
                          f"(chi²/dof {f['chi2_per_dof']:.2f}, {f['points']} sizes)" for what, f in fits.items())
     return ["### Scaling: until frozen against the number of balls", "",
             "Half-plane `HalfPlane.from_size(L, D)`, the boundary-centre ball moving inward with energy 100, "
-            "`UniformRandomPair` (the paper's chain), run until frozen.", "",
+            "`UniformRandomPair` (the paper's chain), run until frozen.", "", *_stream(x),
             *_table(["L x D", "rows x cols", "balls N", "replicas", "frozen", "collisions (mean)", "collisions (sd)",
                      "steps (mean)", "boundary share", "far-half share", "thin margins", "smallest collision",
                      "largest remnant", "near collisions (mean)", "wall s"], rows),
@@ -56,25 +56,54 @@ def _scaling(x: dict) -> list[str]:
                  if f["chi2_per_dof"] > 3 else ".") for what, f in fits.items()], "", *_exact_counts(x)]
 
 
+def _stream(x: dict) -> list[str]:
+    """Which stream the scaling study drew its picks from, and where each count ran."""
+    stream = x.get("scaling_stream", "xoshiro")  # results written before the plan had a stream: xoshiro
+    ran_on = x.get("scaling_ran_on", {})
+    on = lambda where: "the GPU" if where == "GPU" else f"the CPU ({where})"  # noqa: E731 (`EnsembleResult.where`)
+    where = "; ".join(f"{label} on {', '.join(map(on, ran_on[key]))}" for key, label in (
+        ("float", "float counts"), ("exact", "exact counts (certified arithmetic)"), ("N_e", "N_e")) if ran_on.get(key))
+    if stream == "counter":
+        head = ("Picks from the **counter stream** (`UniformRandomPair(stream=\"counter\")`, Philox: the pick of "
+                "step s a function of the seed and s), the stream a GPU runs with the CPU's bits: these are "
+                "counter-stream replicas, the same law as the default xoshiro stream's but other picks, so each "
+                "replica's counts differ from a CPU run's on the xoshiro stream with the same seed.")
+    else:
+        head = "Picks from the **xoshiro stream** (the default: every published seed's bits)."
+    return [head + (f" Ran: {where}." if where else ""), ""]
+
+
 def _exact_counts(x: dict) -> list[str]:
     """The exact count, the float count and N_e side by side, their local exponents, and the verdict."""
-    rows = [r for r in x["scaling"] if "exact_collisions_mean" in r]
+    names = [n for n in x.get("scaling_counts", {}) if n != "exact"]
+    # the sizes counted exactly or as N_e (N_e may reach beyond the exact count: `ExtendedPlan.resolution_max_balls`)
+    rows = [r for r in x["scaling"] if any(f"{n}_collisions_mean" in r for n in ("exact", *names))]
     if not rows:
         return []
-    names = [n for n in x.get("scaling_counts", {}) if n != "exact"]
-    count = lambda r, n: (f"{r[f'{n}_collisions_mean']:,.0f} ± {_f(r[f'{n}_collisions_se'], ',.0f')}"  # noqa: E731
-                          + ("" if r[f"{n}_replicas"] == r["replicas"] else f" ({r[f'{n}_replicas']} replicas)"))
+
+    def count(r: dict, n: str) -> str:
+        if f"{n}_collisions_mean" not in r:
+            return "—"
+        return (f"{r[f'{n}_collisions_mean']:,.0f} ± {_f(r[f'{n}_collisions_se'], ',.0f')}"
+                + ("" if r[f"{n}_replicas"] == r["replicas"] else f" ({r[f'{n}_replicas']} replicas)"))
+
+    def exact(r: dict) -> tuple[str, str, str]:
+        """The float misses, the smallest genuine collision and the wall time of a size's exact count."""
+        if "exact_collisions_mean" not in r:
+            return "—", "—", "—"
+        return (f"{100 * r['float_misses_mean']:.3f} % (max {100 * r['float_misses_max']:.3f} %)",
+                _f(r["exact_smallest_collision_min"], ".2g") + " T", f"{r['exact_seconds']:.1f}")
+
     table = [[f"{r['length']:g}x{r['depth']:g}", f"{r['balls']:,}", str(r["replicas"]), count(r, "exact"),
-              f"{r['collisions_mean']:,.0f} ± {_f(r['collisions_se'], ',.0f')}",
-              f"{100 * r['float_misses_mean']:.3f} % (max {100 * r['float_misses_max']:.3f} %)",
-              _f(r["exact_smallest_collision_min"], ".2g") + " T", *[count(r, n) for n in names],
-              f"{r['exact_seconds']:.1f}"] for r in rows]
-    local = [("float", {"local_exponents": x["scaling_fit"]["collisions"]["local_exponents"][:len(rows) - 1],
-                        "local_exponents_se": x["scaling_fit"]["collisions"]["local_exponents_se"][:len(rows) - 1]}),
-             *x["scaling_counts"].items()]
+              f"{r['collisions_mean']:,.0f} ± {_f(r['collisions_se'], ',.0f')}", *exact(r)[:2],
+              *[count(r, n) for n in names], exact(r)[2]] for r in rows]
+    # each count's local exponents, by the pair of sizes (in balls) they lie between
+    local = [("float", _by_pair(x["scaling"], x["scaling_fit"]["collisions"])),
+             *((n, _by_pair([r for r in x["scaling"] if f"{n}_collisions_mean" in r], f))
+               for n, f in x["scaling_counts"].items())]
     pairs = [[f"{a['length']:g}x{a['depth']:g} and {b['length']:g}x{b['depth']:g}",
-              *[f"{f['local_exponents'][k]:.3f} ± {f['local_exponents_se'][k]:.3f}" for _, f in local]]
-             for k, (a, b) in enumerate(zip(rows, rows[1:]))]
+              *[by_pair.get((a["balls"], b["balls"]), "—") for _, by_pair in local]]
+             for a, b in zip(rows, rows[1:])]
     labels = {"float": "float", "exact": "exact", **{n: f"N_e, e = {n[2:]}" for n in names}}
     return ["#### Exact counts beside the float count", "",
             "The same seeds counted three ways: exactly (`arithmetic=\"certified\"`: every decision proven, so the "
@@ -88,6 +117,12 @@ def _exact_counts(x: dict) -> list[str]:
                      *[labels[n] for n in names], "exact s"], table),
             "Local exponents of each count between consecutive sizes (± se from the replicas):", "",
             *_table(["between", *[labels[n] for n, _ in local]], pairs), *_verdict(x["scaling_verdict"]), ""]
+
+
+def _by_pair(rows: list[dict], f: dict) -> dict[tuple[int, int], str]:
+    """``{(balls, balls of the next size): "slope ± se"}``: the local exponents ``f`` of consecutive ``rows``."""
+    return {(a["balls"], b["balls"]): f"{e:.3f} ± {se:.3f}"
+            for a, b, e, se in zip(rows, rows[1:], f["local_exponents"], f["local_exponents_se"])}
 
 
 def _verdict(v: dict) -> list[str]:

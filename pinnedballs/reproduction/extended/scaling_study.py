@@ -6,7 +6,8 @@ margin of each size's counts (`engine.margin`: how near the float criterion thei
 Up to `ExtendedPlan.exact_max_balls` each size is counted three ways on the same seeds: by the float
 chain (the paper's criterion, 4 ulp), exactly (``arithmetic="certified"``: every decision proven,
 docs/collisions.md), and by the float chain at each coarser criterion e of `ExtendedPlan.resolutions`
-(the model N_e); each count has its local exponents."""
+(the model N_e, up to `ExtendedPlan.resolution_limit`); each count has its local exponents. Every count
+draws its picks from `ExtendedPlan.stream` (the counter stream: what a GPU runs)."""
 
 from __future__ import annotations
 
@@ -36,17 +37,19 @@ def scaling_spec(length: float, depth: float, plan: ExtendedPlan, **counting) ->
     """Half-plane ``length x depth``: the boundary-centre ball moving inward, the paper's chain
     (`UniformRandomPair` on one thread, since the ensemble runs replicas side by side; until frozen it runs
     untracked, 4-5x faster than `RejectionFree` on these half-planes, docs/performance.md), until frozen.
-    ``counting``: ``arithmetic=``, ``late_precision=`` and ``resolution=`` of the spec (default: float, the
-    paper's criterion)."""
+    The picks come from ``plan.stream``. ``counting``: ``arithmetic=``, ``late_precision=`` and
+    ``resolution=`` of the spec (default: float, the paper's criterion)."""
     spec = _inward_spec({"kind": "half_plane", "length": float(length), "depth": float(depth)}, plan,
                         f"scaling: half-plane {length:g}x{depth:g}", "uniform_random_pair")
-    return spec.model_copy(update={"scheduler": spec.scheduler.model_copy(update={"threads": 1}), **counting})
+    scheduler = spec.scheduler.model_copy(update={"threads": 1, "stream": plan.stream})
+    return spec.model_copy(update={"scheduler": scheduler, **counting})
 
 
 def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
     """Collisions and steps until frozen against balls; exponents; the energy profile by decile of depth;
-    the exact count and N_e beside the float count up to `ExtendedPlan.exact_max_balls`."""
-    rows, profiles = [], {}
+    the exact count and N_e beside the float count up to `ExtendedPlan.exact_max_balls` (N_e up to
+    `ExtendedPlan.resolution_limit`); the stream and where each count ran (``ran_on``: `EnsembleResult.where`)."""
+    rows, profiles, ran_on = [], {}, {"float": [], EXACT: [], "N_e": []}
     for length, depth, replicas in plan.scaling:
         spec = scaling_spec(length, depth, plan)
         g = spec.build().geometry
@@ -57,8 +60,8 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
                **_frozen_row(res), **_margin_row(res), "seconds": time.perf_counter() - t0}
         row["collisions_se"] = row["collisions_sd"] / math.sqrt(row["replicas"])
         row["steps_se"] = row["steps_sd"] / math.sqrt(row["replicas"])
-        if g.n_balls <= plan.exact_max_balls:
-            row.update(_other_counts(plan, length, depth, replicas, name, res, ensemble))
+        _ran(ran_on, "float", res)
+        row.update(_other_counts(plan, length, depth, replicas, name, res, ensemble, g.n_balls, ran_on))
         rows.append(row)
         profiles[f"{length:g}x{depth:g}"] = _profile(res, "decile_")
     fits = {what: fit_exponent([r["balls"] for r in rows], [r[f"{what}_mean"] for r in rows],
@@ -70,22 +73,33 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
     figures = [_scaling_figure(rows, fits, counted, out / "extended_scaling.png"),
                _profiles_figure(profiles, out / "extended_scaling_profiles.png")]
     return {"rows": rows, "fit": fits, "counts": counted, "verdict": exact_verdict(rows, fits),
-            "profiles": profiles, "figures": figures}
+            "profiles": profiles, "stream": plan.stream, "ran_on": ran_on, "figures": figures}
+
+
+def _ran(ran_on: dict[str, list[str]], count: str, res: ens.EnsembleResult) -> None:
+    """Add where ``res`` ran (`EnsembleResult.where`) to ``ran_on[count]``, once."""
+    if res.where not in ran_on[count]:
+        ran_on[count].append(res.where)
 
 
 def _other_counts(plan: ExtendedPlan, length: float, depth: float, replicas: int, name: str,
-                  floats: ens.EnsembleResult, ensemble: Ensemble) -> dict:
-    """The exact count (certified arithmetic) and N_e of one size on the float ensemble's seeds: for each,
+                  floats: ens.EnsembleResult, ensemble: Ensemble, balls: int, ran_on: dict[str, list[str]]) -> dict:
+    """The exact count (certified arithmetic; up to `ExtendedPlan.exact_max_balls`) and N_e (up to
+    `ExtendedPlan.resolution_limit`) of one size of ``balls`` balls on the float ensemble's seeds: for each,
     mean, sd and se of the collisions, replicas counted, and the seconds it took; for the exact count also
     the float chain's misses per replica (``float_misses_*``: exact minus float, over the exact count) and
     the smallest genuine closing speed over the replicas, in thresholds of the float criterion."""
     out: dict = {}
-    counts = [(EXACT, {"arithmetic": "certified", "late_precision": plan.exact_late_precision})] + [
-        (count_name(e), {"resolution": e}) for e in plan.resolutions]
+    counts = []
+    if balls <= plan.exact_max_balls:
+        counts.append((EXACT, {"arithmetic": "certified", "late_precision": plan.exact_late_precision}))
+    if balls <= plan.resolution_limit():
+        counts += [(count_name(e), {"resolution": e}) for e in plan.resolutions]
     for count, counting in counts:
         t0 = time.perf_counter()
         task = {"task": certified_replica} if count == EXACT else {}
         res = ensemble(f"{name}_{count}", scaling_spec(length, depth, plan, **counting), replicas, **task)
+        _ran(ran_on, EXACT if count == EXACT else "N_e", res)
         collisions = res.column("collisions")
         mean, sd, se = _stats(collisions)
         out.update({f"{count}_collisions_mean": mean, f"{count}_collisions_sd": sd, f"{count}_collisions_se": se,
