@@ -124,9 +124,12 @@ def test_a_state_resumed_on_the_gpu_goes_on_bit_for_bit():
     assert state(later) == state(whole)
 
 
-def test_replicas_one_thread_each_are_the_cpus_simulations():
+@pytest.mark.parametrize("layout", ["block", "thread"])
+def test_replicas_are_the_cpus_simulations(layout, monkeypatch):
     """Each replica runs to its own limits (frozen, a step count, a collision target) and ends as the CPU's
-    simulation with its seed: velocities, counters, margin."""
+    simulation with its seed: velocities, counters, margin; one a block (its lanes running batches of steps)
+    or one a thread."""
+    monkeypatch.setenv("PINNEDBALLS_GPU_REPLICAS", layout)
     g = pb.HalfPlane.from_size(20, 10)
     seeds = np.random.SeedSequence(3).spawn(4)
     sims = [pb.Simulation(g, single(g), scheduler=COUNTER, seed=s) for s in seeds]
@@ -192,7 +195,7 @@ dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability
 from numba import cuda
 from numba.cuda import types as T
 from pinnedballs.engine.gpu.kernels import chain_kernel, live_kernel
-from pinnedballs.engine.gpu.replicas import replicas_kernel
+from pinnedballs.engine.gpu.replicas import lanes_kernel, replicas_kernel
 A = lambda dt, nd: T.Array(dt, nd, "C")
 f64, i64, u64, u32 = T.float64, T.int64, T.uint64, T.uint32
 tables = (A(u32, 2), A(T.uint8, 2), A(i64, 1), A(i64, 1), f64, A(f64, 2), A(f64, 1))
@@ -203,7 +206,9 @@ for rule in (0, 1, 2):
                         (chain_kernel(rule, 3, False, False, "grid"), chain),
                         (live_kernel(rule, 2, True, False), (A(f64, 2), *tables, A(f64, 1), i64, A(i64, 1))),
                         (replicas_kernel(rule, 2, True, False), (A(f64, 3), *tables, A(f64, 2), A(u64, 2), A(i64, 2),
-                                                                 A(f64, 2), A(i64, 2), i64))):
+                                                                 A(f64, 2), A(i64, 2), i64)),
+                        (lanes_kernel(rule, 3, False, True), (A(f64, 3), *tables, A(f64, 2), A(u64, 2), A(i64, 2),
+                                                              A(f64, 2), A(i64, 2), i64))):
         ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=(9, 0))
         print(rule, len(re.findall(r"\bfma\.[a-z.]*f64", ptx)), len(re.findall(r"\bmul\.rn\.f64", ptx)))
 """
@@ -218,5 +223,5 @@ def test_the_kernels_round_every_operation_as_the_cpu_does():
                          env={"NUMBA_ENABLE_CUDASIM": "0", "PATH": "/usr/bin:/bin", "HOME": str(ROOT)})
     assert out.returncode == 0, out.stderr[-3000:]
     lines = [line.split() for line in out.stdout.splitlines()]
-    assert len(lines) == 12
+    assert len(lines) == 15
     assert all(fma == "0" and int(mul) > 0 for _, fma, mul in lines), out.stdout

@@ -14,6 +14,7 @@ per-replica thresholds, and runs them all, each to its own limits, in one launch
 from __future__ import annotations
 
 import functools
+import os
 
 import numpy as np
 from numba import cuda
@@ -125,6 +126,147 @@ def replicas_kernel(rule: int, dim: int, flat: bool, rows: bool):
     return run
 
 
+#: lanes of a block that runs one replica (`lanes_kernel`): a batch of this many steps at a time
+LANES = 8 if SIMULATED else 32
+#: how replicas are laid out on the GPU: ``"thread"`` (`replicas_kernel`) or ``"block"`` (`lanes_kernel`);
+#: ``PINNEDBALLS_GPU_REPLICAS`` overrides it (the bits are the same)
+LAYOUT = "block"
+
+
+@functools.cache
+def lanes_kernel(rule: int, dim: int, flat: bool, rows: bool):
+    """`replicas_kernel`'s work with one block of `LANES` threads a replica: each batch of up to `LANES`
+    steps is decoded one step a lane and run by deterministic reservations within the block (a lane runs
+    its pick when no earlier pending pick of the batch shares a ball with it; most batches need one round),
+    then lane 0 counts the batch's collisions and folds its closing speeds into the margin in step order.
+    A batch never passes the collision target (it holds one step when fewer collisions are left than lanes),
+    the freeze scan is shared by the lanes, and the chunk that froze ends at its last collision, as on the
+    CPU."""
+    collide, contact = collider(rule, dim, flat), contact_reader(rows)
+    L = LANES
+
+    @cuda.jit
+    def run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk):
+        r = cuda.blockIdx.x
+        t = cuda.threadIdx.x
+        if r >= V.shape[0]:
+            return
+        si = cuda.shared.array(L, np.int64)
+        sj = cuda.shared.array(L, np.int64)
+        sa = cuda.shared.array(L, np.int64)
+        sb = cuda.shared.array(L, np.int64)
+        waiting = cuda.shared.array(L, np.int32)
+        hits = cuda.shared.array(L, np.int32)
+        speeds = cuda.shared.array(L, np.float64)
+        ctl = cuda.shared.array(8, np.int64)  # steps, collisions, last, frozen, live found, made
+        v, params = V[r], P[r]
+        n_contacts = pairs.shape[0]
+        n = np.uint64(n_contacts)
+        k0, k1, tau = keys[r, 0], keys[r, 1], params[1]
+        max_steps, max_collisions, until_frozen = limits[r, 0], limits[r, 1], limits[r, 2] != 0
+        m0, m1, m2, m3 = M[r, 0], M[r, 1], M[r, 2], M[r, 3]  # lane 0's
+        at1, at3 = m1, m3
+        hint = max(state[r, S_HINT], 0)
+        if t == 0:
+            ctl[0], ctl[1], ctl[2], ctl[3] = state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST], 0
+        cuda.syncthreads()
+        if until_frozen:
+            hint = scan(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, hint, ctl, t)
+            if t == 0 and hint < 0:
+                ctl[3] = 1
+            cuda.syncthreads()
+        while ctl[3] == 0 and ctl[0] < max_steps and ctl[1] < max_collisions:
+            end = min(ctl[0] + chunk, max_steps)
+            if t == 0:
+                ctl[5] = 0
+                at1, at3 = m1, m3
+            cuda.syncthreads()
+            while ctl[0] < end and ctl[1] < max_collisions:
+                s0 = ctl[0]
+                kb = min(L, end - s0) if max_collisions - ctl[1] >= L else 1
+                waiting[t] = 0
+                hits[t] = 0
+                if t < kb:
+                    s = s0 + t
+                    w0, w1, w2, w3 = philox_block(np.uint64(s >> 2), _U0, _U0, _U0, k0, k1)
+                    e = s & 3
+                    c, accepted = lemire(w0 if e == 0 else (w1 if e == 1 else (w2 if e == 2 else w3)), n)
+                    if not accepted:
+                        c = counter_pick(k0, k1, np.uint64(s), n)
+                    i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(c))
+                    si[t], sj[t], sa[t], sb[t] = i, j, a, b
+                    waiting[t] = 1
+                cuda.syncthreads()
+                while True:  # rounds: a lane runs when no earlier waiting lane shares a ball with it
+                    ready = waiting[t] == 1
+                    if ready:
+                        i, j = si[t], sj[t]
+                        for u in range(t):
+                            if waiting[u] == 1 and (si[u] == i or si[u] == j or sj[u] == i or sj[u] == j):
+                                ready = False
+                    cuda.syncthreads()
+                    if ready:
+                        hit, w = collide(v, units, masses, params, si[t], sj[t], sa[t], sb[t], True)
+                        hits[t] = 1 if hit else 0
+                        speeds[t] = w
+                        waiting[t] = 0
+                    if cuda.syncthreads_count(waiting[t]) == 0:
+                        break
+                if t == 0:  # the batch in step order: counters and margin, as the sequential loop keeps them
+                    for u in range(kb):
+                        hit = hits[u] == 1
+                        m0, m1, m2, m3 = track(hit, speeds[u], tau, m0, m1, m2, m3)
+                        if hit:
+                            ctl[1] += 1
+                            ctl[5] += 1
+                            ctl[2] = s0 + u + 1
+                            at1, at3 = m1, m3
+                    ctl[0] = s0 + kb
+                cuda.syncthreads()
+            if until_frozen and ctl[5] > 0:
+                hint = scan(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, hint, ctl, t)
+                if t == 0 and hint < 0:  # frozen: the run ends right after its last collision, its margin too
+                    ctl[3] = 1
+                    ctl[0] = ctl[2]
+                    m1, m3 = at1, at3
+                cuda.syncthreads()
+        if t == 0:
+            state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST], state[r, S_FROZEN] = \
+                ctl[0], ctl[1], ctl[2], ctl[3]
+            state[r, S_HINT] = max(hint, 0)
+            M[r, 0], M[r, 1], M[r, 2], M[r, 3] = m0, m1, m2, m3
+
+    @cuda.jit(device=True)
+    def scan(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, hint, ctl, t):
+        """A live contact found by the lanes together (each from ``hint + lane``, a stride of lanes apart, until
+        one finds one), the same for every lane; -1 when none is live."""
+        if t == 0:
+            ctl[4] = -1
+        cuda.syncthreads()
+        for m in range(t, n_contacts, L):
+            if ctl[4] >= 0:
+                break
+            k = hint + m
+            if k >= n_contacts:
+                k -= n_contacts
+            i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(k))
+            hit, w = collide(v, units, masses, params, i, j, a, b, False)
+            if hit:
+                ctl[4] = k
+        cuda.syncthreads()
+        found = ctl[4]
+        cuda.syncthreads()
+        return found
+
+    return run
+
+
+def replica_layout() -> str:
+    """How replicas are laid out (`LAYOUT`, or ``PINNEDBALLS_GPU_REPLICAS``)."""
+    layout = os.environ.get("PINNEDBALLS_GPU_REPLICAS", LAYOUT)
+    return layout if layout in ("thread", "block") else LAYOUT
+
+
 class ReplicaChains:
     """``R`` replicas of one geometry, rule and masses on the GPU (module docstring).
 
@@ -153,16 +295,19 @@ class ReplicaChains:
         self._keys = to(np.ascontiguousarray(keys, dtype=np.uint64))
         self.state = np.zeros((self.replicas, STATE_SIZE), dtype=np.int64)
         self.margin = np.tile(np.array([np.inf, 0.0, 0.0, 0.0]), (self.replicas, 1))
-        self._kernel = replicas_kernel(rule, self.dim, bool(contacts.flat), rows)
+        self.layout = replica_layout()
+        make = lanes_kernel if self.layout == "block" else replicas_kernel
+        self._kernel = make(rule, self.dim, bool(contacts.flat), rows)
         self._cuda = cuda_
 
     def run(self, limits: np.ndarray, chunk: int) -> None:
         """Run replica ``r`` to ``limits[r] = (steps, collisions, until_frozen)`` (absolute counts; a replica
         already there takes no step); `state` and `margin` are updated."""
         state, margin = self._cuda.to_device(self.state), self._cuda.to_device(self.margin)
-        blocks = -(-self.replicas // REPLICA_BLOCK)
+        blocks, threads = ((self.replicas, LANES) if self.layout == "block" else
+                           (-(-self.replicas // REPLICA_BLOCK), REPLICA_BLOCK))
         with launching():
-            self._kernel[blocks, REPLICA_BLOCK](self._v, *self._tables, self._params, self._keys, state, margin,
+            self._kernel[blocks, threads](self._v, *self._tables, self._params, self._keys, state, margin,
                                                 self._cuda.to_device(np.ascontiguousarray(limits, dtype=np.int64)),
                                                 np.int64(chunk))
             self._cuda.synchronize()

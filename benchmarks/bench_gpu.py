@@ -1,0 +1,398 @@
+"""The paper's chain on a GPU, with the CPU beside it in the same run: one script of at most 5 minutes.
+
+Prints one JSON line per figure (and writes them to ``$OUT/gpu.jsonl`` when ``OUT`` is set), in this
+order, each part skipped when the budget (``BENCH_BUDGET`` seconds, default 290) cannot hold it:
+
+* ``env``: the GPU, its multiprocessors, numba and numba-cuda, the CPU cores;
+* ``compile``: seconds to compile the chain's kernels and the replicas' kernel (a first run);
+* ``bits``: the GPU against the CPU on the counter stream (`UniformRandomPair(stream="counter")`):
+  velocities (bit patterns), steps, collisions, stream words and margin equal, for a 200x100
+  half-plane from one moving ball to frozen (default batch, tiny batches, a batch above the balls
+  with owner resets every few rounds), unequal masses with restitution on an FCC packing, a torus at
+  equilibrium, and 2000x1000 / 1000x500 stretches;
+* ``speed``: steps a second on half-planes of 1000x500, 2000x1000 and 4000x2000 from one moving ball
+  (after the first wave has spread), for several batch sizes, with rounds per batch and picks tried
+  per step;
+* ``frozen``: 2000x1000 and, when the measured rate says it fits, 4000x2000 from one moving ball to
+  frozen, through ``Simulation.run_until_frozen`` (the driver's chunks, the freeze found and ended
+  at its last collision);
+* ``replicas``: 16,384 replicas of 200x100 and 32,768 of 100x50 to frozen, one GPU thread each,
+  two of them checked against the CPU;
+* ``cpu``: the CPU beside it: ns a step of the sequential loop (counter and xoshiro streams), and the
+  threaded chains (reservations on the counter stream, regions on xoshiro) on 1..all cores.
+
+Run it on a machine with an NVIDIA GPU and numba-cuda (``python3 -m pip install ".[cuda]"``):
+
+    OUT=out python benchmarks/bench_gpu.py
+    BENCH_SMOKE=1 NUMBA_ENABLE_CUDASIM=1 python benchmarks/bench_gpu.py   # tiny sizes on the simulator
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import pinnedballs as pb  # noqa: E402
+
+T0 = time.perf_counter()
+RATE = {}  # steps a second: of the last run to frozen, of the fastest launch shape
+BUDGET = float(os.environ.get("BENCH_BUDGET", "290"))
+SMOKE = os.environ.get("BENCH_SMOKE") == "1"
+OUT = os.environ.get("OUT")
+LOG = open(os.path.join(OUT, "gpu.jsonl"), "w") if OUT else None
+
+
+def left() -> float:
+    return BUDGET - (time.perf_counter() - T0)
+
+
+def emit(**d) -> None:
+    d["t"] = round(time.perf_counter() - T0, 1)
+    line = json.dumps(d, default=lambda o: o.item() if hasattr(o, "item") else str(o))
+    print(line, flush=True)
+    if LOG:
+        LOG.write(line + "\n")
+        LOG.flush()
+
+
+def part(name, fn, *args, need: float = 0.0) -> None:
+    if left() < need:
+        emit(part=name, skipped=f"{left():.0f} s left, needs about {need:.0f}")
+        return
+    try:
+        fn(*args)
+    except Exception:  # noqa: BLE001 - a failed part is reported, the others run
+        emit(part=name, error=traceback.format_exc()[-3000:])
+
+
+def single(g) -> np.ndarray:
+    v = np.zeros((g.n_balls, 2))
+    v[g.boundary_center()] = [0.0, np.sqrt(200.0)]
+    return v
+
+
+def counter(threads=1):
+    return pb.UniformRandomPair(stream="counter", threads=threads)
+
+
+def digest(v) -> str:
+    return hashlib.sha1(np.ascontiguousarray(v).tobytes()).hexdigest()[:16]
+
+
+def state(sim) -> dict:
+    return dict(steps=sim.steps, collisions=sim.collisions, rng=[int(x) for x in sim._rng],
+                margin=[float(x) for x in sim._margin], v=digest(sim.velocities))
+
+
+def half(length, depth):
+    return pb.HalfPlane.from_size(length / 10, depth / 10) if SMOKE else pb.HalfPlane.from_size(length, depth)
+
+
+# ---------------------------------------------------------------- parts
+
+
+def env() -> None:
+    import numba
+    from numba import cuda
+
+    info = dict(part="env", numba=numba.__version__, numpy=np.__version__, cpus=os.cpu_count(), smoke=SMOKE)
+    try:
+        import importlib.metadata as md
+        info["numba_cuda"] = md.version("numba-cuda")
+    except Exception:  # noqa: BLE001
+        pass
+    if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
+        d = cuda.get_current_device()
+        info.update(gpu=d.name.decode() if isinstance(d.name, bytes) else d.name, sms=d.MULTIPROCESSOR_COUNT,
+                    cc=list(d.compute_capability))
+    emit(**info)
+
+
+def compile_times() -> None:
+    g = half(200, 100)
+    t = time.perf_counter()
+    try:
+        sim = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
+        sim.run(steps=1000, progress=False)
+    except Exception:  # noqa: BLE001 - no cooperative launch here: the blocks meet on an atomic counter
+        emit(part="compile", barrier="grid", error=traceback.format_exc()[-2000:])
+        os.environ["PINNEDBALLS_GPU_BARRIER"] = "atomic"
+        sim = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
+        sim.run(steps=1000, progress=False)
+    chain = time.perf_counter() - t
+    from pinnedballs.engine.gpu.replicas import ReplicaChains
+    t = time.perf_counter()
+    rc = ReplicaChains(sim.velocities[None], sim._params[None], sim._rng[None, :2], g.contacts, None, sim._mass_array,
+                       sim._collide)
+    rc.run(np.array([[10, 2**62, 0]]), 4096)
+    emit(part="compile", chain_s=round(chain, 2), replicas_s=round(time.perf_counter() - t, 2),
+         grid_blocks=sim._backend.chain.grid(), barrier=sim._backend.chain.barrier)
+
+
+def compare(name, geometry, v, run, masses=None, rule=None, batch=None, top=None) -> None:
+    """The same run on the CPU (sequential loop, counter stream) and on the GPU."""
+    out = {}
+    for device in ("cpu", "cuda"):
+        sim = pb.Simulation(geometry, v, scheduler=counter(), seed=11, masses=masses, rule=rule, device=device)
+        if device == "cuda" and (batch or top):
+            from pinnedballs.engine.backends import DeviceBackend
+            from pinnedballs.engine.gpu.chain import DeviceChain
+            sim._backend.chain = DeviceChain(sim.velocities, geometry.contacts, geometry.row_pattern, sim._mass_array,
+                                             sim._params, sim._collide, sim._rng[:2], batch=batch,
+                                             **({"top": top} if top else {}))
+            assert isinstance(sim._backend, DeviceBackend)
+        t = time.perf_counter()
+        run(sim)
+        out[device] = (state(sim), time.perf_counter() - t, sim)
+    same = out["cpu"][0] == out["cuda"][0]
+    gpu = out["cuda"][2]
+    emit(part="bits", case=name, balls=geometry.n_balls, equal=same, **out["cuda"][0],
+         cpu_s=round(out["cpu"][1], 3), gpu_s=round(out["cuda"][1], 3),
+         **({} if same else {"cpu": out["cpu"][0]}), stats=gpu._backend.chain.stats)
+
+
+def bits_small() -> None:
+    g = half(200, 100)
+    frozen = lambda s: s.run_until_frozen(max_steps=10**8, progress=False)  # noqa: E731
+    compare("200x100 single to frozen", g, single(g), frozen)
+    compare("200x100 single to frozen, batch 64", g, single(g), frozen, batch=64)
+    compare("200x100 single to frozen, batch above the balls, resets every 3 rounds", g, single(g), frozen,
+            batch=256 if SMOKE else 1 << 15, top=3)
+    n = 100 if SMOKE else 100_000
+    compare(f"200x100 single, collisions={n} then 1234 steps", g, single(g),
+            lambda s: (s.run(collisions=n, progress=False), s.run(steps=1234, progress=False)))
+    fcc = pb.FCC(3, 3, 3, periodic=False) if SMOKE else pb.FCC(8, 8, 8, periodic=False)
+    if fcc is not None:
+        rng = np.random.default_rng(3)
+        compare("FCC 8^3 unequal masses, Restitution(0.9), to frozen", fcc, rng.normal(size=(fcc.n_balls, 3)),
+                frozen, masses=rng.uniform(0.5, 2.0, fcc.n_balls), rule=pb.Restitution(0.9))
+    torus = pb.FlatTorus(8, 8) if SMOKE else pb.FlatTorus(64, 64)
+    n = 2000 if SMOKE else 2 * 10**6
+    compare(f"torus {torus.n_balls} balls Gaussian {n:.0e} steps", torus,
+            np.random.default_rng(4).normal(size=(torus.n_balls, 2)), lambda s: s.run(steps=n, progress=False))
+
+
+def bits_large() -> None:
+    g = half(2000, 1000)
+    n = 3000 if SMOKE else 3 * 10**7
+    compare(f"2000x1000 Gaussian {n:.0e} steps", g, np.random.default_rng(1).normal(size=(g.n_balls, 2)),
+            lambda s: s.run(steps=n, progress=False))
+    g = half(1000, 500)
+    n = 3000 if SMOKE else 2 * 10**8
+    compare(f"1000x500 single {n:.0e} steps", g, single(g), lambda s: s.run(steps=n, progress=False))
+
+
+def speed() -> None:
+    from pinnedballs.engine.gpu.chain import DeviceChain
+    sizes = [(1000, 500), (2000, 1000), (4000, 2000)]
+    for length, depth in sizes:
+        g = half(length, depth)
+        base = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
+        warm = 2000 if SMOKE else 50 * g.n_contacts
+        base.run(steps=warm, progress=False)  # the first wave spreads: the speed of the bulk of a run
+        v = base.velocities
+        for k in ((64, 256) if SMOKE else (1 << 18, 1 << 19, 1 << 20, 1 << 21)):
+            if left() < 60:
+                return
+            chain = DeviceChain(v, g.contacts, g.row_pattern, base._mass_array, base._params, base._collide,
+                                base._rng[:2], batch=k)
+            counters, rng, margin = base._counters.copy(), base._rng.copy(), base._margin.copy()
+            chain.run(counters, rng, margin, 1000 if SMOKE else 10 ** 8, 2**63 - 1, False)
+            steps = int(min(5e9, 2e9 * g.n_balls / 577_000)) if not SMOKE else 2000
+            t = time.perf_counter()
+            chain.run(counters, rng, margin, steps, 2**63 - 1, False)
+            wall = time.perf_counter() - t
+            st = chain.stats
+            emit(part="speed", size=f"{length}x{depth}", balls=g.n_balls, contacts=g.n_contacts, batch=k,
+                 batch_over_balls=round(k / g.n_balls, 3), steps=steps, wall=round(wall, 3),
+                 gsteps_per_s=round(steps / wall / 1e9, 3), rounds_per_batch=round(st["rounds"] / st["batches"], 2),
+                 picks_tried_per_step=round(st["pick_rounds"] / (steps + (1000 if SMOKE else 10**8)), 3))
+
+
+VARIANTS = [("grid", 256, None), ("atomic", 256, None), ("atomic", 128, None), ("atomic", 256, 128),
+            ("atomic", 128, 96), ("atomic", 512, 128), ("atomic", 256, 64), ("atomic", 1024, 64)]
+
+
+def tune(length=4000, depth=2000) -> None:
+    """Steps a second of each launch shape (barrier, threads a block, registers a thread) at one size, from one
+    shared state; the fastest is kept (``PINNEDBALLS_GPU_*``) for the parts after."""
+    from pinnedballs.engine.gpu.chain import DeviceChain
+    g = half(length, depth)
+    base = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
+    base.run(steps=2000 if SMOKE else 50 * g.n_contacts, progress=False)
+    v, best = base.velocities, (0.0, None)
+    for barrier, block, registers in VARIANTS:
+        if left() < 40:
+            break
+        os.environ.update(PINNEDBALLS_GPU_BARRIER=barrier, PINNEDBALLS_GPU_BLOCK=str(block),
+                          PINNEDBALLS_GPU_MAXREG=str(registers or ""))
+        for k in ((256,) if SMOKE else (1 << 19, 1 << 20)):
+            try:
+                t = time.perf_counter()
+                chain = DeviceChain(v, g.contacts, g.row_pattern, base._mass_array, base._params, base._collide,
+                                    base._rng[:2], batch=k)
+                counters, rng, margin = base._counters.copy(), base._rng.copy(), base._margin.copy()
+                chain.run(counters, rng, margin, 1000 if SMOKE else 10**8, 2**63 - 1, False)
+                compile_s = time.perf_counter() - t
+                steps = 2000 if SMOKE else 2 * 10**9
+                t = time.perf_counter()
+                chain.run(counters, rng, margin, steps, 2**63 - 1, False)
+                rate = steps / (time.perf_counter() - t)
+                emit(part="tune", size=f"{length}x{depth}", barrier=barrier, block=block, registers=registers, batch=k,
+                     grid_blocks=chain.grid(), gsteps_per_s=round(rate / 1e9, 3), first_s=round(compile_s, 2),
+                     v=digest(chain.velocities()))
+                if rate > best[0]:
+                    best = (rate, (barrier, block, registers, k))
+            except Exception:  # noqa: BLE001
+                emit(part="tune", barrier=barrier, block=block, registers=registers, error=traceback.format_exc()[-1500:])
+    if best[1] is not None:
+        barrier, block, registers, k = best[1]
+        os.environ.update(PINNEDBALLS_GPU_BARRIER=barrier, PINNEDBALLS_GPU_BLOCK=str(block),
+                          PINNEDBALLS_GPU_MAXREG=str(registers or ""))
+        RATE["tuned"] = best[0]
+        BEST["batch"] = k
+        emit(part="tune", best=dict(barrier=barrier, block=block, registers=registers, batch=k,
+                                    gsteps_per_s=round(best[0] / 1e9, 3)))
+
+
+BEST = {}
+
+
+def frozen(length, depth) -> None:
+    g = pb.HalfPlane.from_size(length / 100, depth / 100) if SMOKE else half(length, depth)
+    sim = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
+    if BEST.get("batch") and length >= 4000:  # the batch the tuning found fastest at this size
+        from pinnedballs.engine.gpu.chain import DeviceChain
+        sim._backend.chain = DeviceChain(sim.velocities, g.contacts, g.row_pattern, sim._mass_array, sim._params,
+                                         sim._collide, sim._rng[:2], batch=BEST["batch"])
+    t = time.perf_counter()
+    done = sim.run_until_frozen(max_steps=2 * 10**12, progress=False)
+    wall = time.perf_counter() - t
+    RATE["frozen"] = sim.steps / wall
+    emit(part="frozen", size=f"{length}x{depth}", balls=g.n_balls, frozen=done, steps=sim.steps,
+         collisions=sim.collisions, wall=round(wall, 2), gsteps_per_s=round(sim.steps / wall / 1e9, 3),
+         energy=sim.energy(), margin=sim.closing_margin().describe(), v=digest(sim.velocities),
+         batch=sim._backend.chain.batch, stats=sim._backend.chain.stats)
+
+
+def replicas(length, depth, count) -> None:
+    from pinnedballs.engine.gpu.replicas import ReplicaChains
+    from pinnedballs.engine.philox import counter_stream
+    from pinnedballs.engine.random import seed_state
+    g = half(length, depth)
+    t = time.perf_counter()
+    v0 = single(g)
+    probe = pb.Simulation(g, v0, scheduler=counter(), seed=0)
+    seeds = np.random.SeedSequence(2026).spawn(count)
+    keys = np.stack([counter_stream(seed_state(s))[:2] for s in seeds])
+    V = np.broadcast_to(probe.velocities, (count, *probe.velocities.shape))
+    P = np.broadcast_to(probe._params, (count, len(probe._params)))
+    rc = ReplicaChains(V, P, keys, g.contacts, None, probe._mass_array, probe._collide)
+    setup = time.perf_counter() - t
+    t = time.perf_counter()
+    rc.run(np.tile(np.array([10**9, 2**62, 1]), (count, 1)), max(4096, 4 * g.n_contacts))
+    wall = time.perf_counter() - t
+    st = rc.state
+    checks = []
+    for r in (0, count - 1):
+        sim = pb.Simulation(g, v0, scheduler=counter(), seed=seeds[r])
+        sim.run_until_frozen(max_steps=10**9, progress=False)
+        checks.append(bool(np.array_equal(sim.velocities, rc.velocities(r)) and sim.steps == st[r, 0]
+                           and sim.collisions == st[r, 1] and np.array_equal(sim._margin, rc.margin[r])))
+    emit(part="replicas", layout=rc.layout, size=f"{length}x{depth}", replicas=count, frozen=int(st[:, 3].sum()), wall=round(wall, 3),
+         setup_s=round(setup, 2), steps=int(st[:, 0].sum()), gsteps_per_s=round(st[:, 0].sum() / wall / 1e9, 2),
+         mean_collisions=float(st[:, 1].mean()), sd_collisions=float(st[:, 1].std(ddof=1)),
+         checked_against_cpu=checks)
+
+
+def cpu() -> None:
+    import subprocess
+    code = r"""
+import json, os, sys, time, numpy as np, numba, pinnedballs as pb
+L, D, stream, steps = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], int(sys.argv[4])
+g = pb.HalfPlane.from_size(L, D)
+v = np.zeros((g.n_balls, 2)); v[g.boundary_center()] = [0, np.sqrt(200.0)]
+threads = numba.config.NUMBA_NUM_THREADS
+sim = pb.Simulation(g, v, seed=1, scheduler=pb.UniformRandomPair(stream=stream, threads=threads))
+sim.run(steps=5 * g.n_contacts, progress=False)
+t = time.perf_counter(); sim.run(steps=steps, progress=False); w = time.perf_counter() - t
+print(json.dumps(dict(size=f"{L}x{D}", stream=stream, threads=threads, ns_per_step=w / steps * 1e9,
+                      v=__import__('hashlib').sha1(sim.velocities.tobytes()).hexdigest()[:16])))
+"""
+    cores = os.cpu_count() or 1
+    plan = [(2000, 1000, "counter", sorted({1, 2, 4, 8, cores})), (2000, 1000, "xoshiro", sorted({1, cores})),
+            (4000, 2000, "counter", sorted({1, cores}))]
+    one = {}
+    for length, depth, stream, counts in plan:
+        if SMOKE:
+            length, depth = length // 10, depth // 10
+        for threads in counts:
+            if threads <= cores and left() >= 25:
+                env = {**os.environ, "NUMBA_NUM_THREADS": str(threads)}
+                steps = 10**6 if SMOKE else 10**8
+                r = subprocess.run([sys.executable, "-c", code, str(length), str(depth), stream, str(steps)],
+                                   capture_output=True, text=True, env=env, timeout=max(5, left() - 5))
+                if r.returncode != 0:
+                    emit(part="cpu", size=f"{length}x{depth}", stream=stream, threads=threads, error=r.stderr[-1500:])
+                    continue
+                d = json.loads(r.stdout.strip().splitlines()[-1])
+                one.setdefault((length, stream), d["ns_per_step"])
+                emit(part="cpu", **d, speedup=round(one[(length, stream)] / d["ns_per_step"], 2))
+
+
+def bits_quick() -> None:
+    g = half(200, 100)
+    compare("200x100 single to frozen", g, single(g), lambda s: s.run_until_frozen(max_steps=10**8, progress=False))
+    g = half(2000, 1000)
+    n = 3000 if SMOKE else 3 * 10**7
+    compare(f"2000x1000 Gaussian {n:.0e} steps", g, np.random.default_rng(1).normal(size=(g.n_balls, 2)),
+            lambda s: s.run(steps=n, progress=False))
+
+
+def replicas_layouts() -> None:
+    """16,384 replicas of 200x100 laid out one a block (a batch of 32 steps run by the block's lanes) and one
+    a thread; the faster is kept for the parts after."""
+    times = {}
+    for layout in ("block", "thread"):
+        if left() < 30:
+            break
+        os.environ["PINNEDBALLS_GPU_REPLICAS"] = layout
+        t = time.perf_counter()
+        replicas(200, 100, 8 if SMOKE else 16384)
+        times[layout] = time.perf_counter() - t
+    if times:
+        os.environ["PINNEDBALLS_GPU_REPLICAS"] = min(times, key=times.get)
+
+
+PARTS = {
+    "env": lambda: part("env", env),
+    "compile": lambda: part("compile", compile_times),
+    "tune": lambda: part("tune", tune, need=60),
+    "bits": lambda: part("bits", bits_small, need=30),
+    "bits_quick": lambda: part("bits", bits_quick, need=20),
+    "speed": lambda: part("speed", speed, need=60),
+    "frozen2000": lambda: part("frozen", frozen, 2000, 1000, need=40),
+    "replicas": lambda: part("replicas", replicas, 200, 100, 8 if SMOKE else 16384, need=25),
+    "replicas_layouts": lambda: part("replicas", replicas_layouts, need=25),
+    # 4000x2000 takes about 457e9 steps (the probe's run): only when a measured rate says it fits
+    "frozen4000": lambda: part("frozen", frozen, 4000, 2000, need=min(BUDGET, 20 + (1.5e4 if SMOKE else 4.6e11) / max(
+        RATE.get("frozen", 1.0), 0.9 * RATE.get("tuned", 1.0)))),
+    "bits_large": lambda: part("bits", bits_large, need=40),
+    "replicas_small": lambda: part("replicas", replicas, 100, 50, 8 if SMOKE else 32768, need=15),
+    "cpu": lambda: part("cpu", cpu, need=40),
+}
+DEFAULT = "env,compile,bits,speed,frozen2000,replicas,frozen4000,bits_large,replicas_small,cpu"
+
+if __name__ == "__main__":
+    for name in os.environ.get("BENCH_PARTS", DEFAULT).split(","):
+        PARTS[name]()
+    emit(part="end", wall=round(time.perf_counter() - T0, 1))
