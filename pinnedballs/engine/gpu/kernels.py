@@ -17,8 +17,8 @@ key left in the owner arrays by an earlier round: nothing is cleared between rou
 When the generation runs out both arrays are reset to `EMPTY` (every `top` rounds or so) and the
 picks still pending reserve afresh.
 
-**One launch, many batches.** `chain_kernel` is a persistent cooperative kernel: the whole grid
-is resident and meets at ``this_grid().sync()`` between phases, so a launch runs ``ctl[COUNT]``
+**One launch, many batches.** `chain_kernel` is a persistent kernel: the whole grid is resident (as many
+blocks as fit at once) and meets at a barrier between phases (`BARRIERS`), so a launch runs ``ctl[COUNT]``
 steps in as many batches as it takes, with no trip to the host. It stops early after a batch that
 brings the collisions to ``ctl[MAXC]``; with ``ctl[HITS]`` set, ``hits[t]`` says whether pick ``t``
 of the last batch collided, so the host can find the step of a given collision.
@@ -62,20 +62,24 @@ CTL_SIZE = 24
 _U0 = np.uint64(0)
 
 
-#: how the grid's blocks meet between phases: ``"grid"``, cooperative groups' ``this_grid().sync()`` (a
-#: cooperative launch); ``"atomic"``, a counter in global memory the blocks spin on (an ordinary launch
-#: of blocks that all fit at once). ``PINNEDBALLS_GPU_BARRIER`` chooses; the bits are the same.
-BARRIERS = ("grid", "atomic")
+#: how the grid's blocks meet between phases: ``"atomic"``, a counter in global memory the blocks spin on
+#: (an ordinary launch of blocks that all fit at once), or ``"grid"``, cooperative groups'
+#: ``this_grid().sync()`` (a cooperative launch). ``PINNEDBALLS_GPU_BARRIER`` chooses; the bits are the
+#: same. Measured on an H100 at 4000x2000 (docs/gpu.md): 3.57 G steps/s with the atomic counter, 3.06
+#: with the grid sync, whose call keeps about 250 registers a thread live (141 without): one block a
+#: multiprocessor instead of two.
+BARRIERS = ("atomic", "grid")
 
 
 def barrier_kind() -> str:
-    """The barrier `chain_kernel` uses (``PINNEDBALLS_GPU_BARRIER``, default ``"grid"``)."""
-    kind = os.environ.get("PINNEDBALLS_GPU_BARRIER", "grid")
-    return kind if kind in BARRIERS else "grid"
+    """The barrier `chain_kernel` uses (``PINNEDBALLS_GPU_BARRIER``, default ``"atomic"``)."""
+    kind = os.environ.get("PINNEDBALLS_GPU_BARRIER", "atomic")
+    return kind if kind in BARRIERS else "atomic"
 
 
-#: threads a block of `chain_kernel`, and the registers a thread may use (None: as many as it needs, which
-#: for this kernel is about 250: one block of 256 threads a multiprocessor); ``PINNEDBALLS_GPU_BLOCK`` and
+#: threads a block of `chain_kernel`, and the registers a thread may use (None: as many as it needs); the
+#: fastest measured on an H100 at 4000x2000 (256 and None: 3.57 G steps/s; 128 threads 3.18, a cap of 128
+#: registers 3.54, of 96 3.53, 512 threads with 64 registers 2.85). ``PINNEDBALLS_GPU_BLOCK`` and
 #: ``PINNEDBALLS_GPU_MAXREG`` override them. The bits never depend on either.
 BLOCK, MAX_REGISTERS = 256, None
 
@@ -111,7 +115,7 @@ def _atomic_sync(bar):
 
 
 @functools.cache
-def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "grid", registers: int | None = None):
+def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "atomic", registers: int | None = None):
     """The persistent kernel running batches of the chain for one rule, ``dim``, ``flat``, contact reader,
     ``barrier`` (module docstring, `BARRIERS`) and register limit; launched on a grid that fits the GPU at once."""
     collide, contact = collider(rule, dim, flat), contact_reader(rows)
