@@ -109,11 +109,13 @@ class ClosingMargin:
         return (f"{low}, {high}; {_counted(self.near_collisions, 'collision')} and "
                 f"{_counted(self.near_remnants, 'remnant')} within a factor {NEAR:.0e} of it")
 
-    def warning(self) -> str:
-        """The one line a thin float run says."""
+    def warning(self, exact: bool = True) -> str:
+        """The one line a thin float run says; ``exact``: the run could be counted exactly (a built-in rule
+        and a scheduler that picks without a live set), so the line says how."""
+        advice = ("; count it exactly with arithmetic=\"exact\" (or \"certified\") on the same seed" if exact else
+                  "; give resolution= to make the criterion part of the model (its counts N_e)")
         return (f"the closing margin is thin ({self.describe()}): the collision count depends on the float "
-                f"criterion (resolution {self.resolution:.3g}); count it exactly with arithmetic=\"exact\" "
-                f"(or \"certified\") on the same seed")
+                f"criterion (resolution {self.resolution:.3g}){advice}")
 
     def to_dict(self) -> dict:
         """The fields as plain numbers (None where there is none)."""

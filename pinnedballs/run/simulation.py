@@ -287,7 +287,8 @@ class Simulation:
         margin = self.closing_margin()
         if margin.thin:
             self._margin_warned = True
-            warnings.warn(margin.warning(), MarginWarning, stacklevel=_outside_the_package())
+            exact = self.rule.exact_restitution() is not None and not self._selector.tracks
+            warnings.warn(margin.warning(exact), MarginWarning, stacklevel=_outside_the_package())
 
     @property
     def exact_velocities(self) -> np.ndarray | None:
@@ -431,10 +432,12 @@ class Simulation:
 
 def _outside_the_package() -> int:
     """The ``stacklevel`` of the first caller outside pinnedballs: where a warning is about."""
+    import os
     import sys
     from pathlib import Path
 
-    package, frame, level = str(Path(__file__).resolve().parent), sys._getframe(1), 1
+    # the package's root (this module lives in run/): the driver (engine/) calls back into it on the way
+    package, frame, level = str(Path(__file__).resolve().parent.parent) + os.sep, sys._getframe(1), 1
     while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(package):
         frame, level = frame.f_back, level + 1
     return level

@@ -5,9 +5,11 @@ import math
 import warnings
 
 import numpy as np
+from numba import njit
 import pytest
 
 import pinnedballs as pb
+from pinnedballs.rules import collide_elastic
 from pinnedballs.engine.margin import MarginWarning, NEAR
 from pinnedballs.rules import DEFAULT_RESOLUTION
 
@@ -160,3 +162,30 @@ def test_picks_tried_past_the_last_collision_are_not_in_the_margin():
     split.run_until_frozen(max_steps=10**6)
     assert (split.steps, split.collisions) == (whole.steps, whole.collisions)
     np.testing.assert_array_equal(split._margin, whole._margin)
+
+
+@njit
+def collide_mine(v, units, i, j, a, b, masses, params, dim, flat, write):
+    """A user's rule: the paper's exchange, which exact arithmetic does not know as the user's."""
+    return collide_elastic(v, units, i, j, a, b, masses, params, dim, flat, write)
+
+
+class MyRule(pb.CollisionRule):
+    def kernel(self, equal_masses: bool):
+        return collide_mine, np.ones(1)
+
+
+def test_the_warning_is_about_the_callers_line_and_its_advice_applies():
+    """The line that ran the simulation is where the warning points (not the run driver inside the package),
+    and a rule without an exact form is not told to count exactly (it cannot: arithmetic="exact" refuses it)."""
+    v = [1.0, 1.0 - 64 * 2.0**-53]
+    with pytest.warns(MarginWarning) as built_in:
+        _pair(v).run(steps=1)
+    with pytest.warns(MarginWarning) as mine:
+        pb.Simulation(pb.GraphGeometry.from_positions([0.0, 2.0]), np.array(v)[:, None], rule=MyRule(),
+                      seed=0).run(steps=1)
+    for record in (built_in, mine):
+        assert len(record) == 1 and record[0].filename == __file__
+    assert 'arithmetic="exact"' in str(built_in[0].message)
+    said = str(mine[0].message)
+    assert 'arithmetic="exact"' not in said and "give resolution= to make the criterion part of the model" in said
