@@ -8,6 +8,8 @@ a spec it has none of) is left out of `checks_for`; called directly, it returns 
 
 from __future__ import annotations
 
+import re
+
 from typing import Callable, Iterable, Mapping
 
 from ..geometry.base import Geometry
@@ -85,15 +87,22 @@ def check_scheduler(scheduler: Scheduler) -> None:
     _run_all(scheduler, Scheduler, "scheduler")
 
 
-def _label(component) -> str:
+def _label(component, position: int | None = None) -> str:
+    """``repr(component)`` (cut at 60 characters), or, where that holds a memory address (``object``'s
+    repr, which differs between processes: pytest-xdist's workers would collect different tests), the
+    component's class and its ``position`` in the list: ``Greedy[0]``."""
     text = repr(component)
+    if re.search(r"\bat 0x[0-9a-fA-F]+", text):
+        text = type(component).__name__ + ("" if position is None else f"[{position}]")
     return text if len(text) <= 60 else text[:57] + "..."
 
 
 def parametrize_with_checks(components: Iterable, *,
                             expected_failed_checks: Callable[[object], Mapping[str, str]] | Mapping[str, str] | None = None):
     """A pytest decorator: one test per (component, check) that applies to it. The test takes
-    ``component, check`` and calls ``check(component)``; its id is ``<component>-<check name>``.
+    ``component, check`` and calls ``check(component)``; its id is ``<component>-<check name>``, the
+    component's repr or, when that is ``object``'s (a memory address, different in every process), its
+    class and place in ``components`` (``Greedy[0]``): the same ids in every pytest-xdist worker.
 
     ``expected_failed_checks``: ``{check name: reason}`` for checks a component is known to fail, or a
     callable giving that dict for each component. Those are marked ``xfail`` (strict: one that passes
@@ -107,7 +116,7 @@ def parametrize_with_checks(components: Iterable, *,
     import pytest
 
     params = []
-    for component in components:
+    for position, component in enumerate(components):
         expected = expected_failed_checks(component) if callable(expected_failed_checks) else \
             dict(expected_failed_checks or {})
         checks = checks_for(component)
@@ -118,5 +127,6 @@ def parametrize_with_checks(components: Iterable, *,
         for check in checks:
             marks = ([pytest.mark.xfail(reason=expected[check.__name__], strict=True, raises=AssertionError)]
                      if check.__name__ in expected else [])
-            params.append(pytest.param(component, check, marks=marks, id=f"{_label(component)}-{check.__name__}"))
+            params.append(pytest.param(component, check, marks=marks,
+                                       id=f"{_label(component, position)}-{check.__name__}"))
     return pytest.mark.parametrize("component, check", params)

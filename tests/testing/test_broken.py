@@ -368,6 +368,45 @@ def test_parametrize_with_checks_makes_one_case_per_check_and_marks_expected_fai
         "reason": "it gives 10 % too much", "strict": True, "raises": AssertionError}}
 
 
+class Plain(CollisionRule):
+    """A user's rule with object's repr (a memory address, different in every process)."""
+
+    def kernel(self, equal_masses: bool):
+        return collide_damped, np.zeros(1)
+
+
+def test_parametrize_with_checks_ids_are_the_same_in_every_process():
+    """A component without a repr of its own is named by its class and place, so pytest-xdist's workers
+    collect the same ids (with the memory address each got a different id, and ``-n 2`` stopped with
+    "Different tests were collected")."""
+    _, cases = parametrize_with_checks([pb.Elastic(), Plain(), Plain()]).args
+    ids = [p.id for p in cases]
+    assert not [i for i in ids if "0x" in i]
+    assert {i.split("-")[0] for i in ids} == {"Elastic()", "Plain[1]", "Plain[2]"}
+    assert len(set(ids)) == len(ids)
+
+
+@pytest.mark.slow
+def test_parametrize_with_checks_runs_under_xdist(tmp_path):
+    import subprocess
+    import sys
+
+    (tmp_path / "test_mine.py").write_text(
+        "import numpy as np\n"
+        "from pinnedballs.rules import CollisionRule, collide_elastic\n"
+        "from pinnedballs.testing import parametrize_with_checks\n"
+        "class Mine(CollisionRule):\n"
+        "    def kernel(self, equal_masses):\n"
+        "        return collide_elastic, np.ones(1)\n"
+        "@parametrize_with_checks([Mine()])\n"
+        "def test_mine(component, check):\n"
+        "    pass\n")
+    out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-n", "2", "-p", "no:cacheprovider", "test_mine.py"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-2000:]
+    assert " passed" in out.stdout and "Different tests were collected" not in out.stdout
+
+
 def test_parametrize_with_checks_refuses_an_unknown_check_name():
     with pytest.raises(ValueError, match=r"^expected_failed_checks: \['check_energy_conserved'\] are no checks of "
                                          r"Elastic\(\) \(its checks: \['check_separating_untouched', "):
