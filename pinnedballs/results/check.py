@@ -273,15 +273,17 @@ def _check_exact(f: h5py.File, n: int, d: int) -> None:
 
 def _check_margin(f: h5py.File) -> None:
     """The closing margin of the latest state (`engine.margin`): ``(4,)`` floats a margin can hold,
-    and its criterion: the threshold a finite number > 0, the resolution in (0, 1)."""
+    and its criterion: the threshold a finite number >= 0 (0 where the speed scale times the resolution
+    is below the smallest float: every velocity 0, or all subnormal or tiny), the resolution in (0, 1)."""
     ds = _dataset(f, "state/margin")
     problem = margin_problem(ds[()]) if ds.shape == (4,) and ds.dtype.kind == "f" else \
         f"must be 4 floating-point numbers, got {ds.dtype} {ds.shape}"
     if problem is not None:
         raise Damage("state/margin", problem)
-    for name, low, high in (("threshold", 0.0, np.inf), ("resolution", 0.0, 1.0)):
+    for name, low, high, bracket in (("threshold", 0.0, np.inf, "["), ("resolution", 0.0, 1.0, "(")):
         value = ds.attrs.get(name)
-        if not (isinstance(value, (float, np.floating)) and low < value < high):
+        if not (isinstance(value, (float, np.floating)) and (low <= value if bracket == "[" else low < value)
+                and value < high):
             shown = value.item() if isinstance(value, np.generic) else value
-            raise Damage(f"state/margin (attribute {name})", f"must be a number in ({low:g}, {high:g}), got "
+            raise Damage(f"state/margin (attribute {name})", f"must be a number in {bracket}{low:g}, {high:g}), got "
                                                               f"{shown!r}")

@@ -220,7 +220,7 @@ DAMAGE = {
     "margin counts a fraction": (_margin([1.0, 0.0, 0.5, 0.0]), _index,
                                  "state/margin: the counts near the threshold must be whole numbers >= 0, got [0.5, 0.0]"),
     "margin threshold text": (_margin(np.full(4, 1.0), threshold="x"), _index,
-                              "state/margin (attribute threshold): must be a number in (0, inf), got 'x'"),
+                              "state/margin (attribute threshold): must be a number in [0, inf), got 'x'"),
     "margin resolution 2": (_margin(np.full(4, 1.0), resolution=2.0), _index,
                             "state/margin (attribute resolution): must be a number in (0, 1), got 2.0"),
 }
