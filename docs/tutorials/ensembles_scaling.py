@@ -126,13 +126,11 @@ on_dask.to_pandas().equals(ensembles[(60, 30)].to_pandas())
 # ## Written to a directory and read back
 #
 # `pinnedballs ensemble SPEC --replicas N --out DIR` writes `replicas.csv`, `summary.json` and the
-# correlation histograms; `pb.load_ensemble(DIR)` reads them back into the same result
-# (`pinnedballs info DIR` describes it).
+# correlation histograms, as a result's `save(DIR)` does; `pb.load_ensemble(DIR)` reads them back into
+# the same result (`pinnedballs info DIR` describes it).
 
 # %%
-from pinnedballs.run.ensemble import write_outputs
-
-write_outputs(on_dask, work / "ensemble_60x30")
+on_dask.save(work / "ensemble_60x30")
 back = pb.load_ensemble(work / "ensemble_60x30")
 print(back.to_pandas().equals(on_dask.to_pandas()))
 back

@@ -172,8 +172,8 @@ class GraphGeometry(Geometry):
             raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must map both ends to a vector") from None
         for t in (tu, tv):
             if t.shape != (dim,) or not np.isfinite(t).all() or not abs(np.linalg.norm(t) - 1) <= UNIT_TOLERANCE:
-                raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must be unit vectors of length {dim} (norm 1 "
-                                          f"within {UNIT_TOLERANCE:g}), got {t.tolist()}")
+                raise FieldError("graph", f"edge ({u!r}, {v!r}) 'units' must be unit vectors of {dim} components (norm "
+                                          f"1 within {UNIT_TOLERANCE:g}), got {t.tolist()}")
         return tu, tv
 
     def _init(self, positions, pairs, t_i, t_j, radius, rtol) -> None:

@@ -213,6 +213,11 @@ class EnsembleResult:
             df = df.drop(columns=ERROR_COLUMN)
         return df.set_index(["replica", "at"] if at is None else "replica")
 
+    def save(self, out_dir, figures: bool = True) -> list[Path]:
+        """Write ``replicas.csv``, ``summary.json``, ``spec.json`` and (if ``figures``) the correlation
+        histograms into ``out_dir`` (created), as `pinnedballs ensemble` does; their paths."""
+        return write_outputs(self, out_dir, figures=figures)
+
     def _repr_html_(self) -> str:  # notebooks: replicas, where, and the final states' counts as a table
         from ..plot.display import ensemble_html
 

@@ -30,7 +30,8 @@ def written(tmp_path_factory):
     """``(directory, the EnsembleResult written there)``: 5 replicas, replica 2 failed."""
     out = tmp_path_factory.mktemp("ensemble") / "out"
     result = ens.run_ensemble(parse_spec(HALF_PLANE), 5, workers=1, task=fail_at_two)
-    ens.write_outputs(result, out)
+    paths = result.save(out)  # the public name of ensemble.write_outputs
+    assert {"replicas.csv", "spec.json", "summary.json"} <= {p.name for p in paths}
     return out, result
 
 
