@@ -48,7 +48,8 @@ import numpy as np
 from .engine.jitcache import njit_cached
 from .engine import checks
 from .engine.errors import FieldError
-from .engine.closing import closing_speed, register_closing_form, t_j as _t_j
+from .engine.closing import ELASTIC, EQUAL, MASSES, closing_speed, register_closing_form, register_device_rule
+from .engine.closing import t_j as _t_j
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
            "DEFAULT_RESOLUTION", "check_resolution",
@@ -156,8 +157,10 @@ def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
                      closing_speed(v, units, i, j, a, b, dim, flat))
 
 
-for _collide, _at in ((collide_equal, equal_at), (collide_elastic, elastic_at), (collide_masses, masses_at)):
+for _collide, _at, _number in ((collide_equal, equal_at, EQUAL), (collide_elastic, elastic_at, ELASTIC),
+                               (collide_masses, masses_at, MASSES)):
     register_closing_form(_collide, _at)
+    register_device_rule(_collide, _number)  # what a GPU's kernels run (`engine.gpu`)
 
 
 class CollisionRule(ABC):

@@ -23,7 +23,8 @@ from numba import njit
 
 from .jitcache import INLINED, jit_cached_if_possible, njit_cached
 
-__all__ = ["closing_speed", "t_j", "closing_form", "register_closing_form", "compiled_form", "WRITE", "TEST"]
+__all__ = ["closing_speed", "t_j", "closing_form", "register_closing_form", "compiled_form", "WRITE", "TEST",
+           "ELASTIC", "EQUAL", "MASSES", "register_device_rule", "device_rule"]
 
 #: ``write`` as run-time flags (numba compiles a function once for all values of a ``numpy.bool_``,
 #: but once per value of a ``bool`` constant): True writes the collision, False only tests for one
@@ -32,10 +33,26 @@ WRITE, TEST = np.bool_(True), np.bool_(False)
 #: ``collide -> collide_at`` for the rules that compute ``w`` with `closing_speed` first
 _FORMS: dict = {}
 
+#: the built-in rules as the GPU's kernels number them (`engine.gpu`): the paper's exchange, equal masses
+#: with restitution ``params[0] = (1 + r) / 2``, any masses with ``params[0] = 1 + r``
+ELASTIC, EQUAL, MASSES = 0, 1, 2
+#: ``collide -> number`` of the rules a GPU runs, registered by `pinnedballs.rules`
+_DEVICE_RULES: dict = {}
+
 
 def register_closing_form(collide: Callable, collide_at: Callable) -> None:
     """Say that ``collide(...)`` is ``collide_at(..., closing_speed(...))``, bit for bit."""
     _FORMS[collide] = collide_at
+
+
+def register_device_rule(collide: Callable, number: int) -> None:
+    """Say that a GPU runs ``collide`` as its kernel rule ``number`` (`ELASTIC`, `EQUAL`, `MASSES`)."""
+    _DEVICE_RULES[collide] = number
+
+
+def device_rule(collide: Callable) -> int | None:
+    """The GPU's number of a rule's ``collide``, None for a rule a GPU does not run (a user's)."""
+    return _DEVICE_RULES.get(collide)
 
 
 @functools.cache
