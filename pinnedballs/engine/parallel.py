@@ -52,7 +52,7 @@ from .threads import TUNED_SEGMENT, ThreadTuner, using
 from .random import load, next_uint64, store
 from .rows import decode
 
-__all__ = ["ParallelChain", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
+__all__ = ["ParallelChain", "run_in_chunks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
            "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
 
 #: words of the stream each thread turns into picks per block
@@ -506,37 +506,46 @@ class ParallelChain:
 
     def run(self, chain, pattern, limited, any_live, state, aux, rng, counters, margin, max_steps: int,
             max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
-        """What the sequential ``limited`` loop (with ``pattern``) does for these limits, bit for bit:
-        chunks of ``chunk_steps`` steps, each as whole blocks on the threads and its rest on ``limited``,
-        the freeze scanned (``any_live``) after a chunk with a collision, and the chunk that froze run again
-        on one thread from its start to its last collision, so the margin too ends there. Returns the
-        steps taken."""
-        if until_frozen and not any_live(*chain):
-            counters[LIVE] = 0
-            return 0
-        taken, frozen, saved = 0, False, np.empty_like(state)
+        """What the sequential ``limited`` loop does for these limits, bit for bit (`run_in_chunks`)."""
+        return run_in_chunks(self._whole, self.block, chain, pattern, limited, any_live, state, aux, rng, counters,
+                             margin, max_steps, max_collisions, until_frozen, chunk_steps)
 
-        def sequential(steps: int) -> int:
-            return limited(*chain, pattern, state, aux, rng, counters, margin, steps, max_collisions, False, steps,
-                           saved, _NO_LOG)
 
-        while not frozen and taken < max_steps and counters[COLLISIONS] < max_collisions:
-            count = min(chunk_steps, max_steps - taken)
-            start = (rng.copy(), state.copy(), counters.copy(), margin.copy(), chain.v.copy() if until_frozen else None)
-            start_steps, start_collisions = int(counters[STEPS]), int(counters[COLLISIONS])
-            whole = min(count, max_collisions - start_collisions) // self.block
-            done = self._whole(chain, pattern, rng, counters, margin, whole, sequential) if whole > 0 else 0
-            if done < count and counters[COLLISIONS] < max_collisions:
-                done += sequential(count - done)
-            if until_frozen and counters[COLLISIONS] > start_collisions and not any_live(*chain):
-                # frozen: the run ends right after its last collision, and so does its margin; the chunk
-                # goes again on one thread from its start to there (the same bits, once per run)
-                frozen, done = True, int(counters[LAST]) - start_steps
-                rng[:], state[:], counters[:], margin[:], chain.v[:] = start
-                sequential(done)
-            taken += done
-        counters[LIVE] = 0 if frozen else -1
-        return taken
+def run_in_chunks(whole: Callable, block: int, chain, pattern, limited, any_live, state, aux, rng, counters, margin,
+                  max_steps: int, max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
+    """What the sequential ``limited`` loop (with ``pattern``) does for these limits, bit for bit, for a
+    threaded chain whose ``whole(chain, pattern, rng, counters, margin, count, sequential)`` runs ``count``
+    blocks of ``block`` steps (`ParallelChain`, `engine.reservations.ReservationChain`): chunks of
+    ``chunk_steps`` steps, each as whole blocks on the threads (never more than the collisions left could
+    hold) and its rest on ``limited``, the freeze scanned (``any_live``) after a chunk with a collision,
+    and the chunk that froze run again on one thread from its start to its last collision, so the margin
+    too ends there. Returns the steps taken."""
+    if until_frozen and not any_live(*chain):
+        counters[LIVE] = 0
+        return 0
+    taken, frozen, saved = 0, False, np.empty_like(state)
+
+    def sequential(steps: int) -> int:
+        return limited(*chain, pattern, state, aux, rng, counters, margin, steps, max_collisions, False, steps,
+                       saved, _NO_LOG)
+
+    while not frozen and taken < max_steps and counters[COLLISIONS] < max_collisions:
+        count = min(chunk_steps, max_steps - taken)
+        start = (rng.copy(), state.copy(), counters.copy(), margin.copy(), chain.v.copy() if until_frozen else None)
+        start_steps, start_collisions = int(counters[STEPS]), int(counters[COLLISIONS])
+        blocks = min(count, max_collisions - start_collisions) // block
+        done = whole(chain, pattern, rng, counters, margin, blocks, sequential) if blocks > 0 else 0
+        if done < count and counters[COLLISIONS] < max_collisions:
+            done += sequential(count - done)
+        if until_frozen and counters[COLLISIONS] > start_collisions and not any_live(*chain):
+            # frozen: the run ends right after its last collision, and so does its margin; the chunk
+            # goes again on one thread from its start to there (the same bits, once per run)
+            frozen, done = True, int(counters[LAST]) - start_steps
+            rng[:], state[:], counters[:], margin[:], chain.v[:] = start
+            sequential(done)
+        taken += done
+    counters[LIVE] = 0 if frozen else -1
+    return taken
 
 
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
