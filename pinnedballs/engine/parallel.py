@@ -52,7 +52,7 @@ from .threads import TUNED_SEGMENT, ThreadTuner, using
 from .random import load, next_uint64, store
 from .rows import decode
 
-__all__ = ["ParallelChain", "run_in_chunks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
+__all__ = ["ParallelChain", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
            "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
 
 #: words of the stream each thread turns into picks per block
@@ -469,23 +469,9 @@ class ParallelChain:
         return self.threads * self.words
 
     def _whole(self, chain, pattern, rng, counters, margin, count: int, sequential: Callable) -> int:
-        """``count`` blocks' worth of steps on all threads or, where the tuner finds one thread faster, on
-        the sequential loop (``sequential(steps)``: the same picks), in the segments the tuner takes
-        (a trial is shorter); the steps taken."""
-        if self.tuner is None:
-            return self._blocks(chain, pattern, rng, counters, margin, count)
-        taken = []
-
-        def segment(blocks):
-            if self.tuner.choose() == 1:
-                taken.append(sequential(blocks * self.block))
-            else:
-                taken.append(self._blocks(chain, pattern, rng, counters, margin, blocks))
-
-        left = count
-        while left > 0:
-            left -= self.tuner.run(segment, left)
-        return sum(taken)
+        """``count`` blocks (`tuned_blocks`); the steps taken."""
+        return tuned_blocks(self.tuner, self.block, count, sequential,
+                            lambda blocks: self._blocks(chain, pattern, rng, counters, margin, blocks))
 
     def _blocks(self, chain, pattern, rng, counters, margin, count: int) -> int:
         """``count`` blocks; the picks they took. The counters (``LAST`` too), stream and margin advanced."""
@@ -509,6 +495,23 @@ class ParallelChain:
         """What the sequential ``limited`` loop does for these limits, bit for bit (`run_in_chunks`)."""
         return run_in_chunks(self._whole, self.block, chain, pattern, limited, any_live, state, aux, rng, counters,
                              margin, max_steps, max_collisions, until_frozen, chunk_steps)
+
+
+def tuned_blocks(tuner: ThreadTuner | None, block: int, count: int, sequential: Callable, threaded: Callable) -> int:
+    """``count`` blocks of ``block`` steps: ``threaded(blocks)`` on all threads or, where ``tuner`` finds one
+    thread faster, ``sequential(steps)`` (the same picks), in the segments the tuner takes (a trial is
+    shorter); None: always all threads. The steps taken."""
+    if tuner is None:
+        return threaded(count)
+    taken = []
+
+    def segment(blocks):
+        taken.append(sequential(blocks * block) if tuner.choose() == 1 else threaded(blocks))
+
+    left = count
+    while left > 0:
+        left -= tuner.run(segment, left)
+    return sum(taken)
 
 
 def run_in_chunks(whole: Callable, block: int, chain, pattern, limited, any_live, state, aux, rng, counters, margin,

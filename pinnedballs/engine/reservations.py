@@ -69,7 +69,7 @@ from .closing import closing_form, closing_speed
 from .intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from .jitcache import jit_cached_if_possible, njit_cached
 from .margin import merge_margin, track
-from .parallel import run_in_chunks
+from .parallel import run_in_chunks, tuned_blocks
 from .philox import block, counter_pick, lemire
 from .threads import ThreadTuner
 
@@ -453,23 +453,9 @@ class ReservationChain:
         return cls(reservation_batches(collide, dim, flat, rows), pairs, bounds, n_balls, threads, size, tuned)
 
     def _whole(self, chain, pattern, rng, counters, margin, count: int, sequential: Callable) -> int:
-        """``count`` batches' worth of steps on all threads or, where the tuner finds one thread faster, on
-        the sequential loop (``sequential(steps)``: the same picks), in the segments the tuner takes; the
-        steps taken."""
-        if self.tuner is None:
-            return self._batches(chain, pattern, rng, counters, margin, count)
-        taken = []
-
-        def segment(batches):
-            if self.tuner.choose() == 1:
-                taken.append(sequential(batches * self.batch))
-            else:
-                taken.append(self._batches(chain, pattern, rng, counters, margin, batches))
-
-        left = count
-        while left > 0:
-            left -= self.tuner.run(segment, left)
-        return sum(taken)
+        """``count`` batches (`parallel.tuned_blocks`); the steps taken."""
+        return tuned_blocks(self.tuner, self.batch, count, sequential,
+                            lambda batches: self._batches(chain, pattern, rng, counters, margin, batches))
 
     def _batches(self, chain, pattern, rng, counters, margin, count: int) -> int:
         """``count`` batches; the steps they took. The counters (``LAST`` too), stream and margin advanced."""

@@ -225,3 +225,15 @@ def test_the_kernels_round_every_operation_as_the_cpu_does():
     lines = [line.split() for line in out.stdout.splitlines()]
     assert len(lines) == 15
     assert all(fma == "0" and int(mul) > 0 for _, fma, mul in lines), out.stdout
+
+
+def test_a_device_chain_refuses_what_its_kernels_cannot_run():
+    g = pb.HalfPlane.from_size(20, 10)
+    sim = pb.Simulation(g, single(g), scheduler=COUNTER, seed=1)
+    args = (sim.velocities, g.contacts, None, sim._mass_array, sim._params)
+    for options, message in (({"batch": 0}, r"^batch must be in \[1, 4194304\] and top in \[1, 1022\]$"),
+                             ({"top": 1023}, r"^batch must be in \[1, 4194304\]")):
+        with pytest.raises(ValueError, match=message):
+            DeviceChain(*args, sim._collide, sim._rng[:2], **options)
+    with pytest.raises(ValueError, match=r"^the GPU runs the built-in rules \(Elastic, Restitution\) only$"):
+        DeviceChain(*args, print, sim._rng[:2])

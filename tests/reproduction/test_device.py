@@ -180,19 +180,8 @@ def test_reproduce_refuses_an_unknown_device_before_writing(tmp_path):
 # ---------------------------------------------------------------- the command line
 
 
-def test_cli_passes_the_device_and_refuses_an_unknown_one(tmp_path, monkeypatch, capsys):
-    import pinnedballs.reproduction as reproduction
-
-    seen = {}
-
-    def fake(out, **kwargs):
-        seen.update(kwargs)
-        out = Path(out)
-        out.mkdir()
-        (out / "results.json").write_text(json.dumps({"wall_seconds": 0.0, "failures": []}))
-        return out / "report.md"
-
-    monkeypatch.setattr(reproduction, "reproduce", fake)
+def test_cli_passes_the_device_and_refuses_an_unknown_one(tmp_path, fake_reproduce, capsys):
+    seen = fake_reproduce
     assert cli.main(["reproduce", "--out", str(tmp_path / "x"), "--extended", "--device", "cuda", "--quiet"]) == 0
     assert (seen["device"], seen["extended"]) == ("cuda", True)
     assert cli.main(["reproduce", "--out", str(tmp_path / "y"), "--quiet"]) == 0

@@ -359,19 +359,8 @@ def test_cli_extended_refuses_a_non_empty_directory(tmp_path, capsys):
     assert "not empty" in capsys.readouterr().err
 
 
-def test_cli_passes_extended_and_quick_to_reproduce(tmp_path, monkeypatch):
-    import pinnedballs.reproduction as reproduction
-
-    seen = {}
-
-    def fake(out, **kwargs):
-        seen.update(kwargs)
-        out = Path(out)
-        out.mkdir()
-        (out / "results.json").write_text(json.dumps({"wall_seconds": 0.0, "failures": []}))
-        return out / "report.md"
-
-    monkeypatch.setattr(reproduction, "reproduce", fake)
+def test_cli_passes_extended_and_quick_to_reproduce(tmp_path, fake_reproduce):
+    seen = fake_reproduce
     assert cli.main(["reproduce", "--out", str(tmp_path / "x"), "--quick", "--extended", "--quiet"]) == 0
     assert (seen["quick"], seen["extended"]) == (True, True)
     assert cli.main(["reproduce", "--out", str(tmp_path / "y"), "--quiet"]) == 0

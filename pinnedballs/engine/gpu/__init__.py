@@ -5,7 +5,8 @@ package, or a GPU its driver can see. Nothing here imports numba-cuda before a G
 Under numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernels run on the CPU, one block of
 Python threads: the tests run them so.
 
-Modules: `codes` (the built-in rules' numbers), `device` (the CPU's arithmetic as device functions), `kernels` (a chain by deterministic
+The built-in rules' numbers are `engine.closing`'s (`rule_code`, registered by `pinnedballs.rules`).
+Modules: `device` (the CPU's arithmetic as device functions), `kernels` (a chain by deterministic
 reservations; the freeze scan), `chain` (`DeviceChain`: one simulation's chain on the GPU),
 `replicas` (many small systems, one GPU thread each).
 """
@@ -15,7 +16,7 @@ from __future__ import annotations
 import numpy as _np
 
 from ..errors import FieldError
-from .codes import ELASTIC, EQUAL, MASSES, rule_code
+from ..closing import ELASTIC, EQUAL, MASSES, device_rule as rule_code
 
 if not hasattr(_np, "row_stack"):  # numba-cuda 0.30 overloads np.row_stack, which numpy 2.5 removed:
     _np.row_stack = _np.vstack     # without it, its first compile fails (AttributeError: row_stack)

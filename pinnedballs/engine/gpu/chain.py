@@ -31,7 +31,7 @@ from .kernels import (C_BATCH_C0, C_BATCH_S0, C_BATCHES, C_COLL, C_COUNT, C_DONE
                       C_MAXC, C_PICK_ROUNDS, C_RESETS, C_ROUNDS, C_STEP0, C_TOP, CTL_SIZE, EMPTY, MAX_BATCH, TOP,
                       barrier_kind, chain_kernel, launch_shape, live_kernel)
 
-__all__ = ["DeviceChain", "batch_size", "CHUNK_PER_CONTACT", "SCAN_BLOCK"]
+__all__ = ["DeviceChain", "batch_size", "kernel_rule", "upload_contacts", "CHUNK_PER_CONTACT", "SCAN_BLOCK"]
 
 #: a run that may freeze or reach a collision target checks between chunks of this many steps per contact
 CHUNK_PER_CONTACT = 16
@@ -44,6 +44,25 @@ def batch_size(n_balls: int) -> int:
     """Picks a batch by default: the power of two nearest a quarter of the balls, within [64, `MAX_BATCH`]
     (measured on an H100 at 4000x2000: 2^19 picks, 0.23 of the balls, ran fastest of 2^18 to 2^21)."""
     return int(min(MAX_BATCH, max(64, 1 << max(0, round(np.log2(max(1, n_balls) / 4))))))
+
+
+def kernel_rule(collide) -> int:
+    """The kernels' number of a rule's ``collide`` (`engine.closing.device_rule`), or a ValueError for a user's rule."""
+    rule = rule_code(collide)
+    if rule is None:
+        raise ValueError("the GPU runs the built-in rules (Elastic, Restitution) only")
+    return rule
+
+
+def upload_contacts(cuda, contacts, pattern, masses: np.ndarray) -> tuple:
+    """The contacts on the GPU as the kernels take them: ``(pairs, ends, table, meta, inverse, units, masses)``,
+    the row pattern unpacked (`kernels` module docstring) or stand-ins that the table reader never reads."""
+    table, meta, inverse = (pattern[0], np.array(pattern[1:4], dtype=np.int64), float(pattern[4])) \
+        if pattern is not None else (np.zeros(1, dtype=np.int64), np.zeros(3, dtype=np.int64), 1.0)
+    to = cuda.to_device
+    return (to(np.ascontiguousarray(contacts.pairs)), to(np.ascontiguousarray(contacts.ends)), to(table), to(meta),
+            inverse, to(np.ascontiguousarray(contacts.units, dtype=np.float64)),
+            to(np.ascontiguousarray(masses, dtype=np.float64)))
 
 
 class DeviceChain:
@@ -59,22 +78,16 @@ class DeviceChain:
     def __init__(self, v: np.ndarray, contacts, pattern, masses: np.ndarray, params: np.ndarray, collide, key,
                  *, batch: int | None = None, top: int = TOP, blocks: int | None = None):
         cuda = load()
-        rule = rule_code(collide)
-        if rule is None:
-            raise ValueError("the GPU runs the built-in rules (Elastic, Restitution) only")
+        rule = kernel_rule(collide)
         self.n_balls, self.dim = v.shape
         self.n_contacts = len(contacts.pairs)
         self.batch = batch_size(self.n_balls) if batch is None else int(batch)
         if not 1 <= self.batch <= MAX_BATCH or not 1 <= top <= TOP:
             raise ValueError(f"batch must be in [1, {MAX_BATCH}] and top in [1, {TOP}]")
         rows = pattern is not None
-        table, meta, inverse = (pattern[0], np.array(pattern[1:4], dtype=np.int64), float(pattern[4])) if rows \
-            else (np.zeros(1, dtype=np.int64), np.zeros(3, dtype=np.int64), 1.0)
         to = cuda.to_device
         self._v = to(np.ascontiguousarray(v, dtype=np.float64))
-        self._tables = (to(np.ascontiguousarray(contacts.pairs)), to(np.ascontiguousarray(contacts.ends)),
-                        to(table), to(meta), inverse, to(np.ascontiguousarray(contacts.units, dtype=np.float64)),
-                        to(np.ascontiguousarray(masses, dtype=np.float64)),
+        self._tables = (*upload_contacts(cuda, contacts, pattern, masses),
                         to(np.ascontiguousarray(params, dtype=np.float64)))
         self._key_host = np.array([int(key[0]), int(key[1])], dtype=np.uint64)
         self._key = to(self._key_host)
@@ -118,7 +131,7 @@ class DeviceChain:
 
     # ------------------------------------------------------------ running
     def grid(self) -> int:
-        """Blocks of the persistent kernel: as many as fit on the GPU at once (a cooperative launch)."""
+        """Blocks of the persistent kernel: as many as fit on the GPU at once (its blocks wait for one another)."""
         if self._blocks is None:
             args = self._arguments()
             kernel = self._kernel

@@ -33,7 +33,7 @@ except ImportError:  # pragma: no cover - older numba-cuda reads numba's
     from numba.core import config as _cuda_config
 
 from ..margin import NEAR
-from .codes import ELASTIC, EQUAL
+from ..closing import ELASTIC, EQUAL
 from ..philox import M0, M1, W0, W1, ROUNDS
 
 __all__ = ["SIMULATED", "launching", "counter_pick", "philox_block", "lemire",

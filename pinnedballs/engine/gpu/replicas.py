@@ -19,7 +19,8 @@ import os
 import numpy as np
 from numba import cuda
 
-from . import load, rule_code
+from . import load
+from .chain import kernel_rule, upload_contacts
 from .device import INF, SIMULATED, collider, contact_reader, launching, lemire, philox_block, track, counter_pick
 
 __all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
@@ -257,19 +258,13 @@ class ReplicaChains:
     def __init__(self, v: np.ndarray, params: np.ndarray, keys: np.ndarray, contacts, pattern, masses: np.ndarray,
                  collide):
         cuda_ = load()
-        rule = rule_code(collide)
-        if rule is None:
-            raise ValueError("the GPU runs the built-in rules (Elastic, Restitution) only")
+        rule = kernel_rule(collide)
         self.replicas, self.n_balls, self.dim = v.shape
         self.n_contacts = len(contacts.pairs)
         rows = pattern is not None
-        table, meta, inverse = (pattern[0], np.array(pattern[1:4], dtype=np.int64), float(pattern[4])) if rows \
-            else (np.zeros(1, dtype=np.int64), np.zeros(3, dtype=np.int64), 1.0)
         to = cuda_.to_device
         self._v = to(np.ascontiguousarray(v, dtype=np.float64))
-        self._tables = (to(np.ascontiguousarray(contacts.pairs)), to(np.ascontiguousarray(contacts.ends)), to(table),
-                        to(meta), inverse, to(np.ascontiguousarray(contacts.units, dtype=np.float64)),
-                        to(np.ascontiguousarray(masses, dtype=np.float64)))
+        self._tables = upload_contacts(cuda_, contacts, pattern, masses)
         self._params = to(np.ascontiguousarray(params, dtype=np.float64))
         self._keys = to(np.ascontiguousarray(keys, dtype=np.uint64))
         self.state = np.zeros((self.replicas, STATE_SIZE), dtype=np.int64)
