@@ -20,9 +20,9 @@ __all__ = ["field_chain", "check_precisions", "ARITHMETICS", "MAX_PRECISION"]
 
 #: the values of `Simulation`'s ``arithmetic``
 ARITHMETICS = ("float", "exact", "certified")
-#: the largest certified precision, in bits: the error bounds, floats of about 2^-precision, must
-#: stay far from float underflow (2^-1022), or a bound would round to 0
-MAX_PRECISION = 960
+#: the largest certified precision, in bits (64 limbs a coefficient). The error bounds are kept in units
+#: of the state's last place (`fixed_kernels`), so no precision makes them underflow
+MAX_PRECISION = 4096
 
 
 def check_precisions(arithmetic: str, precision, late_precision) -> tuple[int | None, int | None]:

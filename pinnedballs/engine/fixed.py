@@ -60,7 +60,7 @@ from .exact import FieldChain
 from .fields import Field, NotExact, recognise
 from .fixed_kernels import (DONE, DUE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables,
                             count_live, refresh_shadows, run_picks)
-from .fixed_state import CertifiedState, error_bound, nearest_floats
+from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
 from .limbs import from_limbs, to_limbs
 from .loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT
 
@@ -230,7 +230,7 @@ class FixedChain(FieldChain):
         m = self.field.m
         self.scratch = Scratch(np.zeros((m, self.P), dtype=np.uint64), np.zeros((2, self.P), dtype=np.uint64),
                                np.zeros((3, 4 * self.P + 2), dtype=np.uint64))
-        self.info = np.zeros(3)
+        self.info = np.zeros(4)
 
     def _state(self) -> tuple:
         return State(self.X, self.rows, self.dirty, self.B, self.Pp, self.acc, self.T)
@@ -272,10 +272,12 @@ class FixedChain(FieldChain):
         S = self.S - 64 * k
         dim, m = X.shape[1], X.shape[2]
         root = float(self.tables.root[2]) if m == 2 else 0.0
-        per = math.ldexp(math.sqrt(dim) * UP * (1.0 + root) * UP, -(S + 1)) * UP
+        per = math.sqrt(dim) * UP * (1.0 + root) * UP * 0.5 * UP  # units of 2^-S, the new S
+        self.B, self.Pp = scaled_up(self.B, -64 * k), scaled_up(self.Pp, -64 * k)
         self.B[rounded] = (self.B[rounded] + per) * UP
         self.Pp[rounded] = (self.Pp[rounded] + per) * UP
-        self.acc[0] = (self.acc[0] + math.sqrt(int(rounded.sum())) * UP * per * UP) * UP
+        whole = float(scaled_up(self.acc[:1], -64 * k)[0])
+        self.acc[0] = (whole + math.sqrt(int(rounded.sum())) * UP * per * UP) * UP
         self.acc[1] = self.acc[0] * SQRT2_UP * UP
         self.X, self.P, self.S = high, self.late_P, S
         self._scratch()
@@ -350,7 +352,7 @@ class FixedChain(FieldChain):
     def _uncertified(self, step: int | None, after: int | None) -> UncertifiedDecision:
         """The error for an undecided pick at ``step``, or for a count of the live contacts ``after``
         a step (None: outside a run)."""
-        w, bound, k = self.info[:3]
+        x, E, bound, k = self.info[:4]
         i, j = self.pairs[int(k)]
         where = f"step {step:,}" if step is not None else "a count of the live contacts" + (
             f" after step {after:,}" if after is not None else "")
@@ -359,9 +361,9 @@ class FixedChain(FieldChain):
         if narrowed:
             now += ", the late_precision it narrowed to once the first wave had passed"
         failure = UncertifiedDecision("arithmetic", f"certified arithmetic cannot decide contact {int(k)} (balls {i}, {j}) "
-                                                    f"at {where}: its closing speed {w:.6g} is within the error bound "
-                                                    f"{bound:.3g}; use arithmetic=\"exact\" or a larger precision "
-                                                    f"({now})")
+                                                    f"at {where}: its closing speed {power_text(x, int(E))} is within the "
+                                                    f"error bound {power_text(bound, -self.S)}; use arithmetic=\"exact\" or "
+                                                    f"a larger precision ({now})")
         failure.narrowed = narrowed
         return failure
 
@@ -418,23 +420,26 @@ class FixedChain(FieldChain):
     def _reshadow(self) -> None:
         """Shadows, rest flags and ``shadow`` from ``X`` for every ball."""
         self.dirty[:] = 1
-        refresh_shadows(self.X, self.T, self.tables.root, self.rows, self.B)
+        refresh_shadows(self.X, self.T, self.tables.root, self.rows, self.B, self.S)
         self.sync()
 
     # ------------------------------------------------------------ certified policy: the bound
     @property
     def error_bound(self) -> tuple[float, float]:
         """``(G, largest)``: bounds on the whole error vector and on each ball's (`fixed_state.error_bound`)."""
-        return error_bound(np.stack([self.B, self.Pp], axis=1), float(self.acc[0]))
+        return error_bound(np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S)
 
     def certified_state(self) -> CertifiedState:
-        return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]))
+        return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S)
 
     def set_certified_state(self, state: CertifiedState) -> None:
-        """Take a `CertifiedState` of this geometry (checked by the caller)."""
+        """Take a `CertifiedState` of this geometry (checked by the caller); its bounds rescaled to units
+        of ``2^-S`` (rounded up)."""
         self.X, self.S, self.P = state.limbs.copy(), int(state.scale), state.limbs.shape[-1]
-        self.B, self.Pp = state.bounds[:, 0].copy(), state.bounds[:, 1].copy()
-        self.acc[:] = state.rounding, state.rounding * SQRT2_UP * UP
+        shift = self.S - int(state.bound_scale)
+        self.B, self.Pp = scaled_up(state.bounds[:, 0], shift), scaled_up(state.bounds[:, 1], shift)
+        self.acc[0] = float(scaled_up(np.array([state.rounding]), shift)[0])
+        self.acc[1] = self.acc[0] * SQRT2_UP * UP
         self._scratch()
         self._reshadow()
         self.live = -1

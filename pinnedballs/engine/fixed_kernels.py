@@ -3,7 +3,8 @@ every decision exact (policy "exact") or proved equal to exact arithmetic's (pol
 
 Plain data (shapes; ``L`` lines, ``m`` coefficients per component, ``P`` limbs): `Tables` (the
 geometry's contact lines), `State` (the velocities, their shadows and bounds) and `Scratch`.
-``info (3,)``: ``(w~, bound, contact)`` of an uncertified decision; ``prog (6,) int64``:
+``info (4,)``: ``(x, E, bound, contact)`` of an uncertified decision, its closing speed ``w~ = x 2^E``
+and the bound in units of ``2^-S``; ``prog (6,) int64``:
 ``(collisions, index of the last, collided since the last scan, live contacts or -1, picks to the
 next scan, a step at which not to stop for a due check)``, kept across calls.
 
@@ -12,6 +13,11 @@ limbs read, rounded, and one product by ``sqrt d``), so the float closing speed 
 shadows is within ``FILTER * 2^-53 * usum (ms_i + ms_j) + TINY`` (``TINY`` covers underflow) of the
 exact one, with room to spare; only picks inside that band (widened by the bounds ``bmax`` in the
 certified policy) look further.
+
+The certified policy keeps its bounds in units of ``2^-S`` (the state's last place), so they neither
+underflow nor lose digits at any precision; a decision compares ``W``, read with its own exponent
+(`_normal`), with the bound scaled to it (`_beyond`). Only the band of the float filter (``bmax``, in
+the rows) is absolute, where an underflow is covered by ``TINY``.
 
 Every kernel is compiled without reference counting (see `limbs`), so the loop's many small
 inlined functions cost no atomic operations; the loop fetches the tables of picks a few steps
@@ -80,11 +86,11 @@ class State(NamedTuple):
     """The velocities, ``X / 2^S``, and what the loop keeps beside them."""
 
     X: np.ndarray  #: (n, dim, m, P) uint64: each component's coefficients (`limbs`)
-    rows: np.ndarray  #: (n, dim + 2): shadows, size ms (0 exactly at rest), bmax (largest B)
+    rows: np.ndarray  #: (n, dim + 2): shadows, size ms (0 exactly at rest), bmax (largest B, absolute)
     dirty: np.ndarray  #: (n,) uint8: changed since the last `sync`
-    B: np.ndarray  #: (n, L): certified bounds along each line
-    Pp: np.ndarray  #: (n, L): certified bounds across each line
-    acc: np.ndarray  #: (2,): sum |rho| and G, rounded up
+    B: np.ndarray  #: (n, L): certified bounds along each line, in units of 2^-S
+    Pp: np.ndarray  #: (n, L): certified bounds across each line, in units of 2^-S
+    acc: np.ndarray  #: (2,): sum |rho| and G, rounded up, in units of 2^-S
     T: np.ndarray  #: (P,): T[h] = 2^(64 (h + 1) - S), the scale of a float read from limb h down
 
 
@@ -102,15 +108,35 @@ def _closing(tables, X, i, j, l, W):
 
 
 @inlined
-def _approx(W, scale, root):
-    """``(f, err)``: the element ``W / 2^scale`` as a float, within ``err`` of it."""
+def _normal(W, root):
+    """``(x, err, E)``: the element ``W`` is within ``err 2^E`` of ``x 2^E`` (``|x| <= 1 + sqrt d``: no
+    overflow at any width; ``E`` the larger of its coefficients' exponents)."""
     f0, e0 = scaled_float(W[0])
-    a = math.ldexp(f0, int(e0 - scale))
     if W.shape[0] == 1:
-        return a, 4.0 * _U * abs(a) + TINY
+        return f0, 4.0 * _U * abs(f0) + TINY, e0
     f1, e1 = scaled_float(W[1])
-    b = math.ldexp(f1, int(e1 - scale))
-    return a + b * root[1], 9.0 * _U * (abs(a) + abs(b) * root[1]) + TINY
+    E = max(e0, e1)
+    a, b = math.ldexp(f0, int(e0 - E)), math.ldexp(f1, int(e1 - E))
+    return a + b * root[1], 9.0 * _U * (abs(a) + abs(b) * root[1]) + TINY, E
+
+
+@inlined
+def _absolute(x, E):
+    """``x 2^E`` as a float, 0 only when ``x`` is (an underflow keeps the sign and the smallest size)."""
+    y = math.ldexp(x, int(E))
+    return y if y != 0.0 or x == 0.0 else math.copysign(_SMALLEST, x)
+
+
+@inlined
+def _beyond(x, err, E, e, beta):
+    """1 when ``x 2^E`` (within ``err 2^E``) certainly exceeds ``beta 2^e``, 0 when it certainly lies
+    below ``-beta 2^e``, -1 when neither: the bound is scaled to ``2^E`` (rounded up, at least ``TINY``)."""
+    bound = max(math.ldexp(beta, int(e - E)), TINY)
+    if x - err > bound:
+        return 1
+    if x + err < -bound:
+        return 0
+    return -1
 
 
 @inlined
@@ -150,19 +176,17 @@ def _decide(k, tables, state, scale, certify, scratch, info):
     if decision < 2:
         return decision, False, x
     i, j = tables.pairs[k, 0], tables.pairs[k, 1]
-    beta = (state.B[i, l] + state.B[j, l]) * UP if certify else 0.0
+    beta = (state.B[i, l] + state.B[j, l]) * UP if certify else 0.0  # units of 2^-S
     W = scratch.W
     _closing(tables, state.X, i, j, l, W)
-    f, err = _approx(W, scale + tables.e[l], tables.root)
-    x = s * f
+    f, err, E = _normal(W, tables.root)
+    x = s * _absolute(f, E - scale - tables.e[l])
     if beta == 0.0:  # w~ is w: its exact sign
         return (1 if s * _exact_sign(W, tables.root, scratch) > 0 else 0), True, x
-    if x - err > beta:
-        return 1, True, x
-    if x + err < -beta:
-        return 0, True, x
-    info[0], info[1], info[2] = x, beta, k
-    return -1, True, x
+    decision = _beyond(s * f, err, E, tables.e[l], beta)
+    if decision < 0:
+        info[0], info[1], info[2], info[3] = s * f, E - scale - tables.e[l], beta, k
+    return decision, True, x
 
 
 @inlined
@@ -186,21 +210,30 @@ def _shadow(X, b, T, root, rows):
     rows[b, D] = max(size, _SMALLEST) if moving else 0.0
 
 
+@inlined
+def _band(bmax, scale):
+    """A largest bound in units of ``2^-scale`` as the float filter reads it: absolute, rounded up
+    (an underflow loses less than the filter's ``TINY``)."""
+    return math.ldexp(bmax, -int(scale)) * UP
+
+
 @kernel
-def refresh_shadows(X, T, root, rows, B):
-    """Every ball's row (shadows, size, largest bound) from ``X`` and ``B``."""
+def refresh_shadows(X, T, root, rows, B, scale):
+    """Every ball's row (shadows, size, largest bound) from ``X`` and ``B`` (units of ``2^-scale``)."""
     D = X.shape[1]
     for b in range(X.shape[0]):
         _shadow(X, b, T, root, rows)
-        rows[b, D + 1] = 0.0
+        bmax = 0.0
         for m in range(B.shape[1]):
-            rows[b, D + 1] = max(rows[b, D + 1], B[b, m])
+            bmax = max(bmax, B[b, m])
+        rows[b, D + 1] = _band(bmax, scale)
 
 
 @inlined
-def _carry_bounds(state, coef, i, j, l, r):
-    """The error bounds of balls ``i, j`` after their collision along line ``l`` with rounding ``|rho| <= r``:
-    the parallel components are exchanged, the perpendicular ones kept; each capped by ``G``."""
+def _carry_bounds(state, coef, i, j, l, r, scale):
+    """The error bounds of balls ``i, j`` after their collision along line ``l`` with rounding ``|rho| <= r``
+    (units of ``2^-scale``): the parallel components are exchanged, the perpendicular ones kept; each
+    capped by ``G``."""
     B, Pp, rows, G = state.B, state.Pp, state.rows, state.acc[1]
     uu, nu, nn, un = coef[0], coef[1], coef[2], coef[3]
     pi, pj = Pp[i, l], Pp[j, l]
@@ -213,7 +246,7 @@ def _carry_bounds(state, coef, i, j, l, r):
         B[j, m] = min(G, (pj * nu[l, m] + aj * uu[l, m]) * UP)
         Pp[j, m] = min(G, (pj * nn[l, m] + aj * un[l, m]) * UP)
         bi, bj = max(bi, B[i, m]), max(bj, B[j, m])
-    rows[i, D + 1], rows[j, D + 1] = bi, bj
+    rows[i, D + 1], rows[j, D + 1] = _band(bi, scale), _band(bj, scale)
 
 
 @inlined
@@ -232,7 +265,7 @@ def _collide(k, tables, state, scale, certify, scratch):
         rho0 = shift_round(W[0], W[0], bits)
         rho1 = shift_round(W[1], W[1], bits) if m == 2 else 0
         if rho0 != 0 or rho1 != 0:
-            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-(scale + tables.e[l])))
+            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[l]))  # units of 2^-S
     for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
         for c in range(m):
             exchange(X[i, d, c], X[j, d, c], W, tables.kterms[l, d, c], tables.kcount[l, d, c])
@@ -243,7 +276,7 @@ def _collide(k, tables, state, scale, certify, scratch):
         if r > 0.0:
             state.acc[0] = (state.acc[0] + r) * UP
             state.acc[1] = state.acc[0] * SQRT2_UP * UP
-        _carry_bounds(state, tables.coef, i, j, l, r)
+        _carry_bounds(state, tables.coef, i, j, l, r, scale)
     return True
 
 

@@ -10,23 +10,47 @@ import numpy as np
 
 from .errors import FieldError
 
-__all__ = ["CertifiedState", "nearest_floats", "error_bound"]
+__all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text"]
 
 #: (as `fixed_kernels.UP` and `SQRT2_UP`: this module stays free of numba)
 _UP = 1.0 + 2.0 ** -50
 _SQRT2_UP = math.sqrt(2.0) * _UP
 
 
-def error_bound(bounds: np.ndarray, rounding: float) -> tuple[float, float]:
+def scaled_up(x: np.ndarray, shift: int) -> np.ndarray:
+    """``x 2^shift`` for floats ``x >= 0``, rounded up: exact unless it leaves the normal range; a
+    result that underflows is raised to the next float (so a bound stays a bound, never 0), one that
+    overflows is inf."""
+    x = np.asarray(x, dtype=np.float64)
+    y = np.ldexp(x, int(shift))
+    tiny = (x > 0) & (y < 2.0 ** -1021)
+    y[tiny] = np.nextafter(y[tiny], np.inf)
+    return y
+
+
+def power_text(x: float, exponent: int) -> str:
+    """``x 2^exponent`` in words: a float where one holds it, else ``m * 2^e`` (for messages)."""
+    if x == 0.0:
+        return "0"
+    y = math.ldexp(x, exponent)
+    if 2.0 ** -1000 < abs(y) < 2.0 ** 1000:
+        return f"{y:.6g}"
+    m, e = math.frexp(x)  # |m| in [0.5, 1)
+    return f"{2 * m:.6g} * 2^{e - 1 + exponent}"
+
+
+def error_bound(bounds: np.ndarray, rounding: float, bound_scale: int = 0) -> tuple[float, float]:
     """``(G, largest)`` from a certified state's ``bounds (n_balls, 2, L)`` and ``rounding`` (the sum
-    of every ``|rho|``): ``G = sqrt(2) * rounding`` bounds the whole error vector (rounded up as the
-    chain computes it), ``largest`` every ball's error ``|V_i(exact) - V~_i|`` (the least over lines
-    of ``hypot(B, Pp)``, rounded up, and at most ``G``)."""
+    of every ``|rho|``), both in units of ``2^-bound_scale``: ``G = sqrt(2) * rounding`` bounds the
+    whole error vector (rounded up as the chain computes it), ``largest`` every ball's error
+    ``|V_i(exact) - V~_i|`` (the least over lines of ``hypot(B, Pp)``, rounded up, and at most ``G``).
+    Absolute floats, rounded up: a bound below the smallest float is 5e-324, not 0."""
     G = rounding * _SQRT2_UP * _UP
-    if bounds.size == 0:
-        return G, 0.0
-    per_ball = np.min(np.hypot(bounds[:, 0], bounds[:, 1]), axis=1) * _UP
-    return G, float(min(G, per_ball.max()))
+    largest = 0.0
+    if bounds.size:
+        largest = float(min(G, (np.min(np.hypot(bounds[:, 0], bounds[:, 1]), axis=1) * _UP).max()))
+    G, largest = scaled_up(np.array([G, largest]), -int(bound_scale)).tolist()
+    return G, largest
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,25 +61,28 @@ class CertifiedState:
     field's basis as integers over ``2^scale`` in ``P`` little-endian 64-bit limbs, two's complement;
     scale: ``S``; bounds: ``(n_balls, 2, L) float64``, each ball's error bounds along (``[:, 0]``,
     ``B``) and across (``[:, 1]``, ``Pp``) each of the geometry's ``L`` contact lines; rounding: the
-    sum of every ``|rho|`` so far, rounded up (``G = sqrt(2)`` times it).
+    sum of every ``|rho|`` so far, rounded up (``G = sqrt(2)`` times it); bound_scale: bounds and
+    rounding are in units of ``2^-bound_scale`` (the chain writes ``S``: no underflow at any
+    precision; 0, absolute, in files written before it was kept).
     """
 
     limbs: np.ndarray
     scale: int
     bounds: np.ndarray
     rounding: float
+    bound_scale: int = 0
 
     def copy(self) -> "CertifiedState":
-        return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding)
+        return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale)
 
     def identical(self, other: "CertifiedState") -> bool:
-        return (self.scale, self.rounding) == (other.scale, other.rounding) and all(
+        return (self.scale, self.rounding, self.bound_scale) == (other.scale, other.rounding, other.bound_scale) and all(
             a.dtype == b.dtype and np.array_equal(a, b) for a, b in ((self.limbs, other.limbs),
                                                                       (self.bounds, other.bounds)))
 
     def error_bound(self) -> tuple[float, float]:
         """``(G, largest)``: see `error_bound`."""
-        return error_bound(self.bounds, self.rounding)
+        return error_bound(self.bounds, self.rounding, self.bound_scale)
 
     def check(self, shape: tuple[int, int, int], lines: int) -> None:
         """A `FieldError` on ``certified`` unless this state fits ``shape = (n_balls, dim, m)`` and
@@ -73,6 +100,11 @@ class CertifiedState:
             raise FieldError("certified", "bounds must be finite and >= 0")
         if not (isinstance(self.rounding, float) and math.isfinite(self.rounding) and self.rounding >= 0):
             raise FieldError("certified", f"rounding must be a finite float >= 0, got {self.rounding!r}")
+        if not (isinstance(self.bound_scale, (int, np.integer)) and 0 <= self.bound_scale < 64 * limbs.shape[3]):
+            raise FieldError("certified", f"bound_scale must be an integer in [0, {64 * limbs.shape[3]}), "
+                                          f"got {self.bound_scale!r}")
+        if not np.isfinite(scaled_up(bounds, int(self.scale) - int(self.bound_scale))).all():
+            raise FieldError("certified", "bounds must be finite in units of 2^-scale")
 
 
 def nearest_floats(ints: np.ndarray, scale: int, d: int) -> np.ndarray:

@@ -237,7 +237,8 @@ def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int, 
 
 def _check_certified(f: h5py.File, n: int, d: int) -> None:
     """The fixed point and bounds of a run in certified arithmetic (`CertifiedState`): limbs
-    ``(n, d, m, P) uint64``, bounds ``(n, 2, L)`` floats >= 0, an integer scale, a rounding >= 0."""
+    ``(n, d, m, P) uint64``, bounds ``(n, 2, L)`` floats >= 0, an integer scale, a rounding >= 0, an
+    integer bound_scale where there is one."""
     limbs, bounds = _dataset(f, "state/certified/limbs"), _dataset(f, "state/certified/bounds")
     if limbs.ndim != 4 or limbs.shape[:2] != (n, d) or limbs.dtype != np.uint64:
         raise Damage("state/certified/limbs", f"must be uint64 of shape ({n}, {d}, m, P), got {limbs.dtype} {limbs.shape}")
@@ -255,6 +256,10 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
         raise Damage("state/certified", f"scale must be an integer in [0, {64 * limbs.shape[3]}), got {scale!r}")
     if not (np.isfinite(rounding) and rounding >= 0):
         raise Damage("state/certified", f"rounding must be a finite number >= 0, got {rounding!r}")
+    bound_scale = attrs.get("bound_scale", 0)  # bounds in units of 2^-bound_scale (absent: 0, absolute)
+    if not (np.issubdtype(np.asarray(bound_scale).dtype, np.integer) and 0 <= bound_scale < 64 * limbs.shape[3]):
+        raise Damage("state/certified", f"bound_scale must be an integer in [0, {64 * limbs.shape[3]}), "
+                                        f"got {bound_scale!r}")
 
 
 def _check_exact(f: h5py.File, n: int, d: int) -> None:

@@ -290,7 +290,8 @@ def read(p: Path, f: h5py.File) -> Results:
     certified = None
     if "certified" in s:
         c = s["certified"]
-        certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]))
+        certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]),
+                                   int(c.attrs.get("bound_scale", 0)))  # 0: absolute (files before it was kept)
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
                       s["scheduler_state"][()], exact, margin, certified)
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])

@@ -219,7 +219,8 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
     if state.certified is not None:  # a run in certified arithmetic: its fixed point and bounds
         c = s.create_group("certified")
         c["limbs"], c["bounds"] = state.certified.limbs, state.certified.bounds
-        c.attrs.update(scale=state.certified.scale, rounding=state.certified.rounding)
+        c.attrs.update(scale=state.certified.scale, rounding=state.certified.rounding,
+                       bound_scale=state.certified.bound_scale)  # bounds in units of 2^-bound_scale
     s["momentum"] = record.momentum
     s.attrs.update(energy=record.energy, approaching=record.approaching, frozen=record.frozen)
     if criterion is not None and state.margin is not None:

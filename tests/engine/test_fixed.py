@@ -5,6 +5,8 @@ or saying in one line that it cannot."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -13,7 +15,10 @@ from hypothesis import strategies as st
 import pinnedballs as pb
 from helpers import SQRT3, chain, chain_along, cubic, fcc_cluster
 from pinnedballs.engine.exact import ExactChain
+from gmpy2 import mpq
+
 from pinnedballs.engine.fixed import FixedChain, UncertifiedDecision, lines_of
+from pinnedballs.engine.fixed_state import CertifiedState
 
 FEW = settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
@@ -338,7 +343,7 @@ def test_hcp_keeps_the_rational_chain_and_certified_says_why():
 
 
 @pytest.mark.parametrize("arithmetic, precision, message", [
-    ("certified", 32, "precision: must be an integer in [64, 960], got 32"),
+    ("certified", 32, "precision: must be an integer in [64, 4096], got 32"),
     ("certified", 2.5, "precision: must be an integer, got 2.5"),
     ("exact", 256, "precision: is the precision of certified arithmetic; this run's is 'exact'"),
     ("float", 256, "precision: is the precision of certified arithmetic; this run's is 'float'"),
@@ -351,8 +356,8 @@ def test_a_bad_precision_is_named(arithmetic, precision, message):
 
 
 @pytest.mark.parametrize("arithmetic, options, message", [
-    ("certified", {"late_precision": 1024}, "late_precision: must be an integer in [64, 960], got 1024"),
-    ("certified", {"late_precision": 32}, "late_precision: must be an integer in [64, 960], got 32"),
+    ("certified", {"late_precision": 4160}, "late_precision: must be an integer in [64, 4096], got 4160"),
+    ("certified", {"late_precision": 32}, "late_precision: must be an integer in [64, 4096], got 32"),
     ("certified", {"late_precision": 800}, "late_precision: must be at most precision (768 bits), got 800"),
     ("certified", {"precision": 256, "late_precision": 320},
      "late_precision: must be at most precision (256 bits), got 320"),
@@ -414,3 +419,93 @@ def test_the_compiled_chain_and_its_plain_python_twin_agree_bit_for_bit():
     a, b = json.loads(plain.stdout), json.loads(compiled.stdout)
     assert a == b and a["exact"][1] > 10 and a["exact"][:2] == a["certified"][:2]
     assert a["certified"][3] is None and a["late"][3] == 120 and a["late"][1] == 25  # narrowed, at the same step
+
+
+# ---------------------------------------------------------------- certified policy past 960 bits
+
+
+def _deep_velocities(g, bits: int, seed: int) -> list:
+    """Exact velocities ``(n_balls, 2)`` of Q(sqrt 3) elements whose coefficients have ``bits``
+    fractional bits: every kick of a certified run narrower than that rounds."""
+    rng = np.random.default_rng(seed)
+    tiny = mpq(1, 1 << bits)
+
+    def coefficient():
+        return mpq(int(rng.integers(-2**20, 2**20)), 1 << 22) + int(rng.integers(1, 2**40)) * tiny
+
+    return [[(coefficient(), coefficient()) for _ in range(2)] for _ in range(g.n_balls)]
+
+
+def test_certified_past_960_bits_decides_as_exact_arithmetic_within_its_bounds():
+    """A 1,536-bit certified run (bounds near 2^-1,500, below the smallest float) of velocities with
+    1,519 fractional bits, so that every kick rounds: exact arithmetic's collisions at the same
+    steps, and every ball's velocity within the bound it reports of the exact one, checked in
+    rationals (in units of the last place: 2^-1,500 is no float)."""
+    g = pb.HalfPlane(8, 6)
+    exact, certified = rational(g, inward(g), seed=3), pb.Simulation(g, inward(g), seed=3, arithmetic="certified",
+                                                                     precision=1536)
+    chain = certified._exact
+    deep = _deep_velocities(g, chain.S - 6, seed=1)
+    for s in (exact, certified):
+        s._exact.set_velocities(deep)
+        s.velocities = s._exact.sync()
+    assert chain.P == 24 and chain.S > 1500 and np.array_equal(exact.velocities, certified.velocities)
+    logs = [Log(exact), Log(certified)]
+    for s in (exact, certified):
+        assert s.run_until_frozen(max_steps=10**5)
+    assert (logs[0].steps, logs[0].contacts) == (logs[1].steps, logs[1].contacts) and exact.collisions > 150
+    state = certified.get_state().certified
+    assert state.bound_scale == chain.S and 0 < state.bounds.max() < 2.0**40
+    G, largest = certified.error_bound
+    assert largest == 5e-324 and G == 5e-324  # below the smallest float: reported as it, never 0
+    per_ball = np.min(np.hypot(state.bounds[:, 0], state.bounds[:, 1]), axis=1)
+    unit, sqrt3 = 1 << chain.S, mpq(math.isqrt(3 << 6000), 1 << 3000)  # within 2^-3000
+    worst = 0.0
+    for b, (row_e, row_c) in enumerate(zip(exact._exact.v, chain.v)):
+        err = [float(((x[0] - y[0]) + (x[1] - y[1]) * sqrt3) * unit) for x, y in zip(row_e, row_c)]
+        size = float(np.hypot(*err))
+        assert size <= per_ball[b], (b, size, per_ball[b])
+        worst = max(worst, size)
+    assert worst > 0.1  # the rounding is real, in last places
+
+
+def test_an_exact_zero_hidden_by_rounding_past_960_bits_stops_the_run_in_one_line():
+    """Every ball moving with one velocity: exactly frozen, every closing speed exactly 0. With a
+    bound of one last place (2^-1,525) on every ball, no decision can be certified: the first pick
+    stops the run and the message gives the bound in powers of 2 (below the smallest float)."""
+    g = pb.HalfPlane(5, 4)
+    sim = pb.Simulation(g, inward(g), seed=2, arithmetic="certified", precision=1536)
+    chain = sim._exact
+    chain.set_velocities([[(mpq(3, 8), mpq(0)), (mpq(-1, 4), mpq(1, 16))] for _ in range(g.n_balls)])
+    sim.velocities = chain.sync()
+    state = sim.get_state()
+    c = state.certified
+    sim.set_state(state.replace(certified=CertifiedState(c.limbs, c.scale, np.ones_like(c.bounds), 1.0, c.scale)))
+    assert sim.error_bound == (5e-324, 5e-324)
+    with pytest.raises(UncertifiedDecision) as info:
+        sim.run(steps=1)
+    message = str(info.value)
+    assert "\n" not in message and sim.steps == 0
+    assert f"its closing speed 0 is within the error bound 1 * 2^-{chain.S - 1}" in message  # 2 (1 + 2^-50) last places
+
+
+def test_a_certified_state_with_absolute_bounds_resumes_as_the_run_that_wrote_it():
+    """Files written before bounds were kept in last places hold them absolute (``bound_scale`` 0):
+    taken from such a state, a certified run ends on the state, bounds included, of the run never
+    stopped."""
+    g = pb.HalfPlane.from_size(40, 20)  # rounds at 128 bits
+    whole = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128)
+    whole.run_until_frozen(max_steps=10**6)
+    half = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128)
+    while not half.get_state().certified.bounds.any():  # to the first rounding, and a little further
+        half.run(steps=500)
+    half.run(steps=500)
+    state = half.get_state()
+    c = state.certified
+    assert half.steps < whole.steps
+    old = CertifiedState(c.limbs, c.scale, np.ldexp(c.bounds, -c.scale), math.ldexp(c.rounding, -c.scale), 0)
+    resumed = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128)
+    resumed.set_state(state.replace(certified=old))
+    resumed.run_until_frozen(max_steps=10**6)
+    assert (resumed.steps, resumed.collisions) == (whole.steps, whole.collisions)
+    assert resumed.get_state().certified.identical(whole.get_state().certified)

@@ -110,7 +110,11 @@ def test_a_certified_state_is_checked_before_it_is_taken():
         (state.replace(certified=CertifiedState(c.limbs, c.scale, -c.bounds - 1, c.rounding)),
          "certified: bounds must be finite and >= 0"),
         (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds, float("nan"))), "certified: rounding must"),
-        (state.replace(certified=CertifiedState(c.limbs, c.scale + 1, c.bounds, c.rounding)),
+        (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds, c.rounding, -1)),
+         "certified: bound_scale must be an integer in [0, "),
+        (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds + 1e300, c.rounding, 0)),
+         "certified: bounds must be finite in units of 2^-scale"),
+        (state.replace(certified=CertifiedState(c.limbs, c.scale + 1, c.bounds, c.rounding, c.bound_scale)),
          "certified: the fixed-point velocities do not round to the state's velocities"),
     ]
     for bad, words in cases:
