@@ -212,7 +212,8 @@ def info(args: argparse.Namespace) -> int:
         return EXIT_OK
     res = load(args.dir)
     kinds = res.kinds
-    made = f"seed {res.spec.seed}" if res.spec is not None else "built in Python"
+    made = "built in Python" if res.spec is None else f"seed {res.spec.seed}" + (
+        "" if res.spec.replica is None else f", replica {res.spec.replica}")
     lines = [
         f"results:     {res.path}",
         f"status:      {_status(res)}",

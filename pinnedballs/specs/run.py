@@ -51,7 +51,10 @@ class RunSpec(_Spec):
 
     ``seed``: seeds the run's random stream; a spec without one gets one drawn from fresh entropy when
     it runs (`seeded`), which the run's own spec (``spec.json``, the results file) records, so
-    ``--resume`` continues the same run and the recorded spec repeats it.
+    ``--resume`` continues the same run and the recorded spec repeats it. ``replica``: the run is
+    replica ``k`` of an ensemble of this spec (`pinnedballs ensemble`), seeded as it seeds it,
+    ``SeedSequence(seed, spawn_key=(k,))``: one replica run alone, checkpointed and resumed, on the
+    ensemble's picks (it needs a seed).
 
     ``trajectory``: when to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
     freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
@@ -63,6 +66,7 @@ class RunSpec(_Spec):
     scheduler: SchedulerSpec = UniformRandomPairSpec()
     masses: MassesField | None = None
     seed: Count | None = None
+    replica: Count | None = None
     stop: StopSpec
     snapshots: SnapshotsSpec | None = None
     trajectory: SnapshotsSpec | None = None
@@ -99,6 +103,19 @@ class RunSpec(_Spec):
             return None if value is None else check_resolution(value)  # the engine's words
         except FieldError as exc:
             raise ValueError(exc.problem) from None
+
+    @model_validator(mode="after")
+    def _replica_needs_a_seed(self) -> "RunSpec":
+        if self.replica is not None and self.seed is None:
+            raise ValueError("replica: is replica k of the ensemble the seed seeds; give the spec a seed")
+        return self
+
+    def seed_sequence(self) -> np.random.SeedSequence:
+        """What seeds the run: ``SeedSequence(seed)``, or for a ``replica`` the ensemble's child
+        (`pinnedballs.run.ensemble.replica_seed`)."""
+        if self.replica is None:
+            return np.random.SeedSequence(self.seed)
+        return np.random.SeedSequence(self.seed, spawn_key=(self.replica,))
 
     @model_validator(mode="after")
     def _snapshots_before_stop(self) -> "RunSpec":
@@ -143,7 +160,7 @@ class RunSpec(_Spec):
         if seed is None and self.seed is None:
             return self.seeded().build(device=device)  # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
-            np.random.SeedSequence(self.seed if seed is None else seed)
+            self.seed_sequence() if seed is None else np.random.SeedSequence(seed)
         geometry = self.geometry.build()
         masses = self.build_masses(geometry.n_balls)
         with engine_errors("", {"masses": "masses"}):
@@ -155,7 +172,7 @@ class RunSpec(_Spec):
                    device: str = "cpu") -> Simulation:
         """A `Simulation` of this spec's rule, scheduler and seed on a ``geometry``, ``velocities`` and
         ``masses`` already built (or read back from a results file), on ``device``."""
-        seq = seed if seed is not None else np.random.SeedSequence(self.seed)
+        seq = seed if seed is not None else self.seed_sequence()
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         rule, scheduler = self.rule.build(), self.scheduler.build()
         try:
@@ -315,7 +332,8 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     rule = label(spec.rule) + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {label(spec.initial)}, energy {sim.energy():.6g}; {rule}, {label(spec.scheduler)}; "
-            f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}")
+            f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"
+                                                 + ("" if spec.replica is None else f", replica {spec.replica}"))
             + ("" if spec.resolution is None else f"; resolution {spec.resolution:.3g}"))
 
 

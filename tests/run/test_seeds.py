@@ -88,3 +88,27 @@ def test_an_ensemble_without_a_seed_draws_one_for_all_its_replicas(tmp_path):
     again = ens.run_ensemble(parse_spec(json.loads((tmp_path / "a" / ens.SPEC_NAME).read_text())), 3, workers=1)
     ens.write_table(again, tmp_path / "again.csv")
     assert (tmp_path / "again.csv").read_text() == (tmp_path / "a" / ens.TABLE_NAME).read_text()
+
+
+def test_a_replica_run_alone_is_the_ensembles_replica(tmp_path):
+    """``"replica": k`` seeds a run as an ensemble of the spec seeds its replica k
+    (``SeedSequence(seed, spawn_key=(k,))``): run alone, checkpointed like any run, it ends on the
+    ensemble's replica's steps and collisions, and ``info`` names it."""
+    from helpers import HALF_PLANE
+
+    rows = ens.run_replica(parse_spec(HALF_PLANE), 2)
+    path = write(tmp_path / "r2.json", spec(HALF_PLANE, replica=2))
+    code, _, err = call("run", path, "--out", tmp_path / "r2", "--quiet", "--no-figures")
+    assert (code, err) == (0, "")
+    res = load(tmp_path / "r2")
+    assert (res.steps, res.collisions) == (rows[-1]["steps"], rows[-1]["collisions"]) and res.spec.replica == 2
+    plain = ens.run_replica(parse_spec(HALF_PLANE), 0)[-1]
+    assert (plain["steps"], plain["collisions"]) != (res.steps, res.collisions)  # another replica, other picks
+    code, out, _ = call("info", tmp_path / "r2")
+    assert ", seed 3, replica 2\n" in out
+
+
+def test_a_replica_without_a_seed_is_refused(tmp_path):
+    path = write(tmp_path / "r.json", spec(UNSEEDED, replica=1))
+    code, out, err = call("validate", path)
+    assert code == 2 and "replica: is replica k of the ensemble the seed seeds; give the spec a seed" in err
