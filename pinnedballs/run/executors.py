@@ -8,9 +8,11 @@ A worker that dies (killed, out of memory) takes no other job down with it. Dask
 the jobs of a lost worker itself, and gives up (``KilledWorker``) on one that was on workers that
 died more often than its scheduler allows (``distributed.scheduler.allowed-failures``): `on_dask`
 runs each of those again alone, so that a death there is its own. A local pool breaks as a whole
-when one of its processes dies, failing every job still in it: `on_processes` runs again those that
-had not started, and runs each one that was running alone; a job whose process dies `MAX_DEATHS`
-times is reported (`WorkerDied`). Jobs are deterministic, so a job run again gives the same bits.
+when one of its processes dies, failing every job still in it: `on_processes` kills the other
+processes at once (each job running there is lost too), runs again the jobs that had not started,
+and runs each one that was running alone; a job whose process dies `MAX_DEATHS` times is reported
+(`WorkerDied`), and so is every job left when pools break `MAX_DEATHS` times in a row before any job
+ends. Jobs are deterministic, so a job run again gives the same bits.
 
 A Ctrl-C in the main process stops the ensemble at once: local processes are killed (they ignore
 SIGINT themselves, so a terminal's Ctrl-C, which reaches them too, is handled in one place), the
@@ -52,7 +54,8 @@ from ..engine.errors import InputError
 __all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "watch_parent", "WorkerDied",
            "MAX_DEATHS", "MAX_GREETING", "CONNECT_TIMEOUT", "PARENT_POLL", "ORPHANED"]
 
-#: deaths of the process running a job, alone, after which the job is reported instead of run again
+#: deaths of the process running a job, alone, after which the job is reported instead of run again (and
+#: pools broken in a row before any job ended, after which every job left is)
 MAX_DEATHS = 3
 #: seconds between a pool process's checks that the process that started it is alive
 PARENT_POLL = 0.5
@@ -90,8 +93,9 @@ def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: O
     the module's docstring)."""
     results: dict = {}
     with tempfile.TemporaryDirectory(prefix="pinnedballs-jobs-") as marks:
-        todo = dict(jobs)
+        todo, barren = dict(jobs), 0
         while todo:
+            before = len(results)
             running = _pool(todo, workers, Path(marks), results, tick, on_error)
             for k in running:  # alone: a death is then its own
                 for _ in range(MAX_DEATHS):
@@ -102,6 +106,13 @@ def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: O
                                                         f"out of memory?)"))
                     tick()
             todo = {k: job for k, job in todo.items() if k not in results}
+            barren = barren + 1 if len(results) == before else 0  # the pool broke before any job ended
+            if todo and barren == MAX_DEATHS:
+                for k in todo:
+                    results[k] = on_error(k, WorkerDied(f"the pool's processes died {MAX_DEATHS} times before any "
+                                                        f"job ended (killed, or out of memory?)"))
+                    tick()
+                break
     return results
 
 
@@ -112,20 +123,27 @@ def _pool(jobs: dict, workers: int, marks: Path, results: dict, tick, on_error: 
     parent = os.getpid() if context is None else None  # forkserver: the server is the parent
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_starts,
                                initargs=(parent,))
+    futures: dict = {}
     try:
-        futures = {pool.submit(_marked, marks / str(k), *job): k for k, job in jobs.items()}
-        finished = as_completed(futures)
-        for future in finished:
+        for k, job in jobs.items():
+            futures[pool.submit(_marked, marks / str(k), *job)] = k
+        for future in as_completed(futures):
             k = futures[future]
             try:
                 results[k] = future.result()
             except BrokenProcessPool:
-                pool.shutdown(wait=True, cancel_futures=True)
-                return _after_break(futures, marks, results, tick)
+                raise
             except Exception as exc:  # noqa: BLE001 - reported by on_error, the others kept
                 results[k] = on_error(k, exc)
             tick()
         return []
+    except BrokenProcessPool:  # a process died: the pool fails every job left in it
+        # Its survivors are killed here, not left to the pool: on Python 3.11 it only sends them SIGTERM
+        # and waits for them, and one may wait for ever on a lock of the call queue that the dead
+        # process held (or take SIGTERM as the KeyboardInterrupt of a handler it inherited).
+        _kill_workers(pool)
+        pool.shutdown(wait=True, cancel_futures=True)
+        return _after_break(futures, marks, results, tick)
     except BaseException:  # Ctrl-C (or any failure here): the workers stop now, not after their jobs
         _kill_workers(pool)
         raise
@@ -164,10 +182,11 @@ def _start_method():
 
 
 def _worker_starts(parent: int | None) -> None:
-    """A pool process's start: Ctrl-C is the main process's to handle (it stops the workers), and the
-    process dies with its parent (`watch_parent`; None: the process that forked it, a forkserver, which
-    ends with the main process), so a ``kill -9`` of the main process leaves no orphan."""
+    """A pool process's start: Ctrl-C is the main process's to handle (it stops the workers), SIGTERM
+    ends the process, and it dies with its parent (`watch_parent`; None: the process that forked it, a
+    forkserver, which ends with the main process), so a ``kill -9`` of the main process leaves no orphan."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the handler of a command line it was forked from
     watch_parent(os.getppid() if parent is None else parent)
 
 

@@ -4,10 +4,12 @@ time it runs is the only one reported, by its index, with how to run it alone.""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
 import signal
+import subprocess
 import sys
 import threading
 import time
@@ -22,6 +24,8 @@ from pinnedballs.specs import parse_spec
 from helpers import pickled_by_value
 
 pytestmark = pytest.mark.slow  # clusters, processes killed
+
+ROOT = Path(__file__).resolve().parents[2]
 
 #: replicas of about a second each
 LONG = {"geometry": {"kind": "flat_torus", "rows": 8, "cols": 8},
@@ -62,6 +66,20 @@ def test_a_replica_whose_local_process_always_dies_is_the_only_one_reported():
     assert [r for r in result.rows if r["replica"] != 2] == [r for r in undisturbed(SHORT, 6) if r["replica"] != 2]
 
 
+def dies_at_birth(parent):
+    """A pool process's start that kills it: an OOM killer that takes every new worker."""
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_pools_whose_processes_all_die_at_birth_end_with_every_replica_reported(monkeypatch):
+    """Before: each pool broke before any replica started, and the ensemble made pools for ever."""
+    monkeypatch.setattr(executors, "_worker_starts", dies_at_birth)
+    result = ens.run_ensemble(parse_spec(SHORT), 3, workers=2, progress=False)
+    assert result.failures == [{"replica": k, "seed_entropy": 3, "spawn_key": f"[{k}]", ens.ERROR_COLUMN:
+                                f"WorkerDied: the pool's processes died {executors.MAX_DEATHS} times before any job "
+                                f"ended (killed, or out of memory?)"} for k in range(3)]
+
+
 def test_the_command_line_names_the_replica_and_how_to_run_it_alone(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(ens, "run_replica", _dying_replica)  # the default task, looked up when the ensemble runs
     spec = tmp_path / "s.json"
@@ -84,6 +102,83 @@ def _dying_replica(spec, index, seed=None):
     if index == 2:
         os.kill(os.getpid(), signal.SIGKILL)
     return _REAL_REPLICA(spec, index, seed)
+
+
+#: ``python DRIVER SIGNALS pinnedballs-arguments...``: the command line, its replicas telling through files
+#: in SIGNALS where they are: replica 0 starts once replica 1 runs on the other process, then says
+#: "done-0-PID" (that process is then idle, waiting for a job); replica 1 says "running-1-PID", then
+#: waits for the file "go" (it is busy until then). Forked workers inherit the task.
+DRIVER = """
+import os, sys, time
+from pathlib import Path
+from pinnedballs.cli.main import main
+from pinnedballs.run import ensemble as ens
+
+signals, real = Path(sys.argv[1]), ens.run_replica
+
+def wait_for(pattern):
+    while not list(signals.glob(pattern)):
+        time.sleep(0.01)
+
+def replica(spec, index, seed=None):
+    if index == 0:
+        wait_for("running-1-*")
+    if index == 1:
+        (signals / f"running-1-{os.getpid()}").touch()
+        wait_for("go")
+    rows = real(spec, index, seed)
+    (signals / f"done-{index}-{os.getpid()}").touch()
+    return rows
+
+ens.run_replica = replica  # the command's task, looked up when its ensemble starts
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+def pid_of(signals: Path, pattern: str, deadline: float) -> int:
+    """The process id in the name of the file matching ``pattern`` in ``signals``, once there is one."""
+    while time.monotonic() < deadline:
+        found = sorted(signals.glob(pattern))
+        if found:
+            return int(found[0].name.rpartition("-")[2])
+        time.sleep(0.01)
+    raise AssertionError(f"no {pattern} within the test's time")
+
+
+def test_the_command_outlives_an_idle_worker_killed_from_outside(tmp_path):
+    """Issue 34, item 8: a SIGKILL (the OOM killer's) of the worker that waits for a job while the other
+    runs replica 1. Before, the command waited for ever: the broken pool terminated its survivor with
+    SIGTERM, which the command's handler (inherited by the forked workers) turned into a
+    KeyboardInterrupt that the survivor reported, and it then waited for ever for a job, on the call
+    queue's lock that the killed worker held. Now replica 1 runs again, and the table is the one an
+    undisturbed ensemble writes, bit for bit."""
+    signals = tmp_path / "signals"
+    signals.mkdir()
+    (tmp_path / "driver.py").write_text(DRIVER)
+    spec = tmp_path / "s.json"
+    spec.write_text(json.dumps(SHORT))
+    out = tmp_path / "out"
+    child = subprocess.Popen([sys.executable, str(tmp_path / "driver.py"), str(signals), "ensemble", str(spec),
+                              "--replicas", "2", "--workers", "2", "--out", str(out), "--quiet"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                             env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        deadline = time.monotonic() + 240  # for a loaded machine; each step takes a second or so
+        idle = pid_of(signals, "done-0-*", deadline)
+        os.kill(idle, signal.SIGKILL)
+        (signals / "go").touch()
+        _, err = child.communicate(timeout=max(60.0, deadline - time.monotonic()))
+    except subprocess.TimeoutExpired:
+        raise AssertionError("the ensemble hung after its worker was killed") from None
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(child.pid, signal.SIGKILL)  # the command and its workers, whatever happened
+        if child.returncode is None:
+            child.communicate()
+    assert (child.returncode, err) == (0, "")
+    expected = tmp_path / "undisturbed.csv"
+    ens.write_table(ens.run_ensemble(parse_spec(SHORT), 2, workers=1, progress=False), expected)
+    assert (out / ens.TABLE_NAME).read_bytes() == expected.read_bytes()
 
 
 # ---------------------------------------------------------------- a Dask cluster
@@ -187,9 +282,8 @@ def test_an_ensemble_after_threads_in_this_process_runs(tmp_path):
     spec = {**SHORT, "scheduler": {"kind": "colored_sweep", "shuffle": True}}
     (tmp_path / "spec.json").write_text(json.dumps(spec))
     (tmp_path / "after_threads.py").write_text(_AFTER_THREADS)
-    root = Path(__file__).resolve().parents[2]
     out = subprocess.run([sys.executable, "after_threads.py", "spec.json"], cwd=tmp_path, capture_output=True,
-                         text=True, timeout=600, env={**os.environ, "PYTHONPATH": str(root)})
+                         text=True, timeout=600, env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert out.returncode == 0, out.stderr
     got = json.loads(out.stdout.splitlines()[-1])
     assert got["first"] and got["layer"] == "omp" and got["then"] == "forkserver"
