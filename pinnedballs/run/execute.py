@@ -21,8 +21,8 @@ from typing import Callable, Iterator, Sequence
 
 from ..engine.driver import Writer, drive
 from ..engine.errors import InputError
-from ..engine.atomic import remove, write_text_atomic
-from ..results.format import RESULTS_NAME, Record
+from ..engine.atomic import remove, tmp_path, write_text_atomic
+from ..results.format import DATA_DIR, RESULTS_NAME, Record
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
@@ -78,7 +78,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     unless ``force`` (which replaces our files) or ``resume``: that continues the run there from its
     last checkpoint (the same spec; a finished run is left as it is), or starts it where none is yet
     (a missing or empty ``out_dir``, or one a run killed before its first checkpoint left), telling
-    ``log`` so in one line; anything else is refused (`check_resumable`). ``progress``: the run
+    ``log`` so in one line; anything else is refused (`check_resumable`). A new run that fails before its
+    first step (a user's scheduler refused at its first pick) leaves nothing: what it wrote, and the
+    directories made for it, are removed (a run ``force`` replaced is gone). ``progress``: the run
     driver's bar (True, False, or None: in a terminal or a notebook, once the run has taken 2 s;
     `pinnedballs.engine.progress`). ``status``: a callable told each stage (building, compiling, drawing).
 
@@ -96,7 +98,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     fresh = not resume or starting is not None
     stop = spec.stop.build()
     snapshots = spec.snapshots.build() if spec.snapshots else None
-    with _deferred_signals() as signals:
+    with _refusable(out) as refused, _deferred_signals() as signals:
         sim = None
         if fresh:
             spec = spec.seeded()  # a spec without a seed: one drawn now, recorded with the run
@@ -124,8 +126,12 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
                 if sim is not None:         # None: that run had finished
                     _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status,
                            signals.requested)
-            except BaseException:
+            except BaseException as exc:
                 writer.abort(sim, None)  # once attached, before the loop (the loop's own abort makes it a no-op)
+                if fresh and writer.store is not None and sim.steps == 0 and not signals.requested() \
+                        and _an_error(exc):  # e.g. a user's scheduler refused at its first pick: no output
+                    _withdraw(out)
+                    refused.append(exc)
                 raise
         stopping = signals.requested()
     if figures and stopping:
@@ -136,6 +142,57 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
         write_figures(out)
     status.clear()
     return path
+
+
+@contextlib.contextmanager
+def _refusable(out: Path) -> Iterator[list]:
+    """A run into ``out`` that may be refused before its first step: once it says so (appending to the
+    list yielded) and raises, the directories made for it (``out``, and parents it made) are removed
+    again, where they hold nothing else."""
+    made = _first_missing(out)
+    refused: list = []
+    try:
+        yield refused
+    except BaseException:
+        if refused and made is not None:
+            for directory in [out.absolute(), *out.absolute().parents]:
+                if not directory.is_relative_to(made):
+                    break
+                with contextlib.suppress(OSError):  # one that holds something else stays
+                    directory.rmdir()
+        raise
+
+
+def _first_missing(path: Path) -> Path | None:
+    """The outermost of ``path`` and its parents that does not exist (None if ``path`` exists)."""
+    missing, path = None, path.absolute()
+    while not path.exists() and path != path.parent:
+        missing, path = path, path.parent
+    return missing
+
+
+def _an_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is an error, not an interrupt (nor an exception that an interrupt turned into another)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, (KeyboardInterrupt, Interrupted)) or not isinstance(exc, Exception):
+            return False
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return True
+
+
+def _withdraw(out: Path) -> None:
+    """Remove what a fresh run wrote in ``out`` (its results, their data, its spec and trajectory); the
+    user's own files stay."""
+    for name in (RESULTS_NAME, "spec.json", TRAJECTORY_NAME):
+        remove(out / name)
+        remove(tmp_path(out / name))
+    data = out / DATA_DIR
+    for p in [*data.glob("static.h5*"), *data.glob("frames_*.h5*")]:
+        remove(p)
+    with contextlib.suppress(OSError):
+        data.rmdir()
 
 
 def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resume: bool = False, force: bool = False,

@@ -149,6 +149,53 @@ def test_a_component_that_fails_in_its_own_code_names_its_slot_and_method(tmp_pa
     assert not (tmp_path / "out").exists()
 
 
+#: a user's scheduler whose every pick is out of range: the run is refused at its first pick
+BEYOND = '''
+import numpy as np
+import pinnedballs as pb
+from numba import njit
+
+@njit
+def pick_beyond(state, rng, n_contacts):
+    return np.int64(n_contacts + 5), rng
+
+class BeyondPick(pb.Scheduler):
+    def kernel(self):
+        return pick_beyond
+
+def beyond_pick():
+    return BeyondPick()
+'''
+
+
+@pytest.mark.parametrize("before, flag", [(None, None), ([], None), (["notes.txt"], "--force"), (None, "--resume")],
+                         ids=["no directory", "an empty one", "--force, a file of the user's", "--resume, none"])
+def test_a_run_refused_at_its_first_pick_leaves_the_directory_as_it_was(tmp_path, before, flag):
+    """Issue 34, item 7: exit 2, one line, and no output: before, the run's directory stayed, holding
+    results.h5 ("interrupted" at step 0), its data and spec.json (and the directories made for it)."""
+    name = f"pb_beyond_{os.getpid()}"  # one module for every case: its pick compiles once
+    (tmp_path / f"{name}.py").write_text(BEYOND)
+    importlib.invalidate_caches()
+    spec_path = write(tmp_path / "s.json", with_factory("scheduler", f"{name}:beyond_pick"))
+    out = tmp_path / "made" / "out"  # a parent made for it is removed too
+    if before is not None:
+        out.mkdir(parents=True)
+        for file in before:
+            (out / file).write_text("mine")
+    code, stdout, err = call(*COMMANDS["run"](spec_path, out), *([flag] if flag else []))
+    if flag == "--resume":  # what it says as it starts
+        said, _, err = err.partition("\n")
+        assert said == f"pinnedballs: --resume: {out} holds no run yet (no such directory): starting it"
+    assert_one_line(code, err, "error: scheduler: BeyondPick.kernel()'s pick 'pick_beyond' picked contact 53, "
+                               "but there are 48 contacts (0 to 47)")
+    assert stdout == ""
+    if before is None:
+        assert not (tmp_path / "made").exists()
+    else:
+        assert sorted(p.name for p in out.iterdir()) == before and all(
+            (out / file).read_text() == "mine" for file in before)
+
+
 @pytest.mark.parametrize("body, did", [
     ("raise RuntimeError('broken at import')", "raised RuntimeError: broken at import"),
     ("import sys\nsys.exit(4)", "called sys.exit(4)"),
