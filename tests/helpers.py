@@ -189,6 +189,23 @@ def icosahedron_sphere() -> pb.GraphGeometry:
     return pb.GraphGeometry(g)
 
 
+class TorusLessOne(pb.Geometry):
+    """A flat torus with its first contact taken out: one row of balls no longer closes
+    (`Contacts.closed_rows` is False), the rest is the torus."""
+
+    def __init__(self, rows: int = 4, cols: int = 4):
+        self._torus = pb.FlatTorus(rows, cols)
+        self.positions, self.radius = self._torus.positions, self._torus.radius
+
+    @property
+    def box(self) -> np.ndarray:
+        return self._torus.box
+
+    def _build_contacts(self) -> pb.Contacts:
+        c = self._torus.contacts
+        return pb.Contacts.build(c.pairs[1:], c.ends[1:], c.units)
+
+
 def tangent_velocities(geom: pb.Geometry, seed: int) -> np.ndarray:
     """Random velocities tangent to the unit sphere at each ball (for `icosahedron_sphere`)."""
     v = np.random.default_rng(seed).standard_normal((geom.n_balls, 3))

@@ -19,7 +19,10 @@ once (the bits themselves up to `SMALL_BYTES`), which is faster for so few balls
 Cost of a state: in float64, a copy of the velocities and the live contacts found again by a compiled
 kernel over all contacts (about 5 ns a contact); in exact arithmetic only the contacts at the two
 collided balls are tested again, each by a float filter first (`pinnedballs.engine.exact.FILTER`),
-the others keeping their parent's answer, so a state costs about as much on 10,000 balls as on 10.
+the others keeping their parent's answer, so a state costs about as much on 10,000 balls as on 10,
+but more as its numbers grow: with restitution r < 1 they grow along an order (on a 4x4 torus with
+r = 1/2 two balls' numbers take 0.6 kB at first, 26 kB after 20,000 collisions), so such a state
+counts as several (`Node.cost`, `COST_BYTES`).
 """
 
 from __future__ import annotations
@@ -27,9 +30,11 @@ from __future__ import annotations
 import bisect
 import functools
 import hashlib
+import itertools
 from typing import Callable, NamedTuple
 
 import numpy as np
+from gmpy2 import to_binary
 from numba import njit
 
 from ..engine.chain import incidence
@@ -37,10 +42,14 @@ from ..engine.exact import filtered_sign
 from ..engine.jitcache import jit_cached_if_possible
 from ..rules import closing_speed
 
-__all__ = ["Node", "FloatSystem", "ExactSystem", "OrderKernels", "order_kernels", "NODE_BYTES"]
+__all__ = ["Node", "FloatSystem", "ExactSystem", "OrderKernels", "order_kernels", "NODE_BYTES", "COST_BYTES"]
 
 #: bytes a known state holds in the search's memo (its key, its figures, the dict's slot): measured 292, an upper estimate
 NODE_BYTES = 320
+#: an exact state whose two collided balls' numbers take ``b`` bytes costs ``1 + b // COST_BYTES`` states:
+#: its time grows with them (measured on a 4x4 torus: 40 us, plus 25 us a kB), and restitution r < 1
+#: makes them grow along an order without end, so the bounds count work, not states alone
+COST_BYTES = 2048
 #: float states of at most this many bytes are keyed by their bits themselves (exact) ...
 SMALL_BYTES = 64
 #: ... and up to this many by a BLAKE2b-128 digest of all their bits (faster than Zobrist's four digests)
@@ -111,14 +120,14 @@ def order_kernels(collide: Callable, dim: int, flat: bool) -> OrderKernels:
 class Node:
     """A state: velocities ``v``, their ``key``, the live contacts ``ks`` in contact order (an ``(L,) int64``
     array in float64, a list in exact arithmetic), their closing speeds ``ws`` (None until asked for),
-    ``nbytes``, what it holds on the search path, and in exact arithmetic the velocities' float
-    roundings ``floats`` and each ball's term of the key, ``terms``."""
+    ``nbytes``, what it holds on the search path, ``cost``, what making it took in states (`COST_BYTES`),
+    and in exact arithmetic the velocities' float roundings ``floats`` and each ball's term of the key, ``terms``."""
 
-    __slots__ = ("v", "key", "ks", "ws", "nbytes", "floats", "terms")
+    __slots__ = ("v", "key", "ks", "ws", "nbytes", "floats", "terms", "cost")
 
-    def __init__(self, v, key, ks, ws=None, nbytes: int = 0, floats=None, terms=None):
+    def __init__(self, v, key, ks, ws=None, nbytes: int = 0, floats=None, terms=None, cost: int = 1):
         self.v, self.key, self.ks, self.ws, self.nbytes = v, key, ks, ws, nbytes
-        self.floats, self.terms = floats, terms
+        self.floats, self.terms, self.cost = floats, terms, cost
 
 
 def _term(ball: int, data: bytes) -> int:
@@ -209,7 +218,9 @@ class ExactSystem:
 
     # ------------------------------------------------------------ states
     def _row(self, row) -> tuple[tuple, bytes]:
-        data = repr(row).encode()
+        """A row's float roundings, and its exact coefficients as bytes (each length-prefixed: one row,
+        one string), linear in their size (``repr`` is not)."""
+        data = b"".join(len(b).to_bytes(4, "little") + b for b in map(to_binary, itertools.chain.from_iterable(row)))
         return tuple(self.field.to_float(x) for x in row), data
 
     def root(self) -> Node:
@@ -225,7 +236,7 @@ class ExactSystem:
         two balls that collided; ``speeds``: with their closing speeds (``node``'s must be known)."""
         chain, (i, j), (a, b) = self.chain, self.pairs[k], self.ends[k]
         v, floats, terms = list(node.v), list(node.floats), list(node.terms)
-        key, nbytes = node.key, 8 * self.n_balls
+        key, nbytes, size = node.key, 8 * self.n_balls, 0
         ci, cj = chain.kicks(chain.closing_of(v[i], v[j], k), k)
         for ball, c, t in ((i, ci, chain.units[a]), (j, cj, chain.units[b])):
             v[ball] = tuple(chain.kicked(v[ball], c, t))
@@ -233,7 +244,7 @@ class ExactSystem:
             key -= terms[ball]
             terms[ball] = _term(ball, data)
             key += terms[ball]
-            nbytes += len(data)
+            size += len(data)
         v, floats = tuple(v), tuple(floats)
         near, around = self._near(k)
         fresh = [c for c in near if self._live(v, floats, c)]
@@ -244,7 +255,7 @@ class ExactSystem:
         if speeds:
             ws = {c: w for c, w in node.ws.items() if c not in around}
             ws.update((c, self._speed(v, c)) for c in fresh)
-        return Node(v, key % _MOD, ks, ws, nbytes + 16 * len(ks), floats, tuple(terms))
+        return Node(v, key % _MOD, ks, ws, nbytes + size + 16 * len(ks), floats, tuple(terms), 1 + size // COST_BYTES)
 
     def _near(self, k: int) -> tuple[list[int], frozenset]:
         """The contacts at either ball of contact ``k``, in order, and as a set."""

@@ -13,7 +13,8 @@ When ``max_states`` stops the search, the figures become bounds reached by real
 orders (fewest: at most; most: at least), improved by greedy orders (largest or
 smallest closing speed first) and seeded random orders, which together take at most
 ``max(max_states, 10,000)`` more collisions: the bounds bound the whole call's time and
-memory (memory beyond what the machine has is refused at once).
+memory (memory beyond what the machine has is refused at once), a state on exact numbers grown
+large counting as several (`Node.cost`). A system no order can freeze (a torus) is refused at once.
 """
 
 from __future__ import annotations
@@ -120,8 +121,8 @@ def _never_freezes(limit: int) -> ValueError:
 
 def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progress,
             held: Deferred) -> tuple[dict, list[_Frame], int]:
-    """Depth-first search from ``root`` over at most ``max_states`` distinct states (and a path
-    of at most `PATH_BYTES` of velocities).
+    """Depth-first search from ``root`` over at most ``max_states`` distinct states, each counting its
+    `Node.cost` (and a path of at most `PATH_BYTES` of velocities).
 
     Returns ``(memo, path, states)``: ``memo[key] = (fewest, most, k_fewest, k_most)`` for
     every state fully explored, and the path of frames still open (empty when exhaustive).
@@ -129,6 +130,7 @@ def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progr
     """
     memo: dict[int, tuple[int, int, int, int]] = {}
     path, on_path, states, path_bytes = [_Frame(root)], {root.key}, 1, root.nbytes
+    work = root.cost  # states, a state on large exact numbers counting as several (`Node.cost`)
     while path:
         held.deliver()  # Ctrl-C between states (never inside a compiled kernel: `engine.sigint`)
         f = path[-1]
@@ -152,19 +154,20 @@ def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progr
         elif child.key in on_path:
             raise ValueError(f"velocities: an order returns to a state it passed (by contact {k}), so this "
                              "system can collide forever (a torus or a sphere can): nothing freezes it")
-        elif states >= max_states or path_bytes + child.nbytes > PATH_BYTES:
-            bar.update(states)
+        elif work + child.cost > max_states or path_bytes + child.nbytes > PATH_BYTES:
+            bar.update(work)
             return memo, path, states
         elif len(path) >= max_collisions and len(child.ks):
             raise _never_freezes(max_collisions)
         else:
             states += 1
+            work += child.cost
             path.append(_Frame(child))
             on_path.add(child.key)
             path_bytes += child.nbytes
             if states % _SHOW_EVERY == 0:
-                bar.update(states)
-    bar.update(states)
+                bar.update(work)
+    bar.update(work)
     return memo, [], states
 
 
@@ -208,17 +211,18 @@ def _from_path(system, memo: dict, path: list[_Frame], best: _Best) -> None:
 
 
 class _Budget:
-    """The collisions orders may still take, all together (`explore_orders`' bound); ``tally()`` is
-    told of each one (the progress)."""
+    """The collisions orders may still take, all together (`explore_orders`' bound), one on large exact
+    numbers counting as several (`Node.cost`); ``tally()`` is told of each one (the progress)."""
 
     def __init__(self, collisions: int, tally: Callable[[], None]):
-        self.left, self.tally = collisions, tally
+        self.left, self.tally, self.heavy = collisions, tally, False
 
-    def spend(self) -> bool:
-        """One collision more, if any is left."""
-        if self.left <= 0:
+    def spend(self, cost: int) -> bool:
+        """One collision more, costing ``cost`` (that of the state it leaves), if that much is left."""
+        if self.left < cost:
             return False
-        self.left -= 1
+        self.left -= cost
+        self.heavy |= cost > 1
         self.tally()
         return True
 
@@ -255,7 +259,7 @@ def _walk(system, node: Node, memo: dict, choose: Callable, best: _Best, limit: 
         if len(ks) == 0:
             best.offer(len(order), order, len(order), order)
             return True
-        if not budget.spend():
+        if not budget.spend(node.cost):
             return False
         k = int(ks[choose(ks, ws)])
         order.append(k)
@@ -303,10 +307,11 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
 
     ``max_states`` bounds the call: at most ``max_states`` states are searched and
     ``max(max_states, 10,000)`` more made along the sampled orders, each in about 2-30 us (float64,
-    ten to a thousand balls) or 0.3-1 ms (exact arithmetic, any size: the numbers grow along an
-    order), and the search keeps about 300 bytes per state (a bound needing more memory than the
-    machine has is refused at once, a `FieldError` on ``max_states``); when no order reaches frozen
-    within the bound, a ValueError says so (raise ``max_states``). None, the default: `MAX_STATES`
+    ten to a thousand balls) or 0.04-1 ms (exact arithmetic, any size), a state whose exact numbers
+    have grown large counting as several (`order_systems.COST_BYTES`: restitution r < 1 makes them
+    grow along an order), and the search keeps about 300 bytes per state (a bound needing more
+    memory than the machine has is refused at once, a `FieldError` on ``max_states``); when no
+    order reaches frozen within the bound, a ValueError says so (raise ``max_states``). None, the default: `MAX_STATES`
     in float64 (10^6), `MAX_EXACT_STATES` in exact arithmetic (10^5), a minute or two either way.
     ``progress``: a bar over the states, then a count of the sampled orders' collisions (True,
     False, or None: in a terminal or a notebook, once the call has taken 2 s). Ctrl-C stops it with
@@ -324,7 +329,9 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     the orders still replay collision for collision, but end with only such slow contacts live.
 
     Raises ValueError when an order returns to a state it passed, or when an order of
-    ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever.
+    ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever. Refused
+    at once where no order can freeze (a torus not frozen at the start, ``min_closing_speed`` 0, with
+    any r > 0 in exact arithmetic or, on a `Geometry.rigid` one, elastic collisions: `docs/model.md`).
     """
     with deferred() as held:  # Ctrl-C at the next state or collision, never inside numba (compiling or running)
         sim = _simulation(geometry, velocities, masses, rule, checks.choice("arithmetic", arithmetic,
@@ -339,12 +346,17 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
         check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
                      f"a search of {max_states:,} states of {geometry.n_balls:,} balls")
         system = (ExactSystem if sim.arithmetic == "exact" else FloatSystem)(sim, min_closing_speed)
-        return _explore(system, max_states, max_collisions, seed, restarts, progress, held)
+        never = None if min_closing_speed else sim._never_freezes()
+        return _explore(system, max_states, max_collisions, seed, restarts, progress, held, never)
 
 
-def _explore(system, max_states: int, max_collisions: int, seed, restarts: int, progress, held: Deferred) -> OrdersResult:
-    """`explore_orders` once its arguments are checked: the search over states, then sampled orders."""
+def _explore(system, max_states: int, max_collisions: int, seed, restarts: int, progress, held: Deferred,
+             never: str | None = None) -> OrdersResult:
+    """`explore_orders` once its arguments are checked: the search over states, then sampled orders.
+    ``never``: why this system, unless it starts frozen, never freezes (`Simulation._never_freezes`)."""
     root = system.root()
+    if never and len(root.ks):
+        raise ValueError(f"velocities: no order of this system ever freezes: {never}")
     with Progress(progress, max_states, "states", "orders", scale=False) as bar:
         memo, path, states = _search(system, root, max_states, max_collisions, bar, held)
     if not path:
@@ -365,10 +377,10 @@ def _explore(system, max_states: int, max_collisions: int, seed, restarts: int, 
             sampled += 1
         tally.shown()
     if best.lo is None:
-        raise ValueError(f"max_states: no order reached frozen within the bound: the search of {states:,} states, then "
-                         f"{max(max_states, WALK_FLOOR):,} collisions along sampled orders; this system's orders are "
-                         f"longer (raise max_states), or never end (inelastic collisions on a torus or a sphere never "
-                         f"freeze in exact arithmetic)")
+        heavy = " (on numbers grown large, one counting as several)" if budget.heavy else ""
+        raise ValueError(f"max_states: no order reached frozen within the bound: the search of {states:,} states, "
+                         f"then {max(max_states, WALK_FLOOR):,} collisions along sampled orders{heavy}; this system's "
+                         f"orders are longer (raise max_states), or never end (on a torus or a sphere they can)")
     return OrdersResult(best.lo[0], best.hi[0], tuple(best.lo[1]), tuple(best.hi[1]),
                         states=states, exhaustive=False, sampled=sampled, arithmetic=system.arithmetic)
 

@@ -18,8 +18,8 @@ import pytest
 from scipy import stats
 
 import pinnedballs as pb
-from helpers import (RHOMBUS_V, SQRT3, chain, closing_speeds, energy, icosahedron_sphere, momentum, rhombus,
-                     tangent_velocities, triangle)
+from helpers import (RHOMBUS_V, SQRT3, TorusLessOne, chain, closing_speeds, energy, icosahedron_sphere, momentum,
+                     rhombus, tangent_velocities, triangle)
 from pinnedballs.analysis.orders import order_kernels, orders_against_random
 from reference import OrderTree, ReferenceSimulation, ReplayPicker, collide
 
@@ -223,12 +223,68 @@ def test_exact_and_float_searches_agree_on_the_fewest_and_the_most():
 ])
 def test_a_system_that_never_freezes_is_refused(geometry, message):
     """On the torus and the sphere (no boundary) one moving ball keeps the balls colliding
-    forever: on the torus an order comes back to a state exactly, on the sphere orders run on."""
+    forever: on the torus (leaving out closing speeds up to 1e-9, so not refused at once) an order
+    comes back to a state exactly, on the sphere orders run on."""
     geom = pb.FlatTorus(rows=4, cols=3) if geometry == "torus" else icosahedron_sphere()
     v = np.zeros((geom.n_balls, geom.dim))
     v[0] = [1.0, 0.5] if geometry == "torus" else tangent_velocities(geom, 1)[0]
+    slow = {"min_closing_speed": 1e-9} if geometry == "torus" else {}
     with pytest.raises(ValueError, match=message):
-        pb.explore_orders(geom, v, max_states=300, max_collisions=300)
+        pb.explore_orders(geom, v, max_states=300, max_collisions=300, **slow)
+
+
+@pytest.mark.parametrize("rule", [pb.Restitution(0.5), pb.Elastic()], ids=["r=0.5", "elastic"])
+@pytest.mark.parametrize("arithmetic", ["exact", "float"])
+def test_a_torus_no_order_can_freeze_is_refused_at_once(monkeypatch, rule, arithmetic):
+    """Issue 34, item 10: Restitution(0.5) on a 4x4 torus gave no answer in 240 s (503 MB): energy
+    falls at every collision, so no state repeats, the numbers grow along an order and none ends.
+    On a torus frozen means every closing speed 0 (`Contacts.closed_rows`), which elastic collisions
+    never reach, nor in exact arithmetic any r > 0: refused before any state is made. (r = 1/2 in
+    float64 is not: rounding freezes it.) A torus started frozen is no question."""
+    from pinnedballs.analysis.order_systems import ExactSystem, FloatSystem
+
+    made = count_calls(monkeypatch, ExactSystem, "child") + count_calls(monkeypatch, FloatSystem, "child")
+    geom = pb.FlatTorus(4, 4)
+    v = np.random.default_rng(0).normal(size=(16, 2))
+    if arithmetic == "float" and rule.r < 1:
+        assert pb.explore_orders(geom, v, rule=rule, max_states=100, arithmetic="float").min_collisions > 0
+        return
+    with pytest.raises(ValueError, match=r"^velocities: no order of this system ever freezes: on a torus \(every "
+                                         r"contact on a closed row of balls\) "):
+        pb.explore_orders(geom, v, rule=rule, max_states=1000, arithmetic=arithmetic)
+    assert made == []
+    r = pb.explore_orders(geom, np.tile([0.25, -1.0], (16, 1)), rule=rule, arithmetic=arithmetic)
+    assert (r.min_collisions, r.max_collisions, r.exhaustive) == (0, 0, True)
+
+
+def test_the_bound_counts_the_work_of_growing_exact_numbers(monkeypatch):
+    """With r < 1 exact numbers grow along an order, and a state's time with them. On the 4x4 torus
+    less one contact (not refused: one row is open), r = 1/2, max_states=200 and sampled orders of
+    2,000 collisions, the 2,200 states made held numbers of up to 5 kB, 3,832 times 2 kB in all (with
+    the default floor of 10,000 collisions: up to 25 kB, 126 MB in 19 s; the default bound gave no
+    answer in 600 s). A state now counts 1 + b // 2048 for the b bytes of its two collided balls'
+    numbers, and the states made stay within the bound's 2,200; the error says why fewer collisions
+    were made."""
+    import gmpy2
+
+    from pinnedballs.analysis import orders
+    from pinnedballs.analysis.order_systems import ExactSystem
+
+    made, child = [], ExactSystem.child
+
+    def recorded(self, node, k, speeds=False):
+        out = child(self, node, k, speeds)
+        made.append(sum(len(gmpy2.to_binary(q)) for ball in self.pairs[k] for x in out.v[ball] for q in x))
+        return out
+
+    monkeypatch.setattr(ExactSystem, "child", recorded)
+    monkeypatch.setattr(orders, "WALK_FLOOR", 2000)
+    v = np.random.default_rng(0).normal(size=(16, 2))
+    with pytest.raises(ValueError, match=r"^max_states: no order reached frozen within the bound: the search of "
+                                         r"200 states, then 2,000 collisions along sampled orders \(on numbers "
+                                         r"grown large, one counting as several\); "):
+        pb.explore_orders(TorusLessOne(), v, rule=pb.Restitution(0.5), max_states=200)
+    assert sum(1 + b // 2048 for b in made) <= 200 + 2000
 
 
 def test_max_states_equal_to_the_count_is_still_exhaustive():
