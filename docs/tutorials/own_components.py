@@ -220,9 +220,11 @@ print("Wander: every scheduler check passed")
 # ## Running them
 #
 # The star, its centre ball sent along 15 degrees with energy 100: under the paper's elastic rule
-# and uniform picks, then under the rule above with uniform picks, then with wandering ones. Every
-# finite system freezes (Athreya–Burdzy–Duarte 2018), whatever the rule and the order. The table
-# gives each arm's energy in the frozen state (arm 0 points along x, arm 1 at 72 degrees, ...).
+# and uniform picks, then under the rule above with uniform picks, then with wandering ones. Finitely
+# many balls in the plane, like the star, freeze under elastic collisions whatever the order
+# (Athreya–Burdzy–Duarte 2018; Burdzy–Duarte 2022); the lossy runs freeze too, while a torus never
+# does (`docs/model.md`). The table gives each arm's energy in the frozen state (arm 0 points along
+# x, arm 1 at 72 degrees, ...).
 
 # %%
 import pandas as pd

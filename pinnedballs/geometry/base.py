@@ -106,6 +106,28 @@ class Contacts:
         """True when every ``t_j`` is exactly ``-t_i`` (flat space): the loop then reads only ``t_i``."""
         return bool(np.array_equal(np.signbit(self.t_j), ~np.signbit(self.t_i)) and np.array_equal(self.t_j, -self.t_i))
 
+    @functools.cached_property
+    def closed_rows(self) -> bool:
+        """True when space is flat and every contact lies on a closed row: balls ``x_0, ..., x_L = x_0``, each
+        touching the next along one unit vector ``u`` (a torus's lattice lines). The closing speeds
+        ``(v_x_m - v_x_m+1) . u`` of a row sum to zero, so a frozen state has every closing speed zero."""
+        if not self.flat or len(self.pairs) == 0:
+            return False
+        direction = np.unique(self.units, axis=0, return_inverse=True)[1].ravel().astype(np.int64)
+        n_dir = int(direction.max()) + 1
+        ball = self.pairs.astype(np.int64).ravel()  # half-edges: 2k runs i -> j, 2k + 1 runs j -> i
+        to = self.pairs[:, ::-1].astype(np.int64).ravel()
+        way = direction[self.ends.astype(np.int64).ravel()]
+        leaving = ball * n_dir + way  # each (ball, direction) must leave along one contact only
+        order = np.argsort(leaving, kind="stable")
+        keys = leaving[order]
+        if np.any(keys[1:] == keys[:-1]):
+            return False
+        # a row goes on from each half-edge's far ball along the same direction: it must exist for every one
+        onward = to * n_dir + way
+        at = np.minimum(np.searchsorted(keys, onward), len(keys) - 1)
+        return bool(np.all(keys[at] == onward))  # a successor for every half-edge: a permutation, so rows close
+
     def __len__(self) -> int:
         return len(self.pairs)
 
@@ -145,6 +167,9 @@ class Geometry(ABC):
     metric: np.ndarray | None = None
     #: relative tolerance on the length ``2 * radius`` of a contact in flat space (checked with the contacts)
     rtol: float = LENGTH_RTOL
+    #: True when only one common velocity gives every contact closing speed 0 (the closing speeds' map has
+    #: only the translations in its kernel): with `Contacts.closed_rows`, the only frozen states
+    rigid: bool = False
 
     @property
     def view(self) -> str:

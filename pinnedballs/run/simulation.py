@@ -32,7 +32,12 @@ from ..rules import CollisionRule, Elastic, check_resolution, threshold
 from ..schedulers.base import Scheduler
 from ..schedulers.simple import UniformRandomPair
 
-__all__ = ["Simulation", "RunState", "mass_array"]
+__all__ = ["Simulation", "RunState", "mass_array", "FreezeWarning"]
+
+
+class FreezeWarning(UserWarning):
+    """A run until frozen stopped at its step cap on a system that can never freeze (a torus: see
+    `Simulation.run_until_frozen`)."""
 
 
 def _recorded_seed(seed) -> int | np.random.SeedSequence:
@@ -244,11 +249,36 @@ class Simulation:
         """Run until no contact approaches, for at most ``max_steps`` more steps.
 
         Stops right after the collision that freezes the system, so ``steps`` is the
-        exact step of the last collision. Returns True if frozen. Ctrl-C, ``writers`` and
-        ``progress`` as for `run` (the progress is a count of steps and collisions: the end is unknown).
+        exact step of the last collision. Returns True if frozen; False at the step cap, with a
+        one-line `FreezeWarning` where the system can never freeze (a torus: `docs/model.md`). Ctrl-C,
+        ``writers`` and ``progress`` as for `run` (the progress is a count of steps and collisions: the
+        end is unknown).
         """
         stop = Stop(steps=min(self.steps + _count("max_steps", max_steps), NO_LIMIT), until_frozen=True)
-        return drive(self, stop, check_writers(writers or ()), progress=progress) == "frozen"
+        frozen = drive(self, stop, check_writers(writers or ()), progress=progress) == "frozen"
+        why = None if frozen or not max_steps else self._never_freezes()  # 0 steps: a warm-up, nothing to say
+        if why:
+            warnings.warn(f"run_until_frozen: not frozen after {max_steps:,} steps, and never will be: {why}; "
+                          "use run(steps=...)", FreezeWarning, stacklevel=_outside_the_package())
+        return frozen
+
+    def _never_freezes(self) -> str | None:
+        """Why this system, not frozen, can never freeze, or None where that is not certain. Its contacts
+        all on closed rows (`Contacts.closed_rows`: a torus), frozen means every closing speed 0, while in
+        exact arithmetic each collision leaves its contact separating (any ``r > 0``); in float64 at the
+        default resolution, on a `Geometry.rigid` torus (frozen: one common velocity, the least energy
+        for the momentum), elastic collisions keep the energy above that."""
+        r = self.rule.exact_restitution()
+        exact = self.arithmetic == "exact"
+        if r is None or r <= 0 or not (exact or (r == 1.0 and self._default_resolution and self.geometry.rigid)):
+            return None
+        if not self.geometry.contacts.closed_rows:
+            return None
+        if exact:
+            return ("on a torus (every contact on a closed row of balls) a frozen state has every closing speed 0, "
+                    "and in exact arithmetic each collision leaves its contact separating")
+        return ("on a torus (every contact on a closed row of balls) only equal velocities are frozen, and "
+                "elastic collisions keep the energy above theirs")
 
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken. A

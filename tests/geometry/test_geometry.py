@@ -18,7 +18,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from helpers import FAST, chain, cubic, fcc_cluster, ints
+from helpers import FAST, TorusLessOne, chain, cubic, fcc_cluster, icosahedron_sphere, ints
 
 SQRT3 = math.sqrt(3.0)
 
@@ -90,6 +90,33 @@ def test_torus_1000x1000_builds():
     g = pb.FlatTorus(rows=1000, cols=1000)
     assert g.n_balls == 10**6 and g.n_contacts == 3 * 10**6
     assert np.all(g.degrees() == 6)
+
+
+@pytest.mark.parametrize("make, closed", [
+    (lambda: pb.FlatTorus(4, 3), True), (lambda: pb.FlatTorus(6, 5), True), (lambda: pb.FCC(4, 4, 4), True),
+    (lambda: pb.HalfPlane(3, 3), False), (lambda: pb.FCC(4, 4, 4, periodic=(True, True, False)), False),
+    (lambda: pb.HCP(4, 4, 4), False), (lambda: TorusLessOne(), False), (icosahedron_sphere, False),
+    (lambda: pb.Sphere.geodesic(2), False), (lambda: chain(4), False)],
+    ids=["torus4x3", "torus6x5", "fcc", "half-plane", "fcc-open-z", "hcp", "torus-less-one", "icosahedron",
+         "sphere", "chain"])
+def test_closed_rows_are_a_torus_lattice_lines(make, closed):
+    """Every contact on a closed row of balls along one unit vector: the torus's and the periodic FCC's
+    lattice lines close; a boundary, HCP's zig-zag between layers, one contact taken out or a curved
+    surface leave some row open."""
+    assert make().contacts.closed_rows is closed
+
+
+@pytest.mark.parametrize("geom", [pb.FlatTorus(4, 3), pb.FlatTorus(4, 4), pb.FlatTorus(6, 5), pb.FCC(3, 3, 3),
+                                  pb.FCC(4, 3, 5)], ids=["torus4x3", "torus4x4", "torus6x5", "fcc3", "fcc435"])
+def test_a_rigid_torus_has_every_closing_speed_zero_only_at_a_common_velocity(geom):
+    """`Geometry.rigid`: on the triangular torus and the periodic FCC the map from velocities to
+    closing speeds has only the translations in its kernel, so a frozen state is one common velocity."""
+    c, n, d = geom.contacts, geom.n_balls, geom.dim
+    a = np.zeros((len(c), d * n))
+    for k, ((i, j), (ti, tj)) in enumerate(zip(ints(c.pairs), ints(c.ends))):
+        a[k, d * i:d * i + d], a[k, d * j:d * j + d] = c.units[ti], c.units[tj]
+    assert geom.rigid and geom.contacts.closed_rows
+    assert d * n - np.linalg.matrix_rank(a) == d
 
 
 # ---------------------------------------------------------------- half-plane
