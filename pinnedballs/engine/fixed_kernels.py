@@ -318,6 +318,16 @@ def _ahead(tables, state, certify, picks, t):
                     prefetch(state.Pp, b)
 
 
+@inlined
+def _due(first, t, every, checked):
+    """The pick from ``t`` on whose step (``first`` + its index) is the first multiple of ``every`` other
+    than ``checked``: a check is due before it; -1 when ``every`` is 0 (none is ever due)."""
+    if every <= 0:
+        return -1
+    due = (first + t + every - 1) // every * every
+    return (due + every if due == checked else due) - first
+
+
 @kernel
 def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog, scratch, info,
               margin, first, every):
@@ -336,8 +346,9 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
     made, last, fresh, countdown = prog[0], prog[1], prog[2], prog[4]
     n = picks.shape[0]
     status = DONE
+    due = _due(first, t, every, prog[5])  # one division a call, not one a pick
     while t < n:
-        if every > 0 and (first + t) % every == 0 and first + t != prog[5]:
+        if t == due:
             status = DUE
             break
         _ahead(tables, state, certify, picks, t)
