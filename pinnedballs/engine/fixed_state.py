@@ -22,7 +22,8 @@ def scaled_up(x: np.ndarray, shift: int) -> np.ndarray:
     result that underflows is raised to the next float (so a bound stays a bound, never 0), one that
     overflows is inf."""
     x = np.asarray(x, dtype=np.float64)
-    y = np.ldexp(x, int(shift))
+    with np.errstate(over="ignore"):  # inf: said by the caller's check
+        y = np.ldexp(x, int(shift))
     tiny = (x > 0) & (y < 2.0 ** -1021)
     y[tiny] = np.nextafter(y[tiny], np.inf)
     return y
