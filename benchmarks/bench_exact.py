@@ -4,6 +4,7 @@ On the paper's half-plane (one boundary ball sent inward with energy 100) at eac
 each arithmetic runs in its own process, after a warm-up run that loads (or compiles) its loops:
 CPU seconds to frozen, the ratio to the float chain, the collisions and steps, the process's peak
 memory, for the exact policy the width it reached (limbs of 64 bits) and how often it widened,
+for both the share of picks the float filter could not decide (decided in fixed point),
 for the certified policy its error bound (G on the whole error vector, the largest on one ball),
 and for both the margin of their decisions in units of the float criterion's threshold
 (`pinnedballs.rules.threshold`, 4 ulp of the speed scale): the smallest closing speed counted as a
@@ -75,6 +76,7 @@ chain = sim._exact
 if chain is not None:
     out["limbs"], out["widenings"] = chain.P, chain.widenings
     out["narrowed"] = getattr(chain, "narrowed", None)
+    out["inside"] = getattr(chain, "inside", 0) / max(sim.steps, 1)  # picks decided in fixed point
     T = threshold(v, np.ones(g.n_balls))
     smallest, largest, zeros = chain.margin
     out["margin"] = [smallest / T, largest / T, int(zeros)]
@@ -105,6 +107,7 @@ def row(size: str, spec: str, r: dict, floats: dict | None) -> str:
     if "limbs" in r:
         text += f"  P={r['limbs']}" + (f" ({r['widenings']} widenings)" if r["widenings"] else "")
         text += f" (narrowed at step {r['narrowed']:,})" if r.get("narrowed") else ""
+        text += f"  in fixed point {100 * r['inside']:.2f} % of picks" if "inside" in r else ""
     if "bound" in r:
         text += f"  G={r['bound'][0]:.2e} largest={r['bound'][1]:.2e}"
     if "margin" in r:

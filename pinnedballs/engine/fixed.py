@@ -220,6 +220,9 @@ class FixedChain(FieldChain):
         #: number of picks set aside with closing speed exactly 0 (balls not both at rest), so far
         self.margin = np.array([np.inf, -np.inf, 0.0])
         self.widenings = 0
+        #: picks the float filter could not decide, decided in fixed point, in this object's life (a
+        #: measure of the work, counting picks a frozen chunk tried after its last collision too)
+        self.inside = 0
         chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * geometry.n_contacts)
         self.chunk, self.block = chunk, 4 * chunk
         self._scratch()
@@ -310,7 +313,7 @@ class FixedChain(FieldChain):
         if self._at is None or len(self._at) < len(picks):
             self._at = np.empty(len(picks), dtype=np.int64)
         at = self._at
-        prog = np.array([0, -1, 0, self.live, self.chunk, self._checked], dtype=np.int64)
+        prog = np.array([0, -1, 0, self.live, self.chunk, self._checked, 0], dtype=np.int64)
         t, left = 0, min(collisions_left, len(picks) + 1)  # int64 in the kernel
         while True:
             every = self.every if self.late_P is not None and self.P > self.late_P else 0
@@ -325,6 +328,7 @@ class FixedChain(FieldChain):
             else:
                 break
         made, self.live = int(prog[0]), int(prog[3])
+        self.inside += int(prog[6])
         if status == DONE and until_frozen and self.live < 0:  # stopped by collisions_left: is it frozen?
             self.live = count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
             status = UNCOUNTED if self.live < 0 else status

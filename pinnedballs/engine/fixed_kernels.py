@@ -4,9 +4,10 @@ every decision exact (policy "exact") or proved equal to exact arithmetic's (pol
 Plain data (shapes; ``L`` lines, ``m`` coefficients per component, ``P`` limbs): `Tables` (the
 geometry's contact lines), `State` (the velocities, their shadows and bounds) and `Scratch`.
 ``info (4,)``: ``(x, E, bound, contact)`` of an uncertified decision, its closing speed ``w~ = x 2^E``
-and the bound in units of ``2^-S``; ``prog (6,) int64``:
+and the bound in units of ``2^-S``; ``prog (7,) int64``:
 ``(collisions, index of the last, collided since the last scan, live contacts or -1, picks to the
-next scan, a step at which not to stop for a due check)``, kept across calls.
+next scan, a step at which not to stop for a due check, picks decided in fixed point)``, kept
+across calls.
 
 The float filter: a shadow is within ``9 * 2^-53`` of its size of the number it stands for (two
 limbs read, rounded, and one product by ``sqrt d``), so the float closing speed computed from the
@@ -347,6 +348,7 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
     n = picks.shape[0]
     status = DONE
     due = _due(first, t, every, prog[5])  # one division a call, not one a pick
+    inside = 0
     while t < n:
         if t == due:
             status = DUE
@@ -357,6 +359,8 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
         if decision < 0:
             status = UNCERTIFIED
             break
+        if computed:  # the float filter could not decide it
+            inside += 1
         if decision > 0:
             margin[0] = min(margin[0], x)
         elif x == 0.0:
@@ -389,4 +393,5 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
         if countdown <= 0:
             countdown = chunk
     prog[0], prog[1], prog[2], prog[4] = made, last, fresh, countdown
+    prog[6] += inside
     return status, t
