@@ -1,13 +1,24 @@
-"""What a new user rule or scheduler pays in compilation on its first runs.
+"""First runs on a fresh install: what numba's compiles cost before a run starts, and a second time.
 
-A user's rule (``collide``) or scheduler (``pick``) is inlined into the engine's loops, so its first
-``run(steps=...)`` and first ``run_until_frozen()`` compile loops for that combination. Each case
-runs in a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``): the package's own parts
-are first compiled by an untimed run with built-in parts (as they would already be cached on a
-user's machine), then the user's part is timed: its first ``run(steps=10)``, its first
-``run_until_frozen``, and both again in a second process with the cache the first one left.
+Each case runs in a fresh process with an empty numba cache (``NUMBA_CACHE_DIR`` a new temporary
+folder), then again in a second process with the cache the first one left; each stage is timed
+(wall seconds, CPU seconds of the process beside them):
 
-    python benchmarks/bench_compile.py                          # this checkout
+* ``half_plane``: the package's own parts, nothing compiled: ``pb.HalfPlane.from_size(1000, 500)``
+  with one moving ball, building the ``Simulation`` (the geometry's checks), its first
+  ``run(steps=1000)``, then ``run_until_frozen(max_steps=10**6)`` (on two threads or more, the
+  threaded chain's blocks);
+* ``exact``: the same for ``pb.HalfPlane.from_size(30, 15)`` in exact arithmetic, until frozen;
+* ``rule``, ``scheduler``: a user's rule (``collide``) or scheduler (``pick``) in a module of its
+  own, inlined into the engine's loops: the package's own parts are first compiled by an untimed
+  run with built-in parts (as a user's machine has them cached), then the user's part is timed:
+  its first ``run(steps=10)`` and its first ``run_until_frozen``.
+
+Targets (issue 34, item 2): every first run of a built-in configuration within 5 s, a user's rule
+within 1.5 s.
+
+    python benchmarks/bench_compile.py                          # this checkout, every case
+    python benchmarks/bench_compile.py --case half_plane --case exact --repeats 1
     python benchmarks/bench_compile.py --tree /path/to/old/checkout --tree .   # before and after
 """
 
@@ -87,21 +98,43 @@ _CHILD = r'''
 import json, sys, time
 import numpy as np
 import pinnedballs as pb
-import userparts
+times = {}
+
+
+def timed(stage, call):
+    t, c = time.perf_counter(), time.process_time()
+    out = call()
+    times[stage], times[stage + "_cpu"] = time.perf_counter() - t, time.process_time() - c
+    return out
+
+
+def kicked(g):
+    v = np.zeros((g.n_balls, 2))
+    v[g.boundary_center()] = [0, 3.0]
+    return v
+
+
 case = sys.argv[1]
-g = pb.HalfPlane(20, 20)
-v = np.zeros((g.n_balls, 2)); v[g.boundary_center()] = [0, 3.0]
-warm = pb.Simulation(g, v, seed=0)          # the package's own parts, compiled or loaded untimed
-warm.run(steps=10); warm.run_until_frozen(10**6)
-rule = userparts.Sticky(0.9) if case == "rule" else pb.Elastic()
-scheduler = userparts.Among(np.arange(g.n_contacts)) if case == "scheduler" else pb.UniformRandomPair()
-sim = pb.Simulation(g, v, rule=rule, scheduler=scheduler, seed=0)
-t, c = time.perf_counter(), time.process_time(); sim.run(steps=10)
-steps, steps_cpu = time.perf_counter() - t, time.process_time() - c
-t, c = time.perf_counter(), time.process_time(); sim.run_until_frozen(max_steps=10**6)
-frozen, frozen_cpu = time.perf_counter() - t, time.process_time() - c
-print(json.dumps(dict(steps=steps, frozen=frozen, steps_cpu=steps_cpu, frozen_cpu=frozen_cpu,
-                      collisions=sim.collisions)))
+if case == "half_plane":
+    g = pb.HalfPlane.from_size(1000, 500)
+    sim = timed("build", lambda: pb.Simulation(g, kicked(g), seed=0))
+    timed("steps", lambda: sim.run(steps=1000, progress=False))
+    timed("frozen", lambda: sim.run_until_frozen(max_steps=10**6, progress=False))
+elif case == "exact":
+    g = pb.HalfPlane.from_size(30, 15)
+    sim = timed("build", lambda: pb.Simulation(g, kicked(g), seed=0, arithmetic="exact"))
+    timed("frozen", lambda: sim.run_until_frozen(max_steps=10**7, progress=False))
+else:
+    import userparts
+    g = pb.HalfPlane(20, 20)
+    warm = pb.Simulation(g, kicked(g), seed=0)          # the package's own parts, compiled or loaded untimed
+    warm.run(steps=10); warm.run_until_frozen(10**6)
+    rule = userparts.Sticky(0.9) if case == "rule" else pb.Elastic()
+    scheduler = userparts.Among(np.arange(g.n_contacts)) if case == "scheduler" else pb.UniformRandomPair()
+    sim = pb.Simulation(g, kicked(g), rule=rule, scheduler=scheduler, seed=0)
+    timed("steps", lambda: sim.run(steps=10))
+    timed("frozen", lambda: sim.run_until_frozen(max_steps=10**6))
+print(json.dumps(times))
 '''
 
 
@@ -113,19 +146,30 @@ def first_runs(tree: Path, case: str, cache: Path, user: Path) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+#: the cases, and the stages each times
+CASES = {"half_plane": ("build", "steps", "frozen"), "exact": ("build", "frozen"), "rule": ("steps", "frozen"),
+         "scheduler": ("steps", "frozen")}
+
+
 def _median(runs: list[dict]) -> dict:
-    """The run of median total CPU time."""
-    runs = sorted(runs, key=lambda r: r["steps_cpu"] + r["frozen_cpu"])
+    """The run of median total wall time."""
+    runs = sorted(runs, key=lambda r: sum(v for k, v in r.items() if not k.endswith("_cpu")))
     return runs[len(runs) // 2]
+
+
+def _stages(run: dict, stages: tuple[str, ...]) -> str:
+    return " | ".join(f"{run[s]:.2f} ({run[s + '_cpu']:.2f})" for s in stages)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tree", action="append", type=Path, help="a checkout of pinnedballs (default: this one)")
+    parser.add_argument("--case", action="append", choices=sorted(CASES), help="a case (default: every one)")
     parser.add_argument("--repeats", type=int, default=3, help="fresh caches per case (the median is shown)")
     args = parser.parse_args(argv)
     trees = [tree.resolve() for tree in args.tree or [ROOT]]
-    fresh = {(tree, case): [] for tree in trees for case in ("rule", "scheduler")}
+    cases = args.case or list(CASES)
+    fresh = {(tree, case): [] for case in cases for tree in trees}
     cached = {key: [] for key in fresh}
     for _ in range(args.repeats):  # the trees interleaved: a shared machine's load falls on each alike
         for tree, case in fresh:
@@ -135,16 +179,17 @@ def main(argv: list[str] | None = None) -> int:
                 (user / "userparts.py").write_text(_USER)
                 fresh[tree, case].append(first_runs(tree, case, Path(tmp) / "cache", user))
                 cached[tree, case].append(first_runs(tree, case, Path(tmp) / "cache", user))
-    print("CPU seconds in the child (time.process_time), wall seconds in brackets; the median of "
-          f"{args.repeats} fresh caches")
-    print()
-    print("| checkout | user part | first run(steps) | first run_until_frozen | total | cached: total |")
-    print("|---|---|---|---|---|---|")
-    for (tree, case), runs in fresh.items():
-        f, c = _median(runs), _median(cached[tree, case])
-        print(f"| {tree.name} | {case} | {f['steps_cpu']:.2f} ({f['steps']:.2f}) | {f['frozen_cpu']:.2f} "
-              f"({f['frozen']:.2f}) | {f['steps_cpu'] + f['frozen_cpu']:.2f} ({f['steps'] + f['frozen']:.2f}) | "
-              f"{c['steps_cpu'] + c['frozen_cpu']:.2f} ({c['steps'] + c['frozen']:.2f}) |")
+    print(f"wall seconds, CPU seconds of the process in brackets; the median of {args.repeats} fresh caches "
+          f"({os.cpu_count()} cores)")
+    for case in cases:
+        stages = CASES[case]
+        print()
+        print(f"| checkout | {case} | " + " | ".join(f"first {s}" for s in stages) + " | second process: "
+              + " | ".join(stages) + " |")
+        print("|---|---|" + "---|" * 2 * len(stages))
+        for tree in trees:
+            f, c = _median(fresh[tree, case]), _median(cached[tree, case])
+            print(f"| {tree.name} | {case} | {_stages(f, stages)} | {_stages(c, stages)} |")
     return 0
 
 

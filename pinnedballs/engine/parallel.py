@@ -357,8 +357,8 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     def blocks(v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words, n, recs, counts,
                watch, nwatch, npick, marks, deferred, history, sync, out):
         for tid in prange(cuts.shape[0] + 1):
-            worker(tid, v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words, n, recs,
-                   counts, watch, nwatch, npick, marks, deferred, history, sync, out)
+            worker(np.int64(tid), v, pairs, ends, units, masses, params, pattern, cuts, band, windows, poly, rng_words,
+                   n, recs, counts, watch, nwatch, npick, marks, deferred, history, sync, out)
         store(rng_words, load(history[history.shape[0] - 1, 2:6].view(np.uint64)))
         total = np.int64(0)
         for blk in range(history.shape[0]):

@@ -392,8 +392,8 @@ def reservation_batches(collide: Callable, dim: int, flat: bool, rows: bool) -> 
     @jit_cached_if_possible(parallel=True)
     def batches(v, pairs, ends, units, masses, params, pattern, owners, rng_words, n, size, count, scratch, sync, out):
         for tid in prange(out.shape[0]):
-            worker(tid, v, pairs, ends, units, masses, params, pattern, owners, rng_words, n, size, count, scratch,
-                   sync, out)
+            worker(np.int64(tid), v, pairs, ends, units, masses, params, pattern, owners, rng_words, n, size, count,
+                   scratch, sync, out)
 
     return batches
 
