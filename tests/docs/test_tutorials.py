@@ -4,6 +4,7 @@ each is a page of the documentation site."""
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -17,14 +18,36 @@ TUTORIALS = sorted((ROOT / "docs" / "tutorials").glob("*.py"))
 CELL_SECONDS = 120
 
 
+#: an executed tutorial, as saved (its pictures, the widget state of its bars) is at most this long
+#: (exact_counts was 20 MB, 15.6 of them the widgets of calls that had shown no bar: issue 34, item 1) ...
+TUTORIAL_BYTES = 1_000_000
+#: ... but first_run, whose pictures and movie alone take 1.25 MB
+FIRST_RUN_BYTES = 1_600_000
+#: the widget state a saved tutorial keeps, at most: the bars of the calls that ran over 2 s, about 9 kB
+#: each (none or one here; 30 leave room for a slow machine)
+WIDGET_BYTES = 300_000
+
+
 def executed(path: Path, tmp_path: Path):
     """The notebook of ``path`` after running every cell in a fresh kernel, in ``tmp_path``."""
     jupytext = pytest.importorskip("jupytext")
+    return run(jupytext.read(path), tmp_path)
+
+
+def run(nb, tmp_path: Path):
+    """``nb`` after running every cell in a fresh kernel, in ``tmp_path``."""
     nbclient = pytest.importorskip("nbclient")
-    nb = jupytext.read(path)
     nbclient.NotebookClient(nb, timeout=CELL_SECONDS, kernel_name="python3",
                             resources={"metadata": {"path": str(tmp_path)}}).execute()
     return nb
+
+
+def assert_small(nb, most: int = TUTORIAL_BYTES) -> None:
+    """``nb`` saved as a file is at most ``most`` bytes, its widget state at most `WIDGET_BYTES`."""
+    import nbformat
+
+    assert len(json.dumps(nb.metadata.get("widgets", {}))) <= WIDGET_BYTES
+    assert len(nbformat.writes(nb).encode()) <= most
 
 
 def outputs(nb, code: str) -> list[dict]:
@@ -34,26 +57,37 @@ def outputs(nb, code: str) -> list[dict]:
 
 
 def text(outs: list[dict]) -> str:
-    """What the cell printed, then the text of what it showed."""
-    return "".join(o.get("text", "") or o.get("data", {}).get("text/plain", "") for o in outs)
+    """What the cell printed, then the text of what it showed, without progress bars (`printed`)."""
+    return "".join(_without_bars(o) if o.get("output_type") == "stream" else _shown(o) for o in outs)
 
 
 def printed(outs: list[dict]) -> str:
-    """What the cell printed (stdout and stderr), without progress bars: a call that takes more than
-    2 s shows one in a notebook (tqdm's text on stderr, each redraw after a carriage return, which
-    the kernel's stream may have dropped: a busy machine's CI showed the redraws run together)."""
+    """What the cell printed (stdout and stderr), without progress bars: a call that runs more than 2 s,
+    as any may on a busy machine, shows one in a notebook: a widget with ipywidgets, else tqdm's text
+    on stderr, each redraw after a carriage return that the kernel's stream may have dropped (a busy
+    CI showed the redraws run together) and its closing newline a chunk of its own."""
     return "".join(_without_bars(o) for o in outs if o.get("output_type") == "stream")
 
 
-#: a tqdm bar's text: "label:  46%|████▌     | 92/200 [...]"; kernels may have dropped its carriage returns
-_BAR = re.compile(r"\d+%\|")
+#: a tqdm bar's meter: "[00:01<00:02, 3.4 steps/s]" or, the end unknown, "[00:01, 3.4 steps/s]"
+_BAR = re.compile(r"\[\d+:\d\d(?::\d\d)?[<,]")
+#: the kind of output a widget is (tqdm's bar, when ipywidgets is installed)
+WIDGET = "application/vnd.jupyter.widget-view+json"
 
 
 def _without_bars(out: dict) -> str:
+    """A stream's text; on stderr without a bar's lines (its redraws, split at their carriage returns,
+    and its closing newline)."""
     text = out.get("text", "")
     if out.get("name") != "stderr":
         return text
-    return "".join(line for line in text.splitlines(keepends=True) if "\r" not in line and not _BAR.search(line))
+    return "".join(line for line in text.splitlines(keepends=True) if line.strip() and not _BAR.search(line))
+
+
+def _shown(out: dict) -> str:
+    """The text of what a cell showed; none for a widget (a bar's text is its state)."""
+    data = out.get("data", {})
+    return "" if WIDGET in data else data.get("text/plain", "")
 
 
 def kinds(nb) -> list[str]:
@@ -73,6 +107,7 @@ def test_every_tutorial_is_a_percent_script_and_a_page_of_the_site():
 @pytest.mark.slow
 def test_a_first_run_and_its_figures(tmp_path):
     nb = executed(ROOT / "docs" / "tutorials" / "first_run.py", tmp_path)
+    assert_small(nb, FIRST_RUN_BYTES)
     assert printed(outputs(nb, "frozen = sim.run_until_frozen")) == "True 266938 47668 100.0\n"  # the README's
     assert "geometry.lenght: unknown key; did you mean 'length'?" in text(outputs(nb, "pb.load_spec(bad)"))
     last = text(outputs(nb, "table.iloc[-1]"))
@@ -84,6 +119,7 @@ def test_a_first_run_and_its_figures(tmp_path):
 @pytest.mark.slow
 def test_ensembles_and_the_scaling_law(tmp_path):
     nb = executed(ROOT / "docs" / "tutorials" / "ensembles_scaling.py", tmp_path)
+    assert_small(nb)
     fit = re.fullmatch(r"collisions ~ [\d.]+ N\^([\d.]+)\n", printed(outputs(nb, "np.polyfit")))
     assert 1.5 < float(fit.group(1)) < 1.8                                 # docs/extended.md: 1.72 to 1.63 here
     assert text(outputs(nb, "on_dask.to_pandas().equals")) == "True"       # the same table on Dask
@@ -95,6 +131,7 @@ def test_ensembles_and_the_scaling_law(tmp_path):
 @pytest.mark.slow
 def test_your_own_geometry_rule_and_scheduler(tmp_path):
     nb = executed(ROOT / "docs" / "tutorials" / "own_components.py", tmp_path)
+    assert_small(nb)
     assert printed(outputs(nb, "check_geometry(honeycomb)")) == "honeycomb: every geometry check passed\n"
     assert printed(outputs(nb, "star = Star(arms=5, length=6)")) == (
         "Star(arms=5, length=6): 31 balls, 30 contacts; every geometry check passed\n")
@@ -126,6 +163,7 @@ def test_your_own_geometry_rule_and_scheduler(tmp_path):
 @pytest.mark.slow
 def test_exact_counts_and_every_order(tmp_path):
     nb = executed(ROOT / "docs" / "tutorials" / "exact_counts.py", tmp_path)
+    assert_small(nb)
     same = printed(outputs(nb, "float_run, exact_run = "))
     assert same.startswith("same count: True | last collision on the same step: True\n")
     difference = float(re.search(r"exact ones: ([\d.e+-]+)", same).group(1))
@@ -159,3 +197,45 @@ def test_exact_counts_and_every_order(tmp_path):
     assert best[1].startswith("Most collisions found: 7 (best of 200 trials")
     assert printed(outputs(nb, "scheduler=pb.Replay(best.order)")) == "True 7\n"
     assert kinds(nb).count("image/png") >= 3                               # N_e, the replayed state, the orders
+
+
+# ---------------------------------------------------------------- the checks read no progress bar
+
+#: cells run with every call showing its bar at once, as on a machine where each takes over 2 s
+#: (issue 34, item 3: a busy CI read a bar as a cell's output): tqdm's text on stderr, or its widget
+BARS_AT_ONCE = {"text": "import sys\nsys.modules['ipywidgets'] = None  # no widget: tqdm's text\n", "widget": ""}
+CELLS = ["import pinnedballs.engine.progress\npinnedballs.engine.progress.DELAY = 0.0\n"
+         "import numpy as np\nimport pinnedballs as pb\n"
+         "def kicked(g):\n    v = np.zeros((g.n_balls, 2))\n    v[g.boundary_center()] = [0.0, 1.0]\n    return v\n",
+         "best = pb.search_max_collisions(pb.HalfPlane(2, 2), trials=20, seed=0)\nprint('most', best.collisions)",
+         "orders = pb.explore_orders(pb.HalfPlane(4, 4), kicked(pb.HalfPlane(4, 4)), max_states=50)\n"
+         "orders.max_collisions >= orders.min_collisions",
+         "sim = pb.Simulation(pb.HalfPlane(10, 5), kicked(pb.HalfPlane(10, 5)), seed=0)\n"
+         "print(sim.run_until_frozen(max_steps=10**6), sim.run(steps=1000), sim.collisions)"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("bar", ["text", "widget"])
+def test_the_checks_read_what_cells_print_not_their_bars(bar, tmp_path):
+    """`printed` and `text` read what the cells print and show, bars or none (they kept the redraws of a
+    bar with no end, split at their carriage returns, its closing newline, and a widget's text)."""
+    import nbformat
+
+    import pinnedballs as pb
+
+    if bar == "widget":
+        pytest.importorskip("ipywidgets")
+    nb = run(nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(c) for c in [BARS_AT_ONCE[bar], *CELLS]]),
+             tmp_path)
+    best = pb.search_max_collisions(pb.HalfPlane(2, 2), trials=20, seed=0, progress=False)
+    g = pb.HalfPlane(10, 5)
+    v = np.zeros((g.n_balls, 2))
+    v[g.boundary_center()] = [0.0, 1.0]
+    sim = pb.Simulation(g, v, seed=0)
+    sim.run_until_frozen(max_steps=10**6, progress=False)
+    barred = [c for c in nb.cells if c.outputs and any(o.get("name") == "stderr" or WIDGET in o.get("data", {})
+                                                       for o in c.outputs)]
+    assert len(barred) == 3  # each call showed its bar
+    assert printed(outputs(nb, "best = pb.search_max_collisions(")) == f"most {best.collisions}\n"
+    assert text(outputs(nb, "orders = pb.explore_orders(")) == "True"
+    assert printed(outputs(nb, "sim.run_until_frozen(")) == f"True 1000 {sim.collisions}\n"
