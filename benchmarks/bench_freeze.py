@@ -29,8 +29,6 @@ from pinnedballs.engine import loops
 length, depth, chunk, seed = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 if chunk:
     loops.FREEZE_CHUNK_PER_CONTACT = chunk
-import pinnedballs.run.simulation as simulation
-simulation.FREEZE_CHUNK_PER_CONTACT = loops.FREEZE_CHUNK_PER_CONTACT
 half = pb.HalfPlane.from_size(length, depth)
 v = np.zeros((half.n_balls, 2))
 b = half.boundary_center()

@@ -26,9 +26,10 @@ from .run.gsd_writer import GSDWriter
 from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
-from .run.simulation import RunState, Simulation
+from .geometry.simulation import RunState, Simulation
 from .specs.errors import SpecError
 from .specs.run import RunSpec, load_spec
+from .plot import display as _display  # noqa: F401 - how a geometry and a simulation show themselves
 
 __all__ = [
     "Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",

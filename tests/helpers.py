@@ -267,12 +267,22 @@ HALF_PLANE = {
 
 
 def thin_spec(where: Path) -> dict:
-    """A run whose closing margin is thin: two balls on a line (files in ``where``) closing at 64 * 2^-53,
-    about 11.3 thresholds of the default criterion; one collision, then frozen."""
+    """A run until frozen whose closing margin is thin: two balls on a line (files in ``where``) closing at
+    64 * 2^-53, about 11.3 thresholds of the default criterion; one collision, then frozen."""
     np.save(where / "pair.npy", np.array([[0.0], [2.0]]))
     np.save(where / "pair_v.npy", np.array([[1.0], [1.0 - 64 * 2.0**-53]]))
     return {"geometry": {"kind": "graph_positions", "positions": str(where / "pair.npy")},
-            "initial": {"kind": "from_file", "path": str(where / "pair_v.npy")}, "stop": {"steps": 10}, "seed": 0}
+            "initial": {"kind": "from_file", "path": str(where / "pair_v.npy")},
+            "stop": {"frozen": True, "max_steps": 10}, "seed": 0}
+
+
+def thin_torus() -> tuple:
+    """``(geometry, velocities)``: a 4 x 4 torus moving as one but for ball 0, 64 * 2^-53 faster along x: its
+    collisions close within a few thresholds (a thin margin) in every run, and it never freezes."""
+    g = pb.FlatTorus(4, 4)
+    v = np.tile([1.0, 0.5], (g.n_balls, 1))
+    v[0, 0] += 64 * 2.0**-53
+    return g, v
 
 
 #: the first words of what a thin run says (`engine.margin.ClosingMargin.warning`)

@@ -1,10 +1,11 @@
 """The library does not load its command line: ``import pinnedballs`` and every library module
-import neither ``cli`` nor the paper's reproduction."""
+import neither ``cli`` nor the paper's reproduction; and its rooms stand in floors, every import running down."""
 
 from __future__ import annotations
 
 import pytest
 
+import ast
 import json
 import pkgutil
 import subprocess
@@ -38,3 +39,45 @@ def test_no_library_module_imports_the_command_line():
     assert "pinnedballs.specs.run" in library and "pinnedballs.run.ensemble" in library
     loaded = loaded_after("\n".join(f"import {m}" for m in library))
     assert not {m for m in loaded if m.startswith("pinnedballs.cli")}
+
+
+def _room_imports() -> dict[str, set[str]]:
+    """``{room: rooms it imports}``: a room is a top-level module or subpackage of pinnedballs (the
+    package's ``__init__`` one of its own); every import counts, those inside functions too."""
+    package = Path(pinnedballs.__file__).parent
+    names = {p.stem for p in package.iterdir() if p.suffix == ".py" or (p / "__init__.py").exists()}
+    rooms: dict[str, set[str]] = {}
+    for path in package.rglob("*.py"):
+        parts = path.relative_to(package).with_suffix("").parts
+        room, here = parts[0], ("pinnedballs", *parts[:-1])
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom):
+                base = ".".join([*here[:len(here) - node.level + 1], node.module or ""] if node.level else [node.module])
+                targets = [f"{base.strip('.')}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                continue
+            for target in targets:
+                top = target.split(".")
+                if top[0] == "pinnedballs":
+                    to = top[1] if len(top) > 1 and top[1] in names else "__init__"
+                    if to != room:
+                        rooms.setdefault(room, set()).add(to)
+    return rooms
+
+
+def test_every_import_runs_down_the_house():
+    """The rooms (engine, geometry, plot, run, ...) stand in floors: no room imports one that imports it,
+    even through others or inside a function, so none reaches up (the geometry's pictures are handed to
+    it by `plot.display`, and the `Simulation` stands below the specs, results and analysis that use it)."""
+    rooms = _room_imports()
+    assert {"geometry", "plot", "results", "run"} <= set(rooms) and "engine" in rooms["geometry"]
+    for room in rooms:
+        seen, todo = set(), list(rooms.get(room, ()))
+        while todo:
+            other = todo.pop()
+            if other not in seen:
+                seen.add(other)
+                todo.extend(rooms.get(other, ()))
+        assert room not in seen, f"{room} reaches itself through {sorted(seen & {r for r in rooms if room in rooms[r]})}"

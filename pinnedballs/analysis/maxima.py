@@ -49,7 +49,7 @@ from ..engine.progress import Progress
 from ..engine.sigint import deferred
 from ..geometry.base import Geometry
 from ..schedulers.replay import Replay
-from ..run.simulation import Simulation
+from ..geometry.simulation import Simulation
 from .orders import OrdersResult, explore_orders
 
 __all__ = ["search_max_collisions", "MaxCollisionsResult", "random_velocities", "normalised", "moved", "perturbed"]

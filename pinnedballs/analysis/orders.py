@@ -31,7 +31,7 @@ from ..engine.progress import Progress
 from ..engine.sigint import Deferred, deferred
 from ..geometry.base import Geometry
 from ..schedulers.simple import UniformRandomPair
-from ..run.simulation import Simulation
+from ..geometry.simulation import Simulation
 from .order_systems import NODE_BYTES, ExactSystem, FloatSystem, Node, order_kernels
 
 __all__ = ["explore_orders", "OrdersResult", "order_kernels", "orders_against_random"]

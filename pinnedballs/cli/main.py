@@ -5,8 +5,8 @@ Exit status: 0 done; 2 bad input (one line on stderr naming the field or file), 
 that fails included (naming the factory; ``--traceback`` prints its traceback first); 1 anything
 else; 130 interrupted (Ctrl-C or SIGTERM; a run after a complete checkpoint).
 
-A float run whose count depends on its collision criterion (`engine.margin.MarginWarning`) says so
-once, as one line on stderr: ``pinnedballs: note: the closing margin is thin (...)``.
+A float run until frozen whose count depends on its collision criterion (`engine.margin.MarginWarning`)
+says so once, as one line on stderr: ``pinnedballs: note: the closing margin is thin (...)``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """Files written whole or not at all: through a temporary file beside the target, flushed and
 renamed over it, so that a kill, a Ctrl-C or a full disk never leaves half of one. Results files,
-specs, reports and figures are all written this way."""
+specs, reports and figures are all written this way; `unwritable` says, before anything is written,
+why a directory could not be."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import contextlib
 import os
 from pathlib import Path
 
-__all__ = ["write_text_atomic", "write_bytes_atomic", "written_atomically", "tmp_path", "remove"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "written_atomically", "tmp_path", "remove", "unwritable"]
 
 
 @contextlib.contextmanager
@@ -72,3 +73,36 @@ def _commit(tmp: Path, path: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def unwritable(out: Path) -> str | None:
+    """Why ``out`` cannot be, or be created as, a directory we may write into (None if it can):
+    ``"is a dangling symbolic link (to X)"``, ``"X is not a directory"``, ``"X is not writable
+    (read-only file system)"``, ... Writes nothing."""
+    if out.is_symlink() and not out.exists():
+        return f"is a dangling symbolic link (to {os.readlink(out)})"
+    if out.exists() and not out.is_dir():
+        return "exists and is not a directory"
+    existing = out
+    while not existing.is_dir():
+        parent = existing.parent
+        if existing.is_symlink() and not existing.exists():
+            return f"{existing} is a dangling symbolic link"
+        if existing.exists() or parent == existing:
+            return f"{existing} is not a directory"
+        existing = parent
+    if not os.access(existing, os.W_OK | os.X_OK) or _read_only(existing):
+        return f"{existing} is not writable ({_why(existing)})"
+    return None
+
+
+def _read_only(path: Path) -> bool:
+    try:
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
+
+
+def _why(path: Path) -> str:
+    """Why ``path`` cannot be written: a read-only file system, or permissions."""
+    return "read-only file system" if _read_only(path) else "permission denied"

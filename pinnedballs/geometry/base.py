@@ -20,6 +20,7 @@ from ..engine import checks
 from ..engine.errors import FieldError
 from ..engine.rows import row_pattern
 from .checks import LENGTH_RTOL, raw_tables
+from .pictures import display
 
 __all__ = ["Contacts", "Geometry", "Boundary", "tangent_contacts", "VIEWS", "LENGTHS", "checked_radius"]
 
@@ -291,24 +292,18 @@ class Geometry(ABC):
     def plot(self, ax=None, title: str | None = None):
         """The balls at rest in the geometry's own view (`pinnedballs.plot.states.state_picture`), drawn
         into ``ax`` or a new figure; the matplotlib `Figure`."""
-        from ..plot.states import state_picture
-
-        return state_picture(self)(np.zeros((self.n_balls, self.dim)), title, ax=ax)
+        return display().state_picture(self)(np.zeros((self.n_balls, self.dim)), title, ax=ax)
 
     def _repr_html_(self) -> str:  # notebooks: a table of the balls beside their picture
-        from ..plot.display import geometry_html, geometry_png
-
-        return geometry_html(self, geometry_png(self))
+        shown = display()
+        return shown.geometry_html(self, shown.geometry_png(self))
 
     def _repr_png_(self) -> bytes | None:
-        from ..plot.display import geometry_png
-
-        return geometry_png(self)
+        return display().geometry_png(self)
 
     def _repr_mimebundle_(self, include=None, exclude=None) -> dict:  # the picture drawn once for both
-        from ..plot.display import geometry_html, geometry_png, mimebundle
-
-        return mimebundle(self, geometry_html, geometry_png, include, exclude)
+        shown = display()
+        return shown.mimebundle(self, shown.geometry_html, shown.geometry_png, include, exclude)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(n_balls={self.n_balls}, n_contacts={self.n_contacts}, dim={self.dim})"

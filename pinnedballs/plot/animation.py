@@ -20,8 +20,8 @@ from typing import Iterator
 import numpy as np
 
 from ..engine import checks
+from ..engine.atomic import unwritable
 from ..engine.errors import FieldError, FieldTypeError
-from ..results.rundir import unwritable
 from .base import render
 from .states import state_picture
 

@@ -6,7 +6,9 @@ its counters, energy and whether it froze beside the picture of its state (in th
 view: `states.state_picture`, a field above `field.FIELD_BALLS` balls); a `RunSpec` its parts; a
 run's `Results` its file, status and snapshots; an `EnsembleResult` its replicas and their
 counts. The pictures are drawn only when matplotlib imports and the view can be drawn (else
-None, and the table alone): nothing here is imported by ``import pinnedballs``.
+None, and the table alone). ``import pinnedballs`` imports this module, which imports no matplotlib,
+and it installs itself as how a geometry and a simulation show themselves (`geometry.pictures`: they
+stand below the plots, so they are handed their pictures rather than import them).
 
 `mimebundle` draws the picture once for both the HTML (which embeds it: notebooks show the HTML)
 and the PNG (for front-ends that show no HTML).
@@ -18,11 +20,14 @@ import base64
 import html
 import io
 import math
+import sys
 
 import numpy as np
 
-__all__ = ["geometry_html", "geometry_png", "simulation_html", "simulation_png", "spec_html", "results_html",
-           "ensemble_html", "mimebundle", "state_png", "DISPLAY_DPI"]
+from ..geometry import pictures
+
+__all__ = ["state_picture", "geometry_html", "geometry_png", "simulation_html", "simulation_png", "spec_html",
+           "results_html", "ensemble_html", "mimebundle", "state_png", "DISPLAY_DPI"]
 
 #: the resolution of pictures in a notebook (an 8-inch state picture is 480 pixels wide)
 DISPLAY_DPI = 60
@@ -154,6 +159,13 @@ def ensemble_html(result) -> str:
 # ---------------------------------------------------------------- pictures
 
 
+def state_picture(geometry):
+    """`states.state_picture` (imported when first drawn: matplotlib)."""
+    from .states import state_picture as draw
+
+    return draw(geometry)
+
+
 def state_png(geometry, velocities, title: str, dpi: int = DISPLAY_DPI) -> bytes | None:
     """The state picture of ``velocities (n_balls, dim)`` on ``geometry`` as PNG bytes, or None when
     matplotlib is missing or the geometry's view cannot draw it."""
@@ -191,3 +203,6 @@ def mimebundle(obj, table, picture, include=None, exclude=None) -> dict:
     if "image/png" in wanted and png is not None:
         out["image/png"] = png
     return out
+
+
+pictures.install(sys.modules[__name__])  # how a geometry and a simulation show themselves

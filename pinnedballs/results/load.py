@@ -16,7 +16,7 @@ from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
 from ..engine.margin import ClosingMargin
 from ..engine.state import RunState
-from ..run.simulation import Simulation
+from ..geometry.simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.errors import InputError
 from ..engine.fixed_state import CertifiedState

@@ -17,7 +17,7 @@ import re
 from pathlib import Path
 
 from ..engine.errors import InputError
-from ..engine.atomic import remove, tmp_path
+from ..engine.atomic import remove, tmp_path, unwritable
 from .format import DATA_DIR, RESULTS_NAME
 
 __all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",
@@ -39,39 +39,6 @@ def check_writable(out: str | os.PathLike, option: str = "--out") -> Path:
     if problem is not None:
         raise _fail(option, out, problem)
     return out
-
-
-def unwritable(out: Path) -> str | None:
-    """Why ``out`` cannot be, or be created as, a directory we may write into (None if it can):
-    ``"is a dangling symbolic link (to X)"``, ``"X is not a directory"``, ``"X is not writable
-    (read-only file system)"``, ... Writes nothing."""
-    if out.is_symlink() and not out.exists():
-        return f"is a dangling symbolic link (to {os.readlink(out)})"
-    if out.exists() and not out.is_dir():
-        return "exists and is not a directory"
-    existing = out
-    while not existing.is_dir():
-        parent = existing.parent
-        if existing.is_symlink() and not existing.exists():
-            return f"{existing} is a dangling symbolic link"
-        if existing.exists() or parent == existing:
-            return f"{existing} is not a directory"
-        existing = parent
-    if not os.access(existing, os.W_OK | os.X_OK) or _read_only(existing):
-        return f"{existing} is not writable ({_why(existing)})"
-    return None
-
-
-def _read_only(path: Path) -> bool:
-    try:
-        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
-    except OSError:
-        return False
-
-
-def _why(path: Path) -> str:
-    """Why ``path`` cannot be written: a read-only file system, or permissions."""
-    return "read-only file system" if _read_only(path) else "permission denied"
 
 
 class DirLock:

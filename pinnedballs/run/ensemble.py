@@ -10,8 +10,8 @@ row per snapshot and one for the final state (`state_row`: `observables.summary`
 and a few more), with the closing margin so far (`MARGIN_COLUMNS`, `engine.margin`).
 Rows are ordered by replica, then by time, so the same spec and ``N`` give a
 bit-identical table however the replicas were spread. A float ensemble at the default
-resolution in which any replica's margin is thin says so once (`MarginWarning`), not
-once per replica.
+resolution that runs until frozen (its counts the observable), in which any replica's margin
+is thin, says so once (`MarginWarning`), not once per replica.
 
 A replica that raises becomes one row with its index, seed and the error; the
 others are kept. `write_outputs` writes ``replicas.csv``, ``summary.json``,
@@ -334,7 +334,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
                 executors.on_processes(jobs, workers, tick, lost)
     rows = [row for k in range(replicas) for row in results[k]]
     result = EnsembleResult(spec, replicas, rows, where, time.perf_counter() - start)
-    if spec.arithmetic == "float" and spec.resolution is None and result.thin():
+    if spec.stop.frozen and spec.arithmetic == "float" and spec.resolution is None and result.thin():
         warnings.warn(_thin_note(result), MarginWarning, stacklevel=2)
     return result
 

@@ -26,7 +26,7 @@ from ..results.format import DATA_DIR, RESULTS_NAME, Record
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
-from .simulation import Simulation
+from ..geometry.simulation import Simulation
 from ..specs.run import RunSpec, load_spec
 from ..engine.stop import Stop
 from .gsd_writer import GSDWriter, layout as gsd_layout
@@ -61,7 +61,9 @@ def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record
     writers = list(writers)
     if on_snapshot is not None and spec.snapshots is not None:
         writers.append(OnSnapshot(spec.snapshots.build(), on_snapshot))
-    return drive(sim, spec.stop.build(), writers, after_chunk=after_chunk)
+    reason = drive(sim, spec.stop.build(), writers, after_chunk=after_chunk)
+    sim._say_if_thin(reason)  # a run that froze: its count is the observable
+    return reason
 
 
 # ---------------------------------------------------------------- run directories
@@ -249,7 +251,7 @@ def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | 
                               f"continue with --resume")
 
     try:
-        drive(sim, stop, writers, after_chunk=after_chunk, progress=progress)
+        sim._say_if_thin(drive(sim, stop, writers, after_chunk=after_chunk, progress=progress))
     finally:
         for other in writers[:-1]:
             other.close()

@@ -17,7 +17,7 @@ from ..geometry.base import Geometry
 from ..rules import check_resolution
 from ..engine.limits import check_memory
 from ..engine.state import mass_array
-from ..run.simulation import Simulation
+from ..geometry.simulation import Simulation
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec

@@ -194,14 +194,18 @@ def test_run_writes_results_spec_and_figures(tmp_path):
 
 
 def test_a_thin_run_says_so_once_as_a_note(tmp_path):
-    """A float run at the default resolution whose margin is thin: one line on stderr, the warning's words
-    after ``pinnedballs: note:``, no Python warning with its file and line; a chosen resolution is the
-    model, and says nothing."""
+    """A float run until frozen at the default resolution whose margin is thin: one line on stderr, the
+    warning's words after ``pinnedballs: note:``, no Python warning with its file and line; the same run for
+    its steps (its count not the observable) and a chosen resolution (the model) say nothing."""
     code, out, err = call("run", write(tmp_path / "s.json", thin_spec(tmp_path)), "--out", tmp_path / "r",
                           "--no-figures")
     m = pb.load(tmp_path / "r").closing_margin
-    assert code == 0 and out.startswith("steps: 10 steps, 1 collisions")
+    assert code == 0 and out.startswith("frozen: 1 steps, 1 collisions")
     assert err == f"pinnedballs: note: {m.warning()}\n" and err.startswith(f"pinnedballs: note: {THIN}")
+    for_steps = write(tmp_path / "t.json", spec(thin_spec(tmp_path), stop={"steps": 10}))
+    code, out, err = call("run", for_steps, "--out", tmp_path / "t", "--no-figures")
+    assert (code, err) == (0, "") and out.startswith("steps: 10 steps, 1 collisions")
+    assert pb.load(tmp_path / "t").closing_margin == m
     chosen = write(tmp_path / "c.json", spec(thin_spec(tmp_path), resolution=1e-15))
     code, _, err = call("run", chosen, "--out", tmp_path / "c", "--quiet", "--no-figures")
     assert (code, err) == (0, "") and pb.load(tmp_path / "c").closing_margin.thin

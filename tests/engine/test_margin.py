@@ -11,7 +11,9 @@ import pytest
 import pinnedballs as pb
 from pinnedballs.rules import collide_elastic
 from pinnedballs.engine.margin import MarginWarning, NEAR
+from pinnedballs.geometry.simulation import FreezeWarning
 from pinnedballs.rules import DEFAULT_RESOLUTION
+from helpers import thin_torus
 
 
 def _pair(v):
@@ -40,17 +42,39 @@ def test_a_positive_closing_speed_below_the_threshold_is_a_remnant():
     assert 1e-4 < m.largest_remnant < 1 and m.near_remnants == 1
 
 
-def test_a_collision_near_the_threshold_is_thin_and_warns_once():
+def test_a_thin_run_says_so_once_where_it_ends_frozen():
+    """The count until frozen is the observable: a run that ends frozen after a collision near the threshold
+    says so once, in one line; the same pick run for its steps says nothing (`closing_margin` tells it)."""
     v = [1.0, 1.0 - 64 * 2.0**-53]  # w = 64 * 2^-53: about 11 thresholds
-    sim = _pair(v)
-    with pytest.warns(MarginWarning, match=r"^the closing margin is thin \(smallest collision 11\.3 thresholds.*"
-                                           r"arithmetic=\"exact\""):
-        sim.run(steps=1)
-    m = sim.closing_margin()
-    assert m.thin and m.near_collisions == 1 and m.smallest_collision == pytest.approx(64 / (4 * math.sqrt(2)))
+    for_steps = _pair(v)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        sim.run(steps=5)  # said once
+        for_steps.run(steps=1)
+    m = for_steps.closing_margin()
+    assert m.thin and m.near_collisions == 1 and m.smallest_collision == pytest.approx(64 / (4 * math.sqrt(2)))
+    sim = _pair(v)
+    with pytest.warns(MarginWarning, match=r"^the closing margin is thin \(smallest collision 11\.3 thresholds.*"
+                                           r"arithmetic=\"exact\"") as said:
+        assert sim.run_until_frozen(max_steps=10)
+    assert len(said) == 1 and "\n" not in str(said[0].message) and sim.closing_margin() == m
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.run_until_frozen(max_steps=5)  # said once
+
+
+def test_a_torus_says_nothing_of_its_thin_margin():
+    """A torus never freezes, and every long run of one comes near the threshold: a run for its steps says
+    nothing, and a run until frozen only that it never freezes (one line, the `FreezeWarning`)."""
+    g, v = thin_torus()
+    sim = pb.Simulation(g, v, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.run(steps=1000)
+    assert sim.collisions > 0 and sim.closing_margin().thin
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert not pb.Simulation(g, v, seed=0).run_until_frozen(max_steps=1000)
+    assert [w.category for w in caught] == [FreezeWarning]
 
 
 def test_the_margin_of_the_paper_run():
@@ -180,10 +204,10 @@ def test_the_warning_is_about_the_callers_line_and_its_advice_applies():
     and a rule without an exact form is not told to count exactly (it cannot: arithmetic="exact" refuses it)."""
     v = [1.0, 1.0 - 64 * 2.0**-53]
     with pytest.warns(MarginWarning) as built_in:
-        _pair(v).run(steps=1)
+        _pair(v).run_until_frozen(max_steps=10)
     with pytest.warns(MarginWarning) as mine:
         pb.Simulation(pb.GraphGeometry.from_positions([0.0, 2.0]), np.array(v)[:, None], rule=MyRule(),
-                      seed=0).run(steps=1)
+                      seed=0).run(collisions=5)  # until frozen, which comes first
     for record in (built_in, mine):
         assert len(record) == 1 and record[0].filename == __file__
     assert 'arithmetic="exact"' in str(built_in[0].message)

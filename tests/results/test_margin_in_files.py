@@ -118,7 +118,8 @@ def test_an_exact_run_keeps_no_margin(tmp_path):
 
 
 def test_a_thin_run_from_python_stays_a_warning(tmp_path):
-    """`pb.run_spec` of a thin run: a `MarginWarning` in Python (the command line says it as a note)."""
+    """`pb.run_spec` of a thin run until frozen: a `MarginWarning` in Python (the command line says it as a
+    note); for its steps, or with a wide margin, no word."""
     from helpers import THIN, thin_spec
 
     with pytest.warns(MarginWarning, match=r"^" + THIN.replace("(", r"\(")):
@@ -127,3 +128,6 @@ def test_a_thin_run_from_python_stays_a_warning(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         pb.run_spec(parse_spec(spec(TORUS, seed=2)), tmp_path / "wide", figures=False)  # a wide margin: no word
+        for_steps = pb.run_spec(parse_spec(spec(thin_spec(tmp_path), stop={"steps": 10})), tmp_path / "t",
+                                figures=False)
+    assert for_steps.closing_margin == res.closing_margin

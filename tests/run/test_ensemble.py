@@ -112,8 +112,9 @@ def test_each_row_carries_the_closing_margin_of_its_state():
 
 
 def test_an_ensemble_with_thin_margins_says_so_once(tmp_path):
-    """Three replicas, each thin: one `MarginWarning` for the ensemble, none from the replicas; none
-    at a chosen resolution (the model) or where the margins are wide."""
+    """Three replicas until frozen, each thin: one `MarginWarning` for the ensemble, none from the replicas;
+    none for their steps (the counts not the observable), at a chosen resolution (the model) or where the
+    margins are wide."""
     thin = parse_spec(thin_spec(tmp_path))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -128,6 +129,8 @@ def test_an_ensemble_with_thin_margins_says_so_once(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         ens.run_ensemble(thin.model_copy(update={"resolution": 1e-15}), 2, workers=1)
+        for_steps = ens.run_ensemble(parse_spec({**thin_spec(tmp_path), "stop": {"steps": 10}}), 2, workers=1)
+        assert [r["replica"] for r in for_steps.thin()] == [0, 1]
         ens.run_ensemble(parse_spec(HALF_PLANE), 2, workers=1)
 
 

@@ -90,12 +90,18 @@ def test_an_exact_state_lists_its_exact_velocities():
 
 
 def test_the_record_lives_below_the_simulation_and_keeps_its_old_names():
-    """`RunState` and `mass_array` moved to `engine.state`; ``pb.RunState`` and the import scripts use
-    (``from pinnedballs.run.simulation import RunState``) name the same objects."""
+    """`RunState` and `mass_array` moved to `engine.state`; ``pb.RunState``, the simulation's module and
+    the import scripts used (``from pinnedballs.run.simulation import RunState``, which the simulation
+    left for `geometry.simulation`: a DeprecationWarning) name the same objects."""
     from pinnedballs.engine import state
-    from pinnedballs.run.simulation import RunState, mass_array
+    from pinnedballs.geometry import simulation
 
-    assert pb.RunState is RunState is state.RunState and mass_array is state.mass_array
+    with pytest.warns(DeprecationWarning, match="moved to pinnedballs.geometry.simulation"):
+        from pinnedballs.run.simulation import RunState, mass_array
+    assert pb.RunState is RunState is state.RunState is simulation.RunState and mass_array is state.mass_array
+    with pytest.warns(DeprecationWarning):
+        from pinnedballs.run.simulation import FreezeWarning, Simulation
+    assert Simulation is pb.Simulation and FreezeWarning is simulation.FreezeWarning
 
 
 def test_the_margin_travels_with_the_state():

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from scipy import stats
 
 import pinnedballs as pb
-from pinnedballs.run.simulation import FreezeWarning
+from pinnedballs.geometry.simulation import FreezeWarning
 from helpers import (SLOWER, closing_speeds, energy, icosahedron_sphere, momentum, random_state, rule_kind,
                      schedulers_for, stated_units, tangent_velocities)
 from reference import ReferenceSimulation

@@ -1,0 +1,506 @@
+"""`Simulation`: balls on a geometry, run by a scheduler under a rule; owns the velocities, the counters
+and the random stream. It stands beside the geometry it is built on, below what builds, records and
+studies it (specs, results, analysis, run); the engine's driver runs it. (`RunState`, all of it that
+changes during a run as one record, lives in `engine.state`; its name is imported here too.)"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..engine import checks
+from ..engine.backends import DEVICES, DeviceBackend, ExactBackend, LoopBackend
+from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS
+from ..engine.driver import check_writers, drive
+from ..engine.sigint import deferred
+from ..engine.stop import Stop
+from ..engine.errors import FieldError, FieldTypeError, check_jitted
+from ..engine.arithmetic import ARITHMETICS, check_precisions, field_chain
+from ..engine.exact import FieldChain
+from ..engine.fields import NotExact
+from ..engine.fixed import NotFixed
+from ..engine.fixed_state import CertifiedState, nearest_floats
+from ..engine.limbs import from_limbs
+from ..engine.limits import check_speeds
+from ..engine.margin import ClosingMargin, MarginWarning, new_margin
+from ..engine.state import RunState, as_state, margin_problem, mass_array
+from ..engine.random import seed_state
+from ..engine.philox import counter_stream
+from .base import Geometry
+from .checks import check_contacts
+from .pictures import display
+from ..rules import CollisionRule, Elastic, check_resolution, threshold
+from ..schedulers.base import Scheduler
+from ..schedulers.simple import UniformRandomPair
+
+__all__ = ["Simulation", "RunState", "mass_array", "FreezeWarning"]
+
+
+class FreezeWarning(UserWarning):
+    """A run until frozen stopped at its step cap on a system that can never freeze (a torus: see
+    `Simulation.run_until_frozen`)."""
+
+
+def _recorded_seed(seed) -> int | np.random.SeedSequence:
+    """The seed a simulation records (`Simulation.seed`): what repeats its stream, as an int when one does."""
+    if seed is None:
+        return np.random.SeedSequence().entropy  # fresh entropy, as numpy.random.default_rng() draws it
+    seed = checks.seed("seed", seed)
+    if isinstance(seed, np.random.SeedSequence) and isinstance(seed.entropy, int) and not seed.spawn_key \
+            and seed.pool_size == _DEFAULT_POOL_SIZE:
+        return seed.entropy  # SeedSequence(entropy) gives the same stream
+    return seed
+
+
+_DEFAULT_POOL_SIZE = np.random.SeedSequence(0).pool_size
+
+
+def _count(name: str, value) -> int:
+    """A count in ``[0, 2**63 - 1]`` (the loop's counters are int64)."""
+    return checks.integer(name, value, 0, NO_LIMIT)
+
+
+def _sparse_copy(v: np.ndarray) -> np.ndarray:
+    """A C-ordered copy of ``v`` that writes only the rows with a nonzero bit.
+
+    Rows never written stay on the operating system's shared zero page until a
+    collision writes them: a large lattice with one moving ball (the paper's
+    set-up) then reads velocities from cache instead of memory.
+    """
+    out = np.zeros(v.shape, dtype=np.float64)
+    rows = np.flatnonzero(v.view(np.uint64).any(axis=1))
+    out[rows] = v[rows]
+    return out
+
+
+class Simulation:
+    """Pinned billiard balls on ``geometry``, run by ``scheduler`` under ``rule``.
+
+    velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
+    masses: ``(n_balls,)`` positive masses, or None for all equal.
+    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream. As in
+    numpy, None (the default) draws fresh entropy from the operating system, so two simulations
+    made alike without a seed are independent; `seed` records it (an int) to repeat the run.
+    A contact collides only if its closing speed exceeds ``threshold = resolution * V``
+    (`pinnedballs.rules.threshold`, ``V`` the largest speed the velocities given can give a ball of
+    the mean mass). The default resolution, ``4 * 2^-53`` (4 units in the last place of ``V``), sets
+    aside rounding remnants, which exact arithmetic shows are no approach; another resolution ``e``
+    in (0, 1) is a model of its own (counts ``N_e``). `closing_margin` says how near the threshold
+    the run's picks came; a float run at the default resolution that ends frozen (its count then the
+    count until frozen) with a thin margin says so once (`engine.margin.MarginWarning`).
+
+    arithmetic: ``"float"`` (float64, the compiled loop) or ``"exact"``: the same chain, the same
+    picks from the same stream, with every velocity exact in the number field of the contact
+    normals (`pinnedballs.engine.exact`; ``velocities`` are then the exact values rounded, and
+    `exact_velocities` the values themselves). Exact runs need normals in a known field (the
+    triangular lattices: Q(sqrt 3); FCC: Q(sqrt 2); HCP: Q(sqrt 2, sqrt 3); chains: Q), the
+    built-in rules, and a scheduler that picks without a live set; with equal masses, elastic
+    collisions and flat dyadic normals (all but HCP) they run in fixed point at about the cost of
+    floats (`pinnedballs.engine.fixed`). ``"certified"``: that fixed-point chain at a fixed
+    ``precision`` (bits per coefficient, default 768), rounding allowed and every decision proved
+    equal to exact arithmetic's, so the counts and steps are the exact ones (`error_bound` bounds
+    how far the velocities are from exact arithmetic's); a decision it cannot prove stops the run
+    with `pinnedballs.engine.fixed.UncertifiedDecision` (a ValueError). ``late_precision`` (bits,
+    at most ``precision``; None: none): once the first wave has passed (no ball at rest, hardly any
+    still exact), the state is rounded to it, at a step that depends on the state alone, however the
+    run is split; ``precision`` is needed at the wave's front, and behind it the paper's half-plane
+    runs about twice as fast at 256 bits (`pinnedballs.engine.fixed`, docs/performance.md).
+
+    Each step the scheduler picks a contact; if its balls approach, the rule
+    collides them. ``steps`` counts picks, ``collisions`` the picks that changed
+    velocities. Same inputs and seed give bit-identical velocities and counters,
+    however the run is split into calls.
+
+    device: ``"cpu"`` (the default) or ``"cuda"``: the chain on an NVIDIA GPU (`pinnedballs.engine.gpu`;
+    ``python3 -m pip install ".[cuda]"`` from the checkout), for float arithmetic, the built-in rules and
+    ``UniformRandomPair(stream="counter")``, with the same velocities, counters, stop step and margin
+    as on the CPU. Its velocities stay on the GPU between runs; reading `velocities` copies them back.
+
+    The chain runs through one backend (`pinnedballs.engine.backends`), chosen here by the arithmetic
+    and the device: the engine's compiled loops (`pinnedballs.engine.loops`) run the scheduler's
+    selector on plain data the simulation owns (the velocities, the counters, the random stream, the
+    scheduler's state), exact arithmetic follows the same picks, and a GPU runs the counter stream.
+    """
+
+    def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
+                 scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float",
+                 resolution: float | None = None, precision: int | None = None, late_precision: int | None = None,
+                 device: str = "cpu"):
+        if not isinstance(geometry, Geometry):
+            raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
+        rule = Elastic() if rule is None else rule
+        scheduler = UniformRandomPair() if scheduler is None else scheduler
+        if not isinstance(rule, CollisionRule):
+            raise FieldTypeError("rule", f"must be a CollisionRule such as Elastic(), got {type(rule).__name__}")
+        if not isinstance(scheduler, Scheduler):
+            raise FieldTypeError("scheduler", f"must be a Scheduler such as UniformRandomPair(), "
+                                              f"got {type(scheduler).__name__}")
+        if geometry.n_contacts == 0:
+            raise FieldError("geometry", "has no contacts, so nothing can ever collide")
+        with deferred():  # compiles the check on a first call: a Ctrl-C waits for numba (see `engine.sigint`)
+            check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
+        self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
+        self._exact = None  # the exact or certified chain, made below (None in float arithmetic)
+        self._backend = None  # how the chain runs (`engine.backends`), chosen below
+        self._mass_array = mass_array(masses, geometry.n_balls)
+        self.masses = None if masses is None else self._mass_array
+        self.velocities = self._check_velocities(velocities)
+        self._collide, params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
+        #: the collision criterion's resolution ``e``: a pick collides when its closing speed exceeds ``e V``
+        self.resolution = check_resolution(resolution)
+        self._default_resolution = resolution is None  # a chosen resolution is the model: no warning
+        self.threshold = threshold(self.velocities, self._mass_array, self.resolution)
+        self._params = np.append(np.asarray(params, dtype=np.float64), self.threshold)  # params[-1]: `approaching`
+        check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
+        self._selector = _selector(scheduler, geometry)
+        self._sched_state = scheduler.initial_state(geometry.n_contacts)
+        #: the seed used: the int given, the entropy drawn when none was (an int), or the SeedSequence
+        #: given when its entropy alone would not repeat it (a spawned one); ``Simulation(..., seed=sim.seed)``
+        #: repeats the run
+        self.seed = _recorded_seed(seed)
+        self._rng = seed_state(self.seed)
+        if self._selector.counter:  # the counter stream: its key, and no pick drawn yet
+            self._rng = counter_stream(self._rng)
+        self._counters = np.zeros(COUNTERS, dtype=np.int64)
+        self._margin = new_margin()  # every pick's closing speed against the threshold (`closing_margin`)
+        self._margin_warned = False
+        #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
+        #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
+        #: record them run a little slower
+        self.collision_listeners: list = []
+        self.arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
+        self._exact = _exact_chain(self, precision, late_precision)  # None in float arithmetic
+        if self._exact is not None:
+            self.velocities = self._exact.shadow  # the exact values rounded, kept by the exact chain
+        #: where the chain runs: ``"cpu"`` or ``"cuda"`` (an NVIDIA GPU: `engine.gpu`, floats on the counter
+        #: stream, the CPU's bits); information about a run, not part of its model
+        self.device = checks.choice("device", device, DEVICES)
+        self._backend = (DeviceBackend(self) if self.device == "cuda"
+                         else ExactBackend(self) if self._exact is not None else LoopBackend(self))
+
+    # ------------------------------------------------------------ input checks
+    def _check_velocities(self, velocities) -> np.ndarray:
+        g = self.geometry
+        try:
+            v = np.array(velocities, dtype=np.float64, order="C")
+        except (TypeError, ValueError) as exc:
+            raise FieldTypeError("velocities", f"must be an array of numbers ({exc})") from None
+        if v.shape != (g.n_balls, g.dim):
+            raise FieldError("velocities", f"must have shape (n_balls, dim) = {(g.n_balls, g.dim)}, got {v.shape}")
+        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+        if len(bad):
+            raise FieldError("velocities", f"ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
+        check_speeds(v, self._mass_array, "velocities")  # no collision can overflow float64
+        return _sparse_copy(v)
+
+    # ------------------------------------------------------------ state
+    @property
+    def velocities(self) -> np.ndarray:
+        """``(n_balls, dim) float64``: the velocities now (in exact or certified arithmetic, the exact
+        values rounded, brought up to date when read: a run in chunks rounds only once at its end)."""
+        return self._velocities if self._backend is None else self._backend.velocities(self)
+
+    @velocities.setter
+    def velocities(self, value: np.ndarray) -> None:
+        self._velocities = value
+        if isinstance(self._backend, DeviceBackend):
+            self._backend.set_velocities(value)
+
+    # ------------------------------------------------------------ counters
+    @property
+    def steps(self) -> int:
+        """Contacts tried so far."""
+        return int(self._counters[STEPS])
+
+    @property
+    def collisions(self) -> int:
+        """Contacts tried so far that changed velocities."""
+        return int(self._counters[COLLISIONS])
+
+    # ------------------------------------------------------------ running
+    def run(self, steps: int | None = None, collisions: int | None = None, *, until_frozen: bool = False,
+            writers=None, progress: bool | None = None) -> int:
+        """Pick ``steps`` more contacts, or run until ``collisions`` in total, whichever comes first.
+
+        With ``until_frozen`` (implied when only ``collisions`` is given, which a frozen
+        system could never reach) the run also stops right after the collision that
+        leaves no live contact (see `approaching`). Returns the number of steps taken.
+        ``writers`` (e.g. `ResultsWriter`) record the run, to the same final state.
+
+        The run goes in chunks of about 0.2 s (`pinnedballs.engine.driver`), which change no bit.
+        Ctrl-C stops it at the end of its chunk with KeyboardInterrupt, the simulation whole:
+        continuing it gives the bits of a run never interrupted. ``progress``: a bar over the
+        steps (the collisions for a collision target; a count when running until frozen):
+        True shows it, False never, None where it helps (in a terminal or a notebook, once the run
+        has taken 2 s; `pinnedballs.engine.progress`).
+        """
+        if steps is None and collisions is None:
+            raise FieldError("run", "give steps= or collisions= (or use run_until_frozen)")
+        if steps is not None:
+            _count("steps", steps)
+        if collisions is not None:
+            _count("collisions", collisions)
+        start = self.steps
+        stop = Stop(steps=None if steps is None else min(start + steps, NO_LIMIT), collisions=collisions,
+                    until_frozen=until_frozen or steps is None)
+        self._say_if_thin(drive(self, stop, check_writers(writers or ()), progress=progress))
+        return self.steps - start
+
+    def run_until_frozen(self, max_steps: int, *, writers=None, progress: bool | None = None) -> bool:
+        """Run until no contact approaches, for at most ``max_steps`` more steps.
+
+        Stops right after the collision that freezes the system, so ``steps`` is the
+        exact step of the last collision. Returns True if frozen; False at the step cap, with a
+        one-line `FreezeWarning` where the system can never freeze (a torus: `docs/model.md`). Ctrl-C,
+        ``writers`` and ``progress`` as for `run` (the progress is a count of steps and collisions: the
+        end is unknown).
+        """
+        stop = Stop(steps=min(self.steps + _count("max_steps", max_steps), NO_LIMIT), until_frozen=True)
+        reason = drive(self, stop, check_writers(writers or ()), progress=progress)
+        self._say_if_thin(reason)
+        frozen = reason == "frozen"
+        why = None if frozen or not max_steps else self._never_freezes()  # 0 steps: a warm-up, nothing to say
+        if why:
+            warnings.warn(f"run_until_frozen: not frozen after {max_steps:,} steps, and never will be: {why}; "
+                          "use run(steps=...)", FreezeWarning, stacklevel=_outside_the_package())
+        return frozen
+
+    def _never_freezes(self) -> str | None:
+        """Why this system, not frozen, can never freeze, or None where that is not certain. Its contacts
+        all on closed rows (`Contacts.closed_rows`: a torus), frozen means every closing speed 0, while in
+        exact arithmetic each collision leaves its contact separating (any ``r > 0``); in float64 at the
+        default resolution, on a `Geometry.rigid` torus (frozen: one common velocity, the least energy
+        for the momentum), elastic collisions keep the energy above that."""
+        r = self.rule.exact_restitution()
+        exact = self.arithmetic == "exact"
+        if r is None or r <= 0 or not (exact or (r == 1.0 and self._default_resolution and self.geometry.rigid)):
+            return None
+        if not self.geometry.contacts.closed_rows:
+            return None
+        if exact:
+            return ("on a torus (every contact on a closed row of balls) a frozen state has every closing speed 0, "
+                    "and in exact arithmetic each collision leaves its contact separating")
+        return ("on a torus (every contact on a closed row of balls) only equal velocities are frozen, and "
+                "elastic collisions keep the energy above theirs")
+
+    def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken."""
+        max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
+        return self._backend.run(self, max_steps, max_collisions, until_frozen)
+
+    # ------------------------------------------------------------ observables
+    def approaching(self) -> int:
+        """Number of live contacts: those whose balls approach, so that picking one would
+        collide (0 means frozen). In float arithmetic a closing speed so small that the collision
+        would change no bit of any velocity, a remnant of rounding, does not count."""
+        return self._backend.approaching(self)
+
+    def is_frozen(self) -> bool:
+        """True when no contact is live, so no collision can ever happen again."""
+        return self._backend.is_frozen(self)
+
+    def closing_margin(self) -> ClosingMargin:
+        """How near the collision criterion this run's picks came (`engine.margin.ClosingMargin`): the
+        smallest closing speed counted as a collision and the largest positive one set aside, in units
+        of ``threshold``, and the picks within a factor 10^4 of it on each side. In exact arithmetic
+        every sign is exact; the margin is then the float criterion's on the same picks, unknown (None)
+        until the exact engine keeps it."""
+        return ClosingMargin.of(self._margin, self.threshold, self.resolution)
+
+    def _say_if_thin(self, reason: str) -> None:
+        """Say once, as a one-line `MarginWarning` about the caller's line, that this float run's count
+        depends on its criterion, where the count is the observable: a run that ended frozen (the stop
+        ``reason``). A run for its steps says nothing (on a torus, which never freezes, picks come near
+        the threshold in every long run); `closing_margin` tells it when asked."""
+        if reason != "frozen" or self._margin_warned or self._exact is not None or not self._default_resolution:
+            return
+        margin = self.closing_margin()
+        if margin.thin:
+            self._margin_warned = True
+            exact = self.rule.exact_restitution() is not None and not self._selector.tracks
+            warnings.warn(margin.warning(exact), MarginWarning, stacklevel=_outside_the_package())
+
+    @property
+    def exact_velocities(self) -> np.ndarray | None:
+        """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.fields.Exact` numbers) of a run in
+        exact arithmetic; None in float or certified arithmetic."""
+        if self._exact is None or self.arithmetic != "exact":
+            return None
+        return self._exact.numbers()
+
+    @property
+    def error_bound(self) -> tuple[float, float] | None:
+        """A run in certified arithmetic: ``(G, largest)``, bounds on how far its velocities (before
+        rounding to floats) are from exact arithmetic's: ``G`` on the whole error vector, ``largest``
+        on any one ball's (0: all exact). None in other arithmetics."""
+        return self._exact.error_bound if self.arithmetic == "certified" else None
+
+    @property
+    def smallest_exact_collision(self) -> float | None:
+        """Exact or certified arithmetic (fixed-point engine): the smallest closing speed counted as a collision
+        since the run was built or loaded, in thresholds (`threshold`); None otherwise or before one."""
+        margin = getattr(self._exact, "margin", None)
+        return float(margin[0] / self.threshold) if margin is not None and np.isfinite(margin[0]) else None
+
+    def energy(self) -> float:
+        """Kinetic energy ``sum m |v|^2 / 2``."""
+        return float(0.5 * np.dot(self._mass_array, np.einsum("ij,ij->i", self.velocities, self.velocities)))
+
+    def momentum(self) -> np.ndarray:
+        """``(dim,)`` total momentum ``sum m v`` (meaningful in flat space)."""
+        return self._mass_array @ self.velocities
+
+    # ------------------------------------------------------------ state for checkpoints
+    def get_state(self) -> RunState:
+        """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
+        margin too: None in exact or certified arithmetic, where it is not kept)."""
+        exact = self._exact.coefficients() if self.arithmetic == "exact" else None
+        certified = self._exact.certified_state() if self.arithmetic == "certified" else None
+        margin = None if self._exact is not None else self._margin.copy()
+        return RunState(self.velocities.copy(), self.steps, self.collisions, self._rng.copy(),
+                        self._sched_state.copy(), exact, margin, certified)
+
+    def set_state(self, state: RunState) -> None:
+        """Restore a state from `get_state` (of a simulation with the same geometry, rule and
+        scheduler). Everything is checked before anything changes. A state without a margin (one
+        written before runs kept it) starts the margin afresh: it then covers the picks from here on.
+        (A dict with the same keys, what `get_state` gave until 2026-11, is still taken, with a
+        DeprecationWarning.)"""
+        state = as_state(state)
+        velocities = self._check_velocities(state.velocities)
+        rng = np.asarray(state.rng_state)
+        if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
+            raise FieldError("rng_state", f"must be 4 uint64 words, not all zero, got {rng.dtype} {rng.shape}")
+        sched = np.asarray(state.scheduler_state)
+        if sched.dtype != np.int64:
+            raise FieldError("scheduler_state", f"must be int64, got {sched.dtype}")
+        self.scheduler.check_state(sched, self.geometry.n_contacts)
+        flags = self._backend.live_flags_of(self, velocities) if self._selector.tracks else None
+        self.scheduler.check_resume(sched, self._selector, flags)
+        steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
+        if collisions > steps:
+            raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
+        if state.margin is not None and (problem := margin_problem(state.margin)) is not None:
+            raise FieldError("margin", problem)
+        exact = self._exact_state(state, velocities)
+        if self.arithmetic == "certified":
+            self._exact.set_certified_state(self._certified_state(state, velocities))
+        elif exact is not None:
+            try:
+                self._exact.set_velocities(exact)
+            except ValueError as exc:
+                raise FieldError("exact", str(exc)) from None
+        else:
+            self.velocities = velocities
+        self._rng = rng.copy()
+        self._sched_state = sched.copy()
+        self._counters[STEPS], self._counters[COLLISIONS] = steps, collisions
+        self._margin[:] = new_margin() if state.margin is None else state.margin
+
+    def _exact_state(self, state: RunState, velocities: np.ndarray) -> list | None:
+        """The exact velocities of ``state`` for an exact simulation (None for a float one), checked:
+        they parse in this geometry's field and round to ``velocities``."""
+        if self.arithmetic != "exact":
+            return None
+        if state.exact is None:
+            raise FieldError("exact", "a simulation in exact arithmetic resumes only from an exact state "
+                                      "(this one holds float velocities only)")
+        shape = (*velocities.shape, self._exact.field.m)
+        if np.shape(state.exact) != shape:
+            raise FieldError("exact", f"must have shape (n_balls, dim, m) = {shape} in {self._exact.field}, "
+                                      f"got {np.shape(state.exact)}")
+        try:
+            exact = self._exact.parse(state.exact)
+        except (ValueError, TypeError, ZeroDivisionError) as exc:
+            raise FieldError("exact", f"a coefficient is not a rational number ({exc})") from None
+        F = self._exact.field
+        rounded = np.array([[F.to_float(x) for x in row] for row in exact])
+        if not np.array_equal(rounded, velocities):
+            raise FieldError("exact", "the exact velocities do not round to the state's velocities")
+        return exact
+
+    def plot(self, ax=None, title: str | None = None):
+        """The current state in the geometry's own view (`pinnedballs.plot.states.state_picture`: arrows,
+        or a field above 5,000 balls), drawn into ``ax`` or a new figure; the matplotlib `Figure`."""
+        title = f"after {self.steps:,} steps, {self.collisions:,} collisions" if title is None else title
+        return display().state_picture(self.geometry)(self.velocities, title, ax=ax)
+
+    def _repr_html_(self) -> str:  # notebooks: the counters beside the picture of the state
+        shown = display()
+        return shown.simulation_html(self, shown.simulation_png(self))
+
+    def _repr_png_(self) -> bytes | None:
+        return display().simulation_png(self)
+
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:  # the picture drawn once for both
+        shown = display()
+        return shown.mimebundle(self, shown.simulation_html, shown.simulation_png, include, exclude)
+
+    def _certified_state(self, state: RunState, velocities: np.ndarray) -> CertifiedState:
+        """The `CertifiedState` of ``state`` for a certified simulation, checked: it fits this geometry
+        and its nearest floats are ``velocities``."""
+        c = state.certified
+        if not isinstance(c, CertifiedState):
+            raise FieldError("certified", "a simulation in certified arithmetic resumes only from a certified state "
+                                          f"(this one holds {'exact' if state.exact is not None else 'float'} velocities)")
+        ex = self._exact
+        c.check((*velocities.shape, ex.field.m), ex.B.shape[1])
+        if not np.array_equal(nearest_floats(from_limbs(c.limbs), int(c.scale), ex.field.basis[-1]), velocities):
+            raise FieldError("certified", "the fixed-point velocities do not round to the state's velocities")
+        return c
+
+    def __repr__(self) -> str:
+        return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
+                f"steps={self.steps}, collisions={self.collisions})")
+
+
+def _outside_the_package() -> int:
+    """The ``stacklevel`` of the first caller outside pinnedballs: where a warning is about."""
+    import os
+    import sys
+    from pathlib import Path
+
+    # the package's root (this module lives in geometry/): the driver (engine/) calls back into it on the way
+    package, frame, level = str(Path(__file__).resolve().parent.parent) + os.sep, sys._getframe(1), 1
+    while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+def _selector(scheduler: Scheduler, geometry: Geometry):
+    """The scheduler's selector on ``geometry``; a clear error for a scheduler written for the loop
+    protocol before the engine owned the loop (``loops()`` and ``advance()``)."""
+    if any(hasattr(scheduler, name) for name in ("advance", "loops")):
+        raise FieldTypeError("scheduler", f"{type(scheduler).__name__} defines advance() or loops(), which the engine "
+                                          f"no longer calls: give it kernel() (a pick) or selector() instead "
+                                          f"(docs/extending.md)")
+    return scheduler.selector(geometry)
+
+
+def _exact_chain(sim: Simulation, precision, late_precision) -> FieldChain | None:
+    """The chain of ``sim``'s exact or certified arithmetic (None for floats), or a `FieldError` on
+    ``arithmetic`` (or ``precision``, ``late_precision``) saying why it cannot have one."""
+    name = sim.arithmetic
+    precision, late_precision = check_precisions(name, precision, late_precision)
+    if name == "float":
+        return None
+    r = sim.rule.exact_restitution()
+    if r is None:
+        raise FieldError("arithmetic", f"{name} arithmetic runs the built-in rules (Elastic, Restitution); "
+                                       f"{sim.rule!r} has no exact form")
+    if sim._selector.tracks:
+        raise FieldError("arithmetic", f"{name} arithmetic follows the picks of a scheduler that needs no live set; "
+                                       f"{sim.scheduler!r} picks among live contacts in float arithmetic "
+                                       f"(UniformRandomPair has the same law)")
+    try:
+        return field_chain(sim.geometry, sim.velocities, sim._mass_array, r, name, precision, late_precision)
+    except NotFixed as exc:
+        raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "
+                                       f"whose normals have dyadic components in Q or one Q(sqrt d) (triangular "
+                                       f"lattices, FCC, square and cubic packings, chains), and {exc}; "
+                                       f"arithmetic=\"exact\" runs it") from None
+    except NotExact as exc:
+        raise FieldError("arithmetic", f"exact arithmetic needs every contact normal in a known number field "
+                                       f"(q*sqrt(d) components), and {type(sim.geometry).__name__}'s are not: "
+                                       f"{exc}") from None

@@ -1,0 +1,41 @@
+"""`geometry.pictures`: a geometry and a simulation show themselves through the display `pinnedballs.plot`
+installs, without importing the plots above them."""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.geometry import pictures
+from pinnedballs.plot import display
+
+
+def test_import_pinnedballs_installs_the_plots_display():
+    assert pictures.display() is display
+
+
+def test_the_pictures_come_from_the_display_installed(monkeypatch):
+    g = pb.FlatTorus(4, 4)
+    sim = pb.Simulation(g, np.ones((g.n_balls, 2)), seed=0)
+    drawn = []
+    shown = types.SimpleNamespace(
+        state_picture=lambda geometry: lambda v, title=None, ax=None: drawn.append((geometry, v.sum(), title)),
+        geometry_png=lambda obj: b"geometry", simulation_png=lambda obj: b"simulation",
+        geometry_html=lambda obj, png: f"<{png.decode()}>", simulation_html=lambda obj, png: f"<{png.decode()}>",
+        mimebundle=display.mimebundle)
+    monkeypatch.setattr(pictures, "_installed", shown)
+    g.plot(title="rest")
+    sim.plot()
+    assert drawn == [(g, 0.0, "rest"), (g, 32.0, "after 0 steps, 0 collisions")]
+    assert (g._repr_png_(), g._repr_html_(), sim._repr_png_(), sim._repr_html_()) == \
+        (b"geometry", "<geometry>", b"simulation", "<simulation>")
+    assert sim._repr_mimebundle_() == {"text/html": "<simulation>", "image/png": b"simulation"}
+
+
+def test_without_a_display_the_error_names_it(monkeypatch):
+    monkeypatch.setattr(pictures, "_installed", None)
+    with pytest.raises(ImportError, match="pinnedballs.plot.display"):
+        pb.FlatTorus(4, 4).plot()
