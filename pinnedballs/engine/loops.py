@@ -21,6 +21,13 @@ a *step* is a pick, a *collision* a pick that changed velocities.
   scan finds it frozen ends at its last collision: the random stream and the scheduler's state are
   restored to the start of the chunk and its picks replayed up to that collision. The state is then
   bit for bit the one a loop re-testing every contact after every collision would reach.
+  Where ``limited`` reads the tables (they fit in cache), for a built-in rule and a selector of one step a
+  pick, it runs its chunks in blocks of `BLOCK` steps, each one with a branch on every pick's collision or,
+  after a block that collided on `BRANCH_FREE_PERCENT` of its picks or more, without one
+  (`free_trial_kernel`): on a lattice in equilibrium about half the picks collide, and a branch on them is
+  mispredicted nearly as often (the paper's 38x38 torus: 9.2 -> 6.1 ns a step, 1.3x the C yardstick); where
+  few picks collide (a half-plane near its freeze) the branch is right nearly always and costs less than
+  computing every collision. The same bits either way (`tests/engine/test_branch_free.py`).
 * ``tracked`` keeps the live set up to date after every collision (``flags``, their count, and the
   selector told of every change): for a selector that picks among live contacts (`RejectionFree`).
 
@@ -53,15 +60,17 @@ import numpy as np
 from numba import njit
 
 from .chain import COLLISIONS, LAST, LIVE, STEPS
-from .closing import WRITE, closing_speed, compiled_form
+from .closing import WRITE, branch_free_form, choose, closing_speed, compiled_form
 from .intrinsics import fixed_width, prefetch
-from .jitcache import INLINED, jit_cached_if_possible, njit_cached
-from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
+from .jitcache import jit_cached_if_possible
+from .margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
 from .random import load, store
 from .rows import decode
+from .selector import NO_AUX, Selector, no_begin, no_change, pick_selector  # the selector protocol, re-exported
 
-__all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel", "fixed_rows",
-           "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN", "NO_PATTERN"]
+__all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel",
+           "free_trial_kernel", "fixed_rows", "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT",
+           "UNKNOWN", "NO_PATTERN", "BLOCK", "BRANCH_FREE_PERCENT"]
 
 #: picks drawn ahead, and how far ahead the velocity rows are fetched, in the prefetching loops
 LOOKAHEAD, HALFWAY = 8, 4
@@ -83,58 +92,11 @@ FREEZE_CHUNK_PER_CONTACT = 4
 #: ``counters[LIVE]`` when no loop counted the live contacts
 UNKNOWN = -1
 
-
-class Selector(NamedTuple):
-    """What a scheduler gives the engine: its jitted functions (see the module docstring) and flags.
-
-    aux: the arrays (or a tuple of them) its functions read besides ``state``.
-    tracks: it needs the live set kept up to date after every collision (the ``tracked`` loop).
-    skips: ``select`` may take more than one step per pick, or return no contact (``k < 0``).
-    uniform: its picks are the paper's, one word of the stream each through `random.bounded`, so the
-    parallel chain (`engine.parallel`) may draw them ahead on several threads.
-    counter: its picks are the counter stream's (`engine.philox`): the stream words are ``(k0, k1, s, 0)``,
-    the pick of step ``s`` a function of the key and ``s``, so batches of picks may run by deterministic
-    reservations on threads (`engine.reservations`) or on a GPU (`engine.gpu`).
-    steps: None, or ``steps(collide, dim, flat) -> loop``: its own compiled loop for plain steps
-    (`ColoredSweep` runs a class in parallel), called as ``loop(v, pairs, ends, units, masses, params,
-    state, aux, rng_words, counters, margin, max_steps) -> steps``.
-    """
-
-    select: Callable
-    begin: Callable
-    changed: Callable
-    aux: object
-    tracks: bool = False
-    skips: bool = False
-    steps: Callable | None = None
-    uniform: bool = False
-    counter: bool = False
-
-
-@njit_cached(inline="always")
-def no_begin(state, aux, flags):
-    """Nothing to prepare."""
-
-
-@njit_cached(inline="always")
-def no_change(state, aux, c, live):
-    """Nothing to hear."""
-
-
-#: the ``aux`` of a selector that needs none
-NO_AUX = np.zeros(0, dtype=np.int64)
-
-
-@functools.cache
-def pick_selector(pick: Callable) -> Selector:
-    """The `Selector` of a scheduler that picks one contact per step: ``pick(state, rng, n) -> (k, rng)``."""
-
-    @jit_cached_if_possible(**INLINED)
-    def select(state, aux, rng, n, left):
-        k, rng = pick(state, rng, n)
-        return k, 1, rng
-
-    return Selector(select, no_begin, no_change, NO_AUX)
+#: the table loop runs its steps in blocks of this many, each with a branch on every pick's collision or
+#: without (`free_trial_kernel`), as the block before collided on fewer or more than ...
+BLOCK = 256
+#: ... this percentage of its picks (chosen by measurement: benchmarks/bench_torus.py --regimes)
+BRANCH_FREE_PERCENT = 30
 
 
 class Loops(NamedTuple):
@@ -242,6 +204,25 @@ def trial_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
 
 
 @functools.cache
+def free_trial_kernel(collide: Callable, dim: int, flat: bool) -> Callable | None:
+    """``tried_free(v, units, masses, factor, tau, i, j, a, b) -> (hit, w)``, inlined into the table loop:
+    what `trial_kernel`'s ``tried`` does to ``v`` for ``params = [factor, tau]`` (a built-in rule's), without
+    a branch on the collision (`closing.branch_free_form`), and the closing speed ``w`` for the margin; None
+    for a rule without a branch-free form (a user's)."""
+    collide_free = branch_free_form(collide, dim, flat)
+    if collide_free is None:
+        return None
+    D, FLAT = dim, flat
+
+    @njit(inline="always")
+    def tried_free(v, units, masses, factor, tau, i, j, a, b):
+        w = closing_speed(v, units, i, j, a, b, D, FLAT)
+        return collide_free(v, units, i, j, a, b, masses, factor, tau, w), w
+
+    return tried_free
+
+
+@functools.cache
 def live_kernel(collide: Callable, dim: int, flat: bool) -> tuple[Callable, Callable]:
     """``(live_flags, any_live)`` for one rule, compiled once and shared by every scheduler:
 
@@ -312,16 +293,22 @@ def selector_replay(select: Callable) -> Callable:
 
 @functools.cache
 def loops(collide: Callable, select: Callable, begin: Callable, changed: Callable, skips: bool, dim: int,
-          flat: bool) -> Loops:
+          flat: bool, branch_free_percent: int = BRANCH_FREE_PERCENT) -> Loops:
     """The compiled `Loops` for one rule's ``collide``, one selector's functions (see `Selector`),
-    ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact)."""
+    ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact).
+
+    ``branch_free_percent``: a block of the table loop collided on at least this percentage of its picks
+    runs the next one without a branch (0: every block but the first, above 100: none; the same bits)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
     _, any_live = live_kernel(collide, dim, flat)
     tried = trial_kernel(collide, dim, flat)
+    tried_free = free_trial_kernel(collide, dim, flat)
     picks = selector_picks(select, begin)
     replay = selector_replay(select)
     shaped = fixed_rows(dim)
-    SKIPS, D, FLAT = skips, dim, flat
+    SKIPS, D, FLAT, PERCENT = skips, dim, flat, int(branch_free_percent)
+    #: the table loop may run blocks without a branch: a built-in rule, one step a pick, and a rate that can pay
+    FREE = tried_free is not None and not skips and PERCENT <= 100
 
     @njit(inline="always")
     def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
@@ -347,6 +334,69 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 if made == collisions_left:
                     break
         return taken, made, last, rng, m, at_last
+
+    @njit(inline="always")
+    def chunk_blocks(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, tau, m, free):
+        """`chunk` without a log for a selector of one step a pick, in blocks of `BLOCK` steps: a block tries
+        its picks with ``tried`` (a branch on each collision) or, after a block that collided on
+        `BRANCH_FREE_PERCENT` of its picks or more, with ``tried_free`` (no branch: about half the picks of a
+        lattice in equilibrium collide, and a branch on them is mispredicted about as often). The same bits,
+        counts and margin either way. ``free``: how the first block runs; the choice for the next is returned
+        last."""
+        taken, made, last = 0, 0, -1
+        smallest, largest, near_hits, near_rest = m
+        at_last = (largest, near_rest)  # the margin's remnant side as of the last collision ...
+        settled = -1  # ... while last <= settled; after, the side is unchanged since the last collision
+        near_up = np.nextafter(NEAR * tau, np.inf)  # w <= NEAR * tau exactly when w < near_up
+        factor, rule_tau = params[0], params[1]  # a built-in rule's (`free_trial_kernel`)
+        done = False
+        while taken < count and not done:
+            size = min(BLOCK, count - taken)
+            start = made
+            if free:
+                left = collisions_left - made  # one count where two would take two registers
+                for t in range(taken, taken + size):
+                    k, _, rng = select(state, aux, rng, n, count - t)
+                    hit, w = tried_free(v, units, masses, factor, rule_tau, pairs[k, 0], pairs[k, 1], ends[k, 0],
+                                        ends[k, 1])
+                    left -= np.int64(hit)
+                    last = choose(hit, t, last)
+                    smallest = choose(hit & (w < smallest), w, smallest)  # min(smallest, w) where hit
+                    # the rest of `track`, rare: a collision with w <= NEAR * tau (w < near_up), or w > 0 set
+                    # aside; one comparison (two are two branches, one of them on w > 0: mispredicted)
+                    if choose(hit, near_up - w, w) > 0.0:
+                        if hit:
+                            near_hits += 1.0
+                        else:
+                            if last > settled:
+                                at_last = (largest, near_rest)
+                            settled = t
+                            largest = max(largest, w)
+                            if w * NEAR > tau:
+                                near_rest += 1.0
+                    if left == 0:
+                        size, done = t + 1 - taken, True
+                        break
+                made = collisions_left - left
+                if last > settled:
+                    at_last = (largest, near_rest)
+            else:
+                for t in range(taken, taken + size):
+                    k, _, rng = select(state, aux, rng, n, count - t)
+                    hit, mt = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau,
+                                    (smallest, largest, near_hits, near_rest))
+                    smallest, largest, near_hits, near_rest = mt
+                    if hit:
+                        made += 1
+                        last = t
+                        at_last = (largest, near_rest)
+                        if made == collisions_left:
+                            size, done = t + 1 - taken, True
+                            break
+            settled = last
+            taken += size
+            free = (made - start) * 100 >= PERCENT * size
+        return taken, made, last, rng, (smallest, largest, near_hits, near_rest), at_last, free
 
     @njit(inline="always")
     def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log,
@@ -422,6 +472,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     def make_limited(MODE, LOG):
         """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched."""
         AHEAD = MODE > 0
+        BLOCKS = MODE == 0 and FREE and not LOG  # the tables in blocks, some without a branch (`chunk_blocks`)
 
         @jit_cached_if_possible
         def run(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
@@ -439,6 +490,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             if until_frozen and not any_live(v, pairs, ends, units, masses, params):
                 frozen = True
             last_step = np.int64(-1)
+            free = False  # the first block of the table loop has a branch (`chunk_blocks`)
             while not frozen and taken < max_steps and collisions < max_collisions:
                 count = min(chunk_steps, max_steps - taken)
                 start = rng
@@ -452,6 +504,10 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                     used, made, last, rng, m, at_last = chunk_prefetched(v, pairs, ends, units, masses, params, state,
                                                                          aux, rng, n, count, left, LOG, at,
                                                                          base + taken, tau, m)
+                elif BLOCKS:
+                    used, made, last, rng, m, at_last, free = chunk_blocks(v, pairs, ends, units, masses, params,
+                                                                           state, aux, rng, n, count, left, tau, m,
+                                                                           free)
                 else:
                     used, made, last, rng, m, at_last = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
                                                               count, left, LOG, at, base + taken, tau, m)
