@@ -274,8 +274,17 @@ def _arithmetic(res) -> list[str]:
         G, largest = certified.error_bound()
         return [f"arithmetic:  certified (every decision proved equal to exact arithmetic's: exact counts); "
                 f"velocities within {largest:.3g} of exact arithmetic's (error bound G = {G:.3g}), "
-                f"{64 * certified.limbs.shape[-1]} bits"]
+                f"{64 * certified.limbs.shape[-1]} bits{_bits(res.spec, certified)}"]
     return [] if name == "float" else [f"arithmetic:  {name}"]
+
+
+def _bits(spec, certified) -> str:
+    """The bits a certified run ran at through its first wave and behind it, where it narrowed or found them."""
+    auto = spec is not None and spec.precision == "auto" and certified.precision
+    if not (certified.late_precision or auto):
+        return ""
+    late = f", {certified.late_precision} behind the first wave" if certified.late_precision else ""
+    return f" ({certified.precision} through the first wave{late}{', found by the run: precision auto' if auto else ''})"
 
 
 def _status(res) -> str:

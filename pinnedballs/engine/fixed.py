@@ -84,9 +84,13 @@ class NotFixed(ValueError):
 class UncertifiedDecision(FieldError):
     """A decision certified arithmetic cannot prove equal to exact arithmetic's: ``|w~|`` is within
     the error bound. The run stops consistent as of the pick before it. ``narrowed``: whether the
-    state had been narrowed to its ``late_precision`` (in the process that raised it)."""
+    state had been narrowed to its ``late_precision`` (in the process that raised it); ``precision``,
+    ``late_precision``: the chain's bits through the first wave and behind it (0: none), as
+    `FixedChain.bits`."""
 
     narrowed = False
+    precision = 0
+    late_precision = 0
 
 
 class Lines(NamedTuple):
@@ -200,6 +204,8 @@ class FixedChain(FieldChain):
         if self.certify and late_precision is not None:
             self.late_P = min(self.P, max(-(-late_precision // 64), -(-(self.top + 1) // 64)))
             self.late_P = None if self.late_P == self.P else self.late_P  # nothing to narrow
+        #: the bits this chain runs at through the first wave and behind it (0: no narrowing), as built
+        self.bits = (64 * self.P, 64 * self.late_P if self.late_P is not None else 0)
         self.narrowed = None  #: the step before which the state was narrowed, in this object's life
         #: picks between checks for `narrow` (steps that are multiples of it), and the last step checked
         self.every = LATE_EVERY_PER_CONTACT * geometry.n_contacts if self.late_P is not None else 0
@@ -368,7 +374,7 @@ class FixedChain(FieldChain):
                                                     f"at {where}: its closing speed {power_text(x, int(E))} is within the "
                                                     f"error bound {power_text(bound, -self.S)}; use arithmetic=\"exact\" or "
                                                     f"a larger precision ({now})")
-        failure.narrowed = narrowed
+        failure.narrowed, (failure.precision, failure.late_precision) = narrowed, self.bits
         return failure
 
     # ------------------------------------------------------------ values
@@ -434,7 +440,8 @@ class FixedChain(FieldChain):
         return error_bound(np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S)
 
     def certified_state(self) -> CertifiedState:
-        return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S)
+        return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S,
+                              *self.bits)
 
     def set_certified_state(self, state: CertifiedState) -> None:
         """Take a `CertifiedState` of this geometry (checked by the caller); its bounds rescaled to units

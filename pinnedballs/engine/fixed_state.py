@@ -10,7 +10,7 @@ import numpy as np
 
 from .errors import FieldError
 
-__all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text"]
+__all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text", "precisions_problem"]
 
 #: (as `fixed_kernels.UP` and `SQRT2_UP`: this module stays free of numba)
 _UP = 1.0 + 2.0 ** -50
@@ -64,7 +64,10 @@ class CertifiedState:
     ``B``) and across (``[:, 1]``, ``Pp``) each of the geometry's ``L`` contact lines; rounding: the
     sum of every ``|rho|`` so far, rounded up (``G = sqrt(2)`` times it); bound_scale: bounds and
     rounding are in units of ``2^-bound_scale`` (the chain writes ``S``: no underflow at any
-    precision; 0, absolute, in files written before it was kept).
+    precision; 0, absolute, in files written before it was kept); precision, late_precision: the
+    bits the chain ran at through the first wave and behind it (``64 P`` limbs, as built; 0: not
+    kept, in files written before; ``late_precision`` 0 also: none), which a spec's ``"precision":
+    "auto"`` resumes at (`pinnedballs.run.precision`).
     """
 
     limbs: np.ndarray
@@ -72,12 +75,18 @@ class CertifiedState:
     bounds: np.ndarray
     rounding: float
     bound_scale: int = 0
+    precision: int = 0
+    late_precision: int = 0
 
     def copy(self) -> "CertifiedState":
-        return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale)
+        return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale,
+                              self.precision, self.late_precision)
+
+    def _numbers(self) -> tuple:
+        return self.scale, self.rounding, self.bound_scale, self.precision, self.late_precision
 
     def identical(self, other: "CertifiedState") -> bool:
-        return (self.scale, self.rounding, self.bound_scale) == (other.scale, other.rounding, other.bound_scale) and all(
+        return self._numbers() == other._numbers() and all(
             a.dtype == b.dtype and np.array_equal(a, b) for a, b in ((self.limbs, other.limbs),
                                                                       (self.bounds, other.bounds)))
 
@@ -106,6 +115,25 @@ class CertifiedState:
                                           f"got {self.bound_scale!r}")
         if not np.isfinite(scaled_up(bounds, int(self.scale) - int(self.bound_scale))).all():
             raise FieldError("certified", "bounds must be finite in units of 2^-scale")
+        problem = precisions_problem(self.precision, self.late_precision, limbs.shape[3])
+        if problem:
+            raise FieldError("certified", problem)
+
+
+def precisions_problem(precision, late_precision, limbs: int) -> str:
+    """What is wrong with a `CertifiedState`'s ``precision`` and ``late_precision`` for a state of
+    ``limbs`` limbs ('' if nothing): 0 (not kept), or whole multiples of 64 bits with the state's ``64
+    limbs`` bits being one of them, the late one below the other (0: none)."""
+    whole = all(isinstance(b, (int, np.integer)) and not isinstance(b, bool) and b >= 0 and b % 64 == 0
+                for b in (precision, late_precision))
+    if not whole:
+        return f"precision and late_precision must be whole multiples of 64 bits, got {precision!r}, {late_precision!r}"
+    if precision == 0:
+        return "" if late_precision == 0 else f"late_precision must be 0 where precision is (not kept), got {late_precision}"
+    if late_precision >= precision or 64 * limbs not in (precision, late_precision):
+        return (f"a state of {64 * limbs} bits cannot be of a chain at precision {precision} and late_precision "
+                f"{late_precision} (0: none)")
+    return ""
 
 
 def nearest_floats(ints: np.ndarray, scale: int, d: int) -> np.ndarray:

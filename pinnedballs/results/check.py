@@ -25,6 +25,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from ..engine.errors import FieldError
+from ..engine.fixed_state import precisions_problem
 from ..engine.state import margin_problem
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error
@@ -260,6 +261,11 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
     if not (np.issubdtype(np.asarray(bound_scale).dtype, np.integer) and 0 <= bound_scale < 64 * limbs.shape[3]):
         raise Damage("state/certified", f"bound_scale must be an integer in [0, {64 * limbs.shape[3]}), "
                                         f"got {bound_scale!r}")
+    bits = [attrs.get(name, 0) for name in ("precision", "late_precision")]  # absent: not kept (files before)
+    bits = [int(b) if np.issubdtype(np.asarray(b).dtype, np.integer) and np.ndim(b) == 0 else b for b in bits]
+    problem = precisions_problem(*bits, limbs.shape[3])
+    if problem:
+        raise Damage("state/certified", problem)
 
 
 def _check_exact(f: h5py.File, n: int, d: int) -> None:

@@ -18,6 +18,7 @@ from ..engine.margin import ClosingMargin
 from ..engine.state import RunState
 from ..geometry.simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
+from ..engine.arithmetic import AUTO
 from ..engine.errors import InputError
 from ..engine.fixed_state import CertifiedState
 from ..specs.errors import SpecError, UserCodeError
@@ -169,7 +170,7 @@ class Results:
 
     def _build(self, rule, scheduler, device: str = "cpu") -> Simulation:
         if self.spec is not None:
-            return self.spec.build_with(self.geometry, self.initial_velocities, self.masses, device=device)
+            return self._attempt().build_with(self.geometry, self.initial_velocities, self.masses, device=device)
         from ..specs import RuleSpec, SchedulerSpec
 
         rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
@@ -178,6 +179,14 @@ class Results:
         return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"),
                           resolution=self.run.get("resolution"), device=device)
+
+    def _attempt(self) -> RunSpec:
+        """The spec of this run at the bits it ran at: a spec whose ``precision`` is ``"auto"`` at those its
+        latest state records (`CertifiedState.precision`), any other as it is."""
+        certified = self.latest.certified
+        if self.spec.precision != AUTO or certified is None or not certified.precision:
+            return self.spec
+        return self.spec.at_precisions(certified.precision, certified.late_precision or None)
 
     def animate(self, out=None, fps: float = 4, max_frames: int | None = None) -> Path:
         """A movie of this run's snapshots (default ``<run dir>/movie.gif``; at most ``max_frames`` frames, 300
@@ -291,7 +300,8 @@ def read(p: Path, f: h5py.File) -> Results:
     if "certified" in s:
         c = s["certified"]
         certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]),
-                                   int(c.attrs.get("bound_scale", 0)))  # 0: absolute (files before it was kept)
+                                   int(c.attrs.get("bound_scale", 0)),  # 0: absolute (files before it was kept)
+                                   int(c.attrs.get("precision", 0)), int(c.attrs.get("late_precision", 0)))
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
                       s["scheduler_state"][()], exact, margin, certified)
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])

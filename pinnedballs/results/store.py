@@ -220,7 +220,8 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
         c = s.create_group("certified")
         c["limbs"], c["bounds"] = state.certified.limbs, state.certified.bounds
         c.attrs.update(scale=state.certified.scale, rounding=state.certified.rounding,
-                       bound_scale=state.certified.bound_scale)  # bounds in units of 2^-bound_scale
+                       bound_scale=state.certified.bound_scale,  # bounds in units of 2^-bound_scale
+                       precision=state.certified.precision, late_precision=state.certified.late_precision)
     s["momentum"] = record.momentum
     s.attrs.update(energy=record.energy, approaching=record.approaching, frozen=record.frozen)
     if criterion is not None and state.margin is not None:

@@ -35,7 +35,9 @@ import numpy as np
 
 from .._version import __version__
 from ..engine import checks
+from ..engine.arithmetic import AUTO, next_precisions
 from ..engine.errors import InputError
+from ..engine.fixed import UncertifiedDecision
 from ..engine.backends import DEVICES
 from ..engine.limits import check_memory
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
@@ -108,11 +110,27 @@ def run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence | None =
     """Run replica ``index`` of ``spec`` to its stop; its rows: one per snapshot reached, then the final state.
 
     ``seed`` defaults to `replica_seed`. Each row holds `KEY_COLUMNS` and ``observe``'s columns.
-    Snapshots the run never reaches (it froze first) have no row.
+    Snapshots the run never reaches (it froze first) have no row. A spec whose ``precision`` is ``"auto"``
+    starts again with more bits where certified arithmetic cannot prove a decision (`execute.execute`).
     """
+    seed = replica_seed(spec, index) if seed is None else seed
+    if spec.precision != AUTO:
+        return _run_replica(spec, index, seed, observe)
+    bits = spec.precisions()
+    while True:  # "auto": its rows say at which bits it ran (columns precision, late_precision; 0: none)
+        try:
+            rows = _run_replica(spec.at_precisions(*bits), index, seed, observe)
+            return [{**row, "precision": bits[0], "late_precision": bits[1] or 0} for row in rows]
+        except UncertifiedDecision as failure:
+            bits = next_precisions(failure, spec.late_precision)
+            if bits is None:
+                raise
+
+
+def _run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence, observe: Observe) -> list[dict]:
+    """`run_replica` once, at ``spec``'s precision."""
     from .execute import run_to_stop
 
-    seed = replica_seed(spec, index) if seed is None else seed
     sim = spec.build(seed=seed)
     sim._margin_warned = True  # the ensemble says once that margins are thin, not each replica (`run_ensemble`)
     rows: list[dict] = []

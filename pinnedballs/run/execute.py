@@ -19,8 +19,10 @@ import threading
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
+from ..engine.arithmetic import AUTO, auto_failure, next_precisions
 from ..engine.driver import Writer, drive
 from ..engine.errors import InputError
+from ..engine.fixed import UncertifiedDecision
 from ..engine.atomic import remove, tmp_path, write_text_atomic
 from ..results.format import DATA_DIR, RESULTS_NAME, Record
 from ..results.load import Results, load
@@ -93,7 +95,40 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     saved the same way. A request that comes as the run finishes leaves it done, without its
     figures (``pinnedballs plot`` draws them). ``device``: where the chain runs (``"cpu"`` or ``"cuda"``,
     `Simulation`), recorded as information in the results file; a run may resume on another device.
+
+    A spec whose ``precision`` is ``"auto"``: where certified arithmetic cannot prove a decision, the run
+    starts again from its first step with more bits (`engine.arithmetic.next_precisions`), replacing what
+    the attempt wrote, and tells ``log`` so in one line; its results record the bits it ran at, which
+    ``resume`` continues at. Where no more bits can help, the `UncertifiedDecision` is raised as without.
     """
+    attempt = None  # the spec's own precision, or a resumed run's (`Results.simulation`)
+    while True:
+        try:
+            return _execute(spec, out_dir, attempt, force=force, resume=resume, progress=progress, figures=figures,
+                            status=status, log=log, device=device)
+        except UncertifiedDecision as failure:
+            attempt = next_precisions(failure, spec.late_precision) if spec.precision == AUTO else None
+            if attempt is None:
+                raise
+            status.clear()
+            spec = _recorded(Path(out_dir), spec)
+            if log is not None:
+                log(f"precision auto: {auto_failure(failure, attempt)}")
+            force, resume = True, False
+
+
+def _recorded(out: Path, spec: RunSpec) -> RunSpec:
+    """The spec the run in ``out`` recorded (``spec.json``: seeded), or ``spec`` if it left none."""
+    try:
+        return load_spec(out / "spec.json")
+    except (OSError, ValueError):
+        return spec
+
+
+def _execute(spec: RunSpec, out_dir: str | os.PathLike, attempt: tuple[int, int | None] | None, *, force: bool,
+             resume: bool, progress: bool | None, figures: bool, status, log: Callable[[str], None] | None,
+             device: str) -> Path:
+    """`execute` once: a fresh run built at ``attempt``'s ``(precision, late_precision)`` (None: the spec's)."""
     out = Path(out_dir)
     path = out / RESULTS_NAME
     starting = check_resumable(out) if resume else None  # None: a run to continue (or no --resume)
@@ -106,7 +141,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             spec = spec.seeded()  # a spec without a seed: one drawn now, recorded with the run
             status("building the geometry")
             with signals.at_once():
-                sim = spec.build(device=device)
+                sim = (spec if attempt is None else spec.at_precisions(*attempt)).build(device=device)
             if spec.trajectory is not None:
                 gsd_layout(sim)  # a trajectory GSD's 32-bit floats cannot hold is refused before anything is written
             if starting is not None and log is not None:

@@ -12,6 +12,7 @@ from pydantic import AfterValidator, BaseModel, ValidationError, field_validator
 
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
+from ..engine.arithmetic import AUTO, MAX_PRECISION, auto_precisions
 from ..engine.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from ..rules import check_resolution
@@ -42,8 +43,11 @@ def _known_observable(name: str) -> str:
 class RunSpec(_Spec):
     """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, the
     arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
-    certified arithmetic's bits per coefficient, None for its default; ``late_precision``: its bits once
-    the first wave has passed, None for ``precision`` throughout) and the resolution.
+    certified arithmetic's bits per coefficient, None for its default, ``"auto"`` for the bits the run
+    finds itself: it starts at the default and, where a decision cannot be proved, again from its first
+    step with 1.5 times the bits (`pinnedballs.engine.arithmetic.next_precisions`), the results recording
+    the bits it ran at; ``late_precision``: its bits once the first wave has passed, None for
+    ``precision`` throughout) and the resolution.
 
     ``resolution``: the collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
     exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model
@@ -73,7 +77,7 @@ class RunSpec(_Spec):
     checkpoint: CheckpointSpec = CheckpointSpec()
     observables: list[Annotated[str, AfterValidator(_known_observable)]] = list(DEFAULT_OBSERVABLES[2:])
     arithmetic: Literal["float", "exact", "certified"] = "float"
-    precision: Count | None = None
+    precision: Count | Literal["auto"] | None = None
     late_precision: Count | None = None
     resolution: float | None = None
     description: str = ""
@@ -109,6 +113,27 @@ class RunSpec(_Spec):
         if self.replica is not None and self.seed is None:
             raise ValueError("replica: is replica k of the ensemble the seed seeds; give the spec a seed")
         return self
+
+    @model_validator(mode="after")
+    def _auto_is_certified(self) -> "RunSpec":
+        if self.precision == AUTO and self.arithmetic != "certified":
+            raise ValueError(f"precision: \"auto\" lets certified arithmetic find its bits; this run's arithmetic "
+                             f"is {self.arithmetic!r}")
+        late = self.late_precision
+        if self.precision == AUTO and late is not None and not 64 <= late <= MAX_PRECISION:
+            raise ValueError(f"late_precision: must be whole bits in [64, {MAX_PRECISION}], got {late}")
+        return self
+
+    def at_precisions(self, precision: int, late_precision: int | None) -> "RunSpec":
+        """This spec at ``precision`` and ``late_precision`` bits (an ``"auto"`` one's attempt at them)."""
+        return self.model_copy(update={"precision": int(precision), "late_precision": late_precision})
+
+    def precisions(self) -> tuple[int | None, int | None]:
+        """``(precision, late_precision)`` the run is built at: the spec's, or an ``"auto"`` spec's first
+        attempt (`pinnedballs.engine.arithmetic.auto_precisions`)."""
+        if self.precision == AUTO:
+            return auto_precisions(self.late_precision)
+        return self.precision, self.late_precision
 
     def seed_sequence(self) -> np.random.SeedSequence:
         """What seeds the run: ``SeedSequence(seed)``, or for a ``replica`` the ensemble's child
@@ -175,6 +200,7 @@ class RunSpec(_Spec):
         seq = seed if seed is not None else self.seed_sequence()
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
         rule, scheduler = self.rule.build(), self.scheduler.build()
+        precision, late_precision = self.precisions()
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
                                     "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
@@ -183,8 +209,8 @@ class RunSpec(_Spec):
                 try:
                     return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
                                       masses=masses, seed=seq, arithmetic=self.arithmetic,
-                                      resolution=self.resolution, precision=self.precision,
-                                      late_precision=self.late_precision, device=device)
+                                      resolution=self.resolution, precision=precision,
+                                      late_precision=late_precision, device=device)
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code

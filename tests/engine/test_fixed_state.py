@@ -17,7 +17,7 @@ import pinnedballs as pb
 from helpers import HALF_PLANE, call, spec, write
 from pinnedballs.engine.exact import ExactChain
 from pinnedballs.engine.fixed import FixedChain
-from pinnedballs.engine.fixed_state import CertifiedState, nearest_floats
+from pinnedballs.engine.fixed_state import CertifiedState, nearest_floats, precisions_problem
 from pinnedballs.engine import driver
 
 
@@ -116,6 +116,12 @@ def test_a_certified_state_is_checked_before_it_is_taken():
          "certified: bounds must be finite in units of 2^-scale"),
         (state.replace(certified=CertifiedState(c.limbs, c.scale + 1, c.bounds, c.rounding, c.bound_scale)),
          "certified: the fixed-point velocities do not round to the state's velocities"),
+        (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds, c.rounding, c.bound_scale, 100)),
+         "certified: precision and late_precision must be whole multiples of 64 bits, got 100, 0"),
+        (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds, c.rounding, c.bound_scale, 1024, 0)),
+         "certified: a state of 768 bits cannot be of a chain at precision 1024 and late_precision 0 (0: none)"),
+        (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds, c.rounding, c.bound_scale, 0, 256)),
+         "certified: late_precision must be 0 where precision is (not kept), got 256"),
     ]
     for bad, words in cases:
         with pytest.raises(ValueError) as info:
@@ -190,3 +196,14 @@ def test_the_nearest_float_of_a_near_cancellation(d):
     a, b = halfway - root, 1 << 400  # a + b sqrt(d) = halfway + (sqrt(d) 2^400 - root), in (0, 1) above it
     got = nearest_floats(np.array([[[a, b]]], dtype=object), 400, d)[0, 0]
     assert got == nearest(a, b, 400, d) == math.ldexp(1 + 2.0**-52, 53)
+
+
+def test_a_certified_state_records_the_bits_its_chain_ran_at():
+    """Precision and late precision as built (a state narrowed to its late bits is one of them); 0 where
+    files did not keep them."""
+    g = pb.HalfPlane(4, 5)
+    sim = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=256, late_precision=128)
+    c = sim.get_state().certified
+    assert (c.precision, c.late_precision, c.limbs.shape[-1]) == (256, 128, 4)
+    assert precisions_problem(256, 128, 2) == precisions_problem(0, 0, 7) == ""
+    assert precisions_problem(True, 0, 1).startswith("precision and late_precision must be whole multiples")
