@@ -1,8 +1,8 @@
 """docs/extended.md's exact counts at 2000x1000: per replica, their means, and the local exponents from 1000x500.
 
 Reads the runs of one folder (issue 33; each a ``pinnedballs run`` of the scaling study's spec, seed 0,
-``"replica": k``): ``rK`` counted exactly (certified arithmetic), ``ne1e-06_rK`` ... counted as N_e, and
-the float ensemble ``float_r0123`` (``pinnedballs ensemble``: its replica k is the same seed). Keeps what
+``"replica": k``): ``rK`` counted exactly (certified arithmetic), ``float_rK`` in float arithmetic (the
+paper's criterion) and ``ne1e-06_rK`` ... as N_e. Keeps what
 it read in ``exact2000x1000_runs.json`` beside this script (the runs' directories are gigabytes) and prints
 docs/extended.md's rows as markdown. Without a folder, it prints from that JSON.
 
@@ -11,7 +11,6 @@ docs/extended.md's rows as markdown. Without a folder, it prints from that JSON.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import sys
@@ -36,16 +35,12 @@ def read(folder: Path) -> dict[str, dict[int, dict]]:
 
     runs: dict[str, dict[int, dict]] = {name: {} for name in COUNTINGS}
     for k in range(16):
-        for name, directory in (("exact", f"r{k}"), *((f"N_{e}", f"ne{e}_r{k}") for e in ("1e-06", "1e-09", "1e-12"))):
+        for name, directory in (("exact", f"r{k}"), ("float", f"float_r{k}"),
+                                *((f"N_{e}", f"ne{e}_r{k}") for e in ("1e-06", "1e-09", "1e-12"))):
             if (folder / directory / "results.h5").exists():
                 res = pb.load(folder / directory)
                 if res.complete and res.frozen:
                     runs[name][k] = {"steps": int(res.steps), "collisions": int(res.collisions)}
-    table = folder / "float_r0123" / "replicas.csv"
-    if table.exists():
-        for row in csv.DictReader(table.open()):
-            if row["at"] == "final" and row["frozen"] == "1":
-                runs["float"][int(row["replica"])] = {"steps": int(row["steps"]), "collisions": int(row["collisions"])}
     return runs
 
 
