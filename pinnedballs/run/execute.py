@@ -102,6 +102,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     ``resume`` continues at. Where no more bits can help, the `UncertifiedDecision` is raised as without.
     """
     attempt = None  # the spec's own precision, or a resumed run's (`Results.simulation`)
+    spec = spec if resume else spec.seeded()  # every attempt of a fresh run on the same seed
     while True:
         try:
             return _execute(spec, out_dir, attempt, force=force, resume=resume, progress=progress, figures=figures,

@@ -57,6 +57,22 @@ def test_an_auto_run_starts_again_with_more_bits_and_counts_exactly(tmp_path, fr
     assert line.endswith(", 128 bits (128 through the first wave, found by the run: precision auto)"), line
 
 
+def test_an_unseeded_auto_run_starts_again_on_the_seed_it_drew(tmp_path, monkeypatch, from_64_bits):
+    """Every attempt runs on the one seed drawn for the run, which its spec.json records and repeats."""
+    seeds = []
+    execute_once = runner._execute
+
+    def attempt(spec, *args, **kwargs):
+        seeds.append(spec.seed)
+        return execute_once(spec, *args, **kwargs)
+
+    monkeypatch.setattr(runner, "_execute", attempt)
+    path = runner.execute(parse_spec(spec(HALF_PLANE_30, seed=...)), tmp_path / "auto", figures=False, progress=False)
+    recorded = json.loads((tmp_path / "auto" / "spec.json").read_text())["seed"]
+    assert len(seeds) == 2 and seeds == [recorded, recorded]
+    assert (load(path).steps, load(path).collisions) == exact_counts(tmp_path, spec(HALF_PLANE_30, seed=recorded))
+
+
 def test_a_run_at_given_bits_does_not_start_again(tmp_path):
     data = spec(HALF_PLANE_30, precision=64)
     with pytest.raises(UncertifiedDecision) as info:
