@@ -280,7 +280,9 @@ def _arithmetic(res) -> list[str]:
 
 def _bits(spec, certified) -> str:
     """The bits a certified run ran at through its first wave and behind it, where it narrowed or found them."""
-    auto = spec is not None and spec.precision == "auto" and certified.precision
+    from ..engine.arithmetic import AUTO
+
+    auto = spec is not None and spec.precision == AUTO and certified.precision
     if not (certified.late_precision or auto):
         return ""
     late = f", {certified.late_precision} behind the first wave" if certified.late_precision else ""

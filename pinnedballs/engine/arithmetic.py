@@ -12,6 +12,8 @@ decision cannot be proved, starts again from its first step with `AUTO_GROWTH` t
 
 from __future__ import annotations
 
+from typing import Callable, TypeVar
+
 import numpy as np
 
 from . import checks
@@ -20,7 +22,7 @@ from .exact import ExactChain, FieldChain
 from .fixed import PRECISION, FixedChain, NotFixed, UncertifiedDecision, lines_of
 
 __all__ = ["field_chain", "check_precisions", "ARITHMETICS", "MAX_PRECISION", "AUTO", "AUTO_GROWTH",
-           "AUTO_START", "auto_precisions", "next_precisions", "auto_failure"]
+           "AUTO_START", "auto_precisions", "next_precisions", "auto_failure", "until_proved"]
 
 #: the values of `Simulation`'s ``arithmetic``
 ARITHMETICS = ("float", "exact", "certified")
@@ -33,6 +35,8 @@ AUTO = "auto"
 AUTO_START = PRECISION
 #: the factor by which an ``"auto"`` run's bits grow each time it starts again
 AUTO_GROWTH = 1.5
+
+T = TypeVar("T")
 
 
 def auto_precisions(late_precision: int | None) -> tuple[int, int | None]:
@@ -67,7 +71,24 @@ def auto_failure(failure: UncertifiedDecision, attempt: tuple[int, int | None]) 
     """One line: where ``failure`` happened, at which bits, and the ``attempt`` an ``"auto"`` run makes next."""
     ran = f"{failure.late_precision} bits behind the first wave" if failure.narrowed else f"{failure.precision} bits"
     late = f" ({attempt[1]} behind the first wave)" if attempt[1] else ""
-    return f"at {ran}, {failure.problem.split(';')[0]}; starting again at {attempt[0]} bits{late}"
+    return f"at {ran}, {failure.decision}; starting again at {attempt[0]} bits{late}"
+
+
+def until_proved(attempt: Callable[[tuple[int, int | None] | None], T], late_precision: int | None,
+                 told: Callable[[UncertifiedDecision, tuple[int, int | None]], None] | None = None) -> T:
+    """``attempt(None)`` (an ``"auto"`` run's first attempt), then, after each `UncertifiedDecision`,
+    ``attempt((precision, late_precision))`` at `next_precisions` (``late_precision``: the spec's), telling
+    ``told`` first; the decision is raised where no more bits can help."""
+    bits = None
+    while True:
+        try:
+            return attempt(bits)
+        except UncertifiedDecision as failure:
+            bits = next_precisions(failure, late_precision)
+            if bits is None:
+                raise
+            if told is not None:
+                told(failure, bits)
 
 
 def _grown(bits: int) -> int:

@@ -86,8 +86,9 @@ class UncertifiedDecision(FieldError):
     the error bound. The run stops consistent as of the pick before it. ``narrowed``: whether the
     state had been narrowed to its ``late_precision`` (in the process that raised it); ``precision``,
     ``late_precision``: the chain's bits through the first wave and behind it (0: none), as
-    `FixedChain.bits`."""
+    `FixedChain.bits`; ``decision``: the message without its advice."""
 
+    decision = ""
     narrowed = False
     precision = 0
     late_precision = 0
@@ -370,11 +371,10 @@ class FixedChain(FieldChain):
         narrowed = self.late_P is not None and self.P == self.late_P
         if narrowed:
             now += ", the late_precision it narrowed to once the first wave had passed"
-        failure = UncertifiedDecision("arithmetic", f"certified arithmetic cannot decide contact {int(k)} (balls {i}, {j}) "
-                                                    f"at {where}: its closing speed {power_text(x, int(E))} is within the "
-                                                    f"error bound {power_text(bound, -self.S)}; use arithmetic=\"exact\" or "
-                                                    f"a larger precision ({now})")
-        failure.narrowed, (failure.precision, failure.late_precision) = narrowed, self.bits
+        decision = (f"certified arithmetic cannot decide contact {int(k)} (balls {i}, {j}) at {where}: its closing "
+                    f"speed {power_text(x, int(E))} is within the error bound {power_text(bound, -self.S)}")
+        failure = UncertifiedDecision("arithmetic", f"{decision}; use arithmetic=\"exact\" or a larger precision ({now})")
+        failure.decision, failure.narrowed, (failure.precision, failure.late_precision) = decision, narrowed, self.bits
         return failure
 
     # ------------------------------------------------------------ values

@@ -67,7 +67,7 @@ class CertifiedState:
     precision; 0, absolute, in files written before it was kept); precision, late_precision: the
     bits the chain ran at through the first wave and behind it (``64 P`` limbs, as built; 0: not
     kept, in files written before; ``late_precision`` 0 also: none), which a spec's ``"precision":
-    "auto"`` resumes at (`pinnedballs.run.precision`).
+    "auto"`` resumes at (`pinnedballs.results.load.Results.simulation`).
     """
 
     limbs: np.ndarray

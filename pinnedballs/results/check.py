@@ -261,9 +261,8 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
     if not (np.issubdtype(np.asarray(bound_scale).dtype, np.integer) and 0 <= bound_scale < 64 * limbs.shape[3]):
         raise Damage("state/certified", f"bound_scale must be an integer in [0, {64 * limbs.shape[3]}), "
                                         f"got {bound_scale!r}")
-    bits = [attrs.get(name, 0) for name in ("precision", "late_precision")]  # absent: not kept (files before)
-    bits = [int(b) if np.issubdtype(np.asarray(b).dtype, np.integer) and np.ndim(b) == 0 else b for b in bits]
-    problem = precisions_problem(*bits, limbs.shape[3])
+    # absent: not kept (files written before)
+    problem = precisions_problem(attrs.get("precision", 0), attrs.get("late_precision", 0), limbs.shape[3])
     if problem:
         raise Damage("state/certified", problem)
 

@@ -35,9 +35,8 @@ import numpy as np
 
 from .._version import __version__
 from ..engine import checks
-from ..engine.arithmetic import AUTO, next_precisions
+from ..engine.arithmetic import AUTO, until_proved
 from ..engine.errors import InputError
-from ..engine.fixed import UncertifiedDecision
 from ..engine.backends import DEVICES
 from ..engine.limits import check_memory
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
@@ -116,15 +115,14 @@ def run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence | None =
     seed = replica_seed(spec, index) if seed is None else seed
     if spec.precision != AUTO:
         return _run_replica(spec, index, seed, observe)
-    bits = spec.precisions()
-    while True:  # "auto": its rows say at which bits it ran (columns precision, late_precision; 0: none)
-        try:
-            rows = _run_replica(spec.at_precisions(*bits), index, seed, observe)
-            return [{**row, "precision": bits[0], "late_precision": bits[1] or 0} for row in rows]
-        except UncertifiedDecision as failure:
-            bits = next_precisions(failure, spec.late_precision)
-            if bits is None:
-                raise
+
+    def attempt(bits: tuple[int, int | None] | None) -> list[dict]:
+        """Its rows at ``bits`` (None: the first attempt's), saying at which (0: none behind the first wave)."""
+        precision, late = bits or spec.precisions()
+        rows = _run_replica(spec.at_precisions(precision, late), index, seed, observe)
+        return [{**row, "precision": precision, "late_precision": late or 0} for row in rows]
+
+    return until_proved(attempt, spec.late_precision)
 
 
 def _run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence, observe: Observe) -> list[dict]:

@@ -19,7 +19,7 @@ import threading
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
-from ..engine.arithmetic import AUTO, auto_failure, next_precisions
+from ..engine.arithmetic import AUTO, auto_failure, until_proved
 from ..engine.driver import Writer, drive
 from ..engine.errors import InputError
 from ..engine.fixed import UncertifiedDecision
@@ -101,21 +101,25 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     the attempt wrote, and tells ``log`` so in one line; its results record the bits it ran at, which
     ``resume`` continues at. Where no more bits can help, the `UncertifiedDecision` is raised as without.
     """
-    attempt = None  # the spec's own precision, or a resumed run's (`Results.simulation`)
     spec = spec if resume else spec.seeded()  # every attempt of a fresh run on the same seed
-    while True:
-        try:
-            return _execute(spec, out_dir, attempt, force=force, resume=resume, progress=progress, figures=figures,
-                            status=status, log=log, device=device)
-        except UncertifiedDecision as failure:
-            attempt = next_precisions(failure, spec.late_precision) if spec.precision == AUTO else None
-            if attempt is None:
-                raise
-            status.clear()
-            spec = _recorded(Path(out_dir), spec)
-            if log is not None:
-                log(f"precision auto: {auto_failure(failure, attempt)}")
-            force, resume = True, False
+    how = dict(progress=progress, figures=figures, status=status, log=log, device=device)
+    if spec.precision != AUTO:
+        return _execute(spec, out_dir, None, force=force, resume=resume, **how)
+
+    def attempt(bits: tuple[int, int | None] | None) -> Path:
+        """The first attempt as asked (a resumed run at the bits its file records: `Results.simulation`), a
+        later one afresh at ``bits``, replacing what the one before wrote."""
+        nonlocal spec, force, resume
+        if bits is not None:
+            spec, force, resume = _recorded(Path(out_dir), spec), True, False
+        return _execute(spec, out_dir, bits, force=force, resume=resume, **how)
+
+    def told(failure: UncertifiedDecision, bits: tuple[int, int | None]) -> None:
+        status.clear()
+        if log is not None:
+            log(f"precision auto: {auto_failure(failure, bits)}")
+
+    return until_proved(attempt, spec.late_precision, told)
 
 
 def _recorded(out: Path, spec: RunSpec) -> RunSpec:

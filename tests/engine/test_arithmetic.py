@@ -24,6 +24,7 @@ def failure(precision: int, late: int = 0, narrowed: bool = False) -> Uncertifie
     """An `UncertifiedDecision` of a chain that ran at ``precision`` bits (``late`` behind the first wave)."""
     f = UncertifiedDecision("arithmetic", "certified arithmetic cannot decide contact 3 (balls 1, 2) at step 7: "
                                           "its closing speed 0 is within the error bound 1e-30; use more bits")
+    f.decision = f.problem.split(";")[0]
     f.precision, f.late_precision, f.narrowed = precision, late, narrowed
     return f
 
@@ -69,6 +70,7 @@ def test_a_failing_chain_reports_the_bits_it_ran_at(monkeypatch):
     with pytest.raises(UncertifiedDecision) as info:
         sim.run_until_frozen(max_steps=10**6)
     assert (info.value.precision, info.value.late_precision, info.value.narrowed) == (64, 0, False)
+    assert str(info.value) == f"arithmetic: {info.value.decision}; use arithmetic=\"exact\" or a larger precision (now 64 bits)"
     assert next_precisions(info.value) == (128, None)
 
 
