@@ -20,6 +20,12 @@ at least one velocity component, and writes the new velocities only if
 ``write``. So a *collision* is a pick that changed velocities, as in the paper,
 and a system is *frozen* when no pick can change anything.
 
+A rule may instead be given by its *impulse*, ``impulse(w, i, j, masses, params) -> (c_i, c_j)``
+(the kick ``v_i -= c_i t_i``, ``v_j -= c_j t_j`` of a collision closing at ``w``), its ``collide``
+made by `impulse_rule` (`pinnedballs.engine.closing`): the engine then adds the threshold test and the
+kick, and runs the collision without a branch where that is faster. The built-in rules are written so,
+and their arithmetic lives here alone: every engine (the CPU's loops, the threads, a GPU) compiles it.
+
 **Rounding remnants are not collisions.** In exact arithmetic (`pinnedballs.engine.exact`) many
 closing speeds are exactly zero: a ball that handed on all of its velocity along a line of centres
 is at rest along it. In float64 such a ball keeps a remnant of a few units in the last place of the
@@ -48,12 +54,12 @@ import numpy as np
 from .engine.jitcache import njit_cached
 from .engine import checks
 from .engine.errors import FieldError
-from .engine.closing import ELASTIC, EQUAL, MASSES, closing_speed, register_closing_form, register_device_rule
-from .engine.closing import t_j as _t_j
+from .engine.closing import closing_speed, impulse_rule
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
            "DEFAULT_RESOLUTION", "check_resolution",
-           "collide_elastic", "collide_equal", "collide_masses"]
+           "collide_elastic", "collide_equal", "collide_masses", "elastic_impulse", "equal_impulse", "masses_impulse",
+           "impulse_rule"]
 
 #: the remnant threshold in units of ``2^-53 V`` (see the module docstring)
 THRESHOLD_ULPS = 4.0
@@ -92,75 +98,31 @@ def remnant_threshold(params):
 
 
 @njit_cached(inline="always")
-def _impulse(v, units, i, j, a, b, ci, cj, dim, flat, write):
-    """``v_i -= ci t_i``, ``v_j -= cj t_j`` (only if ``write``); True if any component changes."""
-    changed = False
-    for k in range(dim):
-        new_i = v[i, k] - ci * units[a, k]
-        new_j = v[j, k] - cj * _t_j(units, a, b, k, flat)
-        changed |= (new_i != v[i, k]) | (new_j != v[j, k])
-        if write:
-            v[i, k] = new_i
-            v[j, k] = new_j
-    return changed
+def elastic_impulse(w, i, j, masses, params):
+    """Equal masses, elastic: the paper's exchange, ``c_i = c_j = w``."""
+    return w, w
 
 
 @njit_cached(inline="always")
-def equal_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
-    """`collide_equal` for a closing speed ``w`` already computed (`engine.closing.given_closing_speed`)."""
-    factor, tau = params[0], params[1]  # read before any branch (`remnant_threshold`)
-    if w <= tau:  # an early return: `w > tau and _impulse(...)` compiles to a slower loop
-        return False
-    c = w * factor
-    return _impulse(v, units, i, j, a, b, c, c, dim, flat, write)
+def equal_impulse(w, i, j, masses, params):
+    """Equal masses, restitution ``r``: ``c_i = c_j = w (1 + r) / 2``, ``params[0] = (1 + r) / 2``
+    (1 for elastic: ``w * 1.0`` is ``w``, bit for bit, so `elastic_impulse` gives the same)."""
+    c = w * params[0]
+    return c, c
 
 
 @njit_cached(inline="always")
-def collide_equal(v, units, i, j, a, b, masses, params, dim, flat, write):
-    """Equal masses, ``params = [(1 + r) / 2, threshold]``: 1 for elastic, the paper's exchange
-    ``v_i -= w t_i``, ``v_j -= w t_j`` (``w * 1.0`` is ``w``, bit for bit)."""
-    return equal_at(v, units, i, j, a, b, masses, params, dim, flat, write,
-                    closing_speed(v, units, i, j, a, b, dim, flat))
+def masses_impulse(w, i, j, masses, params):
+    """Any masses, restitution ``r``: ``c_i = (1 + r) m_j / (m_i + m_j) w`` and ``c_j`` alike, ``params[0] = 1 + r``."""
+    s = params[0] * w / (masses[i] + masses[j])
+    return s * masses[j], s * masses[i]
 
 
-@njit_cached(inline="always")
-def elastic_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
-    """`collide_elastic` for a closing speed ``w`` already computed."""
-    tau = params[1]
-    if w <= tau:
-        return False
-    return _impulse(v, units, i, j, a, b, w, w, dim, flat, write)
-
-
-@njit_cached(inline="always")
-def collide_elastic(v, units, i, j, a, b, masses, params, dim, flat, write):
-    """Equal masses, elastic: the paper's exchange ``v_i -= w t_i``, ``v_j -= w t_j``.
-    `collide_equal` with ``params[0] = 1`` gives the same bits, with a load and a multiply more."""
-    return elastic_at(v, units, i, j, a, b, masses, params, dim, flat, write,
-                      closing_speed(v, units, i, j, a, b, dim, flat))
-
-
-@njit_cached(inline="always")
-def masses_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
-    """`collide_masses` for a closing speed ``w`` already computed."""
-    factor, tau = params[0], params[1]
-    if w <= tau:
-        return False
-    s = factor * w / (masses[i] + masses[j])
-    return _impulse(v, units, i, j, a, b, s * masses[j], s * masses[i], dim, flat, write)
-
-
-@njit_cached(inline="always")
-def collide_masses(v, units, i, j, a, b, masses, params, dim, flat, write):
-    """General masses, ``params = [1 + r, threshold]``."""
-    return masses_at(v, units, i, j, a, b, masses, params, dim, flat, write,
-                     closing_speed(v, units, i, j, a, b, dim, flat))
-
-
-for _collide, _at, _number in ((collide_equal, equal_at, EQUAL), (collide_elastic, elastic_at, ELASTIC),
-                               (collide_masses, masses_at, MASSES)):
-    register_closing_form(_collide, _at)
-    register_device_rule(_collide, _number)  # what a GPU's kernels run (`engine.gpu`)
+#: the built-in rules' ``collide``, each built from its impulse (`engine.closing.impulse_rule`): every engine
+#: (the CPU's loops with or without a branch, the threads, a GPU) runs this arithmetic
+collide_elastic = impulse_rule(elastic_impulse)
+collide_equal = impulse_rule(equal_impulse)
+collide_masses = impulse_rule(masses_impulse)
 
 
 class CollisionRule(ABC):

@@ -260,16 +260,17 @@ class DeviceBackend:
 
 
 def check_device(sim) -> None:
-    """A `FieldError` on ``device`` unless ``sim`` can run on a GPU: floats, a built-in rule and the counter
-    stream (other schedulers and users' rules run on the CPU for now)."""
-    from .gpu import load, rule_code
+    """A `FieldError` unless ``sim`` can run on a GPU: float arithmetic and the counter stream (other schedulers
+    and arithmetics run on the CPU), numba-cuda installed, the rule's functions compiled for the GPU with the
+    CPU's rounding (`gpu.compile.check_rule`: any rule, a user's too), and a GPU."""
+    from .gpu import importable, load
+    from .gpu.compile import check_rule
 
     if sim.arithmetic != "float":
         raise FieldError("device", f"'cuda' runs float arithmetic; {sim.arithmetic} arithmetic runs on the CPU")
     if not sim._selector.counter:
         raise FieldError("device", f"'cuda' runs UniformRandomPair(stream='counter') (the pick of step s a function "
                                    f"of the seed and s); {sim.scheduler!r} runs on the CPU")
-    if rule_code(sim._collide) is None:
-        raise FieldError("device", f"'cuda' runs the built-in rules (Elastic, Restitution); {sim.rule!r} runs "
-                                   f"on the CPU")
-    load()  # numba-cuda and a GPU, or one line saying which is missing
+    importable()  # numba-cuda, or one line saying it is missing
+    check_rule(sim.rule, sim._collide, sim.geometry.dim, bool(sim.geometry.contacts.flat))
+    load()  # a GPU, or one line saying there is none

@@ -1,22 +1,30 @@
-"""The closing speed of a contact, ``w = v_i . t_i + v_j . t_j``: what every rule and every loop
-computes first (positive: the balls approach). Here, below the rules, so the engine's loops can
-keep each pick's closing speed (the margin, `engine.margin`) with the rule's own arithmetic.
+"""A rule's arithmetic, written once and compiled for every engine: the closing speed of a contact, the
+kick of a collision, and the forms of a rule each engine runs.
 
-A loop computes ``w`` once per pick and hands it to the rule's *closing form*
-``collide_at(v, units, i, j, a, b, masses, params, dim, flat, write, w) -> bool``: the built-in
-rules register theirs (`register_closing_form`), the same arithmetic as their ``collide`` given its
-first step; any other rule's ``collide`` is wrapped and recomputes ``w`` itself (`closing_form`).
+A contact ``(i, j)`` closes at ``w = v_i . t_i + v_j . t_j`` (`closing_speed`; positive: the balls
+approach); a collision *kicks* both balls, ``v_i -= c_i t_i`` and ``v_j -= c_j t_j`` (`kick`). A rule's
+``collide(v, units, i, j, a, b, masses, params, dim, flat, write) -> bool`` (`pinnedballs.rules`) is written
+in one of two ways:
 
-**Without a branch.** Where a pick collides about half the time (a lattice in equilibrium, the
-paper's torus), the branch on ``w > threshold`` is mispredicted on most collisions. For the built-in
-rules (those a GPU runs, `register_device_rule`) `branch_free_form` gives the same arithmetic with
-the branch replaced by selects: the new velocities are computed for every pick and written where
-the rule writes them, the old ones written back elsewhere (the same bits; `choose`).
+* **by its impulse** (`impulse_rule`): ``impulse(w, i, j, masses, params) -> (c_i, c_j)``, the kick of a
+  collision closing at ``w``. The engine supplies the rest: the test against the threshold
+  (``params[-1]``) and the kick. The built-in rules are written so, and so may a user's;
+* **by its whole** ``collide`` (docs/extending.md), which computes its closing speed itself.
 
-**Compiled once per rule.** `compiled_form` compiles a rule's closing form for one ``dim`` and
-``flat`` on its own (and caches it on disk), with ``write`` a run-time flag: every loop, freeze scan
-and live-set update calls it, and LLVM inlines it there, where ``write`` is a constant again. A new
-rule therefore goes through numba's pipeline once, not once per loop that tries a contact.
+From either, the engine builds the forms its loops run, each compiled where it runs, from this one source:
+
+* the *closing form* (`closing_form`) ``collide_at(..., write, w)``: ``collide`` given the closing speed
+  the loop computed already (for the margin, `engine.margin`); a rule written whole recomputes it;
+* the *compiled form* (`compiled_form`): the closing form with ``dim`` and ``flat`` built in, compiled on its
+  own once (``write`` a run-time `WRITE` or `TEST` flag) and inlined by LLVM into each loop that calls it,
+  so a new rule goes through numba's pipeline once, not once per loop;
+* the *branch-free form* (`branch_free_form`, rules written by their impulse): the closing form's collision
+  without a branch on it: the new velocities computed for every pick, written where the rule writes them
+  and the old ones written back elsewhere (`kick_where`: the same bits). Where about half the picks collide
+  (a lattice in equilibrium) a branch on the collision is mispredicted about as often;
+* the *trial* (`trial_form`), ``(hit, w)`` of one contact: what the threaded chains and the GPU's kernels
+  run. On a GPU numba-cuda compiles these same functions for the device (with contraction into fused
+  multiply-adds off, `engine.gpu.device`), so a rule runs there with the CPU's bits.
 """
 
 from __future__ import annotations
@@ -30,41 +38,102 @@ from numba.extending import intrinsic
 
 from .jitcache import INLINED, jit_cached_if_possible, njit_cached
 
-__all__ = ["closing_speed", "t_j", "closing_form", "register_closing_form", "compiled_form", "WRITE", "TEST",
-           "ELASTIC", "EQUAL", "MASSES", "register_device_rule", "device_rule", "branch_free_form", "choose"]
+__all__ = ["closing_speed", "t_j", "kick", "kick_where", "impulse_rule", "impulse_of", "closing_form",
+           "compiled_form", "branch_free_form", "trial_form", "WRITE", "TEST", "choose"]
 
 #: ``write`` as run-time flags (numba compiles a function once for all values of a ``numpy.bool_``,
 #: but once per value of a ``bool`` constant): True writes the collision, False only tests for one
 WRITE, TEST = np.bool_(True), np.bool_(False)
 
-#: ``collide -> collide_at`` for the rules that compute ``w`` with `closing_speed` first
+#: ``collide -> impulse`` of the rules written by their impulse, and ``collide -> collide_at``, their closing forms
+_IMPULSES: dict = {}
 _FORMS: dict = {}
 
-#: the built-in rules as the GPU's kernels number them (`engine.gpu`): the paper's exchange, equal masses
-#: with restitution ``params[0] = (1 + r) / 2``, any masses with ``params[0] = 1 + r``
-ELASTIC, EQUAL, MASSES = 0, 1, 2
-#: ``collide -> number`` of the rules a GPU runs, registered by `pinnedballs.rules`
-_DEVICE_RULES: dict = {}
+
+@njit_cached(inline="always")
+def t_j(units, a, b, k, flat):
+    """Component ``k`` of ``t_j``: ``-t_i`` in flat space, else ``units[b]``."""
+    return -units[a, k] if flat else units[b, k]
 
 
-def register_closing_form(collide: Callable, collide_at: Callable) -> None:
-    """Say that ``collide(...)`` is ``collide_at(..., closing_speed(...))``, bit for bit."""
-    _FORMS[collide] = collide_at
+@njit_cached(inline="always")
+def closing_speed(v, units, i, j, a, b, dim, flat):
+    """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching.
+
+    The sum is ``(v_i0 t_i0 + v_j0 t_j0) + (v_i1 t_i1 + v_j1 t_j1) + ...``, left to right.
+    """
+    w = v[i, 0] * units[a, 0] + v[j, 0] * t_j(units, a, b, 0, flat)
+    for k in range(1, dim):
+        w += v[i, k] * units[a, k] + v[j, k] * t_j(units, a, b, k, flat)
+    return w
 
 
-def register_device_rule(collide: Callable, number: int) -> None:
-    """Say that a GPU runs ``collide`` as its kernel rule ``number`` (`ELASTIC`, `EQUAL`, `MASSES`)."""
-    _DEVICE_RULES[collide] = number
+@njit_cached(inline="always")
+def kicked(v, units, i, j, a, b, ci, cj, k, flat):
+    """Component ``k`` of both balls before and after the kick ``(c_i, c_j)``: ``(old_i, old_j, new_i, new_j)``."""
+    old_i, old_j = v[i, k], v[j, k]
+    return old_i, old_j, old_i - ci * units[a, k], old_j - cj * t_j(units, a, b, k, flat)
 
 
-def device_rule(collide: Callable) -> int | None:
-    """The GPU's number of a rule's ``collide``, None for a rule a GPU does not run (a user's)."""
-    return _DEVICE_RULES.get(collide)
+@njit_cached(inline="always")
+def kick(v, units, i, j, a, b, ci, cj, dim, flat, write):
+    """``v_i -= c_i t_i``, ``v_j -= c_j t_j`` (only if ``write``); True if any component changes."""
+    changed = False
+    for k in range(dim):
+        old_i, old_j, new_i, new_j = kicked(v, units, i, j, a, b, ci, cj, k, flat)
+        changed |= (new_i != old_i) | (new_j != old_j)
+        if write:
+            v[i, k] = new_i
+            v[j, k] = new_j
+    return changed
+
+
+@njit_cached(inline="always")
+def kick_where(v, units, i, j, a, b, ci, cj, go, dim, flat):
+    """`kick` with ``write = go``, without a branch: the new components are computed either way and written
+    where ``go``, the old ones written back elsewhere. True if any component changes (whether or not ``go``)."""
+    changed = False
+    for k in range(dim):
+        old_i, old_j, new_i, new_j = kicked(v, units, i, j, a, b, ci, cj, k, flat)
+        changed |= (new_i != old_i) | (new_j != old_j)
+        v[i, k] = choose(go, new_i, old_i)
+        v[j, k] = choose(go, new_j, old_j)
+    return changed
+
+
+@functools.cache
+def impulse_rule(impulse: Callable) -> Callable:
+    """The ``collide`` of a rule given by its ``impulse(w, i, j, masses, params) -> (c_i, c_j)`` (a jitted
+    function): a pick collides when its closing speed ``w`` exceeds the threshold ``params[-1]``, and then
+    kicks its balls by ``(c_i, c_j)`` (`kick`). The engine also builds its branch-free form from it
+    (`branch_free_form`). One ``collide`` per impulse (cached), so a rule's loops compile once."""
+
+    @njit(inline="always")
+    def collide_at(v, units, i, j, a, b, masses, params, dim, flat, write, w):
+        tau = params[params.shape[0] - 1]  # read before any branch (`pinnedballs.rules.remnant_threshold`)
+        if w <= tau:  # an early return: `w > tau and kick(...)` compiles to a slower loop
+            return False
+        ci, cj = impulse(w, i, j, masses, params)
+        return kick(v, units, i, j, a, b, ci, cj, dim, flat, write)
+
+    @njit(inline="always")
+    def collide(v, units, i, j, a, b, masses, params, dim, flat, write):
+        return collide_at(v, units, i, j, a, b, masses, params, dim, flat, write,
+                          closing_speed(v, units, i, j, a, b, dim, flat))
+
+    _IMPULSES[collide], _FORMS[collide] = impulse, collide_at
+    return collide
+
+
+def impulse_of(collide: Callable) -> Callable | None:
+    """The impulse a rule's ``collide`` was built from (`impulse_rule`), or None for a rule written whole."""
+    return _IMPULSES.get(collide)
 
 
 @functools.cache
 def closing_form(collide: Callable) -> Callable:
-    """The closing form of a rule's ``collide``: its registered one, or ``collide`` ignoring ``w``."""
+    """``collide_at(v, units, i, j, a, b, masses, params, dim, flat, write, w) -> bool``: a rule's ``collide``
+    given the closing speed ``w`` its caller computed (the same bits); a rule written whole ignores ``w``."""
     if collide in _FORMS:
         return _FORMS[collide]
 
@@ -89,25 +158,42 @@ def compiled_form(collide: Callable, dim: int, flat: bool) -> Callable:
     return collide_at
 
 
-@njit_cached(inline="always")
-def t_j(units, a, b, k, flat):
-    """Component ``k`` of ``t_j``: ``-t_i`` in flat space, else ``units[b]``."""
-    return -units[a, k] if flat else units[b, k]
+@functools.cache
+def branch_free_form(collide: Callable, dim: int, flat: bool) -> Callable | None:
+    """``collide_free(v, units, i, j, a, b, masses, params, tau, w) -> bool``: what a rule written by its
+    impulse does with `WRITE` (``tau = params[-1]``, read once by the caller: the same bits in ``v``, the
+    same answer), without a branch; None for a rule written whole. Inlined by numba; it writes every
+    pick's two velocity rows, changed or not."""
+    impulse = impulse_of(collide)
+    if impulse is None:
+        return None
+    D, FLAT = dim, flat
+
+    @njit(inline="always")
+    def collide_free(v, units, i, j, a, b, masses, params, tau, w):
+        go = not (w <= tau)
+        ci, cj = impulse(w, i, j, masses, params)
+        return go & kick_where(v, units, i, j, a, b, ci, cj, go, D, FLAT)
+
+    return collide_free
 
 
-@njit_cached(inline="always")
-def closing_speed(v, units, i, j, a, b, dim, flat):
-    """``w = v_i . t_i + v_j . t_j``, summed component by component; positive means approaching.
+@functools.cache
+def trial_form(collide: Callable, dim: int, flat: bool) -> Callable:
+    """``trial(v, units, masses, params, i, j, a, b, write) -> (hit, w)``: the closing speed ``w`` of contact
+    ``(i, j, a, b)`` and whether picking it collides (writing the collision when ``write``), by the rule's
+    closing form. What the threaded chains run, and what numba-cuda compiles into the GPU's kernels."""
+    collide_at, D, FLAT = closing_form(collide), dim, flat
 
-    The sum is ``(v_i0 t_i0 + v_j0 t_j0) + (v_i1 t_i1 + v_j1 t_j1) + ...``, left to right.
-    """
-    w = v[i, 0] * units[a, 0] + v[j, 0] * t_j(units, a, b, 0, flat)
-    for k in range(1, dim):
-        w += v[i, k] * units[a, k] + v[j, k] * t_j(units, a, b, k, flat)
-    return w
+    @njit(inline="always")
+    def trial(v, units, masses, params, i, j, a, b, write):
+        w = closing_speed(v, units, i, j, a, b, D, FLAT)
+        return collide_at(v, units, i, j, a, b, masses, params, D, FLAT, write, w), w
+
+    return trial
 
 
-# ---------------------------------------------------------------- without a branch
+# ---------------------------------------------------------------- a select without a branch
 
 
 @intrinsic
@@ -122,71 +208,10 @@ def _choose_intrinsic(typingctx, c, a, b):
     return a(c, a, b), codegen
 
 
-def _choose_python(c, a, b):
-    """Without the JIT (``NUMBA_DISABLE_JIT=1``): ``a if c else b``."""
+def choose_python(c, a, b):
+    """``choose`` in plain Python (``NUMBA_DISABLE_JIT=1``, and the GPU simulator's twins): ``a if c else b``."""
     return a if c else b
 
 
 #: ``choose(c, a, b)``: ``a if c else b`` for a boolean ``c`` and two numbers of one type, without a branch
-choose = _choose_python if config.DISABLE_JIT else _choose_intrinsic
-
-
-@njit_cached(inline="always")
-def _impulse_where(v, units, i, j, a, b, ci, cj, go, dim, flat):
-    """``pinnedballs.rules._impulse`` with ``write = go``, without a branch: the new components are
-    computed either way and written where ``go``, the old ones written back elsewhere. True if any
-    component changes (whether or not ``go``)."""
-    changed = False
-    for k in range(dim):
-        old_i, old_j = v[i, k], v[j, k]
-        new_i = old_i - ci * units[a, k]
-        new_j = old_j - cj * t_j(units, a, b, k, flat)
-        changed |= (new_i != old_i) | (new_j != old_j)
-        v[i, k] = choose(go, new_i, old_i)
-        v[j, k] = choose(go, new_j, old_j)
-    return changed
-
-
-@njit_cached(inline="always")
-def _elastic_free(v, units, i, j, a, b, masses, factor, tau, dim, flat, w):
-    """``rules.elastic_at`` with ``write``, without a branch."""
-    go = not (w <= tau)
-    return go & _impulse_where(v, units, i, j, a, b, w, w, go, dim, flat)
-
-
-@njit_cached(inline="always")
-def _equal_free(v, units, i, j, a, b, masses, factor, tau, dim, flat, w):
-    """``rules.equal_at`` with ``write``, without a branch."""
-    go = not (w <= tau)
-    c = w * factor
-    return go & _impulse_where(v, units, i, j, a, b, c, c, go, dim, flat)
-
-
-@njit_cached(inline="always")
-def _masses_free(v, units, i, j, a, b, masses, factor, tau, dim, flat, w):
-    """``rules.masses_at`` with ``write``, without a branch."""
-    go = not (w <= tau)
-    s = factor * w / (masses[i] + masses[j])
-    return go & _impulse_where(v, units, i, j, a, b, s * masses[j], s * masses[i], go, dim, flat)
-
-
-_FREE = {ELASTIC: _elastic_free, EQUAL: _equal_free, MASSES: _masses_free}
-
-
-@functools.cache
-def branch_free_form(collide: Callable, dim: int, flat: bool) -> Callable | None:
-    """``collide_free(v, units, i, j, a, b, masses, factor, tau, w) -> bool``: what the built-in rule's
-    closing form does with `WRITE` given ``params = [factor, tau]`` (the same bits in ``v``, the same
-    answer), without a branch; None for any other rule. Inlined by numba; it writes every pick's two
-    velocity rows, changed or not. (The caller reads ``params`` once: read here, after each pick's
-    writes to ``v``, they would be read again, as ``v`` might hold them.)"""
-    number = device_rule(collide)
-    if number is None:
-        return None
-    free, D, FLAT = _FREE[number], dim, flat
-
-    @njit(inline="always")
-    def collide_free(v, units, i, j, a, b, masses, factor, tau, w):
-        return free(v, units, i, j, a, b, masses, factor, tau, D, FLAT, w)
-
-    return collide_free
+choose = choose_python if config.DISABLE_JIT else _choose_intrinsic

@@ -8,7 +8,7 @@ raises `pinnedballs.specs.errors.SpecError`, a `FieldError` whose field is the s
 
 from __future__ import annotations
 
-__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "check_jitted"]
+__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "check_jitted", "described"]
 
 
 class InputError(ValueError):
@@ -49,3 +49,9 @@ def check_jitted(function, field: str, what: str):
         return function
     raise FieldTypeError(field, f"{what} must be a numba-compiled function (decorate it with @numba.njit), "
                                 f"got {function!r}")
+
+
+def described(value) -> str:
+    """``value`` as a message names it: its own ``repr`` (``Elastic()``), or its class's name where its class
+    gives none (``Softening``, not ``<softening.Softening object at 0x7f...>``)."""
+    return repr(value) if type(value).__repr__ is not object.__repr__ else type(value).__name__

@@ -21,7 +21,7 @@ a *step* is a pick, a *collision* a pick that changed velocities.
   scan finds it frozen ends at its last collision: the random stream and the scheduler's state are
   restored to the start of the chunk and its picks replayed up to that collision. The state is then
   bit for bit the one a loop re-testing every contact after every collision would reach.
-  Where ``limited`` reads the tables (they fit in cache), for a built-in rule and a selector of one step a
+  Where ``limited`` reads the tables (they fit in cache), for a rule written by its impulse and a selector of one step a
   pick, it runs its chunks in blocks of `BLOCK` steps, each one with a branch on every pick's collision or,
   after a block that collided on `BRANCH_FREE_PERCENT` of its picks or more, without one
   (`free_trial_kernel`): on a lattice in equilibrium about half the picks collide, and a branch on them is
@@ -205,19 +205,19 @@ def trial_kernel(collide: Callable, dim: int, flat: bool) -> Callable:
 
 @functools.cache
 def free_trial_kernel(collide: Callable, dim: int, flat: bool) -> Callable | None:
-    """``tried_free(v, units, masses, factor, tau, i, j, a, b) -> (hit, w)``, inlined into the table loop:
-    what `trial_kernel`'s ``tried`` does to ``v`` for ``params = [factor, tau]`` (a built-in rule's), without
-    a branch on the collision (`closing.branch_free_form`), and the closing speed ``w`` for the margin; None
-    for a rule without a branch-free form (a user's)."""
+    """``tried_free(v, units, masses, params, tau, i, j, a, b) -> (hit, w)``, inlined into the table loop:
+    what `trial_kernel`'s ``tried`` does to ``v`` (``tau = params[-1]``), without a branch on the collision
+    (`closing.branch_free_form`), and the closing speed ``w`` for the margin; None for a rule written whole
+    (not by its impulse)."""
     collide_free = branch_free_form(collide, dim, flat)
     if collide_free is None:
         return None
     D, FLAT = dim, flat
 
     @njit(inline="always")
-    def tried_free(v, units, masses, factor, tau, i, j, a, b):
+    def tried_free(v, units, masses, params, tau, i, j, a, b):
         w = closing_speed(v, units, i, j, a, b, D, FLAT)
-        return collide_free(v, units, i, j, a, b, masses, factor, tau, w), w
+        return collide_free(v, units, i, j, a, b, masses, params, tau, w), w
 
     return tried_free
 
@@ -307,7 +307,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     replay = selector_replay(select)
     shaped = fixed_rows(dim)
     SKIPS, D, FLAT, PERCENT = skips, dim, flat, int(branch_free_percent)
-    #: the table loop may run blocks without a branch: a built-in rule, one step a pick, and a rate that can pay
+    #: the table loop may run blocks without a branch: a rule given by its impulse, one step a pick, a rate that can pay
     FREE = tried_free is not None and not skips and PERCENT <= 100
 
     @njit(inline="always")
@@ -348,7 +348,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         at_last = (largest, near_rest)  # the margin's remnant side as of the last collision ...
         settled = -1  # ... while last <= settled; after, the side is unchanged since the last collision
         near_up = np.nextafter(NEAR * tau, np.inf)  # w <= NEAR * tau exactly when w < near_up
-        factor, rule_tau = params[0], params[1]  # a built-in rule's (`free_trial_kernel`)
+        rule_tau = params[params.shape[0] - 1]  # read once: after each pick's writes to `v` it would be read again
         done = False
         while taken < count and not done:
             size = min(BLOCK, count - taken)
@@ -357,7 +357,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 left = collisions_left - made  # one count where two would take two registers
                 for t in range(taken, taken + size):
                     k, _, rng = select(state, aux, rng, n, count - t)
-                    hit, w = tried_free(v, units, masses, factor, rule_tau, pairs[k, 0], pairs[k, 1], ends[k, 0],
+                    hit, w = tried_free(v, units, masses, params, rule_tau, pairs[k, 0], pairs[k, 1], ends[k, 0],
                                         ends[k, 1])
                     left -= np.int64(hit)
                     last = choose(hit, t, last)

@@ -40,10 +40,10 @@ import functools
 from typing import Callable
 
 import numpy as np
-from numba import prange
+from numba import njit, prange
 
 from .chain import COLLISIONS, LAST, LIVE, STEPS
-from .closing import closing_form, closing_speed
+from .closing import trial_form
 from .intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from .jitcache import jit_cached_if_possible, njit_cached
 from .jump import jump, jump_polynomial
@@ -52,7 +52,7 @@ from .threads import TUNED_SEGMENT, ThreadTuner, using
 from .random import load, next_uint64, store
 from .rows import decode
 
-__all__ = ["ParallelChain", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
+__all__ = ["ParallelChain", "counted_trial", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
            "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
 
 #: words of the stream each thread turns into picks per block
@@ -159,6 +159,26 @@ def _spin_until(sync, index, value):
 
 
 @functools.cache
+def counted_trial(collide: Callable, dim: int, flat: bool) -> Callable:
+    """``attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made) -> (m, last, made)``: try
+    contact ``(i, j, a, b)``, the pick at ``position``, by the rule's trial (`closing.trial_form`), and count
+    it: the margin ``m`` (`margin.track`), the position of the last collision and the collisions, updated.
+    What a thread of a threaded chain does with each pick it runs."""
+    trial = trial_form(collide, dim, flat)
+
+    @njit(inline="always")
+    def attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made):
+        hit, w = trial(v, units, masses, params, i, j, a, b, True)
+        m = track(hit, w, tau, m[0], m[1], m[2], m[3])
+        if hit:
+            made += 1
+            last = max(last, position)
+        return m, last, made
+
+    return attempt
+
+
+@functools.cache
 def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Callable:
     """The compiled blocks of the chain for one rule's ``collide``, ``dim``, ``flat`` and the contacts'
     source (``rows``: the row pattern, else the tables):
@@ -174,8 +194,8 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     0) and its margin (4). ``history (blocks, 6) int64`` receives each block's picks, deferred picks
     and final stream state (4 words). ``sync``: zeros, `SYNC` int64.
     """
-    collide_at = closing_form(collide)
-    D, FLAT, ROWS = dim, flat, rows
+    attempt = counted_trial(collide, dim, flat)
+    D, ROWS = dim, rows
 
     @njit_cached(inline="always")
     def contact(pairs, ends, pattern, k):
@@ -219,17 +239,6 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
             counts[t, r] = local[r]
         nwatch[t] = watched
         return picks, s
-
-    @njit_cached(inline="always")
-    def attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made):
-        """Try contact ``(i, j, a, b)``, the pick at ``position``: ``(m, last, made)`` updated."""
-        w = closing_speed(v, units, i, j, a, b, D, FLAT)
-        hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
-        m = track(hit, w, tau, m[0], m[1], m[2], m[3])
-        if hit:
-            made += 1
-            last = max(last, position)
-        return m, last, made
 
     @njit_cached(inline="always")
     def record(v, units, masses, params, pairs, ends, pattern, recs, t, r, q, base, tau, m, last, made):

@@ -65,11 +65,10 @@ import numpy as np
 from numba import prange
 
 from .chain import COLLISIONS, LAST, STEPS
-from .closing import closing_form, closing_speed
 from .intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from .jitcache import jit_cached_if_possible, njit_cached
-from .margin import merge_margin, track
-from .parallel import run_in_chunks, tuned_blocks
+from .margin import merge_margin
+from .parallel import counted_trial, run_in_chunks, tuned_blocks
 from .philox import block, counter_pick, lemire
 from .threads import ThreadTuner
 
@@ -205,21 +204,10 @@ def reservation_batches(collide: Callable, dim: int, flat: bool, rows: bool) -> 
     receives each thread's collisions, the position of its last collision (-1: none; positions count
     the call's steps from 0) and its margin (4).
     """
-    collide_at = closing_form(collide)
-    D, FLAT, ROWS = dim, flat, rows
+    attempt = counted_trial(collide, dim, flat)
+    D, ROWS = dim, rows
 
     contact = _row_contact if rows else _table_contact
-
-    @njit_cached(inline="always")
-    def attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made):
-        """Try contact ``(i, j, a, b)``, the pick at ``position``: ``(m, last, made)`` updated."""
-        w = closing_speed(v, units, i, j, a, b, D, FLAT)
-        hit = collide_at(v, units, i, j, a, b, masses, params, D, FLAT, True, w)
-        m = track(hit, w, tau, m[0], m[1], m[2], m[3])
-        if hit:
-            made += 1
-            last = max(last, position)
-        return m, last, made
 
     @njit_cached(inline="always")
     def generate(rng_words, n, pairs, ends, pattern, owner, contact_owner, rec, lists, counts, done, s0, size, t):

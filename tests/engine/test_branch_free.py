@@ -1,5 +1,5 @@
-"""The table loop without a branch on each collision (`engine.loops` ``chunk_blocks``, the built-in rules'
-`engine.closing.branch_free_form`) gives the bits of the loop with one: velocities (to the sign of a zero),
+"""The table loop without a branch on each collision (`engine.loops` ``chunk_blocks``, the branch-free form
+`engine.closing.branch_free_form` of a rule given by its impulse: the built-in rules and a user's) gives the bits of the loop with one: velocities (to the sign of a zero),
 counters, the random stream, the scheduler's state and the closing margin, however a run stops.
 
 ``branch_free_percent=0`` runs every block but the first without a branch, ``101`` none (the loop as it was).
@@ -20,6 +20,7 @@ from pinnedballs.engine import loops as engine_loops
 from pinnedballs.engine.closing import WRITE, branch_free_form, choose, compiled_form
 from pinnedballs.rules import collide_elastic, collide_equal, collide_masses
 from helpers import chain, icosahedron_sphere, tangent_velocities, thin_torus
+import user_rules
 
 ALWAYS, NEVER = 0, 101
 
@@ -115,6 +116,18 @@ def test_restitution_on_a_line(monkeypatch):
           lambda sim: (sim.run(steps=3000), sim.run_until_frozen(max_steps=10**6)))
 
 
+def test_a_users_rule_given_by_its_impulse(monkeypatch):
+    """A user's rule written by its impulse (`engine.closing.impulse_rule`) runs without a branch too, with the
+    bits of its loop with one: unequal masses on a torus in equilibrium, where about half the picks collide."""
+    g = pb.FlatTorus(4, 6)
+    masses = np.random.default_rng(3).uniform(0.5, 2.0, g.n_balls)
+    assert branch_free_form(user_rules.collide_spring, 2, True) is not None
+    state = _same(monkeypatch, lambda: pb.Simulation(g, _gaussian(g), rule=user_rules.Spring(0.3), masses=masses,
+                                                     seed=6),
+                  lambda sim: (sim.run(steps=3000), sim.run(collisions=sim.collisions + 100)))
+    assert state[2] > 1000
+
+
 def test_a_curved_surface(monkeypatch):
     """``t_j != -t_i`` (dim 3, the icosahedron's sphere)."""
     g = icosahedron_sphere()
@@ -132,12 +145,13 @@ def _pair_kernels(collide, dim: int, flat: bool):
     def both(v, units, i, j, a, b, masses, params, w):
         v1, v2 = v.copy(), v.copy()
         return (branchy(v1, units, i, j, a, b, masses, params, WRITE, w), v1,
-                free(v2, units, i, j, a, b, masses, params[0], params[1], w), v2)
+                free(v2, units, i, j, a, b, masses, params, params[-1], w), v2)
 
     return both
 
 
-@pytest.mark.parametrize("collide, factor", [(collide_elastic, 1.0), (collide_equal, 0.85), (collide_masses, 1.7)])
+@pytest.mark.parametrize("collide, factor", [(collide_elastic, 1.0), (collide_equal, 0.85), (collide_masses, 1.7),
+                                             (user_rules.collide_spring, 0.3)])
 def test_each_rule_form_writes_the_same_bits(collide, factor):
     """Closing speeds below, at and just above the threshold, collisions too small to change a component,
     and zeros of either sign, which a collision may flip without changing a value."""
@@ -167,7 +181,7 @@ def test_choose_selects_without_changing_a_bit():
     assert pick(False, 1, 2) == 2 and pick(True, np.inf, 1.0) == np.inf
 
 
-def test_a_users_rule_has_no_branch_free_form():
+def test_a_rule_written_whole_has_no_branch_free_form():
     @njit
     def collide(v, units, i, j, a, b, masses, params, dim, flat, write):
         return False

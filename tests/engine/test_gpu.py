@@ -15,6 +15,7 @@ from pinnedballs.engine.gpu.replicas import S_COLLISIONS, S_FROZEN, S_STEPS, Rep
 from pinnedballs.engine.margin import new_margin
 from pinnedballs.engine.rows import row_pattern
 from helpers import ROOT, fcc_cluster
+import user_rules
 
 COUNTER = pb.UniformRandomPair(stream="counter", threads=1)
 
@@ -189,19 +190,23 @@ def test_without_a_gpu_or_numba_cuda_one_line_says_so(block, message):
 
 
 _PTX = r"""
-import re, types
-import numba.cuda.dispatcher as dispatcher
-dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))  # no GPU needed
-from numba import cuda
+import re, sys, types
+import numpy as np
+from numba import cuda, njit
 from numba.cuda import types as T
+from pinnedballs.engine.gpu.compile import ptx
 from pinnedballs.engine.gpu.kernels import chain_kernel, live_kernel
 from pinnedballs.engine.gpu.replicas import lanes_kernel, replicas_kernel
+from pinnedballs.rules import collide_elastic, collide_equal, collide_masses
+sys.path.insert(0, "tests")
+from user_rules import collide_sticky, collide_spring
 A = lambda dt, nd: T.Array(dt, nd, "C")
 f64, i64, u64, u32 = T.float64, T.int64, T.uint64, T.uint32
 tables = (A(u32, 2), A(T.uint8, 2), A(i64, 1), A(i64, 1), f64, A(f64, 2), A(f64, 1))
 chain = (A(f64, 2), *tables, A(f64, 1), A(u64, 1), A(i64, 1), A(u32, 1), A(u32, 1), A(T.int32, 2), A(T.int32, 1),
          A(T.int32, 1), A(T.uint8, 1), A(f64, 1), A(i64, 1))
-for rule in (0, 1, 2):
+for name, rule in (("elastic", collide_elastic), ("equal", collide_equal), ("masses", collide_masses),
+                   ("sticky", collide_sticky), ("spring", collide_spring)):
     for kernel, sig in ((chain_kernel(rule, 2, True, True, "atomic"), chain),
                         (chain_kernel(rule, 3, False, False, "grid"), chain),
                         (live_kernel(rule, 2, True, False), (A(f64, 2), *tables, A(f64, 1), i64, A(i64, 1))),
@@ -209,22 +214,72 @@ for rule in (0, 1, 2):
                                                                  A(f64, 2), A(i64, 2), i64)),
                         (lanes_kernel(rule, 3, False, True), (A(f64, 3), *tables, A(f64, 2), A(u64, 2), A(i64, 2),
                                                               A(f64, 2), A(i64, 2), i64))):
-        ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=(9, 0))
-        print(rule, len(re.findall(r"\bfma\.[a-z.]*f64", ptx)), len(re.findall(r"\bmul\.rn\.f64", ptx)))
+        code = ptx(kernel.py_func, sig)
+        print(name, len(re.findall(r"\bfma\.[a-z.]*f64", code)), len(re.findall(r"\bmul\.rn\.f64", code)),
+              len(re.findall(r"^\\s*(?:mul|add|sub)\\.f64", code, re.M)))
 """
 
 
 @pytest.mark.slow
 def test_the_kernels_round_every_operation_as_the_cpu_does():
-    """Compiled for sm_90 (no GPU needed: NVVM from numba-cuda's cu13 extra), the kernels' PTX has no fused
-    multiply-add on doubles, which would round once where the CPU rounds twice, and has round-to-nearest
-    products (``mul.rn.f64``)."""
-    out = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, cwd=ROOT, timeout=600,
+    """Compiled for sm_90 (no GPU needed: NVVM from numba-cuda's cu13 extra), the kernels' PTX, for the
+    built-in rules and for two users' rules (one written whole, one by its impulse), has no fused
+    multiply-add on doubles, which would round once where the CPU rounds twice, and only round-to-nearest
+    products and sums (``mul.rn.f64``: a product without ``.rn`` ptxas may still fuse)."""
+    out = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, cwd=ROOT, timeout=900,
                          env={"NUMBA_ENABLE_CUDASIM": "0", "PATH": "/usr/bin:/bin", "HOME": str(ROOT)})
     assert out.returncode == 0, out.stderr[-3000:]
     lines = [line.split() for line in out.stdout.splitlines()]
-    assert len(lines) == 15
-    assert all(fma == "0" and int(mul) > 0 for _, fma, mul in lines), out.stdout
+    assert len(lines) == 25
+    assert all(fma == "0" and int(mul) > 0 and loose == "0" for _, fma, mul, loose in lines), out.stdout
+
+
+_REFUSED = r"""
+import numpy as np, sys, pinnedballs as pb
+sys.path.insert(0, "tests")
+import user_rules
+g = pb.HalfPlane.from_size(20, 10)
+v = np.zeros((g.n_balls, 2))
+v[g.boundary_center()] = [0.0, 10.0]
+for rule in (user_rules.Sticky(0.5), user_rules.Spring(0.25), user_rules.Exponential(), user_rules.Allocating()):
+    try:
+        pb.Simulation(g, v, rule=rule, scheduler=pb.UniformRandomPair(stream="counter"), device="cuda", seed=1)
+    except ValueError as exc:
+        print(exc)
+"""
+
+
+@pytest.mark.slow
+def test_a_rule_that_would_not_give_the_cpus_bits_is_refused_in_one_line():
+    """Without a GPU (and without the simulator) a rule is compiled for one all the same: a user's rule that
+    compiles with the CPU's rounding gets as far as the missing GPU; one calling ``exp`` (libdevice's, not
+    libm's, and fused on purpose) or one that numba-cuda cannot compile is refused naming the rule and why."""
+    out = subprocess.run([sys.executable, "-c", _REFUSED], capture_output=True, text=True, cwd=ROOT, timeout=900,
+                         env={"NUMBA_ENABLE_CUDASIM": "0", "PATH": "/usr/bin:/bin", "HOME": str(ROOT)})
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = out.stdout.splitlines()
+    assert len(lines) == 4, out.stdout
+    assert lines[0].startswith("device: 'cuda' found no GPU") and lines[1].startswith("device: 'cuda' found no GPU")
+    assert lines[2].startswith("rule: Exponential cannot run on a GPU: it calls a function (exp, log, sin, pow")
+    assert lines[3].startswith("rule: Allocating cannot run on a GPU: numba-cuda cannot compile it: No implementation of function Function(norm)")
+    assert "user_rules.py:" in lines[3] and lines[3].endswith("; device='cpu' runs it")
+
+
+@pytest.mark.parametrize("rule", [user_rules.Sticky(0.5), user_rules.Spring(0.25)])
+def test_a_users_rule_runs_on_the_gpu_with_the_cpus_bits(rule):
+    """A rule written as docs/extending.md shows (whole, or by its impulse) on ``device="cuda"``: the kernels
+    call its own functions, so the run to frozen and a split run give the CPU's bits."""
+    g = pb.HalfPlane.from_size(20, 10)
+
+    def run(sim):
+        sim.run(steps=300, progress=False)
+        sim.run_until_frozen(max_steps=10**6, progress=False)
+
+    (cpu, c), (gpu, _) = both(g, single(g), run, rule=rule)
+    assert gpu == cpu and c.collisions > 100
+    fcc = fcc_cluster(2)
+    v = np.random.default_rng(7).normal(size=(fcc.n_balls, 3))
+    _chain_run(fcc, v, 300, rule=rule, batch=16)
 
 
 def test_a_device_chain_refuses_what_its_kernels_cannot_run():
@@ -235,5 +290,3 @@ def test_a_device_chain_refuses_what_its_kernels_cannot_run():
                              ({"top": 1023}, r"^batch must be in \[1, 4194304\]")):
         with pytest.raises(ValueError, match=message):
             DeviceChain(*args, sim._collide, sim._rng[:2], **options)
-    with pytest.raises(ValueError, match=r"^the GPU runs the built-in rules \(Elastic, Restitution\) only$"):
-        DeviceChain(*args, print, sim._rng[:2])

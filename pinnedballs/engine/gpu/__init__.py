@@ -5,10 +5,12 @@ package, or a GPU its driver can see. Nothing here imports numba-cuda before a G
 Under numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernels run on the CPU, one block of
 Python threads: the tests run them so.
 
-The built-in rules' numbers are `engine.closing`'s (`rule_code`, registered by `pinnedballs.rules`).
-Modules: `device` (the CPU's arithmetic as device functions), `kernels` (a chain by deterministic
-reservations; the freeze scan), `chain` (`DeviceChain`: one simulation's chain on the GPU),
-`replicas` (many small systems, one GPU thread each).
+Any rule runs: the kernels call the rule's own functions, the ones the CPU's loops call, compiled for the
+device with the CPU's rounding (`compile`). Modules: `compile` (a rule's functions on the device, their
+simulator twins, the one-line refusal of a rule that would not give the CPU's bits), `device` (the counter
+stream and the contact readers as device functions), `kernels` (a chain by deterministic reservations; the
+freeze scan), `chain` (`DeviceChain`: one simulation's chain on the GPU), `replicas` (many small systems,
+one GPU thread each).
 """
 
 from __future__ import annotations
@@ -16,12 +18,11 @@ from __future__ import annotations
 import numpy as _np
 
 from ..errors import FieldError
-from ..closing import ELASTIC, EQUAL, MASSES, device_rule as rule_code
 
 if not hasattr(_np, "row_stack"):  # numba-cuda 0.30 overloads np.row_stack, which numpy 2.5 removed:
     _np.row_stack = _np.vstack     # without it, its first compile fails (AttributeError: row_stack)
 
-__all__ = ["load", "GPUUnavailable", "INSTALL", "ELASTIC", "EQUAL", "MASSES", "rule_code"]
+__all__ = ["load", "importable", "GPUUnavailable", "INSTALL"]
 
 #: how to install what a GPU run needs
 INSTALL = 'python3 -m pip install ".[cuda]" (from the checkout)'
@@ -37,13 +38,19 @@ class GPUUnavailable(FieldError):
         return type(self), (self.problem,)
 
 
-def load():
-    """numba-cuda's ``cuda`` module, ready to launch kernels; else `GPUUnavailable` saying why, in one line."""
+def importable():
+    """numba-cuda's ``cuda`` module (no GPU needed); else `GPUUnavailable` saying it is not installed, in one line."""
     try:
         from numba import cuda
     except ImportError as exc:
         raise GPUUnavailable(f"'cuda' needs numba-cuda, which is not installed ({INSTALL}): {exc}") from None
-    from .device import SIMULATED
+    return cuda
+
+
+def load():
+    """numba-cuda's ``cuda`` module, ready to launch kernels; else `GPUUnavailable` saying why, in one line."""
+    cuda = importable()
+    from .compile import SIMULATED
 
     if not SIMULATED and not cuda.is_available():
         raise GPUUnavailable("'cuda' found no GPU: numba-cuda sees no CUDA driver or device here (nvidia-smi "

@@ -25,13 +25,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..chain import COLLISIONS, LAST, LIVE, STEPS
-from . import load, rule_code
+from . import load
 from .device import SIMULATED, launching
 from .kernels import (C_BATCH_C0, C_BATCH_S0, C_BATCHES, C_COLL, C_COUNT, C_DONE, C_E, C_GEN, C_HITS, C_K, C_LAST,
                       C_MAXC, C_PICK_ROUNDS, C_RESETS, C_ROUNDS, C_STEP0, C_TOP, CTL_SIZE, EMPTY, MAX_BATCH, TOP,
                       barrier_kind, chain_kernel, launch_shape, live_kernel)
 
-__all__ = ["DeviceChain", "batch_size", "kernel_rule", "upload_contacts", "CHUNK_PER_CONTACT", "SCAN_BLOCK"]
+__all__ = ["DeviceChain", "batch_size", "upload_contacts", "CHUNK_PER_CONTACT", "SCAN_BLOCK"]
 
 #: a run that may freeze or reach a collision target checks between chunks of this many steps per contact
 CHUNK_PER_CONTACT = 16
@@ -44,14 +44,6 @@ def batch_size(n_balls: int) -> int:
     """Picks a batch by default: the power of two nearest a quarter of the balls, within [64, `MAX_BATCH`]
     (measured on an H100 at 4000x2000: 2^19 picks, 0.23 of the balls, ran fastest of 2^18 to 2^21)."""
     return int(min(MAX_BATCH, max(64, 1 << max(0, round(np.log2(max(1, n_balls) / 4))))))
-
-
-def kernel_rule(collide) -> int:
-    """The kernels' number of a rule's ``collide`` (`engine.closing.device_rule`), or a ValueError for a user's rule."""
-    rule = rule_code(collide)
-    if rule is None:
-        raise ValueError("the GPU runs the built-in rules (Elastic, Restitution) only")
-    return rule
 
 
 def upload_contacts(cuda, contacts, pattern, masses: np.ndarray) -> tuple:
@@ -70,7 +62,7 @@ class DeviceChain:
 
     v: ``(n_balls, dim)`` velocities (copied to the GPU); ``contacts`` the geometry's `Contacts`;
     ``pattern`` its row pattern (`engine.rows`) or None; ``masses (n_balls,)``; ``params`` the rule's
-    params with the threshold last; ``collide`` the rule's (a built-in one); ``key`` the counter
+    params with the threshold last; ``collide`` the rule's (any: `compile.check_rule` has passed it); ``key`` the counter
     stream's ``(k0, k1)``; ``batch`` picks per batch (default `batch_size`); ``top`` the owner keys'
     first generation (tests lower it to reset often); ``blocks`` the grid (default: all that fit).
     """
@@ -78,7 +70,6 @@ class DeviceChain:
     def __init__(self, v: np.ndarray, contacts, pattern, masses: np.ndarray, params: np.ndarray, collide, key,
                  *, batch: int | None = None, top: int = TOP, blocks: int | None = None):
         cuda = load()
-        rule = kernel_rule(collide)
         self.n_balls, self.dim = v.shape
         self.n_contacts = len(contacts.pairs)
         self.batch = batch_size(self.n_balls) if batch is None else int(batch)
@@ -104,9 +95,9 @@ class DeviceChain:
         self._saved = None  # a copy of the velocities at a chunk's start, made when first needed
         self.barrier = barrier_kind()
         self.block, self.registers = (8, None) if SIMULATED else launch_shape()
-        self._kernel = chain_kernel(rule, self.dim, bool(contacts.flat), rows, self.barrier, self.registers)
+        self._kernel = chain_kernel(collide, self.dim, bool(contacts.flat), rows, self.barrier, self.registers)
         self._bar = to(np.zeros(2, dtype=np.int64))
-        self._live = live_kernel(rule, self.dim, bool(contacts.flat), rows)
+        self._live = live_kernel(collide, self.dim, bool(contacts.flat), rows)
         self._blocks = blocks
         self._cuda = cuda
         #: totals over the runs: batches, rounds, picks tried in rounds (a pick waits once per round
@@ -137,7 +128,8 @@ class DeviceChain:
             kernel = self._kernel
             if hasattr(kernel, "compile"):  # on a GPU: compile for these arguments, then ask
                 signature = tuple(kernel.typeof_pyval(a) for a in args)
-                kernel.compile(signature)
+                with launching():  # compiled without contraction
+                    kernel.compile(signature)
                 self._blocks = kernel.overloads[signature].max_cooperative_grid_blocks(self.block)
             else:  # the simulator runs one block
                 self._blocks = kernel.overloads[None].max_cooperative_grid_blocks(self.block)

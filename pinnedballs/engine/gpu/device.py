@@ -1,20 +1,11 @@
-"""Device functions of the GPU engine: the CPU loop's arithmetic, operation by operation.
+"""Device functions of the GPU engine that the CPU writes otherwise: the counter stream (`engine.philox`) and
+a contact read from its index (`engine.rows.decode`) or from the tables.
 
-A GPU run gives the bits of the CPU loop on the counter stream, so everything here is a transcription
-of the CPU's functions: the counter stream (`engine.philox`), a contact from its index
-(`engine.rows.decode` or the tables), the closing speed (`engine.closing.closing_speed`), the three
-built-in collision forms (`pinnedballs.rules`: ``elastic_at``, ``equal_at``, ``masses_at``) and the
-closing margin (`engine.margin.track`).
-
-**No fused multiply-add.** libNVVM contracts ``a * b + c`` into ``fma.rn.f64``, which rounds once
-where the CPU rounds twice. Every floating-point operation here therefore goes through libdevice's
-round-to-nearest functions (``dmul_rn``, ``dadd_rn``, ``ddiv_rn``; ``a - b`` as ``a + (-b)``, the
-negation exact: ``mul.rn.f64``, ``add.rn.f64``, ... in the PTX, which the tests check holds no ``fma`` on doubles). Under numba-cuda's
-simulator (``NUMBA_ENABLE_CUDASIM=1``, the tests' CPU stand-in for a GPU) libdevice is not
-implemented; there the same names are plain Python operations, which round alike on a CPU.
-64-bit products: ``mul.hi.u64`` (libdevice's ``umul64hi``) on a GPU, Python's integers in the simulator.
-
-Rules are numbered as `engine.gpu.rule_code` numbers them; ``params = [factor, threshold]`` as on the CPU.
+A GPU run gives the bits of the CPU loop on the counter stream. The arithmetic of a collision and of the
+margin is not here: the kernels call the CPU's own functions (`engine.closing.trial_form`,
+`engine.margin.track`), which numba-cuda compiles for the device without contraction (`compile`). What
+is here is integer work the CPU does with its own intrinsics: Philox's 64-bit products (``mul.hi.u64``,
+libdevice's ``umul64hi``, on a GPU; Python's integers under numba-cuda's simulator, which has no libdevice).
 """
 
 from __future__ import annotations
@@ -27,20 +18,10 @@ import sys
 import numpy as np
 from numba import cuda
 
-try:  # numba-cuda >= 0.2x keeps its own configuration
-    from numba.cuda.core import config as _cuda_config
-except ImportError:  # pragma: no cover - older numba-cuda reads numba's
-    from numba.core import config as _cuda_config
-
-from ..margin import NEAR
-from ..closing import ELASTIC, EQUAL
 from ..philox import M0, M1, W0, W1, ROUNDS
+from .compile import SIMULATED, contraction_off
 
-__all__ = ["SIMULATED", "launching", "counter_pick", "philox_block", "lemire",
-           "contact_reader", "collider", "track"]
-
-#: True under numba-cuda's simulator: kernels run as Python threads on the CPU
-SIMULATED = bool(getattr(_cuda_config, "ENABLE_CUDASIM", 0))
+__all__ = ["SIMULATED", "launching", "counter_pick", "philox_block", "lemire", "contact_reader", "INF"]
 
 _MASK = (1 << 64) - 1
 _U0, _U1, _U2, _U3 = np.uint64(0), np.uint64(1), np.uint64(2), np.uint64(3)
@@ -49,19 +30,7 @@ _FIELD, _SHIFT = (1 << 24) - 1, 1 << 23
 
 device = functools.partial(cuda.jit, device=True, inline="always")
 
-if SIMULATED:  # the simulator has no libdevice: the same operations in Python, which round alike
-    def dmul(a, b):
-        return np.float64(a) * np.float64(b)
-
-    def dadd(a, b):
-        return np.float64(a) + np.float64(b)
-
-    def dsub(a, b):
-        return np.float64(a) - np.float64(b)
-
-    def ddiv(a, b):
-        return np.float64(a) / np.float64(b)
-
+if SIMULATED:  # the simulator has no libdevice: Python's integers
     def mulhilo(a, b):
         p = int(a) * int(b)
         return np.uint64(p >> 64), np.uint64(p & _MASK)
@@ -73,22 +42,6 @@ if SIMULATED:  # the simulator has no libdevice: the same operations in Python, 
         return np.uint64((-int(n)) % int(n))
 else:
     from numba.cuda import libdevice
-
-    @device
-    def dmul(a, b):
-        return libdevice.dmul_rn(a, b)
-
-    @device
-    def dadd(a, b):
-        return libdevice.dadd_rn(a, b)
-
-    @device
-    def dsub(a, b):  # libdevice has no dsub_rn: a - b is a + (-b), the negation exact
-        return libdevice.dadd_rn(a, -b)
-
-    @device
-    def ddiv(a, b):
-        return libdevice.ddiv_rn(a, b)
 
     @device
     def mulhilo(a, b):
@@ -105,10 +58,12 @@ else:
 
 @contextlib.contextmanager
 def launching():
-    """Around a kernel launch: under the simulator, a short thread switch interval (its block manager
-    polls its threads, and at Python's default 5 ms a launch of a few hundred steps takes seconds)."""
+    """Around a kernel's compile and launch: NVVM without contraction (`compile.contraction_off`); under the
+    simulator, a short thread switch interval (its block manager polls its threads, and at Python's default
+    5 ms a launch of a few hundred steps takes seconds)."""
     if not SIMULATED:
-        yield
+        with contraction_off():
+            yield
         return
     interval = sys.getswitchinterval()
     sys.setswitchinterval(1e-5)
@@ -165,7 +120,7 @@ def counter_pick(k0, k1, s, n):
         r += _U1
 
 
-# ---------------------------------------------------------------- contacts, collisions, margin
+# ---------------------------------------------------------------- contacts
 
 
 @functools.cache
@@ -177,7 +132,7 @@ def contact_reader(rows: bool):
         @device
         def contact(pairs, ends, table, meta, inverse, k):
             per_row, n_rows, cols = meta[0], meta[1], meta[2]
-            r = np.int64(dmul(np.float64(k), inverse))
+            r = np.int64(np.float64(k) * inverse)
             if r * per_row > k:
                 r -= 1
             elif (r + 1) * per_row <= k:
@@ -195,59 +150,5 @@ def contact_reader(rows: bool):
     return contact
 
 
-@functools.cache
-def collider(rule: int, dim: int, flat: bool):
-    """``collide(v, units, masses, params, i, j, a, b, write) -> (hit, w)``: the closing speed ``w`` of
-    contact ``(i, j, a, b)`` and, if it collides under ``rule``, the collision (written when ``write``);
-    ``hit`` when a velocity component changed (would change). The CPU's ``closing_speed`` then the
-    rule's closing form, operation by operation."""
-    D, FLAT, RULE = dim, flat, rule
-
-    @device
-    def t_j(units, a, b, k):
-        return -units[a, k] if FLAT else units[b, k]
-
-    @device
-    def collide(v, units, masses, params, i, j, a, b, write):
-        w = dadd(dmul(v[i, 0], units[a, 0]), dmul(v[j, 0], t_j(units, a, b, 0)))
-        for k in range(1, D):
-            w = dadd(w, dadd(dmul(v[i, k], units[a, k]), dmul(v[j, k], t_j(units, a, b, k))))
-        factor, tau = params[0], params[1]
-        if w <= tau:
-            return False, w
-        if RULE == ELASTIC:
-            ci, cj = w, w
-        elif RULE == EQUAL:
-            ci = dmul(w, factor)
-            cj = ci
-        else:
-            s = ddiv(dmul(factor, w), dadd(masses[i], masses[j]))
-            ci, cj = dmul(s, masses[j]), dmul(s, masses[i])
-        changed = False
-        for k in range(D):
-            new_i = dsub(v[i, k], dmul(ci, units[a, k]))
-            new_j = dsub(v[j, k], dmul(cj, t_j(units, a, b, k)))
-            changed |= (new_i != v[i, k]) | (new_j != v[j, k])
-            if write:
-                v[i, k] = new_i
-                v[j, k] = new_j
-        return changed, w
-
-    return collide
-
-
-@device
-def track(hit, w, tau, smallest, largest, near_hits, near_rest):
-    """`engine.margin.track`: one pick's closing speed folded into the running margin."""
-    if hit:
-        smallest = min(smallest, w)
-        if w <= dmul(NEAR, tau):
-            near_hits += 1.0
-    elif w > 0.0:
-        largest = max(largest, w)
-        if dmul(w, NEAR) > tau:
-            near_rest += 1.0
-    return smallest, largest, near_hits, near_rest
-
-
+#: the margin's smallest collision before any
 INF = math.inf

@@ -39,7 +39,9 @@ import os
 import numpy as np
 from numba import cuda
 
-from .device import INF, collider, contact_reader, counter_pick, lemire, philox_block, track
+from ..margin import track as margin_track
+from .compile import device_function, device_trial
+from .device import INF, contact_reader, counter_pick, lemire, philox_block
 
 __all__ = ["chain_kernel", "live_kernel", "BARRIERS", "barrier_kind", "BLOCK", "MAX_REGISTERS", "launch_shape", "KEY_BITS", "MAX_BATCH", "EMPTY", "TOP", "CTL_SIZE", "C_STEP0", "C_COUNT",
            "C_DONE", "C_COLL", "C_MAXC", "C_LAST", "C_GEN", "C_K", "C_TOP", "C_HITS", "C_E", "C_BATCH_S0",
@@ -115,10 +117,10 @@ def _atomic_sync(bar):
 
 
 @functools.cache
-def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "atomic", registers: int | None = None):
+def chain_kernel(collide, dim: int, flat: bool, rows: bool, barrier: str = "atomic", registers: int | None = None):
     """The persistent kernel running batches of the chain for one rule, ``dim``, ``flat``, contact reader,
     ``barrier`` (module docstring, `BARRIERS`) and register limit; launched on a grid that fits the GPU at once."""
-    collide, contact = collider(rule, dim, flat), contact_reader(rows)
+    trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
     sync = _grid_sync if barrier == "grid" else _atomic_sync
 
     @cuda.jit(**({} if registers is None else {"max_registers": registers}))
@@ -143,7 +145,7 @@ def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "at
         k0, k1 = key[0], key[1]
         n_contacts = np.uint64(ctl[C_E])
         n_balls = own0.shape[0]
-        tau = params[1]
+        tau = params[params.shape[0] - 1]
         step0, count, maxc, size, top = ctl[C_STEP0], ctl[C_COUNT], ctl[C_MAXC], ctl[C_K], ctl[C_TOP]
         record = ctl[C_HITS] != 0
         smallest, largest, near_hits, near_rest = INF, 0.0, 0.0, 0.0
@@ -220,7 +222,7 @@ def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "at
                         i, j = np.int64(rec[t, 0]), np.int64(rec[t, 1])
                         mine = np.uint32(key_now | t)
                         if own_now[i] == mine and own_now[j] == mine:
-                            hit, w = collide(v, units, masses, params, i, j, np.int64(rec[t, 2]),
+                            hit, w = trial(v, units, masses, params, i, j, np.int64(rec[t, 2]),
                                              np.int64(rec[t, 3]), True)
                             smallest, largest, near_hits, near_rest = track(hit, w, tau, smallest, largest,
                                                                             near_hits, near_rest)
@@ -289,11 +291,11 @@ def chain_kernel(rule: int, dim: int, flat: bool, rows: bool, barrier: str = "at
 
 
 @functools.cache
-def live_kernel(rule: int, dim: int, flat: bool, rows: bool):
+def live_kernel(collide, dim: int, flat: bool, rows: bool):
     """``count_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, out)``: adds to
     ``out[0]`` the number of live contacts (those whose pick would change a velocity), as
     `engine.loops.live_kernel`'s ``live_flags`` counts them."""
-    collide, contact = collider(rule, dim, flat), contact_reader(rows)
+    trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
 
     @cuda.jit
     def count_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, out):
@@ -304,7 +306,7 @@ def live_kernel(rule: int, dim: int, flat: bool, rows: bool):
         live = np.int64(0)
         for k in range(cuda.grid(1), n_contacts, cuda.gridsize(1)):
             i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(k))
-            hit, w = collide(v, units, masses, params, i, j, a, b, False)
+            hit, w = trial(v, units, masses, params, i, j, a, b, False)
             if hit:
                 live += 1
         cuda.atomic.add(shared, 0, live)

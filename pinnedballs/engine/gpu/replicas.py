@@ -20,8 +20,10 @@ import numpy as np
 from numba import cuda
 
 from . import load
-from .chain import kernel_rule, upload_contacts
-from .device import INF, SIMULATED, collider, contact_reader, launching, lemire, philox_block, track, counter_pick
+from ..margin import track as margin_track
+from .chain import upload_contacts
+from .compile import device_function, device_trial
+from .device import INF, SIMULATED, contact_reader, launching, lemire, philox_block, counter_pick
 
 __all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
 
@@ -37,18 +39,18 @@ _U0, _U2, _U3 = np.uint64(0), np.uint64(2), np.uint64(3)
 
 
 @functools.cache
-def replicas_kernel(rule: int, dim: int, flat: bool, rows: bool):
+def replicas_kernel(collide, dim: int, flat: bool, rows: bool):
     """``run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk)``: replica
     ``r`` (thread ``r``) runs its chain on ``V[r] (N, dim)`` with ``params P[r]``, key ``keys[r]``,
     counters ``state[r]`` and margin ``M[r] (4,)`` until ``limits[r] = (steps, collisions, until_frozen)``
     (absolute counts) as the CPU's ``limited`` loop with freeze chunks of ``chunk`` steps."""
-    collide, contact = collider(rule, dim, flat), contact_reader(rows)
+    trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
 
     @cuda.jit(device=True)
     def any_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts):
         for k in range(n_contacts):
             i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(k))
-            hit, w = collide(v, units, masses, params, i, j, a, b, False)
+            hit, w = trial(v, units, masses, params, i, j, a, b, False)
             if hit:
                 return True
         return False
@@ -61,7 +63,7 @@ def replicas_kernel(rule: int, dim: int, flat: bool, rows: bool):
         v, params = V[r], P[r]
         n_contacts = pairs.shape[0]
         n = np.uint64(n_contacts)
-        k0, k1, tau = keys[r, 0], keys[r, 1], params[1]
+        k0, k1, tau = keys[r, 0], keys[r, 1], params[params.shape[0] - 1]
         s, collisions, last = state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST]
         m0, m1, m2, m3 = M[r, 0], M[r, 1], M[r, 2], M[r, 3]
         max_steps, max_collisions, until_frozen = limits[r, 0], limits[r, 1], limits[r, 2] != 0
@@ -83,7 +85,7 @@ def replicas_kernel(rule: int, dim: int, flat: bool, rows: bool):
                 if not accepted:
                     c = counter_pick(k0, k1, np.uint64(s), n)
                 i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(c))
-                hit, w = collide(v, units, masses, params, i, j, a, b, True)
+                hit, w = trial(v, units, masses, params, i, j, a, b, True)
                 m0, m1, m2, m3 = track(hit, w, tau, m0, m1, m2, m3)
                 s += 1
                 if hit:
@@ -114,7 +116,7 @@ LAYOUT = "thread"
 
 
 @functools.cache
-def lanes_kernel(rule: int, dim: int, flat: bool, rows: bool):
+def lanes_kernel(collide, dim: int, flat: bool, rows: bool):
     """`replicas_kernel`'s work with one block of `LANES` threads a replica: each batch of up to `LANES`
     steps is decoded one step a lane and run by deterministic reservations within the block (a lane runs
     its pick when no earlier pending pick of the batch shares a ball with it; most batches need one round),
@@ -122,7 +124,7 @@ def lanes_kernel(rule: int, dim: int, flat: bool, rows: bool):
     A batch never passes the collision target (it holds one step when fewer collisions are left than lanes),
     the freeze scan is shared by the lanes, and the chunk that froze ends at its last collision, as on the
     CPU."""
-    collide, contact = collider(rule, dim, flat), contact_reader(rows)
+    trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
     L = LANES
 
     @cuda.jit
@@ -142,7 +144,7 @@ def lanes_kernel(rule: int, dim: int, flat: bool, rows: bool):
         v, params = V[r], P[r]
         n_contacts = pairs.shape[0]
         n = np.uint64(n_contacts)
-        k0, k1, tau = keys[r, 0], keys[r, 1], params[1]
+        k0, k1, tau = keys[r, 0], keys[r, 1], params[params.shape[0] - 1]
         max_steps, max_collisions, until_frozen = limits[r, 0], limits[r, 1], limits[r, 2] != 0
         m0, m1, m2, m3 = M[r, 0], M[r, 1], M[r, 2], M[r, 3]  # lane 0's
         at1, at3 = m1, m3
@@ -186,7 +188,7 @@ def lanes_kernel(rule: int, dim: int, flat: bool, rows: bool):
                                 ready = False
                     cuda.syncthreads()
                     if ready:
-                        hit, w = collide(v, units, masses, params, si[t], sj[t], sa[t], sb[t], True)
+                        hit, w = trial(v, units, masses, params, si[t], sj[t], sa[t], sb[t], True)
                         hits[t] = 1 if hit else 0
                         speeds[t] = w
                         waiting[t] = 0
@@ -230,7 +232,7 @@ def lanes_kernel(rule: int, dim: int, flat: bool, rows: bool):
             if k >= n_contacts:
                 k -= n_contacts
             i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(k))
-            hit, w = collide(v, units, masses, params, i, j, a, b, False)
+            hit, w = trial(v, units, masses, params, i, j, a, b, False)
             if hit:
                 ctl[4] = k
         cuda.syncthreads()
@@ -258,7 +260,6 @@ class ReplicaChains:
     def __init__(self, v: np.ndarray, params: np.ndarray, keys: np.ndarray, contacts, pattern, masses: np.ndarray,
                  collide):
         cuda_ = load()
-        rule = kernel_rule(collide)
         self.replicas, self.n_balls, self.dim = v.shape
         self.n_contacts = len(contacts.pairs)
         rows = pattern is not None
@@ -271,7 +272,7 @@ class ReplicaChains:
         self.margin = np.tile(np.array([np.inf, 0.0, 0.0, 0.0]), (self.replicas, 1))
         self.layout = replica_layout()
         make = lanes_kernel if self.layout == "block" else replicas_kernel
-        self._kernel = make(rule, self.dim, bool(contacts.flat), rows)
+        self._kernel = make(collide, self.dim, bool(contacts.flat), rows)
         self._cuda = cuda_
 
     def run(self, limits: np.ndarray, chunk: int) -> None:

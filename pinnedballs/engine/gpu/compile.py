@@ -1,0 +1,230 @@
+"""A rule's arithmetic on a GPU: the CPU's own functions, compiled by numba-cuda with the CPU's rounding.
+
+The kernels call the functions the CPU's loops call (`engine.closing.trial_form`, `engine.margin.track`,
+a rule's ``collide`` or impulse, a user's included); numba-cuda compiles a CPU-jitted function called from a
+kernel for the device. Two things keep the GPU's bits the CPU's:
+
+* **No contraction.** NVVM contracts ``a * b + c`` into ``fma.rn.f64`` by default, which rounds once where
+  the CPU rounds twice. numba-cuda 0.30 has no option for NVVM's ``-fma=0`` (NVIDIA/numba-cuda#118; the
+  ``fma=`` of ``cuda.jit`` proposed in its pull request #839 is used where present), so `contraction_off`
+  adds ``fma=False`` to the NVVM options of the compiles made inside it: the kernels' own, never anyone
+  else's. Products and sums then compile to ``mul.rn.f64`` and ``add.rn.f64``.
+* **No other roundings.** Division and square roots are correctly rounded on both; libdevice's other
+  functions (``exp``, ``log``, ``sin``, ``pow`` with a fractional exponent, ``hypot``, ...) are not libm's,
+  and their code fuses products on purpose. So a rule whose device code, compiled without contraction,
+  still holds a fused multiply-add would not give the CPU's bits: `check_rule` refuses it in one line,
+  as it refuses a rule numba-cuda cannot compile, before anything runs.
+
+Under numba-cuda's simulator (the tests' CPU stand-in for a GPU) kernels are Python: `device_function` gives
+a jitted function's plain-Python *twin* (`python_twin`), every jitted function it reaches replaced by its own
+twin, so the same source runs there too, with the CPU's rounding (Python's floats are IEEE doubles).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import inspect
+import re
+import threading
+import types
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+
+from ..closing import choose, choose_python, impulse_of, trial_form
+from ..errors import FieldError, described
+
+__all__ = ["SIMULATED", "contraction_off", "device_function", "device_trial", "python_twin", "check_rule", "ptx"]
+
+try:  # numba-cuda >= 0.2x keeps its own configuration
+    from numba.cuda.core import config as _cuda_config
+except ImportError:  # pragma: no cover - older numba-cuda reads numba's
+    from numba.core import config as _cuda_config
+
+#: True under numba-cuda's simulator: kernels run as Python threads on the CPU
+SIMULATED = bool(getattr(_cuda_config, "ENABLE_CUDASIM", 0))
+
+_OFF = threading.local()  # how deep the calling thread is inside `contraction_off`
+
+
+def _without_fma(compile_ir: Callable) -> Callable:
+    @functools.wraps(compile_ir)
+    def compile_ir_without_fma(llvmir, **options):
+        if getattr(_OFF, "depth", 0) > 0:
+            options["fma"] = False
+        return compile_ir(llvmir, **options)
+
+    compile_ir_without_fma.contraction_off = True
+    return compile_ir_without_fma
+
+
+@contextlib.contextmanager
+def contraction_off():
+    """NVVM told not to contract products and sums (``-fma=0``) in the compiles made inside (this thread's)."""
+    if SIMULATED:
+        yield
+        return
+    from numba.cuda.cudadrv import nvvm
+
+    if not getattr(nvvm.compile_ir, "contraction_off", False):
+        nvvm.compile_ir = _without_fma(nvvm.compile_ir)
+    _OFF.depth = getattr(_OFF, "depth", 0) + 1
+    try:
+        yield
+    finally:
+        _OFF.depth -= 1
+
+
+# ---------------------------------------------------------------- the simulator's twins
+
+#: jitted callables that are no Python functions (numba intrinsics), and what their twins call instead
+_INTRINSICS = {choose: choose_python}
+
+
+def device_function(f: Callable) -> Callable:
+    """``f`` as a kernel calls it: the jitted function itself on a GPU (numba-cuda compiles it for the device),
+    its plain-Python twin under the simulator."""
+    return python_twin(f) if SIMULATED else f
+
+
+@functools.cache
+def device_trial(collide: Callable, dim: int, flat: bool) -> Callable:
+    """The rule's trial (`engine.closing.trial_form`: ``(hit, w)`` of a contact) as the kernels call it."""
+    return device_function(trial_form(collide, dim, flat))
+
+
+def python_twin(f: Callable) -> Callable:
+    """The plain-Python function behind the jitted ``f``, with each jitted function it reaches through its
+    globals or its closure replaced by its own twin (``f`` itself when it is not jitted)."""
+    return _twin(f, {})
+
+
+def _names(code: types.CodeType) -> set[str]:
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _names(const)
+    return names
+
+
+def _twin(f, memo: dict):
+    if not isinstance(f, Dispatcher):
+        return _INTRINSICS.get(f, f) if _hashable(f) else f
+    if id(f) in memo:
+        return memo[id(f)]
+    py = f.py_func
+    closure = tuple(types.CellType(_twin(cell.cell_contents, memo)) for cell in py.__closure__ or ())
+    scope = dict(py.__globals__)
+    twin = types.FunctionType(py.__code__, scope, py.__name__, py.__defaults__, closure or None)
+    memo[id(f)] = twin
+    for name in _names(py.__code__):
+        if name in scope:
+            scope[name] = _twin(scope[name], memo)
+    return twin
+
+
+def _hashable(value) -> bool:
+    try:
+        hash(value)
+    except TypeError:
+        return False
+    return True
+
+
+# ---------------------------------------------------------------- a rule that would not give the CPU's bits
+
+_FMA = re.compile(r"\bfma\.[a-z.]*f64")
+
+
+def ptx(kernel: Callable, signature, cc: tuple[int, int] = (9, 0)) -> str:
+    """The PTX of ``kernel`` (a Python function, compiled as a kernel) for ``signature`` and compute capability
+    ``cc``, without contraction; no GPU needed (NVVM alone)."""
+    from numba import cuda
+    import numba.cuda.dispatcher as dispatcher
+
+    with contraction_off(), _device_of(cc, dispatcher):
+        return cuda.compile_ptx(kernel, signature, cc=cc)[0]
+
+
+@contextlib.contextmanager
+def _device_of(cc: tuple[int, int], dispatcher):
+    """Without a GPU, numba-cuda still asks the current device's compute capability when it compiles a called
+    function on its own: answer ``cc`` meanwhile."""
+    from numba import cuda
+
+    if cuda.is_available():
+        yield
+        return
+    asked = dispatcher.get_current_device
+    dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=cc)
+    try:
+        yield
+    finally:
+        dispatcher.get_current_device = asked
+
+
+@functools.cache
+def _refusal(collide: Callable, dim: int, flat: bool) -> str | None:
+    """Why the rule's trial cannot run on a GPU with the CPU's bits, in a few words, or None."""
+    trial = trial_form(collide, dim, flat)
+
+    def probe(v, units, masses, params, out):
+        hit, w = trial(v, units, masses, params, np.int64(0), np.int64(1), np.int64(0), np.int64(1), True)
+        out[0] = w if hit else 0.0
+
+    from numba import cuda
+
+    a2, a1 = cuda.types.Array(cuda.types.float64, 2, "C"), cuda.types.Array(cuda.types.float64, 1, "C")
+    try:
+        code = ptx(probe, (a2, a2, a1, a1, a1))
+    except Exception as exc:  # noqa: BLE001 - numba's errors have no common base; all are said in one line
+        return f"numba-cuda cannot compile it: {_first_line(exc)} ({_where(exc, collide)})"
+    if _FMA.search(code):
+        return ("it calls a function (exp, log, sin, pow, hypot, ...) that a GPU computes with other roundings "
+                "than the CPU, so its bits would differ")
+    return None
+
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+_OBJECT = re.compile(r"<(?:built-in )?function ([\w.]+) at 0x[0-9a-f]+>")
+
+
+def _first_line(exc: Exception) -> str:
+    """numba's message in one line: its first line that says what failed, without colours or addresses."""
+    for line in _ANSI.sub("", str(exc)).splitlines():
+        line = line.strip()
+        if line and not line.startswith(("Failed in", "During:", "-", "File")):
+            return _OBJECT.sub(r"\1", line).rstrip(".:")
+    return type(exc).__name__
+
+
+def _where(exc: Exception, collide: Callable) -> str:
+    """``FILE:LINE``: the innermost place numba's message names outside numba itself (the user's code),
+    else where the rule's impulse (or its whole ``collide``) is defined."""
+    import numba
+
+    inside = (str(Path(numba.__file__).resolve().parent), "numba_cuda")
+    places = [(f, n) for f, n in re.findall(r'File "([^"]+)", line (\d+)', _ANSI.sub("", str(exc)))
+              if not any(part in str(Path(f).resolve()) for part in inside)]
+    if places:
+        return f"{Path(places[-1][0]).resolve()}:{places[-1][1]}"
+    try:
+        own = impulse_of(collide) or collide  # a rule by its impulse: the impulse is the user's code
+        py = getattr(own, "py_func", own)
+        return f"{inspect.getsourcefile(py)}:{py.__code__.co_firstlineno}"
+    except TypeError:
+        return "its source unknown"
+
+
+def check_rule(rule, collide: Callable, dim: int, flat: bool) -> None:
+    """A `FieldError` on ``rule`` when ``collide`` (of ``rule``) cannot run on a GPU with the CPU's bits: numba-cuda
+    cannot compile it, or it calls a function the GPU rounds otherwise (module docstring). Compiles it for the
+    GPU once (no GPU needed); under the simulator nothing is compiled and nothing refused."""
+    if SIMULATED:
+        return
+    why = _refusal(collide, dim, flat)
+    if why is not None:
+        raise FieldError("rule", f"{described(rule)} cannot run on a GPU: {why}; device='cpu' runs it")
