@@ -9,6 +9,12 @@ difference is the loop alone). Needs valgrind, its headers and a C compiler.
 
     python benchmarks/bench_instructions.py             # N = 2,000,000 (about a minute)
     python benchmarks/bench_instructions.py --steps 200000
+    python benchmarks/bench_instructions.py --start gaussian --tree /tmp/old   # at equilibrium; another copy too
+
+``--start gaussian`` starts from i.i.d. normal velocities (equilibrium: about half the picks collide, so the
+table loop runs its blocks without a branch). ``--tree DIR`` (repeatable) counts another copy of the
+package too (a directory holding ``pinnedballs/``, e.g. ``git archive COMMIT pinnedballs | tar -x -C DIR``):
+instruction counts compare two versions without the noise of seconds.
 """
 
 from __future__ import annotations
@@ -38,8 +44,11 @@ import pinnedballs as pb
 control = ctypes.CDLL(sys.argv[1])
 steps = int(sys.argv[2])
 geom = pb.FlatTorus(38, 38)
-v = np.zeros((geom.n_balls, 2))
-v[0, 0] = np.sqrt(200.0)
+if sys.argv[3] == "gaussian":
+    v = np.random.default_rng(0).standard_normal((geom.n_balls, 2))
+else:
+    v = np.zeros((geom.n_balls, 2))
+    v[0, 0] = np.sqrt(200.0)
 sim = pb.Simulation(geom, v, rule=pb.Elastic(), scheduler=pb.UniformRandomPair(), seed=1)
 sim.run(steps=1)                                 # compile or load the loop outside the count
 control.cg_start()
@@ -63,6 +72,10 @@ def callgrind(command: list[str], out: str, env: dict | None = None, atstart: bo
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2_000_000, help="steps counted (default 2,000,000)")
+    parser.add_argument("--start", choices=("single", "gaussian"), default="single",
+                        help="the paper's one moving ball (default) or equilibrium")
+    parser.add_argument("--tree", type=Path, action="append", default=[],
+                        help="another copy of the package to count too (repeatable)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         control, ref = os.path.join(tmp, "libcgctl.so"), os.path.join(tmp, "ref_kernel")
@@ -73,13 +86,15 @@ def main(argv: list[str] | None = None) -> int:
         small, _ = callgrind([ref, "38", "38", "1000"], os.path.join(tmp, "c_small"))
         large, _ = callgrind([ref, "38", "38", str(args.steps)], os.path.join(tmp, "c_large"))
         c_per_step = (large - small) / (args.steps - 1000)
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
-        ours, out = callgrind([sys.executable, "-c", _CHILD, control, str(args.steps)], os.path.join(tmp, "py"),
-                              env=env, atstart=False)
-    collisions, energy = out.split()
-    print(f"38x38 torus, {args.steps:,} steps: C {c_per_step:.1f} instructions per step; "
-          f"pinnedballs {ours / args.steps:.1f} ({collisions} collisions, energy {energy}); "
-          f"ratio {ours / args.steps / c_per_step:.2f}")
+        for tree in [ROOT, *(t.resolve() for t in args.tree)]:
+            env = dict(os.environ, PYTHONPATH=str(tree))
+            ours, out = callgrind([sys.executable, "-c", _CHILD, control, str(args.steps), args.start],
+                                  os.path.join(tmp, "py"), env=env, atstart=False)
+            collisions, energy = out.split()
+            name = "this checkout" if tree == ROOT else str(tree)
+            print(f"38x38 torus, {args.start} start, {args.steps:,} steps: C {c_per_step:.1f} instructions per step "
+                  f"(from the paper's start); {name} {ours / args.steps:.1f} ({collisions} collisions, energy "
+                  f"{energy}); ratio {ours / args.steps / c_per_step:.2f}", flush=True)
     return 0
 
 

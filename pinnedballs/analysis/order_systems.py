@@ -144,8 +144,9 @@ class FloatSystem:
         c = sim.geometry.contacts
         self.min_w = float(min_closing_speed)
         self.pairs = c.pairs.tolist()
-        self.tables = (c.pairs, c.ends, c.units, sim._mass_array, sim._params)  # the rule's params and the threshold
-        self.kernels = order_kernels(sim._collide, sim.geometry.dim, c.flat)
+        model = sim.engine.model
+        self.tables = (c.pairs, c.ends, c.units, model.masses, model.params)  # the rule's params and the threshold
+        self.kernels = order_kernels(model.collide, sim.geometry.dim, c.flat)
         self.start = np.ascontiguousarray(sim.velocities)
         self.whole = self.start.nbytes <= WHOLE_BYTES  # keyed from all their bits at once
 
@@ -186,7 +187,7 @@ class ExactSystem:
     arithmetic = "exact"
 
     def __init__(self, sim, min_closing_speed: float = 0.0):
-        self.chain, self.min_w = sim._exact, float(min_closing_speed)
+        self.chain, self.min_w = sim.engine.state.field_chain, float(min_closing_speed)
         self.field = self.chain.field
         g = sim.geometry
         ptr, inc = incidence(g.contacts.pairs, g.n_balls)

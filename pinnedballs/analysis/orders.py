@@ -346,14 +346,14 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
         check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
                      f"a search of {max_states:,} states of {geometry.n_balls:,} balls")
         system = (ExactSystem if sim.arithmetic == "exact" else FloatSystem)(sim, min_closing_speed)
-        never = None if min_closing_speed else sim._never_freezes()
+        never = None if min_closing_speed else sim.never_freezes()
         return _explore(system, max_states, max_collisions, seed, restarts, progress, held, never)
 
 
 def _explore(system, max_states: int, max_collisions: int, seed, restarts: int, progress, held: Deferred,
              never: str | None = None) -> OrdersResult:
     """`explore_orders` once its arguments are checked: the search over states, then sampled orders.
-    ``never``: why this system, unless it starts frozen, never freezes (`Simulation._never_freezes`)."""
+    ``never``: why this system, unless it starts frozen, never freezes (`Simulation.never_freezes`)."""
     root = system.root()
     if never and len(root.ks):
         raise ValueError(f"velocities: no order of this system ever freezes: {never}")

@@ -1,13 +1,20 @@
-"""The plain data every compiled loop reads and writes: the chain's arrays, the counters, the
-live-contact set and the incidence that says which contacts to re-test after a collision."""
+"""The chain as plain data: what it is (`Model`, fixed for its life), what changes as it runs (`ChainState`),
+the arrays every compiled loop reads (`Chain`), the counters, the live-contact set and the incidence that
+says which contacts to re-test after a collision.
+
+A `Simulation` builds a `Model` and a `ChainState` and hands both to the backend that runs its chain
+(`engine.backends`); every engine takes them and hands them back, and nothing below the simulation reads
+anything else of it (JAX-MD's state records, HOOMD-blue's ``Simulation.state``)."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
 
 import numpy as np
 
-__all__ = ["Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "LAST", "COUNTERS", "NO_LIMIT"]
+__all__ = ["Model", "ChainState", "Chain", "LiveSet", "incidence", "STEPS", "COLLISIONS", "LIVE", "LAST", "COUNTERS",
+           "NO_LIMIT"]
 
 #: indices into the ``counters (COUNTERS,) int64`` array shared by Python and the loops: steps and
 #: collisions so far, live contacts (-1: unknown), and the step count right after the last collision a
@@ -16,6 +23,64 @@ STEPS, COLLISIONS, LIVE, LAST = 0, 1, 2, 3
 COUNTERS = 4
 
 NO_LIMIT = np.iinfo(np.int64).max  #: "no limit" for max_steps or max_collisions
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """What a chain is, fixed for its life: the engine's view of a `Simulation`'s geometry, masses, rule and
+    scheduler, as plain data.
+
+    geometry: the `Geometry` (its ``contacts``, ``n_balls``, ``dim``, ``row_pattern``); masses ``(n_balls,)``;
+    collide: the rule's jitted ``collide`` (`pinnedballs.rules`); params: the rule's params with the collision
+    threshold last (``params[-1]``); selector: the scheduler's `Selector`; threads: the threads the scheduler
+    asks for (None: as many as pay); restitution: the rule's ``r`` where it is the paper's (exact arithmetic
+    runs it), else None.
+    """
+
+    geometry: object
+    masses: np.ndarray
+    collide: Callable
+    params: np.ndarray
+    selector: object
+    threads: int | None = None
+    restitution: float | None = None
+
+    @property
+    def threshold(self) -> float:
+        """The collision threshold: a pick collides only when its closing speed exceeds it."""
+        return float(self.params[-1])
+
+    def chain(self, velocities: np.ndarray) -> "Chain":
+        """The arrays a compiled loop reads, for ``velocities``."""
+        c = self.geometry.contacts
+        return Chain(velocities, c.pairs, c.ends, c.units, self.masses, self.params)
+
+
+@dataclass(eq=False)
+class ChainState:
+    """What changes as a chain runs, as plain data the engines read and write in place.
+
+    velocities ``(n_balls, dim) float64`` (on a GPU, the host's copy as last set); counters ``(COUNTERS,)
+    int64`` (`STEPS`, `COLLISIONS`, `LIVE`, `LAST`); rng ``(4,) uint64``, the random stream's words;
+    scheduler ``(L,) int64``, the scheduler's own state; margin ``(4,) float64``, the closing margin
+    (`engine.margin`); field_chain: in exact or certified arithmetic, the chain holding the velocities in
+    the number field (`engine.exact.FieldChain`: its own state, the certified bounds too), else None.
+    """
+
+    velocities: np.ndarray
+    counters: np.ndarray
+    rng: np.ndarray
+    scheduler: np.ndarray
+    margin: np.ndarray
+    field_chain: object = None
+
+    @property
+    def steps(self) -> int:
+        return int(self.counters[STEPS])
+
+    @property
+    def collisions(self) -> int:
+        return int(self.counters[COLLISIONS])
 
 
 def incidence(pairs: np.ndarray, n_balls: int) -> tuple[np.ndarray, np.ndarray]:

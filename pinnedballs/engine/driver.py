@@ -3,7 +3,7 @@ its progress shown, a Ctrl-C honoured between chunks.
 
 `drive` is what every run goes through: ``Simulation.run`` and ``run_until_frozen`` (with writers
 or without), ``pinnedballs run``, ensembles and the paper's reproduction. Each chunk is one call of
-the engine's loop, ``sim._run(max_steps, max_collisions, until_frozen)``; the engine gives the same
+the engine's loop, ``sim.engine.run(max_steps, max_collisions, until_frozen)`` (`engine.backends`); the engine gives the same
 bits however a run is split into calls, so how it is chunked changes no bit.
 
 Chunks last about `CHUNK_SECONDS`: the first is `FIRST_CHUNK` steps, each next one is sized from
@@ -46,7 +46,7 @@ from .stop import Stop
 from .triggers import Counts
 
 __all__ = ["CHUNK_SECONDS", "FIRST_CHUNK", "GROWTH", "CHUNK_STEPS", "CHUNK_PER_CONTACT", "NO_LIMIT", "Stop",
-           "Writer", "Counts", "advance", "drive", "check_writers"]
+           "Writer", "Counts", "Drive", "advance", "drive", "check_writers", "least"]
 
 #: a chunk lasts about this many seconds: a Ctrl-C stops a run within about this long
 CHUNK_SECONDS = 0.2
@@ -108,7 +108,7 @@ def advance(sim, steps: int, collisions: int | None = None, until_frozen: bool =
     run would otherwise end there for its steps (`_loop`), or by the next chunk, which takes no step.
     """
     limit = NO_LIMIT if collisions is None else collisions
-    taken = sim._run(steps, limit, until_frozen)
+    taken = sim.engine.run(steps, limit, until_frozen)
     short = taken < steps and sim.collisions < limit
     if short and until_frozen and sim.is_frozen():
         return True
@@ -136,6 +136,79 @@ class _Chunks:
         self.size = int(max(self.least, min(taken * CHUNK_SECONDS / seconds, GROWTH * self.size)))
 
 
+class Drive:
+    """One run driven to its `Stop` with its writers, a chunk at a time: the driver's steps (module docstring)
+    as an object, so that `drive` runs one simulation with them and a GPU's replicas run many at once
+    (`pinnedballs.run.ensemble_gpu`: one `Drive` a replica, the chunks of all in one launch).
+
+    ``sim`` is what the writers record and the stop reads: a `Simulation`, or anything with its ``steps``,
+    ``collisions``, ``is_frozen()``, ``geometry`` and what the writers read. ``chunk``: the steps a chunk
+    asks for at most (None: about `CHUNK_SECONDS`, from the speed of the chunks before). Use: `start`, then
+    `next` (the limits of the next chunk, or None once the stop is reached and the writers finished), run
+    the chunk, `advanced`; `abort` on an exception.
+    """
+
+    def __init__(self, sim, stop: Stop, writers: Sequence[Writer] = (), chunk: int | None = None):
+        self.sim, self.stop, self.writers = sim, stop, list(writers)
+        self.checked: list[Counts | None] = []
+        self.triggers = [w.trigger for w in self.writers if w.trigger is not None]
+        self.chunks = _Chunks(sim.geometry.n_contacts) if chunk is None else _Fixed(chunk)
+        self.frozen, self.reason = False, ""
+
+    def attach(self) -> None:
+        """Attach the writers (an exception leaves the ones attached to be told by `abort`)."""
+        for w in self.writers:
+            self.checked.append(w.attach(self.sim))
+
+    def start(self) -> None:
+        """Step 0: the snapshots due at the counts the run starts from."""
+        _fire(self.sim, self.writers, self.checked)
+
+    def limits(self) -> tuple[int, int | None]:
+        """``(steps, collisions)``: the first chunk's limits before `start` (what the compiling call runs to)."""
+        return _next_chunk(self.sim, self.stop, 0, self.triggers)
+
+    def next(self) -> tuple[int, int | None] | None:
+        """The next chunk's ``(steps, collisions)`` limits, or None when the stop is reached (step 1: the
+        writers then finished, `reason` says why)."""
+        sim, stop = self.sim, self.stop
+        reason = stop.reason(sim, self.frozen)
+        if reason == stop.steps_reason and stop.until_frozen and sim.is_frozen():
+            reason = stop.reason(sim, True)  # froze on the very last step
+        if reason:
+            for w in self.writers:
+                w.finish(sim, reason)
+            self.reason = reason
+            return None
+        return _next_chunk(sim, stop, self.chunks.next(), self.triggers)
+
+    def advanced(self, frozen: bool, asked: int = 0, taken: int = 0, seconds: float = 0.0) -> None:
+        """The chunk ran (``frozen``: it stopped at the freeze; ``asked``/``taken`` steps in ``seconds``): steps
+        3 and 4 but for the progress and Ctrl-C, which are the caller's."""
+        self.frozen = frozen
+        self.chunks.measured(asked, taken, seconds)
+        _fire(self.sim, self.writers, self.checked)  # before any checkpoint of this state
+        for w in self.writers:
+            w.after_chunk(self.sim)
+
+    def abort(self) -> None:
+        """Tell the writers attached that the run stopped on an exception (`_abort`)."""
+        _abort(self.sim, self.writers[:len(self.checked)], self.checked)
+
+
+class _Fixed:
+    """Chunks of one size (`Drive`'s ``chunk``)."""
+
+    def __init__(self, size: int):
+        self.size = max(1, int(size))
+
+    def next(self) -> int:
+        return self.size
+
+    def measured(self, asked: int, taken: int, seconds: float) -> None:
+        pass
+
+
 def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Callable[[object], None] | None = None,
           progress: bool | None = False) -> str:
     """Run ``sim`` to ``stop``, firing ``writers``; returns the stop reason (see the module's docstring).
@@ -144,18 +217,28 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Calla
     collision target; a count of steps and collisions when the run goes until frozen (its end unknown).
     """
     shown(progress)  # a bad argument is refused before anything starts
-    checked: list[Counts | None] = []
+    run = Drive(sim, stop, check_writers(writers))
     try:
-        for w in writers:
-            checked.append(w.attach(sim))
-        _, collisions = _next_chunk(sim, stop, 0, [w.trigger for w in writers if w.trigger is not None])
+        run.attach()
+        _, collisions = run.limits()
         with _progress(sim, stop, progress) as bar, deferred() as held:
             # compiles the chunks' loop; a Ctrl-C meanwhile waits for the compiler (numba's registries
             # are left half made by an exception inside it, and the process could compile nothing more)
-            sim._run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)
-            return _loop(sim, stop, writers, checked, after_chunk, bar, held)
+            sim.engine.run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)
+            run.start()
+            while (limits := run.next()) is not None:
+                steps, collisions = limits
+                start, before = time.perf_counter(), sim.steps
+                frozen = advance(sim, steps, collisions, stop.until_frozen)
+                run.advanced(frozen, steps, sim.steps - before, time.perf_counter() - start)
+                _shown(bar, sim, stop)
+                held.deliver()
+                if after_chunk is not None:
+                    after_chunk(sim)
+            _shown(bar, sim, stop)
+            return run.reason
     except BaseException:
-        _abort(sim, writers[:len(checked)], checked)
+        run.abort()
         raise
 
 
@@ -180,7 +263,8 @@ def _counts(sim) -> Counts:
     return sim.steps, sim.collisions
 
 
-def _least(*values: int | None) -> int | None:
+def least(*values: int | None) -> int | None:
+    """The smallest of ``values`` not None, or None when all are."""
     given = [v for v in values if v is not None]
     return min(given) if given else None
 
@@ -188,9 +272,9 @@ def _least(*values: int | None) -> int | None:
 def _next_chunk(sim, stop: Stop, chunk: int, triggers: list) -> tuple[int, int | None]:
     """``(steps, collisions)`` limits of the next chunk: never past the stop or a trigger's next count."""
     s, c = _counts(sim)
-    step_target = _least(stop.steps, *(t.next_steps(s) for t in triggers))
+    step_target = least(stop.steps, *(t.next_steps(s) for t in triggers))
     steps = chunk if step_target is None else min(chunk, step_target - s)
-    return steps, _least(stop.collisions, *(t.next_collisions(c) for t in triggers))
+    return steps, least(stop.collisions, *(t.next_collisions(c) for t in triggers))
 
 
 def _check_missed(trigger, prev: Counts, now: Counts) -> None:
@@ -198,34 +282,6 @@ def _check_missed(trigger, prev: Counts, now: Counts) -> None:
         target = nxt(prev[k])
         if target is not None and target < now[k]:
             raise RuntimeError(f"a snapshot at {name} = {target} was missed (now at {now[k]})")
-
-
-def _loop(sim, stop: Stop, writers: Sequence[Writer], checked: list, after_chunk, bar: Progress,
-          held: Deferred) -> str:
-    triggers = [w.trigger for w in writers if w.trigger is not None]
-    chunks = _Chunks(sim.geometry.n_contacts)
-    frozen = False
-    _fire(sim, writers, checked)
-    while True:
-        reason = stop.reason(sim, frozen)
-        if reason == stop.steps_reason and stop.until_frozen and sim.is_frozen():
-            reason = stop.reason(sim, True)  # froze on the very last step
-        if reason:
-            for w in writers:
-                w.finish(sim, reason)
-            _shown(bar, sim, stop)
-            return reason
-        steps, collisions = _next_chunk(sim, stop, chunks.next(), triggers)
-        start, before = time.perf_counter(), sim.steps
-        frozen = advance(sim, steps, collisions, stop.until_frozen)
-        chunks.measured(steps, sim.steps - before, time.perf_counter() - start)
-        _fire(sim, writers, checked)  # before any checkpoint of this state
-        for w in writers:
-            w.after_chunk(sim)
-        _shown(bar, sim, stop)
-        held.deliver()
-        if after_chunk is not None:
-            after_chunk(sim)
 
 
 def _abort(sim, writers: Sequence[Writer], checked: list) -> None:

@@ -91,7 +91,7 @@ class _KeyedFiles(IndexDataCacheFile):
 _PACKAGE = Path(__file__).resolve().parent.parent
 _ENGINE_FILES = tuple(str(_PACKAGE / name) for name in (
     "engine/jitcache.py", "engine/chain.py", "engine/loops.py", "engine/intrinsics.py", "engine/random.py",
-    "engine/closing.py", "engine/margin.py", "engine/rows.py",
+    "engine/closing.py", "engine/margin.py", "engine/rows.py", "engine/harness.py", "engine/selector.py",
     "rules.py", "schedulers/base.py", "schedulers/simple.py", "schedulers/rejection_free.py",
     "schedulers/colored_sweep.py", "schedulers/replay.py"))
 

@@ -60,6 +60,7 @@ import numpy as np
 from numba import njit
 
 from .chain import COLLISIONS, LAST, LIVE, STEPS
+from .harness import limits_loop
 from .closing import WRITE, branch_free_form, choose, closing_speed, compiled_form
 from .intrinsics import fixed_width, prefetch
 from .jitcache import jit_cached_if_possible
@@ -470,9 +471,57 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         return taken, made, last, rng, m, at_last
 
     def make_limited(MODE, LOG):
-        """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched."""
+        """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched. The run to the
+        limits is `engine.harness`'s, compiled here with ``data`` and ``carry`` as tuples:
+        ``data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau,
+        flags)``, ``carry = (rng, margin, margin's remnant side as of the last collision, branch-free next)``."""
         AHEAD = MODE > 0
         BLOCKS = MODE == 0 and FREE and not LOG  # the tables in blocks, some without a branch (`chunk_blocks`)
+
+        @njit(inline="always")
+        def mark(data, carry, count, left):
+            """The chunk's start: the stream in ``carry`` (a value), the scheduler's state copied."""
+            state, saved = data[7], data[10]
+            saved[:] = state
+            return carry
+
+        @njit(inline="always")
+        def advance(data, carry, count, left, taken, collisions):
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags = data
+            rng, m, at_last, free = carry
+            at = log[collisions - first:]
+            if MODE == 2:
+                used, made, last, rng, m, at_last = chunk_rows(v, pattern, units, masses, params, state, aux, rng, n,
+                                                               count, left, LOG, at, base + taken, tau, m)
+            elif MODE == 1:
+                used, made, last, rng, m, at_last = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux,
+                                                                     rng, n, count, left, LOG, at, base + taken, tau, m)
+            elif BLOCKS:
+                used, made, last, rng, m, at_last, free = chunk_blocks(v, pairs, ends, units, masses, params, state,
+                                                                       aux, rng, n, count, left, tau, m, free)
+            else:
+                used, made, last, rng, m, at_last = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
+                                                          count, left, LOG, at, base + taken, tau, m)
+            return used, made, last, (rng, m, at_last, free)
+
+        @njit(inline="always")
+        def live(data, carry):
+            return any_live(data[0], data[1], data[2], data[3], data[4], data[5])
+
+        @njit(inline="always")
+        def settle(data, start, carry, used, count, frozen):
+            """A frozen chunk's margin as of its last collision; picks drawn past the chunk's end replayed up to it."""
+            state, aux, n, saved, flags = data[7], data[8], data[9], data[10], data[15]
+            rng, m, at_last, free = carry
+            if frozen:
+                m = (m[0], at_last[0], m[2], at_last[1])
+            if used < count and (AHEAD or frozen):
+                state[:] = saved
+                begin(state, aux, flags)
+                rng = replay(state, aux, start[0], n, used)
+            return rng, m, at_last, free
+
+        to_limits = njit(inline="always")(limits_loop(mark, advance, live, settle))
 
         @jit_cached_if_possible
         def run(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
@@ -483,52 +532,21 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             m = (margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS])
             flags = np.empty(0, dtype=np.uint8)
             begin(state, aux, flags)
-            taken, collisions, frozen = 0, counters[COLLISIONS], False
-            start_collisions, base = collisions, counters[STEPS]
+            collisions, base = counters[COLLISIONS], counters[STEPS]
             if LOG:  # no more collisions in this call than the log holds
                 max_collisions = min(max_collisions, collisions + log.shape[0])
-            if until_frozen and not any_live(v, pairs, ends, units, masses, params):
-                frozen = True
-            last_step = np.int64(-1)
+            data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, collisions, tau,
+                    flags)
             free = False  # the first block of the table loop has a branch (`chunk_blocks`)
-            while not frozen and taken < max_steps and collisions < max_collisions:
-                count = min(chunk_steps, max_steps - taken)
-                start = rng
-                saved[:] = state
-                at = log[collisions - start_collisions:]
-                left = max_collisions - collisions
-                if MODE == 2:
-                    used, made, last, rng, m, at_last = chunk_rows(v, pattern, units, masses, params, state, aux, rng,
-                                                                   n, count, left, LOG, at, base + taken, tau, m)
-                elif MODE == 1:
-                    used, made, last, rng, m, at_last = chunk_prefetched(v, pairs, ends, units, masses, params, state,
-                                                                         aux, rng, n, count, left, LOG, at,
-                                                                         base + taken, tau, m)
-                elif BLOCKS:
-                    used, made, last, rng, m, at_last, free = chunk_blocks(v, pairs, ends, units, masses, params,
-                                                                           state, aux, rng, n, count, left, tau, m,
-                                                                           free)
-                else:
-                    used, made, last, rng, m, at_last = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
-                                                              count, left, LOG, at, base + taken, tau, m)
-                collisions += made
-                if last >= 0:
-                    last_step = base + taken + last + 1
-                if until_frozen and last >= 0 and not any_live(v, pairs, ends, units, masses, params):
-                    frozen, used = True, last + 1  # the run ends right after its last collision:
-                    m = (m[0], at_last[0], m[2], at_last[1])  # so does its margin
-                if used < count and (AHEAD or frozen):  # picks drawn past the end: replay up to it
-                    state[:] = saved
-                    begin(state, aux, flags)
-                    rng = replay(state, aux, start, n, used)
-                taken += used
-            store(rng_words, rng)
-            margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS] = m
+            taken, collisions, frozen, last, carry = to_limits(data, (rng, m, (m[1], m[3]), free), collisions,
+                                                               max_steps, max_collisions, until_frozen, chunk_steps)
+            store(rng_words, carry[0])
+            margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS] = carry[1]
             counters[STEPS] += taken
             counters[COLLISIONS] = collisions
             counters[LIVE] = 0 if frozen else UNKNOWN
-            if last_step >= 0:
-                counters[LAST] = last_step
+            if last >= 0:
+                counters[LAST] = base + last
             return taken
         return run
 

@@ -44,6 +44,7 @@ from numba import njit, prange
 
 from .chain import COLLISIONS, LAST, LIVE, STEPS
 from .closing import trial_form
+from .harness import limits_loop
 from .intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from .jitcache import jit_cached_if_possible, njit_cached
 from .jump import jump, jump_polynomial
@@ -527,35 +528,40 @@ def run_in_chunks(whole: Callable, block: int, chain, pattern, limited, any_live
                   max_steps: int, max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
     """What the sequential ``limited`` loop (with ``pattern``) does for these limits, bit for bit, for a
     threaded chain whose ``whole(chain, pattern, rng, counters, margin, count, sequential)`` runs ``count``
-    blocks of ``block`` steps (`ParallelChain`, `engine.reservations.ReservationChain`): chunks of
-    ``chunk_steps`` steps, each as whole blocks on the threads (never more than the collisions left could
-    hold) and its rest on ``limited``, the freeze scanned (``any_live``) after a chunk with a collision,
-    and the chunk that froze run again on one thread from its start to its last collision, so the margin
-    too ends there. Returns the steps taken."""
-    if until_frozen and not any_live(*chain):
-        counters[LIVE] = 0
-        return 0
-    taken, frozen, saved = 0, False, np.empty_like(state)
+    blocks of ``block`` steps (`ParallelChain`, `engine.reservations.ReservationChain`), within the limits of
+    `engine.harness`: chunks of ``chunk_steps`` steps, each as whole blocks on the threads (never more than the
+    collisions left could hold) and its rest on ``limited``, the freeze scanned (``any_live``) after a chunk
+    with a collision, and the chunk that froze run again on one thread from its start to its last collision,
+    so the margin too ends there. Returns the steps taken."""
+    saved = np.empty_like(state)
 
     def sequential(steps: int) -> int:
         return limited(*chain, pattern, state, aux, rng, counters, margin, steps, max_collisions, False, steps,
                        saved, _NO_LOG)
 
-    while not frozen and taken < max_steps and counters[COLLISIONS] < max_collisions:
-        count = min(chunk_steps, max_steps - taken)
-        start = (rng.copy(), state.copy(), counters.copy(), margin.copy(), chain.v.copy() if until_frozen else None)
+    def mark(data, carry, count, left):
+        return rng.copy(), state.copy(), counters.copy(), margin.copy(), chain.v.copy() if until_frozen else None
+
+    def advance(data, carry, count, left, taken, collisions):
         start_steps, start_collisions = int(counters[STEPS]), int(counters[COLLISIONS])
-        blocks = min(count, max_collisions - start_collisions) // block
+        blocks = min(count, left) // block
         done = whole(chain, pattern, rng, counters, margin, blocks, sequential) if blocks > 0 else 0
         if done < count and counters[COLLISIONS] < max_collisions:
             done += sequential(count - done)
-        if until_frozen and counters[COLLISIONS] > start_collisions and not any_live(*chain):
-            # frozen: the run ends right after its last collision, and so does its margin; the chunk
-            # goes again on one thread from its start to there (the same bits, once per run)
-            frozen, done = True, int(counters[LAST]) - start_steps
+        made = int(counters[COLLISIONS]) - start_collisions
+        return done, made, int(counters[LAST]) - start_steps - 1 if made else -1, carry
+
+    def live(data, carry):
+        return any_live(*chain)
+
+    def settle(data, start, carry, used, count, frozen):
+        if frozen:  # once per run: the chunk again on one thread from its start to its last collision
             rng[:], state[:], counters[:], margin[:], chain.v[:] = start
-            sequential(done)
-        taken += done
+            sequential(used)
+        return carry
+
+    taken, _, frozen, _, _ = limits_loop(mark, advance, live, settle)(None, None, int(counters[COLLISIONS]), max_steps,
+                                                                     max_collisions, until_frozen, chunk_steps)
     counters[LIVE] = 0 if frozen else -1
     return taken
 

@@ -10,12 +10,12 @@ import warnings
 import numpy as np
 
 from ..engine import checks
-from ..engine.backends import DEVICES, DeviceBackend, ExactBackend, LoopBackend
-from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS
+from ..engine.backends import DEVICES, Backend, backend_for
+from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
 from ..engine.driver import check_writers, drive
 from ..engine.sigint import deferred
 from ..engine.stop import Stop
-from ..engine.errors import FieldError, FieldTypeError, check_jitted
+from ..engine.errors import FieldError, FieldTypeError, check_jitted, described
 from ..engine.arithmetic import ARITHMETICS, check_precisions, field_chain
 from ..engine.exact import FieldChain
 from ..engine.fields import NotExact
@@ -34,7 +34,7 @@ from ..rules import CollisionRule, Elastic, check_resolution, threshold
 from ..schedulers.base import Scheduler
 from ..schedulers.simple import UniformRandomPair
 
-__all__ = ["Simulation", "RunState", "mass_array", "FreezeWarning"]
+__all__ = ["Simulation", "RunState", "mass_array", "check_velocities", "FreezeWarning"]
 
 
 class FreezeWarning(UserWarning):
@@ -72,6 +72,24 @@ def _sparse_copy(v: np.ndarray) -> np.ndarray:
     rows = np.flatnonzero(v.view(np.uint64).any(axis=1))
     out[rows] = v[rows]
     return out
+
+
+def check_velocities(geometry: Geometry, masses: np.ndarray, velocities) -> np.ndarray:
+    """``velocities`` for ``geometry`` as a simulation takes them: ``(n_balls, dim)`` finite float64s that no
+    collision can carry past float64's range (with ``masses (n_balls,)``), copied (`_sparse_copy`); else a
+    `FieldError` naming ``velocities`` and what is wrong."""
+    g = geometry
+    try:
+        v = np.array(velocities, dtype=np.float64, order="C")
+    except (TypeError, ValueError) as exc:
+        raise FieldTypeError("velocities", f"must be an array of numbers ({exc})") from None
+    if v.shape != (g.n_balls, g.dim):
+        raise FieldError("velocities", f"must have shape (n_balls, dim) = {(g.n_balls, g.dim)}, got {v.shape}")
+    bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+    if len(bad):
+        raise FieldError("velocities", f"ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
+    check_speeds(v, masses, "velocities")  # no collision can overflow float64
+    return _sparse_copy(v)
 
 
 class Simulation:
@@ -113,14 +131,15 @@ class Simulation:
     however the run is split into calls.
 
     device: ``"cpu"`` (the default) or ``"cuda"``: the chain on an NVIDIA GPU (`pinnedballs.engine.gpu`;
-    ``python3 -m pip install ".[cuda]"`` from the checkout), for float arithmetic, the built-in rules and
-    ``UniformRandomPair(stream="counter")``, with the same velocities, counters, stop step and margin
-    as on the CPU. Its velocities stay on the GPU between runs; reading `velocities` copies them back.
+    ``python3 -m pip install ".[cuda]"`` from the checkout), for float arithmetic, any rule (a user's too:
+    the GPU compiles the rule's own functions) and ``UniformRandomPair(stream="counter")``, with the same
+    velocities, counters, stop step and margin as on the CPU. Its velocities stay on the GPU between runs;
+    reading `velocities` copies them back.
 
-    The chain runs through one backend (`pinnedballs.engine.backends`), chosen here by the arithmetic
-    and the device: the engine's compiled loops (`pinnedballs.engine.loops`) run the scheduler's
-    selector on plain data the simulation owns (the velocities, the counters, the random stream, the
-    scheduler's state), exact arithmetic follows the same picks, and a GPU runs the counter stream.
+    The chain is plain data: its `engine.chain.Model` (what it is) and `engine.chain.ChainState` (what
+    changes), which `engine` (the backend chosen here by the arithmetic and the device,
+    `pinnedballs.engine.backends`) takes and runs: the engine's compiled loops run the scheduler's selector,
+    exact arithmetic follows the same picks, and a GPU runs the counter stream.
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
@@ -141,82 +160,77 @@ class Simulation:
         with deferred():  # compiles the check on a first call: a Ctrl-C waits for numba (see `engine.sigint`)
             check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
-        self._exact = None  # the exact or certified chain, made below (None in float arithmetic)
-        self._backend = None  # how the chain runs (`engine.backends`), chosen below
-        self._mass_array = mass_array(masses, geometry.n_balls)
-        self.masses = None if masses is None else self._mass_array
-        self.velocities = self._check_velocities(velocities)
-        self._collide, params = rule.kernel(bool(np.all(self._mass_array == self._mass_array[0])))
+        self._masses = mass_array(masses, geometry.n_balls)
+        self.masses = None if masses is None else self._masses
+        v = check_velocities(geometry, self._masses, velocities)
+        collide, params = rule.kernel(bool(np.all(self._masses == self._masses[0])))
         #: the collision criterion's resolution ``e``: a pick collides when its closing speed exceeds ``e V``
         self.resolution = check_resolution(resolution)
         self._default_resolution = resolution is None  # a chosen resolution is the model: no warning
-        self.threshold = threshold(self.velocities, self._mass_array, self.resolution)
-        self._params = np.append(np.asarray(params, dtype=np.float64), self.threshold)  # params[-1]: `approaching`
-        check_jitted(self._collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
-        self._selector = _selector(scheduler, geometry)
-        self._sched_state = scheduler.initial_state(geometry.n_contacts)
+        self.threshold = threshold(v, self._masses, self.resolution)
+        check_jitted(collide, "rule", f"{type(rule).__name__}.kernel()'s collide")
+        selector = _selector(scheduler, geometry)
         #: the seed used: the int given, the entropy drawn when none was (an int), or the SeedSequence
         #: given when its entropy alone would not repeat it (a spawned one); ``Simulation(..., seed=sim.seed)``
         #: repeats the run
         self.seed = _recorded_seed(seed)
-        self._rng = seed_state(self.seed)
-        if self._selector.counter:  # the counter stream: its key, and no pick drawn yet
-            self._rng = counter_stream(self._rng)
-        self._counters = np.zeros(COUNTERS, dtype=np.int64)
-        self._margin = new_margin()  # every pick's closing speed against the threshold (`closing_margin`)
-        self._margin_warned = False
+        rng = seed_state(self.seed)
+        if selector.counter:  # the counter stream: its key, and no pick drawn yet
+            rng = counter_stream(rng)
+        #: whether a float run that ends frozen with a thin closing margin says so, once (`warn_if_thin`);
+        #: an ensemble says it once for all its replicas instead
+        self.warns_thin_margin = True
         #: callables ``listener(steps (C,) int64, contacts (C,) int64)`` told of every collision, in
         #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
         #: record them run a little slower
         self.collision_listeners: list = []
         self.arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
-        self._exact = _exact_chain(self, precision, late_precision)  # None in float arithmetic
-        if self._exact is not None:
-            self.velocities = self._exact.shadow  # the exact values rounded, kept by the exact chain
+        model = Model(geometry, self._masses, collide,
+                      np.append(np.asarray(params, dtype=np.float64), self.threshold),  # params[-1]: the threshold
+                      selector, getattr(scheduler, "threads", None), rule.exact_restitution())
+        field = _field_chain(self, model, v, precision, late_precision)  # None in float arithmetic
+        state = ChainState(v if field is None else field.shadow,  # exact: its values rounded, kept by its chain
+                           np.zeros(COUNTERS, dtype=np.int64), rng, scheduler.initial_state(geometry.n_contacts),
+                           new_margin(), field)  # the margin: every pick's closing speed against the threshold
         #: where the chain runs: ``"cpu"`` or ``"cuda"`` (an NVIDIA GPU: `engine.gpu`, floats on the counter
         #: stream, the CPU's bits); information about a run, not part of its model
         self.device = checks.choice("device", device, DEVICES)
-        self._backend = (DeviceBackend(self) if self.device == "cuda"
-                         else ExactBackend(self) if self._exact is not None else LoopBackend(self))
+        self._engine = backend_for(model, state, self.arithmetic, self.device, self.collision_listeners, rule,
+                                   scheduler)
 
-    # ------------------------------------------------------------ input checks
-    def _check_velocities(self, velocities) -> np.ndarray:
-        g = self.geometry
-        try:
-            v = np.array(velocities, dtype=np.float64, order="C")
-        except (TypeError, ValueError) as exc:
-            raise FieldTypeError("velocities", f"must be an array of numbers ({exc})") from None
-        if v.shape != (g.n_balls, g.dim):
-            raise FieldError("velocities", f"must have shape (n_balls, dim) = {(g.n_balls, g.dim)}, got {v.shape}")
-        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
-        if len(bad):
-            raise FieldError("velocities", f"ball {bad[0]} has a NaN or infinite component ({len(bad)} ball(s) in all)")
-        check_speeds(v, self._mass_array, "velocities")  # no collision can overflow float64
-        return _sparse_copy(v)
+    # ------------------------------------------------------------ the engine
+    @property
+    def engine(self) -> Backend:
+        """What runs the chain (`pinnedballs.engine.backends`): its ``model`` and ``state`` (plain data,
+        `engine.chain.Model` and `engine.chain.ChainState`), and the chunk protocol the run driver calls."""
+        return self._engine
+
+    @property
+    def _field(self) -> FieldChain | None:
+        """The chain of exact or certified arithmetic (None in float arithmetic)."""
+        return self._engine.state.field_chain
 
     # ------------------------------------------------------------ state
     @property
     def velocities(self) -> np.ndarray:
         """``(n_balls, dim) float64``: the velocities now (in exact or certified arithmetic, the exact
         values rounded, brought up to date when read: a run in chunks rounds only once at its end)."""
-        return self._velocities if self._backend is None else self._backend.velocities(self)
+        return self._engine.velocities()
 
     @velocities.setter
     def velocities(self, value: np.ndarray) -> None:
-        self._velocities = value
-        if isinstance(self._backend, DeviceBackend):
-            self._backend.set_velocities(value)
+        self._engine.set_velocities(value)
 
     # ------------------------------------------------------------ counters
     @property
     def steps(self) -> int:
         """Contacts tried so far."""
-        return int(self._counters[STEPS])
+        return self._engine.state.steps
 
     @property
     def collisions(self) -> int:
         """Contacts tried so far that changed velocities."""
-        return int(self._counters[COLLISIONS])
+        return self._engine.state.collisions
 
     # ------------------------------------------------------------ running
     def run(self, steps: int | None = None, collisions: int | None = None, *, until_frozen: bool = False,
@@ -244,7 +258,7 @@ class Simulation:
         start = self.steps
         stop = Stop(steps=None if steps is None else min(start + steps, NO_LIMIT), collisions=collisions,
                     until_frozen=until_frozen or steps is None)
-        self._say_if_thin(drive(self, stop, check_writers(writers or ()), progress=progress))
+        self.warn_if_thin(drive(self, stop, check_writers(writers or ()), progress=progress))
         return self.steps - start
 
     def run_until_frozen(self, max_steps: int, *, writers=None, progress: bool | None = None) -> bool:
@@ -258,15 +272,15 @@ class Simulation:
         """
         stop = Stop(steps=min(self.steps + _count("max_steps", max_steps), NO_LIMIT), until_frozen=True)
         reason = drive(self, stop, check_writers(writers or ()), progress=progress)
-        self._say_if_thin(reason)
+        self.warn_if_thin(reason)
         frozen = reason == "frozen"
-        why = None if frozen or not max_steps else self._never_freezes()  # 0 steps: a warm-up, nothing to say
+        why = None if frozen or not max_steps else self.never_freezes()  # 0 steps: a warm-up, nothing to say
         if why:
             warnings.warn(f"run_until_frozen: not frozen after {max_steps:,} steps, and never will be: {why}; "
                           "use run(steps=...)", FreezeWarning, stacklevel=_outside_the_package())
         return frozen
 
-    def _never_freezes(self) -> str | None:
+    def never_freezes(self) -> str | None:
         """Why this system, not frozen, can never freeze, or None where that is not certain. Its contacts
         all on closed rows (`Contacts.closed_rows`: a torus), frozen means every closing speed 0, while in
         exact arithmetic each collision leaves its contact separating (any ``r > 0``); in float64 at the
@@ -284,21 +298,16 @@ class Simulation:
         return ("on a torus (every contact on a closed row of balls) only equal velocities are frozen, and "
                 "elastic collisions keep the energy above theirs")
 
-    def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
-        """The engine's loop for these limits (see `pinnedballs.engine.loops`); the steps taken."""
-        max_steps = min(max_steps, NO_LIMIT - self.steps)  # the step counter never wraps
-        return self._backend.run(self, max_steps, max_collisions, until_frozen)
-
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
         """Number of live contacts: those whose balls approach, so that picking one would
         collide (0 means frozen). In float arithmetic a closing speed so small that the collision
         would change no bit of any velocity, a remnant of rounding, does not count."""
-        return self._backend.approaching(self)
+        return self._engine.approaching()
 
     def is_frozen(self) -> bool:
         """True when no contact is live, so no collision can ever happen again."""
-        return self._backend.is_frozen(self)
+        return self._engine.is_frozen()
 
     def closing_margin(self) -> ClosingMargin:
         """How near the collision criterion this run's picks came (`engine.margin.ClosingMargin`): the
@@ -306,60 +315,61 @@ class Simulation:
         of ``threshold``, and the picks within a factor 10^4 of it on each side. In exact arithmetic
         every sign is exact; the margin is then the float criterion's on the same picks, unknown (None)
         until the exact engine keeps it."""
-        return ClosingMargin.of(self._margin, self.threshold, self.resolution)
+        return ClosingMargin.of(self._engine.state.margin, self.threshold, self.resolution)
 
-    def _say_if_thin(self, reason: str) -> None:
+    def warn_if_thin(self, reason: str) -> None:
         """Say once, as a one-line `MarginWarning` about the caller's line, that this float run's count
         depends on its criterion, where the count is the observable: a run that ended frozen (the stop
         ``reason``). A run for its steps says nothing (on a torus, which never freezes, picks come near
         the threshold in every long run); `closing_margin` tells it when asked."""
-        if reason != "frozen" or self._margin_warned or self._exact is not None or not self._default_resolution:
+        if reason != "frozen" or not self.warns_thin_margin or self._field is not None or not self._default_resolution:
             return
         margin = self.closing_margin()
         if margin.thin:
-            self._margin_warned = True
-            exact = self.rule.exact_restitution() is not None and not self._selector.tracks
+            self.warns_thin_margin = False
+            exact = self.rule.exact_restitution() is not None and not self._engine.model.selector.tracks
             warnings.warn(margin.warning(exact), MarginWarning, stacklevel=_outside_the_package())
 
     @property
     def exact_velocities(self) -> np.ndarray | None:
         """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.fields.Exact` numbers) of a run in
         exact arithmetic; None in float or certified arithmetic."""
-        if self._exact is None or self.arithmetic != "exact":
+        if self._field is None or self.arithmetic != "exact":
             return None
-        return self._exact.numbers()
+        return self._field.numbers()
 
     @property
     def error_bound(self) -> tuple[float, float] | None:
         """A run in certified arithmetic: ``(G, largest)``, bounds on how far its velocities (before
         rounding to floats) are from exact arithmetic's: ``G`` on the whole error vector, ``largest``
         on any one ball's (0: all exact). None in other arithmetics."""
-        return self._exact.error_bound if self.arithmetic == "certified" else None
+        return self._field.error_bound if self.arithmetic == "certified" else None
 
     @property
     def smallest_exact_collision(self) -> float | None:
         """Exact or certified arithmetic (fixed-point engine): the smallest closing speed counted as a collision
         since the run was built or loaded, in thresholds (`threshold`); None otherwise or before one."""
-        margin = getattr(self._exact, "margin", None)
+        margin = getattr(self._field, "margin", None)
         return float(margin[0] / self.threshold) if margin is not None and np.isfinite(margin[0]) else None
 
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
-        return float(0.5 * np.dot(self._mass_array, np.einsum("ij,ij->i", self.velocities, self.velocities)))
+        return float(0.5 * np.dot(self._masses, np.einsum("ij,ij->i", self.velocities, self.velocities)))
 
     def momentum(self) -> np.ndarray:
         """``(dim,)`` total momentum ``sum m v`` (meaningful in flat space)."""
-        return self._mass_array @ self.velocities
+        return self._masses @ self.velocities
 
     # ------------------------------------------------------------ state for checkpoints
     def get_state(self) -> RunState:
         """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
         margin too: None in exact or certified arithmetic, where it is not kept)."""
-        exact = self._exact.coefficients() if self.arithmetic == "exact" else None
-        certified = self._exact.certified_state() if self.arithmetic == "certified" else None
-        margin = None if self._exact is not None else self._margin.copy()
-        return RunState(self.velocities.copy(), self.steps, self.collisions, self._rng.copy(),
-                        self._sched_state.copy(), exact, margin, certified)
+        st, field = self._engine.state, self._field
+        exact = field.coefficients() if self.arithmetic == "exact" else None
+        certified = field.certified_state() if self.arithmetic == "certified" else None
+        margin = None if field is not None else st.margin.copy()
+        return RunState(self.velocities.copy(), self.steps, self.collisions, st.rng.copy(), st.scheduler.copy(),
+                        exact, margin, certified)
 
     def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
@@ -368,7 +378,7 @@ class Simulation:
         (A dict with the same keys, what `get_state` gave until 2026-11, is still taken, with a
         DeprecationWarning.)"""
         state = as_state(state)
-        velocities = self._check_velocities(state.velocities)
+        velocities = check_velocities(self.geometry, self._masses, state.velocities)
         rng = np.asarray(state.rng_state)
         if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
             raise FieldError("rng_state", f"must be 4 uint64 words, not all zero, got {rng.dtype} {rng.shape}")
@@ -376,8 +386,9 @@ class Simulation:
         if sched.dtype != np.int64:
             raise FieldError("scheduler_state", f"must be int64, got {sched.dtype}")
         self.scheduler.check_state(sched, self.geometry.n_contacts)
-        flags = self._backend.live_flags_of(self, velocities) if self._selector.tracks else None
-        self.scheduler.check_resume(sched, self._selector, flags)
+        selector = self._engine.model.selector
+        flags = self._engine.live_flags(velocities) if selector.tracks else None
+        self.scheduler.check_resume(sched, selector, flags)
         steps, collisions = _count("steps", state.steps), _count("collisions", state.collisions)
         if collisions > steps:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
@@ -385,18 +396,18 @@ class Simulation:
             raise FieldError("margin", problem)
         exact = self._exact_state(state, velocities)
         if self.arithmetic == "certified":
-            self._exact.set_certified_state(self._certified_state(state, velocities))
+            self._field.set_certified_state(self._certified_state(state, velocities))
         elif exact is not None:
             try:
-                self._exact.set_velocities(exact)
+                self._field.set_velocities(exact)
             except ValueError as exc:
                 raise FieldError("exact", str(exc)) from None
         else:
             self.velocities = velocities
-        self._rng = rng.copy()
-        self._sched_state = sched.copy()
-        self._counters[STEPS], self._counters[COLLISIONS] = steps, collisions
-        self._margin[:] = new_margin() if state.margin is None else state.margin
+        st = self._engine.state
+        st.rng, st.scheduler = rng.copy(), sched.copy()
+        st.counters[STEPS], st.counters[COLLISIONS] = steps, collisions
+        st.margin[:] = new_margin() if state.margin is None else state.margin
 
     def _exact_state(self, state: RunState, velocities: np.ndarray) -> list | None:
         """The exact velocities of ``state`` for an exact simulation (None for a float one), checked:
@@ -406,15 +417,15 @@ class Simulation:
         if state.exact is None:
             raise FieldError("exact", "a simulation in exact arithmetic resumes only from an exact state "
                                       "(this one holds float velocities only)")
-        shape = (*velocities.shape, self._exact.field.m)
+        shape = (*velocities.shape, self._field.field.m)
         if np.shape(state.exact) != shape:
-            raise FieldError("exact", f"must have shape (n_balls, dim, m) = {shape} in {self._exact.field}, "
+            raise FieldError("exact", f"must have shape (n_balls, dim, m) = {shape} in {self._field.field}, "
                                       f"got {np.shape(state.exact)}")
         try:
-            exact = self._exact.parse(state.exact)
+            exact = self._field.parse(state.exact)
         except (ValueError, TypeError, ZeroDivisionError) as exc:
             raise FieldError("exact", f"a coefficient is not a rational number ({exc})") from None
-        F = self._exact.field
+        F = self._field.field
         rounded = np.array([[F.to_float(x) for x in row] for row in exact])
         if not np.array_equal(rounded, velocities):
             raise FieldError("exact", "the exact velocities do not round to the state's velocities")
@@ -444,7 +455,7 @@ class Simulation:
         if not isinstance(c, CertifiedState):
             raise FieldError("certified", "a simulation in certified arithmetic resumes only from a certified state "
                                           f"(this one holds {'exact' if state.exact is not None else 'float'} velocities)")
-        ex = self._exact
+        ex = self._field
         c.check((*velocities.shape, ex.field.m), ex.B.shape[1])
         if not np.array_equal(nearest_floats(from_limbs(c.limbs), int(c.scale), ex.field.basis[-1]), velocities):
             raise FieldError("certified", "the fixed-point velocities do not round to the state's velocities")
@@ -478,23 +489,23 @@ def _selector(scheduler: Scheduler, geometry: Geometry):
     return scheduler.selector(geometry)
 
 
-def _exact_chain(sim: Simulation, precision, late_precision) -> FieldChain | None:
+def _field_chain(sim: Simulation, model: Model, velocities: np.ndarray, precision, late_precision) -> FieldChain | None:
     """The chain of ``sim``'s exact or certified arithmetic (None for floats), or a `FieldError` on
     ``arithmetic`` (or ``precision``, ``late_precision``) saying why it cannot have one."""
     name = sim.arithmetic
     precision, late_precision = check_precisions(name, precision, late_precision)
     if name == "float":
         return None
-    r = sim.rule.exact_restitution()
+    r = model.restitution
     if r is None:
         raise FieldError("arithmetic", f"{name} arithmetic runs the built-in rules (Elastic, Restitution); "
-                                       f"{sim.rule!r} has no exact form")
-    if sim._selector.tracks:
+                                       f"{described(sim.rule)} has no exact form")
+    if model.selector.tracks:
         raise FieldError("arithmetic", f"{name} arithmetic follows the picks of a scheduler that needs no live set; "
-                                       f"{sim.scheduler!r} picks among live contacts in float arithmetic "
+                                       f"{described(sim.scheduler)} picks among live contacts in float arithmetic "
                                        f"(UniformRandomPair has the same law)")
     try:
-        return field_chain(sim.geometry, sim.velocities, sim._mass_array, r, name, precision, late_precision)
+        return field_chain(sim.geometry, velocities, model.masses, r, name, precision, late_precision)
     except NotFixed as exc:
         raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "
                                        f"whose normals have dyadic components in Q or one Q(sqrt d) (triangular "

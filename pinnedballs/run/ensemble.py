@@ -130,7 +130,7 @@ def _run_replica(spec: RunSpec, index: int, seed: np.random.SeedSequence, observ
     from .execute import run_to_stop
 
     sim = spec.build(seed=seed)
-    sim._margin_warned = True  # the ensemble says once that margins are thin, not each replica (`run_ensemble`)
+    sim.warns_thin_margin = False  # the ensemble says once that margins are thin, not each replica (`run_ensemble`)
     rows: list[dict] = []
     counter = spec.snapshots.counter if spec.snapshots else ""
 

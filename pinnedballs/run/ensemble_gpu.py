@@ -2,28 +2,31 @@
 
 Small systems run one replica a GPU thread (`engine.gpu.replicas.ReplicaChains`), as many at once as the
 GPU's memory holds (`REPLICA_MEMORY_SHARE` of it), group after group. A replica's stream is its own
-seed's counter stream, so it runs the chain its `Simulation` would run on the CPU; this module plays
-the run driver's part for each (`engine.driver`): it stops every replica at the counts where the spec's
-snapshots fall and at its stop, in the driver's order (the snapshots' trigger, then the stop's reason,
-a run stopped by steps found frozen on its last step), and builds its rows from its velocities as
-`run_replica` does. Systems larger than `MAX_THREAD_CONTACTS` contacts run one replica after another,
-each a `Simulation(device="cuda")` (the chain by deterministic reservations on the whole GPU).
+seed's counter stream, so it runs the chain its `Simulation` would run on the CPU. Each replica goes
+through the run driver (`engine.driver.Drive`), as a replica on the CPU does: the driver says where its
+next chunk ends (the spec's stop, its snapshots' trigger), the chunks of all the replicas run in one
+launch, and the driver fires the snapshot rows and finds the stop's reason. A replica is seen by the
+driver and the rows as a `Replica`: a simulation's counters, state and freeze, read from the group's arrays.
+Systems larger than `MAX_THREAD_CONTACTS` contacts run one replica after another, each a
+`Simulation(device="cuda")` (the chain by deterministic reservations on the whole GPU).
 """
 
 from __future__ import annotations
 
-import types
 from typing import Callable
 
 import numpy as np
 
+from ..engine.backends import check_device
 from ..engine.chain import NO_LIMIT
+from ..engine.driver import Drive, Writer, drive
 from ..engine.philox import counter_stream
 from ..engine.random import seed_state
 from ..engine.state import RunState, mass_array
+from ..geometry.simulation import check_velocities
 from ..rules import threshold
 
-__all__ = ["run_on_gpu", "MAX_THREAD_CONTACTS", "REPLICA_MEMORY_SHARE"]
+__all__ = ["run_on_gpu", "Replica", "MAX_THREAD_CONTACTS", "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS"]
 
 #: systems with more contacts than this run one replica at a time on the whole GPU
 MAX_THREAD_CONTACTS = 1 << 16
@@ -37,10 +40,9 @@ def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Cal
     """The rows of replicas ``0 .. len(seeds) - 1`` of ``spec``, by replica. ``row_of(sim, index, seed, at,
     state, frozen, reason, observe)`` builds one row (`ensemble.replica_row`) with ``observe``'s columns,
     ``tick()`` is told of each replica done."""
-    from ..engine.backends import check_device
-
     proto = spec.build(seed=seeds[0])
-    check_device(proto)  # floats, a built-in rule, the counter stream, numba-cuda and a GPU: or one line why
+    # floats, the counter stream, a rule the GPU runs with the CPU's bits, numba-cuda and a GPU: or one line why
+    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler)
     if proto.geometry.n_contacts > MAX_THREAD_CONTACTS:
         return _one_at_a_time(spec, seeds, observe, row_of, tick)
     out: dict[int, list] = {}
@@ -51,25 +53,33 @@ def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Cal
     return out
 
 
-def _one_at_a_time(spec, seeds, observe, row_of, tick) -> dict[int, list]:
-    from ..engine.driver import drive
-    from ..results.format import Record
-    from .writers import OnSnapshot
+class _Rows(Writer):
+    """The rows of one replica: a snapshot row each time the spec's trigger fires, and the final row."""
 
+    def __init__(self, spec, index: int, seed, observe: Callable, row_of: Callable):
+        self.trigger = spec.snapshots.build() if spec.snapshots else None
+        self.counter = spec.snapshots.counter if spec.snapshots else ""
+        self.index, self.seed, self.observe, self.row_of = index, seed, observe, row_of
+        self.rows: list = []
+
+    def write(self, sim) -> None:
+        state = sim.get_state()
+        self.rows.append(self.row_of(sim, self.index, self.seed, f"{self.counter}={getattr(state, self.counter)}",
+                                     state, sim.is_frozen(), "", self.observe))
+
+    def finish(self, sim, reason: str) -> None:
+        self.rows.append(self.row_of(sim, self.index, self.seed, "final", sim.get_state(), sim.is_frozen(), reason,
+                                     self.observe))
+
+
+def _one_at_a_time(spec, seeds, observe, row_of, tick) -> dict[int, list]:
     out = {}
     for k, seed in enumerate(seeds):
         sim = spec.build(seed=seed, device="cuda")
-        sim._margin_warned = True
-        rows, counter = [], spec.snapshots.counter if spec.snapshots else ""
-
-        def on_snapshot(record: Record) -> None:
-            rows.append(row_of(sim, k, seed, f"{counter}={getattr(record.state, counter)}", record.state,
-                               record.frozen, "", observe))
-
-        writers = [OnSnapshot(spec.snapshots.build(), on_snapshot)] if spec.snapshots else []
-        reason = drive(sim, spec.stop.build(), writers)
-        rows.append(row_of(sim, k, seed, "final", sim.get_state(), sim.is_frozen(), reason, observe))
-        out[k] = rows
+        sim.warns_thin_margin = False  # the ensemble says it once
+        rows = _Rows(spec, k, seed, observe, row_of)
+        drive(sim, spec.stop.build(), [rows])
+        out[k] = rows.rows
         tick()
     return out
 
@@ -90,97 +100,92 @@ def _groups(count: int, proto) -> list[range]:
     return [range(a, min(count, a + size)) for a in range(0, count, size)]
 
 
+class Replica:
+    """Replica ``r`` of a group on the GPU as the run driver and the rows see a simulation: its counters,
+    state, freeze and what a row reads (geometry, masses, threshold, resolution)."""
+
+    smallest_exact_collision = None
+
+    def __init__(self, chains, r: int, proto, threshold_: float):
+        self.chains, self.r, self.proto = chains, r, proto
+        self.geometry, self.masses, self.resolution = proto.geometry, proto.masses, proto.resolution
+        self.threshold = threshold_
+
+    @property
+    def steps(self) -> int:
+        return int(self.chains.state[self.r, 0])
+
+    @property
+    def collisions(self) -> int:
+        return int(self.chains.state[self.r, 1])
+
+    @property
+    def velocities(self) -> np.ndarray:
+        return self.chains.velocities(self.r)
+
+    def is_frozen(self) -> bool:
+        """No live contact in its velocities (counted on the CPU, as `Simulation.approaching` counts them)."""
+        return not self.proto.engine.live_flags(self.velocities).any()
+
+    def get_state(self) -> RunState:
+        return RunState(self.velocities, self.steps, self.collisions, np.zeros(4, dtype=np.uint64),
+                        np.zeros(1, dtype=np.int64), None, self.chains.margin[self.r].copy(), None)
+
+
 class _Group:
     """Replicas of one spec on the GPU, each driven to its snapshots and its stop (module docstring)."""
 
     def __init__(self, spec, proto, members: list, observe: Callable, row_of: Callable):
         from ..engine.gpu.replicas import ReplicaChains
 
-        self.spec, self.proto, self.members, self.row_of = spec, proto, members, row_of
-        self.observe = observe
-        g, masses = proto.geometry, proto._mass_array
-        v, params, keys, self.views = [], [], [], []
+        self.spec, self.proto, self.members = spec, proto, members
+        model = proto.engine.model
+        g, masses = proto.geometry, model.masses
+        v, params, keys, thresholds = [], [], [], []
         for k, seed in members:
-            velocities = proto._check_velocities(spec.initial.build(g, mass_array(spec.build_masses(g.n_balls),
-                                                                                   g.n_balls), seed))
+            velocities = check_velocities(g, masses, spec.initial.build(g, mass_array(spec.build_masses(g.n_balls),
+                                                                                      g.n_balls), seed))
             tau = threshold(velocities, masses, proto.resolution)
             v.append(velocities)
-            params.append(np.append(proto._params[:-1], tau))
+            params.append(np.append(model.params[:-1], tau))
             keys.append(counter_stream(seed_state(seed))[:2])
-            # what a row reads of a simulation: its geometry, masses, threshold and resolution
-            self.views.append(types.SimpleNamespace(geometry=g, masses=proto.masses, threshold=tau,
-                                                    resolution=proto.resolution, smallest_exact_collision=None))
+            thresholds.append(tau)
         self.chains = ReplicaChains(np.stack(v), np.stack(params), np.stack(keys), g.contacts, None, masses,
-                                    proto._collide)
-        self.stop = spec.stop.build()
-        self.trigger = spec.snapshots.build() if spec.snapshots else None
-        self.counter = spec.snapshots.counter if spec.snapshots else ""
-
-    def _state(self, r: int, velocities: np.ndarray) -> RunState:
-        st = self.chains.state[r]
-        return RunState(velocities, int(st[0]), int(st[1]), np.zeros(4, dtype=np.uint64), np.zeros(1, dtype=np.int64),
-                        None, self.chains.margin[r].copy(), None)
-
-    def _live(self, velocities: np.ndarray) -> int:
-        return int(self.proto._backend.live_flags_of(self.proto, velocities).sum())
+                                    model.collide)
+        self.rows = [_Rows(spec, k, seed, observe, row_of) for k, seed in members]
+        self.drives = [Drive(Replica(self.chains, r, proto, thresholds[r]), spec.stop.build(), [self.rows[r]],
+                             chunk=LAUNCH_STEPS) for r in range(len(members))]
 
     def run(self) -> dict[int, list]:
-        from ..engine.driver import _least
-
-        n = len(self.members)
-        rows: list[list] = [[] for _ in range(n)]
-        checked: list = [None] * n
-        frozen = np.zeros(n, dtype=bool)
-        done = np.zeros(n, dtype=bool)
-        self._fire(rows, checked, range(n))
-        chunk = max(1 << 12, 4 * self.proto.geometry.n_contacts)
-        while not done.all():
+        n, until_frozen = len(self.members), self.drives[0].stop.until_frozen
+        freeze_chunk = max(1 << 12, 4 * self.proto.geometry.n_contacts)
+        for d in self.drives:
+            d.attach()
+            d.start()
+        active = list(range(n))
+        while True:
             limits = np.zeros((n, 3), dtype=np.int64)
-            for r in range(n):
-                steps, collisions = (int(x) for x in self.chains.state[r, :2])
-                counts = types.SimpleNamespace(steps=steps, collisions=collisions)
-                reason = "" if done[r] else self.stop.reason(counts, frozen[r])
-                if reason == self.stop.steps_reason and self.stop.until_frozen and \
-                        self._live(self.chains.velocities(r)) == 0:
-                    reason = self.stop.reason(counts, True)  # froze on the very last step
-                if reason and not done[r]:
-                    done[r] = True
-                    self._finish(rows, r, reason)
-                t = self.trigger
-                step_to = _least(self.stop.steps, None if t is None else t.next_steps(steps))
-                collide_to = _least(self.stop.collisions, None if t is None else t.next_collisions(collisions))
-                limits[r] = (steps if done[r] else min(NO_LIMIT if step_to is None else step_to, steps + LAUNCH_STEPS),
-                             NO_LIMIT if collide_to is None else collide_to, int(self.stop.until_frozen))
-            if done.all():
+            moving = []
+            for r in active:
+                asked = self.drives[r].next()
+                if asked is None:
+                    continue
+                steps, collisions = asked
+                st = self.chains.state[r]
+                limits[r] = (st[0] + steps, NO_LIMIT if collisions is None else collisions, int(until_frozen))
+                moving.append(r)
+            if not moving:
                 break
+            for r in set(range(n)) - set(moving):  # done: no step
+                limits[r] = (self.chains.state[r, 0], NO_LIMIT, 0)
             before = self.chains.state[:, :2].copy()
-            self.chains.run(limits, chunk)
-            moved = [r for r in range(n) if not done[r]]
-            for r in moved:
+            self.chains.run(limits, freeze_chunk)
+            for r in moving:
                 st = self.chains.state[r]
                 short = st[0] < limits[r, 0] and st[1] < limits[r, 1]
-                frozen[r] = bool(short and self.stop.until_frozen and st[3])
-                if short and not frozen[r] and st[0] == before[r, 0]:
+                frozen = bool(short and until_frozen and st[3])
+                if short and not frozen and st[0] == before[r, 0]:
                     raise RuntimeError(f"replica {self.members[r][0]} took no step and did not freeze")
-            self._fire(rows, checked, moved)
-        return {k: rows[r] for r, (k, _) in enumerate(self.members)}
-
-    def _fire(self, rows, checked, replicas) -> None:
-        """The snapshot rows of the replicas whose trigger fires at their counts now (`driver._fire`)."""
-        if self.trigger is None:
-            return
-        for r in replicas:
-            now = tuple(int(x) for x in self.chains.state[r, :2])
-            if checked[r] != now and self.trigger.fires(checked[r], now):
-                v = self.chains.velocities(r)
-                state = self._state(r, v)
-                k, seed = self.members[r]
-                rows[r].append(self.row_of(self.views[r], k, seed, f"{self.counter}={getattr(state, self.counter)}",
-                                           state, self._live(v) == 0, "", self.observe))
-            checked[r] = now
-
-    def _finish(self, rows, r: int, reason: str) -> None:
-        v = self.chains.velocities(r)
-        k, seed = self.members[r]
-        rows[r].append(self.row_of(self.views[r], k, seed, "final", self._state(r, v), self._live(v) == 0, reason,
-                                   self.observe))
+                self.drives[r].advanced(frozen)
+            active = moving
+        return {k: self.rows[r].rows for r, (k, _) in enumerate(self.members)}

@@ -64,7 +64,7 @@ def run_to_stop(spec: RunSpec, sim: Simulation, *, on_snapshot: Callable[[Record
     if on_snapshot is not None and spec.snapshots is not None:
         writers.append(OnSnapshot(spec.snapshots.build(), on_snapshot))
     reason = drive(sim, spec.stop.build(), writers, after_chunk=after_chunk)
-    sim._say_if_thin(reason)  # a run that froze: its count is the observable
+    sim.warn_if_thin(reason)  # a run that froze: its count is the observable
     return reason
 
 
@@ -291,7 +291,7 @@ def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | 
                               f"continue with --resume")
 
     try:
-        sim._say_if_thin(drive(sim, stop, writers, after_chunk=after_chunk, progress=progress))
+        sim.warn_if_thin(drive(sim, stop, writers, after_chunk=after_chunk, progress=progress))
     finally:
         for other in writers[:-1]:
             other.close()

@@ -204,8 +204,8 @@ def test_exact_and_float_searches_agree_on_the_fewest_and_the_most():
     sim = pb.Simulation(geom, v, arithmetic="exact")
     speeds = []
     for k in exact.max_order:
-        speeds.append(sim._exact.field.to_float(sim._exact.closing(k)))
-        assert sim._exact.collide(k)
+        speeds.append(sim.engine.state.field_chain.field.to_float(sim.engine.state.field_chain.closing(k)))
+        assert sim.engine.state.field_chain.collide(k)
     assert min(speeds) > 1e-3
     for threshold in (1e-14, 1e-12, 1e-3):
         r = pb.explore_orders(geom, v, min_closing_speed=threshold)

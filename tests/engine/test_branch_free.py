@@ -35,8 +35,8 @@ def _run(monkeypatch, percent: int, make, calls) -> tuple:
         m.setattr(backends, "loops", functools.partial(engine_loops.loops, branch_free_percent=percent))
         sim = make()
     results = calls(sim)
-    return (_bits(sim.velocities), sim.steps, sim.collisions, sim._counters.copy(), sim._rng.copy(),
-            sim._sched_state.copy(), _bits(sim._margin), results)
+    return (_bits(sim.velocities), sim.steps, sim.collisions, sim.engine.state.counters.copy(), sim.engine.state.rng.copy(),
+            sim.engine.state.scheduler.copy(), _bits(sim.engine.state.margin), results)
 
 
 def _same(monkeypatch, make, calls) -> tuple:

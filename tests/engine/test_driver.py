@@ -50,7 +50,7 @@ def test_chunks_grow_from_the_first_and_change_no_bit(monkeypatch):
     chunked = torus()
     assert chunked.run(steps=3_000_000, progress=False) == 3_000_000
     whole = torus()
-    assert whole._run(3_000_000, driver.NO_LIMIT, False) == 3_000_000
+    assert whole.engine.run(3_000_000, driver.NO_LIMIT, False) == 3_000_000
     assert chunked.get_state().identical(whole.get_state())
     assert sizes[0] == driver.FIRST_CHUNK and sum(sizes) == 3_000_000 and len(sizes) > 2
     assert all(b <= driver.GROWTH * a for a, b in zip(sizes, sizes[1:-1]))  # the last is cut at the stop

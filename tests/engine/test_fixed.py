@@ -26,15 +26,15 @@ FEW = settings(max_examples=25, deadline=None, derandomize=True, suppress_health
 def rational(g, v, **kwargs) -> pb.Simulation:
     """An exact simulation run by the rational chain (today's `ExactChain`), whatever the geometry."""
     sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
-    sim._exact = ExactChain(g, sim.velocities.copy(), sim._mass_array, 1.0)
-    sim.velocities = sim._exact.shadow
+    sim.engine.state.field_chain = ExactChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
+    sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 
 
 def with_chain(sim: pb.Simulation, **chain_kwargs) -> pb.Simulation:
     """``sim`` with its fixed-point chain built again with ``chain_kwargs`` (a starting width)."""
-    sim._exact = FixedChain(sim.geometry, sim.velocities.copy(), lines_of(sim.geometry), sim.arithmetic, **chain_kwargs)
-    sim.velocities = sim._exact.shadow
+    sim.engine.state.field_chain = FixedChain(sim.geometry, sim.velocities.copy(), lines_of(sim.geometry), sim.arithmetic, **chain_kwargs)
+    sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 
 
@@ -169,11 +169,11 @@ def test_widening_changes_nothing(start):
     v = inward(g) if start == "inward" else np.random.default_rng(2).normal(size=(g.n_balls, 2))
     narrow = with_chain(pb.Simulation(g, v, seed=4, arithmetic="exact"))
     wide = with_chain(pb.Simulation(g, v, seed=4, arithmetic="exact"), precision=64 * 40)
-    assert narrow._exact.P == 1 or start == "equilibrium"
+    assert narrow.engine.state.field_chain.P == 1 or start == "equilibrium"
     logs = [Log(narrow), Log(wide)]
     for s in (narrow, wide):
         s.run(steps=20_000, until_frozen=True)
-    assert narrow._exact.widenings >= 2 and wide._exact.widenings == 0
+    assert narrow.engine.state.field_chain.widenings >= 2 and wide.engine.state.field_chain.widenings == 0
     assert (logs[0].steps, logs[0].contacts) == (logs[1].steps, logs[1].contacts) and narrow.collisions > 50
     assert_same_exactly(narrow, wide)
 
@@ -229,13 +229,13 @@ def test_certified_counts_are_the_exact_counts_of_the_paper_half_plane(length, d
 
 def _at_rest(sim: pb.Simulation) -> int:
     """The balls of ``sim``'s fixed-point chain exactly at rest."""
-    return int(np.count_nonzero(~np.any(sim._exact.X, axis=(1, 2, 3))))
+    return int(np.count_nonzero(~np.any(sim.engine.state.field_chain.X, axis=(1, 2, 3))))
 
 
 def late(g, v, seed, precision, late_precision, every) -> pb.Simulation:
     """A certified simulation narrowing to ``late_precision`` checked every ``every`` steps (0: never)."""
     sim = pb.Simulation(g, v, seed=seed, arithmetic="certified", precision=precision, late_precision=late_precision)
-    sim._exact.every = every
+    sim.engine.state.field_chain.every = every
     return sim
 
 
@@ -254,17 +254,17 @@ def test_narrowing_behind_the_front_keeps_exact_arithmetics_collisions():
         assert s.run_until_frozen(max_steps=10**7)
     assert (narrowing.collisions, narrowing.steps) == (exact.collisions, exact.steps) and exact.collisions > 5_000
     assert (logs[0].steps, logs[0].contacts) == (logs[1].steps, logs[1].contacts)
-    chain = narrowing._exact
+    chain = narrowing.engine.state.field_chain
     assert chain.P == 2 and chain.S == 128 - chain.top and chain.narrowed % 1_000 == 0
     before = late(g, v, 5, 384, 128, 0)  # checked by hand: settled at that step, not at the one checked before
     before.run(steps=chain.narrowed - 1_001)
-    assert not before._exact.settled()
+    assert not before.engine.state.field_chain.settled()
     before.run(steps=1_000)
-    assert _at_rest(before) == 0 and before._exact.settled()
+    assert _at_rest(before) == 0 and before.engine.state.field_chain.settled()
     G, largest = narrowing.error_bound
     assert 0.0 < largest <= G < 2.0**-100
     errors = [max(abs(float(sum(a - b for a, b in zip(x, y)))) for x, y in zip(row_a, row_b)) for row_a, row_b in
-              zip(exact._exact.v, chain.v)]
+              zip(exact.engine.state.field_chain.v, chain.v)]
     assert 0.0 < max(errors) <= largest
 
 
@@ -275,10 +275,10 @@ def test_narrowing_happens_at_one_step_however_the_run_is_split():
     v = inward(g)
     whole = late(g, v, 5, 384, 128, 1_000)
     whole.run_until_frozen(max_steps=10**7)
-    assert whole._exact.narrowed is not None and whole.get_state().certified.limbs.shape[-1] == 2
+    assert whole.engine.state.field_chain.narrowed is not None and whole.get_state().certified.limbs.shape[-1] == 2
     split, saved = late(g, v, 5, 384, 128, 1_000), None
     while not split.run(steps=997, until_frozen=True) == 0 and not split.is_frozen():
-        if saved is None and split.steps > whole._exact.narrowed // 2:
+        if saved is None and split.steps > whole.engine.state.field_chain.narrowed // 2:
             saved = split.get_state()
     assert saved is not None and saved.certified.limbs.shape[-1] == 6
     resumed = late(g, v, 5, 384, 128, 1_000)
@@ -286,7 +286,7 @@ def test_narrowing_happens_at_one_step_however_the_run_is_split():
     resumed.run_until_frozen(max_steps=10**7)
     for s in (split, resumed):
         assert (s.steps, s.collisions) == (whole.steps, whole.collisions)
-        assert s._exact.narrowed == whole._exact.narrowed
+        assert s.engine.state.field_chain.narrowed == whole.engine.state.field_chain.narrowed
         assert s.get_state().certified.identical(whole.get_state().certified)
         assert np.array_equal(s.velocities, whole.velocities)
 
@@ -297,8 +297,8 @@ def test_a_decision_failing_after_the_narrowing_says_so():
     g = pb.HalfPlane.from_size(20, 10)
     sim = late(g, inward(g), 1, 256, 64, 0)
     sim.run(steps=200)
-    sim._exact.narrow(201)
-    assert sim._exact.P == 1 and sim._exact.narrowed == 201
+    sim.engine.state.field_chain.narrow(201)
+    assert sim.engine.state.field_chain.P == 1 and sim.engine.state.field_chain.narrowed == 201
     with pytest.raises(UncertifiedDecision) as info:
         sim.run_until_frozen(max_steps=10**6)
     assert str(info.value).endswith('use arithmetic="exact" or a larger precision (now 64 bits, the late_precision '
@@ -314,7 +314,7 @@ def test_no_narrowing_while_a_ball_rests():
     v[5] = [0.7390851332151607, 0.1]
     sim = late(g, v, 2, 256, 64, 1)
     assert sim.run_until_frozen(max_steps=10**5)
-    assert _at_rest(sim) == 10 and sim.collisions == 6 and sim._exact.P == 4 and sim._exact.narrowed is None
+    assert _at_rest(sim) == 10 and sim.collisions == 6 and sim.engine.state.field_chain.P == 4 and sim.engine.state.field_chain.narrowed is None
 
 
 # ---------------------------------------------------------------- choosing the arithmetic
@@ -331,13 +331,13 @@ def test_certified_arithmetic_refuses_what_only_the_rational_chain_runs(kwargs, 
         pb.Simulation(g, v, arithmetic="certified", **kwargs)
     assert str(info.value).startswith("arithmetic: certified arithmetic needs equal masses") and words in str(info.value)
     assert 'arithmetic="exact" runs it' in str(info.value)
-    assert isinstance(pb.Simulation(g, v, arithmetic="exact", **kwargs)._exact, ExactChain)
+    assert isinstance(pb.Simulation(g, v, arithmetic="exact", **kwargs).engine.state.field_chain, ExactChain)
 
 
 def test_hcp_keeps_the_rational_chain_and_certified_says_why():
     g = pb.HCP(3, 3, 2, periodic=False)
     v = np.random.default_rng(0).normal(size=(g.n_balls, 3))
-    assert isinstance(pb.Simulation(g, v, arithmetic="exact")._exact, ExactChain)
+    assert isinstance(pb.Simulation(g, v, arithmetic="exact").engine.state.field_chain, ExactChain)
     with pytest.raises(ValueError, match=r"^arithmetic: certified .* not in Q or one Q\(sqrt d\)"):
         pb.Simulation(g, v, arithmetic="certified")
 
@@ -395,10 +395,10 @@ for name, arithmetic, options in (("exact", "exact", {}), ("certified", "certifi
     sim = pb.Simulation(*((late, w) if name == "late" else (g, v)), seed=3 if name == "late" else 2,
                         arithmetic=arithmetic, **options)
     if name == "late":
-        sim._exact.every = 8
+        sim.engine.state.field_chain.every = 8
     sim.run_until_frozen(10**5)
     state = sim.get_state()
-    out[name] = [sim.steps, sim.collisions, sim.velocities.tolist(), getattr(sim._exact, "narrowed", None),
+    out[name] = [sim.steps, sim.collisions, sim.velocities.tolist(), getattr(sim.engine.state.field_chain, "narrowed", None),
                  state.exact.tolist() if state.exact is not None else state.certified.limbs.tolist()]
 print(json.dumps(out))
 """
@@ -444,11 +444,11 @@ def test_certified_past_960_bits_decides_as_exact_arithmetic_within_its_bounds()
     g = pb.HalfPlane(8, 6)
     exact, certified = rational(g, inward(g), seed=3), pb.Simulation(g, inward(g), seed=3, arithmetic="certified",
                                                                      precision=1536)
-    chain = certified._exact
+    chain = certified.engine.state.field_chain
     deep = _deep_velocities(g, chain.S - 6, seed=1)
     for s in (exact, certified):
-        s._exact.set_velocities(deep)
-        s.velocities = s._exact.sync()
+        s.engine.state.field_chain.set_velocities(deep)
+        s.velocities = s.engine.state.field_chain.sync()
     assert chain.P == 24 and chain.S > 1500 and np.array_equal(exact.velocities, certified.velocities)
     logs = [Log(exact), Log(certified)]
     for s in (exact, certified):
@@ -461,7 +461,7 @@ def test_certified_past_960_bits_decides_as_exact_arithmetic_within_its_bounds()
     per_ball = np.min(np.hypot(state.bounds[:, 0], state.bounds[:, 1]), axis=1)
     unit, sqrt3 = 1 << chain.S, mpq(math.isqrt(3 << 6000), 1 << 3000)  # within 2^-3000
     worst = 0.0
-    for b, (row_e, row_c) in enumerate(zip(exact._exact.v, chain.v)):
+    for b, (row_e, row_c) in enumerate(zip(exact.engine.state.field_chain.v, chain.v)):
         err = [float(((x[0] - y[0]) + (x[1] - y[1]) * sqrt3) * unit) for x, y in zip(row_e, row_c)]
         size = float(np.hypot(*err))
         assert size <= per_ball[b], (b, size, per_ball[b])
@@ -475,7 +475,7 @@ def test_an_exact_zero_hidden_by_rounding_past_960_bits_stops_the_run_in_one_lin
     stops the run and the message gives the bound in powers of 2 (below the smallest float)."""
     g = pb.HalfPlane(5, 4)
     sim = pb.Simulation(g, inward(g), seed=2, arithmetic="certified", precision=1536)
-    chain = sim._exact
+    chain = sim.engine.state.field_chain
     chain.set_velocities([[(mpq(3, 8), mpq(0)), (mpq(-1, 4), mpq(1, 16))] for _ in range(g.n_balls)])
     sim.velocities = chain.sync()
     state = sim.get_state()

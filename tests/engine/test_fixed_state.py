@@ -29,8 +29,8 @@ def inward(g) -> np.ndarray:
 
 def rational(g, v, **kwargs) -> pb.Simulation:
     sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
-    sim._exact = ExactChain(g, sim.velocities.copy(), sim._mass_array, 1.0)
-    sim.velocities = sim._exact.shadow
+    sim.engine.state.field_chain = ExactChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
+    sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 
 
@@ -47,7 +47,7 @@ def test_a_run_split_into_calls_ends_on_the_same_state(arithmetic):
     assert split.collisions == whole.collisions - 5
     split.run_until_frozen(max_steps=10**6)
     assert split.get_state().identical(whole.get_state())
-    assert isinstance(whole._exact, FixedChain) and (whole.get_state().certified is None) == (arithmetic == "exact")
+    assert isinstance(whole.engine.state.field_chain, FixedChain) and (whole.get_state().certified is None) == (arithmetic == "exact")
 
 
 @pytest.mark.parametrize("arithmetic", ["exact", "certified"])

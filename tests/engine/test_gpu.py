@@ -30,7 +30,7 @@ def state(sim) -> tuple:
     """Everything a run leaves: velocities (bit patterns), counters, stream words, margin."""
     s = sim.get_state()
     return (s.velocities.view(np.uint64).tobytes(), s.steps, s.collisions, s.rng_state.tobytes(), s.margin.tobytes(),
-            int(sim._counters[3]))
+            int(sim.engine.state.counters[3]))
 
 
 def both(geometry, v, run, **kwargs):
@@ -72,13 +72,13 @@ def _chain_run(geometry, v, steps, masses=None, rule=None, pattern=None, **chain
     cpu = pb.Simulation(geometry, v, scheduler=COUNTER, seed=8, masses=masses, rule=rule)
     cpu.run(steps=steps, progress=False)
     sim = pb.Simulation(geometry, v, scheduler=COUNTER, seed=8, masses=masses, rule=rule)
-    dc = DeviceChain(sim.velocities, geometry.contacts, pattern, sim._mass_array, sim._params, sim._collide,
-                     sim._rng[:2], **chain)
-    counters, rng, margin = np.zeros(COUNTERS, dtype=np.int64), sim._rng.copy(), new_margin()
+    dc = DeviceChain(sim.velocities, geometry.contacts, pattern, sim.engine.model.masses, sim.engine.model.params, sim.engine.model.collide,
+                     sim.engine.state.rng[:2], **chain)
+    counters, rng, margin = np.zeros(COUNTERS, dtype=np.int64), sim.engine.state.rng.copy(), new_margin()
     assert dc.run(counters, rng, margin, steps, NO_LIMIT, False) == steps
-    assert (counters[0], counters[1], counters[3]) == (cpu.steps, cpu.collisions, cpu._counters[3])
-    np.testing.assert_array_equal(rng, cpu._rng)
-    np.testing.assert_array_equal(margin, cpu._margin)
+    assert (counters[0], counters[1], counters[3]) == (cpu.steps, cpu.collisions, cpu.engine.state.counters[3])
+    np.testing.assert_array_equal(rng, cpu.engine.state.rng)
+    np.testing.assert_array_equal(margin, cpu.engine.state.margin)
     np.testing.assert_array_equal(dc.velocities().view(np.uint64), cpu.velocities.view(np.uint64))
     return dc
 
@@ -134,8 +134,8 @@ def test_replicas_are_the_cpus_simulations(layout, monkeypatch):
     g = pb.HalfPlane.from_size(20, 10)
     seeds = np.random.SeedSequence(3).spawn(4)
     sims = [pb.Simulation(g, single(g), scheduler=COUNTER, seed=s) for s in seeds]
-    chains = ReplicaChains(np.stack([s.velocities for s in sims]), np.stack([s._params for s in sims]),
-                           np.stack([s._rng[:2] for s in sims]), g.contacts, None, sims[0]._mass_array, sims[0]._collide)
+    chains = ReplicaChains(np.stack([s.velocities for s in sims]), np.stack([s.engine.model.params for s in sims]),
+                           np.stack([s.engine.state.rng[:2] for s in sims]), g.contacts, None, sims[0].engine.model.masses, sims[0].engine.model.collide)
     limits = np.array([[10**6, NO_LIMIT, 1], [700, NO_LIMIT, 0], [10**6, 60, 1], [10**6, NO_LIMIT, 1]])
     chains.run(limits, 512)
     sims[0].run_until_frozen(max_steps=10**6, progress=False)
@@ -146,7 +146,7 @@ def test_replicas_are_the_cpus_simulations(layout, monkeypatch):
         assert (chains.state[r, S_STEPS], chains.state[r, S_COLLISIONS]) == (sim.steps, sim.collisions)
         assert chains.state[r, S_FROZEN] == (r in (0, 3))
         np.testing.assert_array_equal(chains.velocities(r).view(np.uint64), sim.velocities.view(np.uint64))
-        np.testing.assert_array_equal(chains.margin[r], sim._margin)
+        np.testing.assert_array_equal(chains.margin[r], sim.engine.state.margin)
 
 
 def test_what_the_gpu_does_not_run_is_said_in_one_line():
@@ -285,8 +285,8 @@ def test_a_users_rule_runs_on_the_gpu_with_the_cpus_bits(rule):
 def test_a_device_chain_refuses_what_its_kernels_cannot_run():
     g = pb.HalfPlane.from_size(20, 10)
     sim = pb.Simulation(g, single(g), scheduler=COUNTER, seed=1)
-    args = (sim.velocities, g.contacts, None, sim._mass_array, sim._params)
+    args = (sim.velocities, g.contacts, None, sim.engine.model.masses, sim.engine.model.params)
     for options, message in (({"batch": 0}, r"^batch must be in \[1, 4194304\] and top in \[1, 1022\]$"),
                              ({"top": 1023}, r"^batch must be in \[1, 4194304\]")):
         with pytest.raises(ValueError, match=message):
-            DeviceChain(*args, sim._collide, sim._rng[:2], **options)
+            DeviceChain(*args, sim.engine.model.collide, sim.engine.state.rng[:2], **options)

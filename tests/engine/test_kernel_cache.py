@@ -130,7 +130,7 @@ def test_parallel_colored_sweep_loop_is_loaded_from_disk_in_a_fresh_process(tmp_
         geom = pb.FlatTorus(6, 6)
         sim = pb.Simulation(geom, np.random.default_rng(1).normal(size=(36, 2)), scheduler=pb.ColoredSweep(), seed=1)
         sim.run(steps=1000)
-        stats = sim._backend.own_steps.loop.stats
+        stats = sim.engine.own_steps.loop.stats
         print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), sim.velocities.sum().hex())
     """)
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -167,7 +167,7 @@ def test_the_margin_ends_with_the_run_however_it_is_split():
         split.run(steps=steps)
     split.run_until_frozen(max_steps=10**7)
     assert (split.steps, split.collisions) == (whole.steps, whole.collisions)
-    np.testing.assert_array_equal(split._margin, whole._margin)
+    np.testing.assert_array_equal(split.engine.state.margin, whole.engine.state.margin)
 
 
 def test_picks_tried_past_the_last_collision_are_not_in_the_margin():
@@ -185,7 +185,7 @@ def test_picks_tried_past_the_last_collision_are_not_in_the_margin():
     split.run(steps=4)
     split.run_until_frozen(max_steps=10**6)
     assert (split.steps, split.collisions) == (whole.steps, whole.collisions)
-    np.testing.assert_array_equal(split._margin, whole._margin)
+    np.testing.assert_array_equal(split.engine.state.margin, whole.engine.state.margin)
 
 
 @njit

@@ -65,7 +65,7 @@ def test_no_regions_where_a_contact_reaches_across_the_balls():
         assert bands_pay(c.pairs, geometry.n_balls, 2) == pays
         v = np.random.default_rng(2).normal(size=(geometry.n_balls, 2))
         sim = pb.Simulation(geometry, v, seed=3, scheduler=pb.UniformRandomPair(threads=2))
-        assert (sim._backend.parallel_chain(sim) is not None) == pays
+        assert (sim.engine.parallel_chain() is not None) == pays
     assert bands_pay(np.array([[0, 9]]), 10, 2) is False and bands_pay(np.array([[0, 1]]), 64, 2) is True
 
 
@@ -167,8 +167,8 @@ def test_a_simulation_on_two_threads_is_the_simulation_on_one():
         sim = pb.Simulation(half, v, seed=3, scheduler=pb.UniformRandomPair(threads=threads))
         sim.run(steps=2_000_000)
         sim.run(collisions=sim.collisions + 54_321)
-        assert bool(sim._backend.parallel_chain(sim)) == (threads == 2)
-        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state, sim._margin.copy()))
+        assert bool(sim.engine.parallel_chain()) == (threads == 2)
+        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state, sim.engine.state.margin.copy()))
     assert runs[0][:2] == runs[1][:2]
     for a, b in zip(runs[0][2:], runs[1][2:]):
         np.testing.assert_array_equal(a, b)

@@ -221,7 +221,7 @@ def test_a_simulation_on_two_threads_is_the_simulation_on_one():
         sim = pb.Simulation(half, v, seed=3, scheduler=pb.UniformRandomPair(threads=threads, stream="counter"))
         sim.run(steps=2_000_000)
         sim.run(collisions=sim.collisions + 54_321)
-        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state, sim._margin.copy()))
+        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state, sim.engine.state.margin.copy()))
     assert runs[0][:2] == runs[1][:2]
     for a, b in zip(runs[0][2:], runs[1][2:]):
         np.testing.assert_array_equal(a.view(np.uint64) if a.dtype == np.float64 else a,

@@ -90,7 +90,7 @@ def test_an_auto_run_resumes_at_the_bits_it_found(tmp_path, monkeypatch, from_64
     advance = driver.advance
 
     def crash_at_128_bits(sim, *args, **kwargs):
-        if sim._exact.bits[0] == 128 and sim.steps >= 3 * 211:
+        if sim.engine.state.field_chain.bits[0] == 128 and sim.steps >= 3 * 211:
             raise KeyError("killed")
         return advance(sim, *args, **kwargs)
 
@@ -100,7 +100,7 @@ def test_an_auto_run_resumes_at_the_bits_it_found(tmp_path, monkeypatch, from_64
         runner.execute(parse_spec(HALF_PLANE_30), out, figures=False, progress=False)
     killed = load(out)
     assert not killed.complete and killed.steps == 3 * 211 and killed.latest.certified.precision == 128
-    assert killed.simulation()._exact.bits == (128, 0)
+    assert killed.simulation().engine.state.field_chain.bits == (128, 0)
     monkeypatch.setattr(driver, "advance", advance)
     assert resume(spec_path, out) == 0
     assert_identical(load(out), ref)

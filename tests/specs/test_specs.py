@@ -214,7 +214,7 @@ def test_late_precision_is_the_simulations_and_round_trips():
     late = parse_spec(spec(HALF_PLANE, arithmetic="certified", precision=256, late_precision=128))
     assert parse_spec(late.to_json()) == late and json.loads(late.to_json())["late_precision"] == 128
     sim, whole = late.build(), parse_spec(spec(HALF_PLANE, arithmetic="certified", precision=256)).build()
-    assert (sim._exact.P, sim._exact.late_P) == (4, 2) and whole._exact.late_P is None
+    assert (sim.engine.state.field_chain.P, sim.engine.state.field_chain.late_P) == (4, 2) and whole.engine.state.field_chain.late_P is None
     for s in (sim, whole):
         s.run_until_frozen(max_steps=10**6)
     assert (sim.steps, sim.collisions) == (whole.steps, whole.collisions) and sim.collisions > 10

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..chain import COLLISIONS, LAST, LIVE, STEPS
+from ..harness import limits_loop
 from . import load
 from .device import SIMULATED, launching
 from .kernels import (C_BATCH_C0, C_BATCH_S0, C_BATCHES, C_COLL, C_COUNT, C_DONE, C_E, C_GEN, C_HITS, C_K, C_LAST,
@@ -179,41 +180,63 @@ class DeviceChain:
 
     def run(self, counters: np.ndarray, rng: np.ndarray, margin: np.ndarray, max_steps: int, max_collisions: int,
             until_frozen: bool) -> int:
-        """The engine's ``limited`` loop on the GPU (module docstring): ``counters (4,) int64``, the counter
-        stream's words ``rng (4,) uint64`` and ``margin (4,)`` are read and left as the CPU loop leaves
-        them. Returns the steps taken."""
-        if until_frozen and self.count_live() == 0:
-            counters[LIVE] = 0
-            return 0
+        """The engine's ``limited`` loop on the GPU, within the limits of `engine.harness` (module docstring):
+        ``counters (4,) int64``, the counter stream's words ``rng (4,) uint64`` and ``margin (4,)`` are read and
+        left as the CPU loop leaves them. Returns the steps taken."""
         if not np.array_equal(rng[:2], self._key_host):  # a state restored with another stream's key
             self._key_host = np.array(rng[:2], dtype=np.uint64)
             self._key.copy_to_device(self._key_host)
         offset = int(counters[STEPS]) - int(rng[2])  # steps counted before the stream's first pick (none: 0)
-        chunk = max(CHUNK_PER_CONTACT * self.n_contacts, 4 * self.batch)
-        taken, frozen = 0, False
-        while not frozen and taken < max_steps and counters[COLLISIONS] < max_collisions:
-            start, before = int(rng[2]), int(counters[COLLISIONS])
-            reach = max_collisions - before <= max_steps - taken  # the target may fall within this call
-            count = min(chunk, max_steps - taken) if (until_frozen or reach) else max_steps - taken
-            saved = margin.copy()
-            if until_frozen or reach:
+
+        chunk_start = None
+
+        def mark(data, carry, count, left):
+            """The chunk's start: its step, collisions and margin, and (where it may end short) its velocities."""
+            nonlocal chunk_start
+            if until_frozen or left <= count:
                 self._save()
+            chunk_start = int(rng[2]), int(counters[COLLISIONS]), margin.copy()
+            return chunk_start
+
+        def advance(data, carry, count, left, taken, collisions):
+            start, before = int(rng[2]), int(counters[COLLISIONS])
+            reach = left <= count  # the target may fall within this chunk
             done, made, last = self._launch(start, count, before, max_collisions if reach else _NO_LIMIT, margin,
                                             record=reach)
-            stop = None
-            if made >= max_collisions:
-                stop = self._target_step(max_collisions)
-            elif until_frozen and made > before and self.count_live() == 0:
-                stop, frozen = last, True
-            if stop is not None:  # again from the chunk's start, to the step it ends at
-                self._restore()
-                margin[:] = saved
-                done, made, last = self._launch(start, stop - start, before, _NO_LIMIT, margin, record=False)
+            if made >= max_collisions:  # the batch that reached the target went past it: again, to its step
+                done, made, last = self._again(start, before, self._target_step(max_collisions) - start, margin,
+                                               chunk_start[2])
             counters[STEPS] += done
             counters[COLLISIONS] = made
             if made > before:
                 counters[LAST] = last + offset
             rng[2] = np.uint64(start + done)
-            taken += done
+            return done, made - before, last - start - 1 if made > before else -1, carry
+
+        def live(data, carry):
+            return self.count_live() > 0
+
+        def settle(data, start, carry, used, count, frozen):
+            """A frozen chunk ends at its last collision: again from its start to there (once a run), the margin too."""
+            s0, before, saved = start
+            done = int(rng[2]) - s0
+            if frozen and used < done:
+                self._again(s0, before, used, margin, saved)
+                counters[STEPS] -= done - used
+                rng[2] = np.uint64(s0 + used)
+            return carry
+
+        chunk = max(CHUNK_PER_CONTACT * self.n_contacts, 4 * self.batch) \
+            if until_frozen or max_collisions - int(counters[COLLISIONS]) <= max_steps else max_steps
+        taken, _, frozen, _, _ = limits_loop(mark, advance, live, settle)(None, None, int(counters[COLLISIONS]), max_steps, max_collisions,
+                                           until_frozen, max(1, chunk))
         counters[LIVE] = 0 if frozen else -1
         return taken
+
+    def _again(self, start: int, before: int, steps: int, margin: np.ndarray, saved: np.ndarray) -> tuple[int, int, int]:
+        """The chunk from step ``start`` (``before`` collisions) run again for ``steps`` steps from its saved
+        velocities and margin ``saved``: `_launch`'s ``(steps, collisions, step after the last collision)``."""
+        self._restore()
+        margin[:] = saved
+        return self._launch(start, steps, before, _NO_LIMIT, margin, record=False)
+

@@ -21,7 +21,7 @@ from numba import cuda
 from ..philox import M0, M1, W0, W1, ROUNDS
 from .compile import SIMULATED, contraction_off
 
-__all__ = ["SIMULATED", "launching", "counter_pick", "philox_block", "lemire", "contact_reader", "INF"]
+__all__ = ["SIMULATED", "device", "launching", "counter_pick", "philox_block", "lemire", "contact_reader", "INF"]
 
 _MASK = (1 << 64) - 1
 _U0, _U1, _U2, _U3 = np.uint64(0), np.uint64(1), np.uint64(2), np.uint64(3)

@@ -1,10 +1,10 @@
 """Many small systems on one GPU: one replica a GPU thread, each the sequential chain on its own stream.
 
 A replica that fits a thread (its velocities in GPU memory, its picks a function of its own key and
-step) runs the engine's ``limited`` loop as the CPU runs it: chunks of steps, a scan for a live
-contact after a chunk with a collision, the chunk that froze ended at its last collision (the
-counter stream needs no rewind: its next pick is the one of that step), the margin's remnant side
-as of that collision. So each replica's velocities, counters and margin are those of a `Simulation`
+step) runs the engine's ``limited`` loop as the CPU runs it, within the limits of `engine.harness`
+compiled for the device: chunks of steps, a scan for a live contact after a chunk with a collision, the
+chunk that froze ended at its last collision (the counter stream needs no rewind: its next pick is the one
+of that step), the margin's remnant side as of that collision. So each replica's velocities, counters and margin are those of a `Simulation`
 on the CPU with the same seed (`run.ensemble_gpu` builds the ensemble's rows from them).
 
 `ReplicaChains` holds the replicas of one geometry and rule: velocities ``(R, N, dim)``, keys, the
@@ -23,7 +23,8 @@ from . import load
 from ..margin import track as margin_track
 from .chain import upload_contacts
 from .compile import device_function, device_trial
-from .device import INF, SIMULATED, contact_reader, launching, lemire, philox_block, counter_pick
+from ..harness import limits_loop
+from .device import SIMULATED, contact_reader, device, launching, lemire, philox_block, counter_pick
 
 __all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
 
@@ -43,66 +44,85 @@ def replicas_kernel(collide, dim: int, flat: bool, rows: bool):
     """``run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk)``: replica
     ``r`` (thread ``r``) runs its chain on ``V[r] (N, dim)`` with ``params P[r]``, key ``keys[r]``,
     counters ``state[r]`` and margin ``M[r] (4,)`` until ``limits[r] = (steps, collisions, until_frozen)``
-    (absolute counts) as the CPU's ``limited`` loop with freeze chunks of ``chunk`` steps."""
+    (absolute counts) as the CPU's ``limited`` loop with freeze chunks of ``chunk`` steps: the limits of
+    `engine.harness`, compiled for the device from the same source. ``data = (v, pairs, ends, table, meta,
+    inverse, units, masses, params, k0, k1, s0)``; ``carry = (margin (4), its remnant side as of the last
+    collision (2), the Philox block held and its four words)``."""
     trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
 
-    @cuda.jit(device=True)
-    def any_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts):
-        for k in range(n_contacts):
+    @device
+    def any_live(v, pairs, ends, table, meta, inverse, units, masses, params):
+        for k in range(pairs.shape[0]):
             i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(k))
             hit, w = trial(v, units, masses, params, i, j, a, b, False)
             if hit:
                 return True
         return False
 
+    @device
+    def mark(data, carry, count, left):
+        return carry  # the counter stream needs no rewind: the next pick is the one of its step
+
+    @device
+    def advance(data, carry, count, left, taken, collisions):
+        v, pairs, ends, table, meta, inverse, units, masses, params, k0, k1, s0 = data
+        m0, m1, m2, m3, at1, at3, q, w0, w1, w2, w3 = carry
+        n, tau = np.uint64(pairs.shape[0]), params[params.shape[0] - 1]
+        first = s0 + taken
+        s, end = first, first + count
+        made, last = np.int64(0), np.int64(-1)
+        at1, at3 = m1, m3
+        while s < end:
+            if (s >> 2) != q:  # one Philox block gives the words of four steps
+                q = s >> 2
+                w0, w1, w2, w3 = philox_block(np.uint64(q), _U0, _U0, _U0, k0, k1)
+            e = s & 3
+            x = w0 if e == 0 else (w1 if e == 1 else (w2 if e == 2 else w3))
+            c, accepted = lemire(x, n)
+            if not accepted:
+                c = counter_pick(k0, k1, np.uint64(s), n)
+            i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(c))
+            hit, w = trial(v, units, masses, params, i, j, a, b, True)
+            m0, m1, m2, m3 = track(hit, w, tau, m0, m1, m2, m3)
+            s += 1
+            if hit:
+                made += 1
+                last = s - first - 1
+                at1, at3 = m1, m3
+                if made == left:
+                    break
+        return s - first, made, last, (m0, m1, m2, m3, at1, at3, q, w0, w1, w2, w3)
+
+    @device
+    def live(data, carry):
+        v, pairs, ends, table, meta, inverse, units, masses, params, k0, k1, s0 = data
+        return any_live(v, pairs, ends, table, meta, inverse, units, masses, params)
+
+    @device
+    def settle(data, start, carry, used, count, frozen):
+        m0, m1, m2, m3, at1, at3, q, w0, w1, w2, w3 = carry
+        if frozen:  # the run ends right after its last collision, and so does its margin
+            m1, m3 = at1, at3
+        return m0, m1, m2, m3, at1, at3, q, w0, w1, w2, w3
+
+    to_limits = device(limits_loop(mark, advance, live, settle))
+
     @cuda.jit
     def run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk):
         r = cuda.grid(1)
         if r >= V.shape[0]:
             return
-        v, params = V[r], P[r]
-        n_contacts = pairs.shape[0]
-        n = np.uint64(n_contacts)
-        k0, k1, tau = keys[r, 0], keys[r, 1], params[params.shape[0] - 1]
-        s, collisions, last = state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST]
-        m0, m1, m2, m3 = M[r, 0], M[r, 1], M[r, 2], M[r, 3]
-        max_steps, max_collisions, until_frozen = limits[r, 0], limits[r, 1], limits[r, 2] != 0
-        frozen = False
-        if until_frozen and not any_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts):
-            frozen = True
-        q = np.int64(-1)
-        w0 = w1 = w2 = w3 = _U0
-        while not frozen and s < max_steps and collisions < max_collisions:
-            end = min(s + chunk, max_steps)
-            made, at_last1, at_last3 = 0, m1, m3
-            while s < end:
-                if (s >> 2) != q:  # one Philox block gives the words of four steps
-                    q = s >> 2
-                    w0, w1, w2, w3 = philox_block(np.uint64(q), _U0, _U0, _U0, k0, k1)
-                e = s & 3
-                x = w0 if e == 0 else (w1 if e == 1 else (w2 if e == 2 else w3))
-                c, accepted = lemire(x, n)
-                if not accepted:
-                    c = counter_pick(k0, k1, np.uint64(s), n)
-                i, j, a, b = contact(pairs, ends, table, meta, inverse, np.int64(c))
-                hit, w = trial(v, units, masses, params, i, j, a, b, True)
-                m0, m1, m2, m3 = track(hit, w, tau, m0, m1, m2, m3)
-                s += 1
-                if hit:
-                    collisions += 1
-                    made += 1
-                    last = s
-                    at_last1, at_last3 = m1, m3
-                    if collisions == max_collisions:
-                        break
-            if until_frozen and made > 0 and not any_live(v, pairs, ends, table, meta, inverse, units, masses,
-                                                          params, n_contacts):
-                frozen = True
-                s = last  # the run ends right after its last collision, and so does its margin
-                m1, m3 = at_last1, at_last3
-        state[r, S_STEPS], state[r, S_COLLISIONS], state[r, S_LAST] = s, collisions, last
+        s0 = state[r, S_STEPS]
+        data = (V[r], pairs, ends, table, meta, inverse, units, masses, P[r], keys[r, 0], keys[r, 1], s0)
+        m0, m1, m3 = M[r, 0], M[r, 1], M[r, 3]
+        carry = (m0, m1, M[r, 2], m3, m1, m3, np.int64(-1), _U0, _U0, _U0, _U0)
+        taken, collisions, frozen, last, carry = to_limits(data, carry, state[r, S_COLLISIONS], limits[r, 0] - s0,
+                                                           limits[r, 1], limits[r, 2] != 0, chunk)
+        state[r, S_STEPS], state[r, S_COLLISIONS] = s0 + taken, collisions
+        if last >= 0:
+            state[r, S_LAST] = s0 + last
         state[r, S_FROZEN] = 1 if frozen else 0
-        M[r, 0], M[r, 1], M[r, 2], M[r, 3] = m0, m1, m2, m3
+        M[r, 0], M[r, 1], M[r, 2], M[r, 3] = carry[0], carry[1], carry[2], carry[3]
 
     return run
 
