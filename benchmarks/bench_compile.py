@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 import pinnedballs as pb
 try:
-    from pinnedballs.engine.random import bounded
+    from pinnedballs.engine.streams.xoshiro import bounded
 except ImportError:  # the layout before issue 16
     from pinnedballs.random import bounded
 from pinnedballs.rules import CollisionRule, closing_speed

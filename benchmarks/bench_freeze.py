@@ -24,7 +24,7 @@ _CHILD = r"""
 import json, sys, time
 import numpy as np
 import pinnedballs as pb
-from pinnedballs.engine import loops
+from pinnedballs.engine.sequential import loops
 
 length, depth, chunk, seed = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 if chunk:

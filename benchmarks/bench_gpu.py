@@ -286,8 +286,8 @@ def frozen(length, depth) -> None:
 
 def replicas(length, depth, count) -> None:
     from pinnedballs.engine.gpu.replicas import ReplicaChains
-    from pinnedballs.engine.philox import counter_stream
-    from pinnedballs.engine.random import seed_state
+    from pinnedballs.engine.streams.philox import counter_stream
+    from pinnedballs.engine.streams.xoshiro import seed_state
     g = half(length, depth)
     t = time.perf_counter()
     v0 = single(g)

@@ -6,8 +6,8 @@ Gaussian velocities. Each cell runs in a fresh process with ``NUMBA_NUM_THREADS`
 asked for; in it every configuration starts from the same velocities and seed, is warmed up (the loops
 compiled, ``--warm`` steps) and timed over ``--steps`` steps; the median of ``--repeats`` processes.
 Configurations: ``counter/1`` (the sequential loop on the counter stream), ``counter/k``
-(`engine.reservations` on ``k`` threads), ``counter/auto`` (the default: all threads, the count chosen
-by `ThreadTuner`), and the same on the xoshiro stream (``xoshiro/k``: the regions of `engine.parallel`).
+(`engine.threads.reservations` on ``k`` threads), ``counter/auto`` (the default: all threads, the count chosen
+by `ThreadTuner`), and the same on the xoshiro stream (``xoshiro/k``: the regions of `engine.threads.regions`).
 A *busy process* spins on one core for the whole measurement, as another user's job would. Ratios
 are to one thread of the same stream. Targets (issue): 2 idle cores at least 1.3x one thread, beside a
 busy process at least 0.95x, 16 cores at least 6x.

@@ -19,7 +19,7 @@ in one run; collisions and energy are printed for each, so the bits can be compa
 
 ``--regimes`` times the table loop with every block run with a branch on each collision
 (``branch_free_percent=101``: the loop as it was), every block but the first without one (``0``),
-and as chosen by the previous block's collision rate (the default, `engine.loops.BRANCH_FREE_PERCENT`),
+and as chosen by the previous block's collision rate (the default, `engine.sequential.loops.BRANCH_FREE_PERCENT`),
 on systems that collide on different fractions of their picks: what the default's threshold rests on.
 """
 
@@ -58,7 +58,8 @@ _REGIME = r"""
 import functools, json, sys, time, warnings
 import numpy as np
 import pinnedballs as pb
-from pinnedballs.engine import backends, loops
+from pinnedballs.engine import backends
+from pinnedballs.engine.sequential import loops
 case, percent = sys.argv[1], sys.argv[2]
 if percent != "default":
     backends.loops = functools.partial(loops.loops, branch_free_percent=int(percent))

@@ -6,11 +6,15 @@ balls approach and collide. See ``docs/`` and the README for a tour.
 
 import sys as _sys
 
-from ._version import __version__
+from .util.moved import install as _install_moved
+
+_install_moved()  # module paths that moved still import, with a DeprecationWarning (`util.moved`)
+
+from ._version import __version__  # noqa: E402 - after the finder: a moved path may be imported below
 from .analysis.maxima import MaxCollisionsResult, search_max_collisions
 from .analysis.observables import register as register_observable
 from .analysis.orders import OrdersResult, explore_orders
-from .engine.errors import FieldError, FieldTypeError, InputError
+from .util.errors import FieldError, FieldTypeError, InputError
 from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane,
                        Sphere)
 from .results.format import ResultsError

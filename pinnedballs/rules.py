@@ -26,7 +26,7 @@ made by `impulse_rule` (`pinnedballs.engine.closing`): the engine then adds the 
 kick, and runs the collision without a branch where that is faster. The built-in rules are written so,
 and their arithmetic lives here alone: every engine (the CPU's loops, the threads, a GPU) compiles it.
 
-**Rounding remnants are not collisions.** In exact arithmetic (`pinnedballs.engine.exact`) many
+**Rounding remnants are not collisions.** In exact arithmetic (`pinnedballs.engine.field.rational`) many
 closing speeds are exactly zero: a ball that handed on all of its velocity along a line of centres
 is at rest along it. In float64 such a ball keeps a remnant of a few units in the last place of the
 speeds that passed through it, and its contacts "approach" at ~1e-16. A remnant is small against
@@ -51,9 +51,9 @@ from typing import Callable
 
 import numpy as np
 
-from .engine.jitcache import njit_cached
-from .engine import checks
-from .engine.errors import FieldError
+from .engine.jit.cache import njit_cached
+from .util import checks
+from .util.errors import FieldError
 from .engine.closing import closing_speed, impulse_rule
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
@@ -134,7 +134,7 @@ class CollisionRule(ABC):
 
     def exact_restitution(self) -> float | None:
         """The coefficient ``r`` when the rule is the paper's with restitution ``r`` (exact arithmetic
-        can run it: `pinnedballs.engine.exact`), else None."""
+        can run it: `pinnedballs.engine.field.rational`), else None."""
         return None
 
     def to_spec(self) -> dict | None:

@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def pick_loops(collide, pick, dim: int, flat: bool):
     """The engine's compiled `Loops` for a rule's ``collide`` and a scheduler's ``pick``."""
-    from pinnedballs.engine.loops import loops, pick_selector
+    from pinnedballs.engine.sequential.loops import loops, pick_selector
 
     s = pick_selector(pick)
     return loops(collide, s.select, s.begin, s.changed, s.skips, dim, flat)

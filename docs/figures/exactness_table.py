@@ -6,7 +6,7 @@ as ``float``, ``certified``, ``float@1e-9``) and prints, as markdown:
 1. per size: the mean collisions until frozen (± its standard error over the seeds) of each
    counting: exact (``certified`` or ``exact``: the same counts), the float run, and N_e;
 2. the local exponents between consecutive sizes of each counting, ± their standard errors
-   (`pinnedballs.reproduction.extended.scaling_study.local_exponents`).
+   (`pinnedballs.run.reproduction.extended.scaling_study.local_exponents`).
 
     python docs/figures/exactness_table.py docs/figures/exactness_runs.json
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pinnedballs.reproduction.extended.scaling_study import local_exponents
+from pinnedballs.run.reproduction.extended.scaling_study import local_exponents
 
 
 def counting(arithmetic: str) -> str:

@@ -1,7 +1,7 @@
 """Evidence for the remnant threshold: closing speeds of genuine collisions against rounding remnants.
 
 For each run, the same picks are followed twice: by the float64 chain that counts every pick that
-changes a bit (the criterion before the threshold) and by the exact chain (`pinnedballs.engine.exact`).
+changes a bit (the criterion before the threshold) and by the exact chain (`pinnedballs.engine.field.rational`).
 A float collision the exact chain also makes is *genuine*; one it refuses (exact closing speed zero
 or negative) is a *remnant*. Each is plotted by its float closing speed in units of ``2^-53 V``
 (``V = sqrt(2 E / m)``, the system's speed scale), and by its float closing speed relative to the
@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import pinnedballs as pb
-from pinnedballs.engine.exact import ExactChain
+from pinnedballs.engine.field.rational import ExactChain
 from pinnedballs.plot.base import new_figure, save
 from pinnedballs.rules import THRESHOLD_ULPS
 

@@ -176,14 +176,14 @@ print("ByDirection: every rule check passed")
 # A scheduler answers "which contact next". The simple kind gives a compiled
 # `pick(state, rng, n_contacts) -> (k, rng)`: `state` is its own `int64` array (everything that
 # changes lives there, so a checkpoint resumes it), `rng` the simulation's random stream, advanced
-# only through `pinnedballs.engine.random` (here `bounded(rng, 2)`: 0 or 1, uniform).
+# only through `pinnedballs.engine.streams.xoshiro` (here `bounded(rng, 2)`: 0 or 1, uniform).
 #
 # This one remembers its last pick and moves one place left or right in the list of contacts: a
 # local, correlated order, unlike the paper's independent uniform picks. On the star, contacts
 # next to each other in the list share a ball along an arm.
 
 # %%
-from pinnedballs.engine.random import bounded
+from pinnedballs.engine.streams.xoshiro import bounded
 from pinnedballs.schedulers import Scheduler
 
 

@@ -43,10 +43,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError, FieldTypeError
-from ..engine.progress import Progress
-from ..engine.sigint import deferred
+from ..util import checks
+from ..util.errors import FieldError, FieldTypeError
+from ..util.progress import Progress
+from ..util.sigint import deferred
 from ..geometry.base import Geometry
 from ..schedulers.replay import Replay
 from ..geometry.simulation import Simulation

@@ -6,7 +6,7 @@ node of the velocities given and the child a collision of contact ``k`` leads to
 
 A collision here is exactly the engine's: in float64 the rule's own jitted ``collide`` with the same
 compile-time ``dim`` and ``flat`` (a contact is live when colliding it would change a bit of a
-velocity); in exact arithmetic the collision of `pinnedballs.engine.exact` in the number field of
+velocity); in exact arithmetic the collision of `pinnedballs.engine.field.rational` in the number field of
 the contact normals (a contact is live when its exact closing speed is positive). So every order
 replays through `Simulation` with the `Replay` scheduler to the same count.
 
@@ -18,7 +18,7 @@ once (the bits themselves up to `SMALL_BYTES`), which is faster for so few balls
 
 Cost of a state: in float64, a copy of the velocities and the live contacts found again by a compiled
 kernel over all contacts (about 5 ns a contact); in exact arithmetic only the contacts at the two
-collided balls are tested again, each by a float filter first (`pinnedballs.engine.exact.FILTER`),
+collided balls are tested again, each by a float filter first (`pinnedballs.engine.field.rational.FILTER`),
 the others keeping their parent's answer, so a state costs about as much on 10,000 balls as on 10,
 but more as its numbers grow: with restitution r < 1 they grow along an order (on a 4x4 torus with
 r = 1/2 two balls' numbers take 0.6 kB at first, 26 kB after 20,000 collisions), so such a state
@@ -38,8 +38,8 @@ from gmpy2 import to_binary
 from numba import njit
 
 from ..engine.chain import incidence
-from ..engine.exact import filtered_sign
-from ..engine.jitcache import jit_cached_if_possible
+from ..engine.field.chain import filtered_sign
+from ..engine.jit.cache import jit_cached_if_possible
 from ..rules import closing_speed
 
 __all__ = ["Node", "FloatSystem", "ExactSystem", "OrderKernels", "order_kernels", "NODE_BYTES", "COST_BYTES"]
@@ -82,7 +82,7 @@ class OrderKernels(NamedTuple):
 @functools.cache
 def order_kernels(collide: Callable, dim: int, flat: bool) -> OrderKernels:
     """`OrderKernels` calling ``collide`` exactly as the engine's loop does."""
-    D, FLAT = dim, flat  # compile-time constants, as in engine.loops.chain_kernel
+    D, FLAT = dim, flat  # compile-time constants, as in engine.sequential.loops.chain_kernel
 
     @njit(inline="always")
     def attempt(v, pairs, ends, units, masses, params, k, write):
@@ -181,7 +181,7 @@ class FloatSystem:
 
 
 class ExactSystem:
-    """States in exact arithmetic (`pinnedballs.engine.exact`): ``v`` a tuple of rows, each a tuple of
+    """States in exact arithmetic (`pinnedballs.engine.field.rational`): ``v`` a tuple of rows, each a tuple of
     field elements, with their float roundings beside them (``floats``) for the filter."""
 
     arithmetic = "exact"

@@ -24,11 +24,11 @@ from typing import Callable
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError
-from ..engine.limits import check_memory
-from ..engine.progress import Progress
-from ..engine.sigint import Deferred, deferred
+from ..util import checks
+from ..util.errors import FieldError
+from ..util.limits import check_memory
+from ..util.progress import Progress
+from ..util.sigint import Deferred, deferred
 from ..geometry.base import Geometry
 from ..schedulers.simple import UniformRandomPair
 from ..geometry.simulation import Simulation
@@ -132,7 +132,7 @@ def _search(system, root: Node, max_states: int, max_collisions: int, bar: Progr
     path, on_path, states, path_bytes = [_Frame(root)], {root.key}, 1, root.nbytes
     work = root.cost  # states, a state on large exact numbers counting as several (`Node.cost`)
     while path:
-        held.deliver()  # Ctrl-C between states (never inside a compiled kernel: `engine.sigint`)
+        held.deliver()  # Ctrl-C between states (never inside a compiled kernel: `util.sigint`)
         f = path[-1]
         if f.next == len(f.node.ks):
             memo[f.node.key] = f.result()
@@ -267,7 +267,7 @@ def _walk(system, node: Node, memo: dict, choose: Callable, best: _Best, limit: 
     raise _never_freezes(limit)
 
 
-def _check_count(name: str, value, minimum: int) -> int:
+def check_count(name: str, value, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name}: must be an integer, got {value!r}")
     if value < minimum:
@@ -317,7 +317,7 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
     False, or None: in a terminal or a notebook, once the call has taken 2 s). Ctrl-C stops it with
     KeyboardInterrupt, the partial search discarded.
 
-    ``arithmetic``: ``"exact"`` searches in exact arithmetic (`pinnedballs.engine.exact`): states
+    ``arithmetic``: ``"exact"`` searches in exact arithmetic (`pinnedballs.engine.field.rational`): states
     are merged by their exact values and a contact is live when its exact closing speed is positive,
     so the fewest and the most are exact; ``"float"`` uses the engine's float64 loop (states merged
     by their bits, rounding remnants below the engine's threshold left out); ``"auto"`` (default):
@@ -338,9 +338,9 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
                                                                              ("auto", "exact", "float")))
         if max_states is None:
             max_states = MAX_EXACT_STATES if sim.arithmetic == "exact" else MAX_STATES
-        max_states = _check_count("max_states", max_states, 1)
-        restarts = _check_count("restarts", restarts, 0)
-        max_collisions = _check_count("max_collisions", max_collisions, 1)
+        max_states = check_count("max_states", max_states, 1)
+        restarts = check_count("restarts", restarts, 0)
+        max_collisions = check_count("max_collisions", max_collisions, 1)
         _check_seed(seed)
         _check_speed(min_closing_speed)
         check_memory(max_states * NODE_BYTES + min(PATH_BYTES, max_states * sim.velocities.nbytes), "max_states",
@@ -417,8 +417,8 @@ def orders_against_random(geometry: Geometry, velocities, replicas: int = 200, s
     replicas reaching the fewest and the most) and ``random_histogram``, ``[[collisions, replicas], ...]``
     in increasing collisions.
     """
-    replicas = _check_count("replicas", replicas, 1)
-    _check_count("seed", seed, 0)
+    replicas = check_count("replicas", replicas, 1)
+    check_count("seed", seed, 0)
     orders = explore_orders(geometry, velocities, masses=masses, rule=rule, max_states=max_states, seed=seed,
                             progress=False)
     counts = np.empty(replicas, dtype=np.int64)

@@ -160,7 +160,7 @@ def plot(args: argparse.Namespace) -> int:
 def animate(args: argparse.Namespace) -> int:
     import warnings
 
-    from ..engine.errors import FieldError
+    from ..util.errors import FieldError
     from ..results.load import load
 
     res = load(args.dir)
@@ -237,7 +237,7 @@ def info(args: argparse.Namespace) -> int:
 
 def _progress(args) -> bool | None:
     """A command's bar: none with ``--quiet``; on a terminal at once, beside the status line (a Python
-    call waits 2 s before showing one); elsewhere none (`pinnedballs.engine.progress`)."""
+    call waits 2 s before showing one); elsewhere none (`pinnedballs.util.progress`)."""
     return False if args.quiet else (True if sys.stderr.isatty() else None)
 
 
@@ -280,7 +280,7 @@ def _arithmetic(res) -> list[str]:
 
 def _bits(spec, certified) -> str:
     """The bits a certified run ran at through its first wave and behind it, where it narrowed or found them."""
-    from ..engine.arithmetic import AUTO
+    from ..engine.field.arithmetic import AUTO
 
     auto = spec is not None and spec.precision == AUTO and certified.precision
     if not (certified.late_precision or auto):
@@ -347,19 +347,19 @@ def ensemble_command(args) -> int:
 
 
 def _ensemble(args, status) -> int:
-    from ..engine.errors import InputError
+    from ..util.errors import InputError
     from ..results.rundir import DirLock, check_out_dir
-    from ..run.ensemble import (ERROR_COLUMN, SPEC_NAME, _check_count, _check_replicas_memory, _remove_old_outputs, replica_seed,
+    from ..run.ensemble import (ERROR_COLUMN, SPEC_NAME, check_count, _check_replicas_memory, _remove_old_outputs, replica_seed,
                                 run_ensemble, write_outputs)
     from ..run.executors import dask_client
     from ..specs.run import load_spec
 
-    replicas = _check_count("--replicas", args.replicas)
+    replicas = check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
     if args.device == "cuda" and (args.workers is not None or args.dask is not None):
         raise InputError("--device cuda runs the replicas on the GPU from this process: give no --workers or --dask")
     if args.workers is not None:
-        _check_count("--workers", args.workers)
+        check_count("--workers", args.workers)
         if args.dask is not None:
             raise InputError("--workers, --dask: give one of them, not both")
     spec = load_spec(args.spec)
@@ -415,12 +415,12 @@ def reproduce_command(args) -> int:
 
     with Status(show=False if args.quiet else None) as status:
         status("loading the reproduction")
-        from .. import reproduction
+        from ..run import reproduction
         from ..results.rundir import check_out_dir
-        from ..run.ensemble import _check_count
+        from ..run.ensemble import check_count
 
         if args.workers is not None:
-            _check_count("--workers", args.workers)
+            check_count("--workers", args.workers)
         check_out_dir(args.out, args.force)
     shown = status.shown  # the stages and bars on a terminal only
     log = (lambda message: print(message, file=sys.stderr, flush=True)) if shown else None

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Iterator
 
 from .._version import __version__
-from ..engine.errors import InputError
+from ..util.errors import InputError
 from ..engine.margin import MarginWarning
 from ..run.execute import Interrupted
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError

@@ -1,15 +1,22 @@
-"""The engine: the plain data of a chain, its compiled loops, the driver that runs them in chunks,
-the random stream, numba's disk cache for the loops, and the checks that keep every input inside
-what the machine can hold.
+"""The engine: a chain as plain data, run to its limits by one of several engines, in chunks, by one driver.
 
-One module per idea: `errors` (errors naming the argument at fault), `checks` (the one helper
-that validates arguments), `limits` (memory and the float64 range), `random` (xoshiro256**),
-`jitcache` (the loops' disk cache), `threads` (how the parallel sweep's threads wait, and how
-many), `intrinsics` (LLVM hints for the hot loop), `chain` (the
-data every loop reads) and `loops` (the compiled loops); `driver` (a run in chunks to its stop, with
-writers), `sigint` (Ctrl-C between chunks) and `progress` (the bar every long call shows, drawn by `bars`,
-saying so while numba compiles: `compiling`); `stop` and
-`triggers` (when a run ends and when its writers record: predicates of the counters, built by specs
-and read by the driver); `atomic` (files written whole or not at all); `margin` (how near the
-collision criterion a run's picks came) and `state` (`RunState`: all of a run that changes, as one record).
+The map, a room per concern (package-wide helpers, errors and argument checks among them, are `pinnedballs.util`):
+
+* the chain as plain data: `chain` (`chain.Model`, what a chain is; `chain.ChainState`, what changes; the
+  loops' arrays and counters), `state` (`state.RunState`, what a checkpoint keeps), `margin` (how near the
+  collision criterion its picks came), `rows` (a lattice's contacts read from their index);
+* what components give the engine: `closing` (a rule's arithmetic, written once and compiled for every
+  engine: the closing speed, the kick, the forms each engine runs), `selector` (a scheduler's
+  `selector.Selector`);
+* running: `harness` (the limits of a run, written once: chunks, the collision target, the freeze),
+  `backends` (one backend per arithmetic and device, the chunk protocol), `driver` (a run in chunks to its
+  `stop.Stop`, its writers fired on their `triggers`);
+* the engines, each a room: `sequential` (the compiled loops on one core), `threads` (the paper's chain on
+  every core with the bits of one), `field` (exact and certified arithmetic in the number field of the
+  contact normals), `gpu` (the counter stream's chain on an NVIDIA GPU);
+* below them: `streams` (the random streams: xoshiro256**, its jumps, the counter stream Philox) and `jit`
+  (numba's disk cache for closures, LLVM hints).
+
+Module paths from before this map (``pinnedballs.engine.loops``, ``.random``, ``.errors``, ...) still import,
+with a DeprecationWarning naming the new one (`pinnedballs.util.moved`).
 """

@@ -10,10 +10,10 @@ the live contacts of any velocities (``live_flags``).
 
 * `LoopBackend`: floats on the CPU. The compiled loops; a scheduler's own loop for plain steps
   (`ColoredSweep`); the paper's picks on several threads, by regions on the xoshiro stream
-  (`engine.parallel`) or by deterministic reservations on the counter stream (`engine.reservations`);
+  (`engine.threads.regions`) or by deterministic reservations on the counter stream (`engine.threads.reservations`);
   the logging loops when someone listens for collisions.
-* `FieldBackend`: exact or certified arithmetic (`engine.exact`, `engine.fixed`), in the number field of the
-  contact normals, on the same picks.
+* `FieldBackend`: exact or certified arithmetic (`engine.field`), in the number field of the contact normals,
+  on the same picks.
 * `DeviceBackend`: floats on an NVIDIA GPU (`engine.gpu`), the counter stream's chain with the CPU's bits.
 """
 
@@ -22,11 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from .chain import COLLISIONS, LAST, LIVE, NO_LIMIT, STEPS, ChainState, LiveSet, Model, incidence
-from .errors import FieldError, described
+from ..util.errors import FieldError, described
 from .harness import limits_loop
-from .loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel, loops
-from .parallel import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
-from .threads import most_threads
+from .sequential.loops import (FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel,
+                              loops)
+from .threads.regions import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
+from .threads.tuning import most_threads
 
 __all__ = ["Backend", "LoopBackend", "FieldBackend", "DeviceBackend", "backend_for", "check_device", "DEVICES",
            "LOG_CAPACITY"]
@@ -129,9 +130,9 @@ class LoopBackend(Backend):
     # ------------------------------------------------------------ the loops
     def parallel_chain(self):
         """The chain on several threads where the scheduler allows it and it pays, built once; else None:
-        on the xoshiro stream the regions of `engine.parallel` (a large system, regions with few
+        on the xoshiro stream the regions of `engine.threads.regions` (a large system, regions with few
         crossings, narrow bands around the cuts: not a torus), on the counter stream the reservations of
-        `engine.reservations`."""
+        `engine.threads.reservations`."""
         if self._parallel is None:
             self._parallel = False
             m, s = self.model, self.model.selector
@@ -144,7 +145,7 @@ class LoopBackend(Backend):
                     built = ParallelChain.build(m.collide, g.dim, c.flat, c.pairs, g.n_balls, rows, threads,
                                                 tuned=m.threads is None)
                 elif s.counter:
-                    from .reservations import ReservationChain
+                    from .threads.reservations import ReservationChain
 
                     built = ReservationChain.build(m.collide, g.dim, c.flat, c.pairs, g.n_balls, rows, threads,
                                                    tuned=m.threads is None)
@@ -165,7 +166,7 @@ class LoopBackend(Backend):
         return (loops_.limited_rows_logged if logged else loops_.limited_rows), pattern
 
     def freeze_chunk(self) -> int:
-        """Steps between two scans for the freeze in an untracked loop (`engine.loops`)."""
+        """Steps between two scans for the freeze in an untracked loop (`engine.sequential.loops`)."""
         return max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * self.model.geometry.n_contacts)
 
     def refresh_live(self) -> LiveSet:
@@ -200,7 +201,7 @@ class LoopBackend(Backend):
 
 class FieldBackend(Backend):
     """Exact or certified arithmetic on the CPU (the chain in ``state.field_chain``): the compiled selector's
-    picks in blocks, each tried by the field chain (`engine.exact.FieldChain.run`), within the limits of
+    picks in blocks, each tried by the field chain (`engine.field.rational.FieldChain.run`), within the limits of
     `engine.harness`; a block cut short is drawn again to its end, so the stream and the scheduler's state
     are those of the float loop after the same steps. A decision certified arithmetic cannot make raises
     once the picks before it are counted."""

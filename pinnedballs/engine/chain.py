@@ -64,7 +64,7 @@ class ChainState:
     int64`` (`STEPS`, `COLLISIONS`, `LIVE`, `LAST`); rng ``(4,) uint64``, the random stream's words;
     scheduler ``(L,) int64``, the scheduler's own state; margin ``(4,) float64``, the closing margin
     (`engine.margin`); field_chain: in exact or certified arithmetic, the chain holding the velocities in
-    the number field (`engine.exact.FieldChain`: its own state, the certified bounds too), else None.
+    the number field (`engine.field.rational.FieldChain`: its own state, the certified bounds too), else None.
     """
 
     velocities: np.ndarray

@@ -36,7 +36,7 @@ import numpy as np
 from numba import config, njit, types
 from numba.extending import intrinsic
 
-from .jitcache import INLINED, jit_cached_if_possible, njit_cached
+from .jit.cache import INLINED, jit_cached_if_possible, njit_cached
 
 __all__ = ["closing_speed", "t_j", "kick", "kick_where", "impulse_rule", "impulse_of", "closing_form",
            "compiled_form", "branch_free_form", "trial_form", "WRITE", "TEST", "choose"]

@@ -3,8 +3,8 @@ its progress shown, a Ctrl-C honoured between chunks.
 
 `drive` is what every run goes through: ``Simulation.run`` and ``run_until_frozen`` (with writers
 or without), ``pinnedballs run``, ensembles and the paper's reproduction. Each chunk is one call of
-the engine's loop, ``sim.engine.run(max_steps, max_collisions, until_frozen)`` (`engine.backends`); the engine gives the same
-bits however a run is split into calls, so how it is chunked changes no bit.
+the engine's loop, ``sim.engine.run(max_steps, max_collisions, until_frozen)`` (`engine.backends`); the
+engine gives the same bits however a run is split into calls, so how it is chunked changes no bit.
 
 Chunks last about `CHUNK_SECONDS`: the first is `FIRST_CHUNK` steps, each next one is sized from
 the speed of the one before (at most `GROWTH` times longer), never less than `CHUNK_PER_CONTACT`
@@ -40,8 +40,8 @@ from __future__ import annotations
 import time
 from typing import Callable, Sequence
 
-from .progress import Progress, shown
-from .sigint import Deferred, deferred
+from ..util.progress import Progress, shown
+from ..util.sigint import Deferred, deferred
 from .stop import Stop
 from .triggers import Counts
 
@@ -213,7 +213,7 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Calla
           progress: bool | None = False) -> str:
     """Run ``sim`` to ``stop``, firing ``writers``; returns the stop reason (see the module's docstring).
 
-    ``progress`` (`pinnedballs.engine.progress`): a bar over the steps, or the collisions for a
+    ``progress`` (`pinnedballs.util.progress`): a bar over the steps, or the collisions for a
     collision target; a count of steps and collisions when the run goes until frozen (its end unknown).
     """
     shown(progress)  # a bad argument is refused before anything starts

@@ -24,7 +24,7 @@ carry) -> bool`` and ``settle(data, start, carry, used, count, frozen) -> carry`
 engine reads, ``carry`` what a chunk changes (returned, so that the loop is a function of plain values),
 ``left`` the collisions still allowed, ``used``/``made`` the chunk's steps and collisions and ``last`` the
 chunk's step index of its last collision (-1: none). The compiled sequential loops compile it with numba
-(`engine.loops`: ``data`` and ``carry`` tuples, every function inlined); the threaded, exact and GPU chains
+(`engine.sequential.loops`: ``data`` and ``carry`` tuples, every function inlined); the threaded, exact and GPU chains
 call it as Python (`engine.backends`, `engine.gpu.chain`); a GPU's replicas compile it for the device
 (`engine.gpu.replicas`).
 """

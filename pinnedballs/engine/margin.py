@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .jitcache import njit_cached
+from .jit.cache import njit_cached
 
-__all__ = ["ClosingMargin", "MarginWarning", "new_margin", "merge_margin", "track", "SMALLEST", "LARGEST",
-           "NEAR_COLLISIONS", "NEAR_REMNANTS", "NEAR"]
+__all__ = ["ClosingMargin", "MarginWarning", "new_margin", "merge_margin", "track", "collided_speed", "remnant_speed",
+           "near_collision", "near_remnant", "SMALLEST", "LARGEST", "NEAR_COLLISIONS", "NEAR_REMNANTS", "NEAR"]
 
 SMALLEST, LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS = 0, 1, 2, 3
 #: a pick within this factor of the threshold, on either side, is *near* it
@@ -65,6 +65,35 @@ def track(hit, w, tau, smallest, largest, near_hits, near_rest):
         if w * NEAR > tau:
             near_rest += 1.0
     return smallest, largest, near_hits, near_rest
+
+
+# the four numbers one by one, for a loop that keeps them as reductions over a parallel loop (`ColoredSweep`):
+# ``smallest = min(smallest, collided_speed(...))``, ``largest = max(largest, remnant_speed(...))``, and the
+# two counts summed; `track` is their sequential form (tests/engine/test_margin.py holds them equal)
+
+
+@njit_cached(inline="always")
+def collided_speed(hit, w):
+    """``w`` where the pick collided (it may be the smallest), else ``inf``."""
+    return w if hit else np.inf
+
+
+@njit_cached(inline="always")
+def remnant_speed(hit, w):
+    """``w`` where the pick was set aside closing (it may be the largest remnant), else 0."""
+    return w if (not hit) and w > 0.0 else 0.0
+
+
+@njit_cached(inline="always")
+def near_collision(hit, w, tau):
+    """1 where the pick collided within a factor `NEAR` of ``tau``, else 0."""
+    return 1.0 if hit and w <= NEAR * tau else 0.0
+
+
+@njit_cached(inline="always")
+def near_remnant(hit, w, tau):
+    """1 where the pick was set aside closing above ``tau / NEAR``, else 0."""
+    return 1.0 if (not hit) and w > 0.0 and w * NEAR > tau else 0.0
 
 
 @dataclass(frozen=True)

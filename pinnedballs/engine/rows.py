@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jitcache import njit_cached
+from .jit.cache import njit_cached
 
 __all__ = ["row_pattern", "decode", "MIN_BALLS"]
 

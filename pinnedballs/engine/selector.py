@@ -1,4 +1,4 @@
-"""What a scheduler gives the compiled loops (`engine.loops`): a `Selector`, its functions and flags, and
+"""What a scheduler gives the compiled loops (`engine.sequential.loops`): a `Selector`, its functions and flags, and
 the selector of a scheduler that picks one contact a step (`pick_selector`)."""
 
 from __future__ import annotations
@@ -8,22 +8,22 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from .jitcache import INLINED, jit_cached_if_possible, njit_cached
+from .jit.cache import INLINED, jit_cached_if_possible, njit_cached
 
 __all__ = ["Selector", "pick_selector", "no_begin", "no_change", "NO_AUX"]
 
 
 class Selector(NamedTuple):
-    """What a scheduler gives the engine: its jitted functions (see `engine.loops`) and flags.
+    """What a scheduler gives the engine: its jitted functions (see `engine.sequential.loops`) and flags.
 
     aux: the arrays (or a tuple of them) its functions read besides ``state``.
     tracks: it needs the live set kept up to date after every collision (the ``tracked`` loop).
     skips: ``select`` may take more than one step per pick, or return no contact (``k < 0``).
     uniform: its picks are the paper's, one word of the stream each through `random.bounded`, so the
-    parallel chain (`engine.parallel`) may draw them ahead on several threads.
-    counter: its picks are the counter stream's (`engine.philox`): the stream words are ``(k0, k1, s, 0)``,
+    parallel chain (`engine.threads.regions`) may draw them ahead on several threads.
+    counter: its picks are the counter stream's (`engine.streams.philox`): the stream words are ``(k0, k1, s, 0)``,
     the pick of step ``s`` a function of the key and ``s``, so batches of picks may run by deterministic
-    reservations on threads (`engine.reservations`) or on a GPU (`engine.gpu`).
+    reservations on threads (`engine.threads.reservations`) or on a GPU (`engine.gpu`).
     steps: None, or ``steps(collide, dim, flat) -> loop``: its own compiled loop for plain steps
     (`ColoredSweep` runs a class in parallel), called as ``loop(v, pairs, ends, units, masses, params,
     state, aux, rng_words, counters, margin, max_steps) -> steps``.

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import FieldError, FieldTypeError
+from ..util.errors import FieldError, FieldTypeError
 from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
-from .fixed_state import CertifiedState
+from .field.fixed_state import CertifiedState
 
 __all__ = ["RunState", "as_state", "mass_array", "margin_problem"]
 
@@ -30,7 +30,7 @@ class RunState:
     margin: the closing margin so far, ``(4,) float64`` (`engine.margin`), of a float run (None: not
     kept, as in exact arithmetic or a results file written before margins were); certified: for a run
     in certified arithmetic, its fixed-point velocities and error bounds
-    (`pinnedballs.engine.fixed_state.CertifiedState`; ``velocities`` are their nearest floats).
+    (`pinnedballs.engine.field.fixed_state.CertifiedState`; ``velocities`` are their nearest floats).
     """
 
     velocities: np.ndarray

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
-from . import checks
+from ..util import checks
 
 __all__ = ["Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions", "AnyOf", "Counts"]
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError
+from ..util import checks
+from ..util.errors import FieldError
 from ..engine.rows import row_pattern
 from .checks import LENGTH_RTOL, raw_tables
 from .pictures import display
@@ -209,7 +209,7 @@ class Geometry(ABC):
         nearest periodic image of the other ball."""
         return None
 
-    def _stated_contacts(self) -> np.ndarray | None:
+    def stated_contacts(self) -> np.ndarray | None:
         """``(n_contacts,) bool``: contacts given as data whose straight segment need not be the contact
         (it may cross a periodic boundary the geometry does not know); None: none. The contact checks
         measure their direction only where the segment is ``2 * radius`` long, their length never."""

@@ -25,7 +25,7 @@ Each contact, in this order:
 
 A geometry given as data may state contacts whose straight segment is not the contact (a torus's
 contact graph: the segment of a contact across the boundary runs through the box;
-`Geometry._stated_contacts`): their length is not checked, and their direction only where the
+`Geometry.stated_contacts`): their length is not checked, and their direction only where the
 segment is ``2 * radius`` long.
 
 One compiled pass over the contacts (`_first_fault`) and one over a table of each ball's contacts
@@ -41,8 +41,8 @@ import weakref
 
 import numpy as np
 
-from ..engine.errors import FieldError, FieldTypeError
-from ..engine.jitcache import njit_cached
+from ..util.errors import FieldError, FieldTypeError
+from ..engine.jit.cache import njit_cached
 
 __all__ = ["UNIT_TOLERANCE", "LENGTH_RTOL", "raw_tables", "check_contacts"]
 
@@ -165,7 +165,7 @@ def _table(name: str, arr) -> np.ndarray:
 def _direction_args(geometry, dim: int, n_contacts: int) -> tuple:
     """``(mode, positions, box, stated, frames, metric, contact length, rtol)`` for `_first_fault`."""
     p = np.ascontiguousarray(geometry.positions, dtype=np.float64)
-    box, stated, metric = geometry.box, geometry._stated_contacts(), geometry.metric
+    box, stated, metric = geometry.box, geometry.stated_contacts(), geometry.metric
     k = p.shape[1] if p.ndim == 2 else 0
     box = np.full(k, np.inf) if box is None else np.asarray(box, dtype=np.float64)
     stated = np.zeros(0, dtype=np.bool_) if stated is None else np.asarray(stated, dtype=np.bool_)

@@ -7,8 +7,8 @@ from __future__ import annotations
 import networkx as nx
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError, FieldTypeError
+from ..util import checks
+from ..util.errors import FieldError, FieldTypeError
 from .base import _INT32_MAX, LENGTHS, VIEWS, Boundary, Contacts, Geometry, checked_radius
 from .checks import LENGTH_RTOL, UNIT_TOLERANCE
 
@@ -136,7 +136,7 @@ class GraphGeometry(Geometry):
         """``(n_balls, dim, k)``: the nodes' ``"frame"`` attributes if given, else the identity."""
         return super().frames() if self._frames is None else self._frames
 
-    def _stated_contacts(self) -> np.ndarray:
+    def stated_contacts(self) -> np.ndarray:
         """The edges that carry ``"units"``."""
         return self._stated
 
@@ -264,7 +264,7 @@ class StoredGeometry(Geometry):
     def frames(self) -> np.ndarray:
         return super().frames() if self._frames is None else self._frames
 
-    def _stated_contacts(self) -> np.ndarray:
+    def stated_contacts(self) -> np.ndarray:
         """Every contact: the file does not say which run through a periodic boundary."""
         return np.ones(self.n_contacts, dtype=bool)
 

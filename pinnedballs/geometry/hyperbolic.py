@@ -18,9 +18,9 @@ import math
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError
-from ..engine.limits import check_memory, format_bytes, format_count, run_bytes
+from ..util import checks
+from ..util.errors import FieldError
+from ..util.limits import check_memory, format_bytes, format_count, run_bytes
 
 from .base import Boundary, Contacts, Geometry, checked_radius
 

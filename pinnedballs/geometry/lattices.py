@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError
-from ..engine.limits import check_memory, format_count, run_bytes
+from ..util import checks
+from ..util.errors import FieldError
+from ..util.limits import check_memory, format_count, run_bytes
 
 from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry, checked_radius
 

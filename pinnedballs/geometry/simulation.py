@@ -9,24 +9,24 @@ import warnings
 
 import numpy as np
 
-from ..engine import checks
+from ..util import checks
 from ..engine.backends import DEVICES, Backend, backend_for
 from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
 from ..engine.driver import check_writers, drive
-from ..engine.sigint import deferred
+from ..util.sigint import deferred
 from ..engine.stop import Stop
-from ..engine.errors import FieldError, FieldTypeError, check_jitted, described
-from ..engine.arithmetic import ARITHMETICS, check_precisions, field_chain
-from ..engine.exact import FieldChain
-from ..engine.fields import NotExact
-from ..engine.fixed import NotFixed
-from ..engine.fixed_state import CertifiedState, nearest_floats
-from ..engine.limbs import from_limbs
-from ..engine.limits import check_speeds
+from ..util.errors import FieldError, FieldTypeError, check_jitted, described
+from ..engine.field.arithmetic import ARITHMETICS, check_precisions, field_chain
+from ..engine.field.chain import FieldChain
+from ..engine.field.numbers import NotExact
+from ..engine.field.fixed import NotFixed
+from ..engine.field.fixed_state import CertifiedState, nearest_floats
+from ..engine.field.limbs import from_limbs
+from ..util.limits import check_speeds
 from ..engine.margin import ClosingMargin, MarginWarning, new_margin
 from ..engine.state import RunState, as_state, margin_problem, mass_array
-from ..engine.random import seed_state
-from ..engine.philox import counter_stream
+from ..engine.streams.xoshiro import seed_state
+from ..engine.streams.philox import counter_stream
 from .base import Geometry
 from .checks import check_contacts
 from .pictures import display
@@ -110,20 +110,20 @@ class Simulation:
 
     arithmetic: ``"float"`` (float64, the compiled loop) or ``"exact"``: the same chain, the same
     picks from the same stream, with every velocity exact in the number field of the contact
-    normals (`pinnedballs.engine.exact`; ``velocities`` are then the exact values rounded, and
+    normals (`pinnedballs.engine.field.rational`; ``velocities`` are then the exact values rounded, and
     `exact_velocities` the values themselves). Exact runs need normals in a known field (the
     triangular lattices: Q(sqrt 3); FCC: Q(sqrt 2); HCP: Q(sqrt 2, sqrt 3); chains: Q), the
     built-in rules, and a scheduler that picks without a live set; with equal masses, elastic
     collisions and flat dyadic normals (all but HCP) they run in fixed point at about the cost of
-    floats (`pinnedballs.engine.fixed`). ``"certified"``: that fixed-point chain at a fixed
+    floats (`pinnedballs.engine.field.fixed`). ``"certified"``: that fixed-point chain at a fixed
     ``precision`` (bits per coefficient, default 768), rounding allowed and every decision proved
     equal to exact arithmetic's, so the counts and steps are the exact ones (`error_bound` bounds
     how far the velocities are from exact arithmetic's); a decision it cannot prove stops the run
-    with `pinnedballs.engine.fixed.UncertifiedDecision` (a ValueError). ``late_precision`` (bits,
+    with `pinnedballs.engine.field.fixed.UncertifiedDecision` (a ValueError). ``late_precision`` (bits,
     at most ``precision``; None: none): once the first wave has passed (no ball at rest, hardly any
     still exact), the state is rounded to it, at a step that depends on the state alone, however the
     run is split; ``precision`` is needed at the wave's front, and behind it the paper's half-plane
-    runs about twice as fast at 256 bits (`pinnedballs.engine.fixed`, docs/performance.md).
+    runs about twice as fast at 256 bits (`pinnedballs.engine.field.fixed`, docs/performance.md).
 
     Each step the scheduler picks a contact; if its balls approach, the rule
     collides them. ``steps`` counts picks, ``collisions`` the picks that changed
@@ -157,7 +157,7 @@ class Simulation:
                                               f"got {type(scheduler).__name__}")
         if geometry.n_contacts == 0:
             raise FieldError("geometry", "has no contacts, so nothing can ever collide")
-        with deferred():  # compiles the check on a first call: a Ctrl-C waits for numba (see `engine.sigint`)
+        with deferred():  # compiles the check on a first call: a Ctrl-C waits for numba (see `util.sigint`)
             check_contacts(geometry)  # indices in range, unit vectors, directions: the loops trust them
         self.geometry, self.rule, self.scheduler = geometry, rule, scheduler
         self._masses = mass_array(masses, geometry.n_balls)
@@ -247,7 +247,7 @@ class Simulation:
         continuing it gives the bits of a run never interrupted. ``progress``: a bar over the
         steps (the collisions for a collision target; a count when running until frozen):
         True shows it, False never, None where it helps (in a terminal or a notebook, once the run
-        has taken 2 s; `pinnedballs.engine.progress`).
+        has taken 2 s; `pinnedballs.util.progress`).
         """
         if steps is None and collisions is None:
             raise FieldError("run", "give steps= or collisions= (or use run_until_frozen)")
@@ -332,7 +332,7 @@ class Simulation:
 
     @property
     def exact_velocities(self) -> np.ndarray | None:
-        """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.fields.Exact` numbers) of a run in
+        """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.field.numbers.Exact` numbers) of a run in
         exact arithmetic; None in float or certified arithmetic."""
         if self._field is None or self.arithmetic != "exact":
             return None

@@ -12,9 +12,9 @@ import itertools
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.errors import FieldError, FieldTypeError
-from ..engine.limits import check_memory, format_count, run_bytes
+from ..util import checks
+from ..util.errors import FieldError, FieldTypeError
+from ..util.limits import check_memory, format_count, run_bytes
 
 from .base import Contacts, Geometry, tangent_contacts, checked_radius
 

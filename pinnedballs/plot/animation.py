@@ -19,9 +19,9 @@ from typing import Iterator
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.atomic import unwritable
-from ..engine.errors import FieldError, FieldTypeError
+from ..util import checks
+from ..util.atomic import unwritable
+from ..util.errors import FieldError, FieldTypeError
 from .base import render
 from .states import state_picture
 

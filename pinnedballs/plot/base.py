@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..engine.atomic import write_bytes_atomic
+from ..util.atomic import write_bytes_atomic
 
 __all__ = ["Picture", "new_figure", "panels", "root", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
 

@@ -24,8 +24,8 @@ import h5py
 import numpy as np
 from pydantic import ValidationError
 
-from ..engine.errors import FieldError
-from ..engine.fixed_state import precisions_problem
+from ..util.errors import FieldError
+from ..engine.field.fixed_state import precisions_problem
 from ..engine.state import margin_problem
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error

@@ -1,5 +1,5 @@
 """Results files written so that a kill, a Ctrl-C or a full disk never leaves half of one: HDF5 files
-built in memory first (`h5_image`), then written whole (`engine.atomic.write_bytes_atomic`); their
+built in memory first (`h5_image`), then written whole (`util.atomic.write_bytes_atomic`); their
 rows gathered from segments (`virtual_rows`); signals held while a checkpoint is written (`held_signals`)."""
 
 from __future__ import annotations

@@ -60,7 +60,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..analysis import observables
-from ..engine.errors import InputError
+from ..util.errors import InputError
 from ..engine.state import RunState
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",

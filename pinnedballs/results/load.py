@@ -18,9 +18,9 @@ from ..engine.margin import ClosingMargin
 from ..engine.state import RunState
 from ..geometry.simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
-from ..engine.arithmetic import AUTO
-from ..engine.errors import InputError
-from ..engine.fixed_state import CertifiedState
+from ..engine.field.arithmetic import AUTO
+from ..util.errors import InputError
+from ..engine.field.fixed_state import CertifiedState
 from ..specs.errors import SpecError, UserCodeError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec

@@ -16,8 +16,8 @@ import os
 import re
 from pathlib import Path
 
-from ..engine.errors import InputError
-from ..engine.atomic import remove, tmp_path, unwritable
+from ..util.errors import InputError
+from ..util.atomic import remove, tmp_path, unwritable
 from .format import DATA_DIR, RESULTS_NAME
 
 __all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",

@@ -18,7 +18,7 @@ from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
 from ..engine.state import RunState
 from .digest import bytes_digest, file_digest, seal
-from ..engine.atomic import remove, tmp_path, write_bytes_atomic
+from ..util.atomic import remove, tmp_path, write_bytes_atomic
 from .files import h5_image, virtual_rows
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, V1_OBSERVABLES, Record, data_dir, results_path
 from .load import open_checked, read, scalar
@@ -76,7 +76,7 @@ class ResultsStore:
                      checkpoints=0, checked=False, observables=json.dumps(list(initial.values)), device=device)
         columns = {k: (v.dtype.str, v.shape) for k, v in initial.values.items()}
         store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static}, criterion=criterion)
-        store._write_index(initial, attrs, store.segments, store.digests)
+        store.write_index(initial, attrs, store.segments, store.digests)
         store.state = initial
         return store
 
@@ -103,7 +103,7 @@ class ResultsStore:
         store = cls(path, attrs, res.velocities.shape, columns, segments, sum(s[2] for s in segments), digests,
                     int(res.snapshots.steps[-1]) if len(res.snapshots) else -1, state,
                     None if margin is None else (margin.threshold, margin.resolution))
-        store._remove_strays()
+        store.remove_strays()
         return store
 
     def checkpoint(self, frames: list[Record], state: Record, *, status: str = "running", stop_reason: str = "",
@@ -123,12 +123,12 @@ class ResultsStore:
                  "checkpoints": int(self.attrs["checkpoints"]) + 1, "checked": checked}
         if elapsed_seconds is not None:
             attrs["elapsed_seconds"] = float(elapsed_seconds)
-        self._write_index(state, attrs, segments, digests)
+        self.write_index(state, attrs, segments, digests)
         self.attrs, self.segments, self.digests, self.frames, self.state = attrs, segments, digests, count, state
         if frames:
             self.last_step = frames[-1].state.steps
 
-    def _write_index(self, state: Record, attrs: dict, segments: list, digests: dict) -> None:
+    def write_index(self, state: Record, attrs: dict, segments: list, digests: dict) -> None:
         n, d = self.shape
         rel = f"{self.data_dir.name}/"
 
@@ -148,7 +148,7 @@ class ResultsStore:
 
         write_bytes_atomic(self.path, seal(h5_image(fill)))
 
-    def _remove_strays(self) -> None:
+    def remove_strays(self) -> None:
         """Remove temporary files and segments the index does not list (left by a kill); what no run
         writes (a user's own file or folder) is left alone."""
         keep = {s[0] for s in self.segments} | {STATIC_NAME}
@@ -248,10 +248,10 @@ def _convert_v1(path: Path, f: h5py.File) -> "ResultsStore":
     columns = {k: (res.observables[k].dtype.str, res.observables[k].shape[1:]) for k in names}
     attrs.update(format_version=FORMAT_VERSION, run="", checked=True, observables=json.dumps(names))
     store = ResultsStore(path, attrs, (n, d), columns, digests=digests, state=state)
-    store._remove_strays()
+    store.remove_strays()
     if frames:
         name = f"frames_{0:09d}.h5"
         digests[name] = _write_segment(data / name, frames, names)
         store.segments, store.frames, store.last_step = [[name, 0, len(frames)]], len(frames), frames[-1].state.steps
-    store._write_index(state, attrs, store.segments, digests)
+    store.write_index(state, attrs, store.segments, digests)
     return store

@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.observables import boundary_rows
-from ..engine.errors import FieldError, InputError
+from ..util.errors import FieldError, InputError
 from ..geometry.base import Geometry
-from ..engine.atomic import written_atomically
+from ..util.atomic import written_atomically
 from .tables import rows
 
 __all__ = ["TRAJECTORY_NAME", "TYPES", "ORIGIN_LOG", "Layout", "Trajectory", "export"]

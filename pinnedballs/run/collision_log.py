@@ -25,8 +25,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..engine.errors import FieldError, InputError
-from ..engine.atomic import write_bytes_atomic
+from ..util.errors import FieldError, InputError
+from ..util.atomic import write_bytes_atomic
 from ..results.files import h5_image, virtual_rows
 from ..engine.driver import Writer
 
@@ -123,7 +123,7 @@ class CollisionLog(Writer):
         for p in self.data.iterdir():
             p.unlink()
         self.complete_to = sim.steps
-        self._write_index()
+        self.write_index()
 
     def _continue(self, sim) -> None:
         """Keep the events up to ``sim.steps`` (a log ahead of the checkpoint resumed from drops the rest)."""
@@ -146,7 +146,7 @@ class CollisionLog(Writer):
                 self._write_segment(f"events_{first:012d}_{keep}.h5", steps[:keep], contacts)
                 kept.append([f"events_{first:012d}_{keep}.h5", first, keep])
         self.segments, self.complete_to = kept, sim.steps
-        self._write_index()
+        self.write_index()
         listed = {s[0] for s in self.segments}
         for p in self.data.iterdir():
             if p.name not in listed:
@@ -165,7 +165,7 @@ class CollisionLog(Writer):
             self.segments.append([name, first, len(steps)])
             self.pending = []
         self.complete_to = step
-        self._write_index()
+        self.write_index()
 
     def _write_segment(self, name: str, steps: np.ndarray, contacts: np.ndarray) -> None:
         def fill(f: h5py.File) -> None:
@@ -173,7 +173,7 @@ class CollisionLog(Writer):
 
         write_bytes_atomic(self.data / name, h5_image(fill))
 
-    def _write_index(self) -> None:
+    def write_index(self) -> None:
         rel = f"{self.data.name}/"
 
         def fill(f: h5py.File) -> None:

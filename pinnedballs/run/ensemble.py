@@ -34,16 +34,16 @@ from typing import Callable
 import numpy as np
 
 from .._version import __version__
-from ..engine import checks
-from ..engine.arithmetic import AUTO, until_proved
-from ..engine.errors import InputError
+from ..util import checks
+from ..engine.field.arithmetic import AUTO, until_proved
+from ..util.errors import InputError
 from ..engine.backends import DEVICES
-from ..engine.limits import check_memory
+from ..util.limits import check_memory
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
 from ..rules import DEFAULT_RESOLUTION
-from ..engine.progress import Progress
+from ..util.progress import Progress
 from ..geometry.base import Geometry
-from ..engine.atomic import write_text_atomic
+from ..util.atomic import write_text_atomic
 from ..specs.run import RunSpec
 from . import executors
 
@@ -263,7 +263,7 @@ class EnsembleResult:
         return out
 
 
-def _check_count(name: str, value, minimum: int = 1) -> int:
+def check_count(name: str, value, minimum: int = 1) -> int:
     return checks.integer(name, value, minimum)
 
 
@@ -284,7 +284,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     Where: ``workers`` local processes (default ``os.cpu_count()``; 1 runs in this
     process); or the Dask scheduler at ``dask_address``; or ``cluster`` (a Dask
     cluster or ``Client``). ``progress``: a bar over the replicas (True, False, or None:
-    in a terminal or a notebook, once the ensemble has taken 2 s; `pinnedballs.engine.progress`).
+    in a terminal or a notebook, once the ensemble has taken 2 s; `pinnedballs.util.progress`).
     ``task(spec, index, seed) -> rows`` replaces `run_replica` (e.g.
     ``functools.partial(run_replica, observe=f)``); it must be picklable to run elsewhere.
     Raises `InputError` on bad arguments. Local processes are forked, except after this process
@@ -305,7 +305,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     if not isinstance(spec, RunSpec):
         raise InputError(f"spec: must be a RunSpec, got {type(spec).__name__}")
     spec = spec.seeded()
-    replicas = _check_count("replicas", replicas)
+    replicas = check_count("replicas", replicas)
     _check_replicas_memory(replicas, "replicas")
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
         raise InputError("workers, dask_address, cluster: give at most one")
@@ -343,7 +343,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
                 if own:
                     client.close()
         else:
-            workers = (os.cpu_count() or 1) if workers is None else _check_count("workers", workers)
+            workers = (os.cpu_count() or 1) if workers is None else check_count("workers", workers)
             workers = min(workers, replicas)
             where = "in-process" if workers == 1 else f"{workers} local processes"
             results = executors.in_process(jobs, tick) if workers == 1 else \
@@ -411,11 +411,11 @@ def read_table(path) -> list[dict[str, str]]:
         return [{k: v for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
 
 
-def _json_safe(value):
+def json_safe(value):
     if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
+        return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
@@ -445,7 +445,7 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
         "spec": json.loads(result.spec.model_dump_json()),
     }
     path = out / SUMMARY_NAME
-    write_text_atomic(path, json.dumps(_json_safe(summary), indent=2) + "\n")
+    write_text_atomic(path, json.dumps(json_safe(summary), indent=2) + "\n")
     path2 = out / SPEC_NAME
     write_text_atomic(path2, result.spec.to_json() + "\n")
     written += [path, path2]

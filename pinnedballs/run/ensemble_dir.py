@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engine.errors import InputError
+from ..util.errors import InputError
 from ..specs.run import stored_spec
 from .ensemble import (ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult,
                        read_table)

@@ -20,8 +20,8 @@ import numpy as np
 from ..engine.backends import check_device
 from ..engine.chain import NO_LIMIT
 from ..engine.driver import Drive, Writer, drive
-from ..engine.philox import counter_stream
-from ..engine.random import seed_state
+from ..engine.streams.philox import counter_stream
+from ..engine.streams.xoshiro import seed_state
 from ..engine.state import RunState, mass_array
 from ..geometry.simulation import check_velocities
 from ..rules import threshold

@@ -19,11 +19,11 @@ import threading
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
-from ..engine.arithmetic import AUTO, auto_failure, until_proved
+from ..engine.field.arithmetic import AUTO, auto_failure, until_proved
 from ..engine.driver import Writer, drive
-from ..engine.errors import InputError
-from ..engine.fixed import UncertifiedDecision
-from ..engine.atomic import remove, tmp_path, write_text_atomic
+from ..util.errors import InputError
+from ..engine.field.fixed import UncertifiedDecision
+from ..util.atomic import remove, tmp_path, write_text_atomic
 from ..results.format import DATA_DIR, RESULTS_NAME, Record
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
@@ -86,7 +86,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     first step (a user's scheduler refused at its first pick) leaves nothing: what it wrote, and the
     directories made for it, are removed (a run ``force`` replaced is gone). ``progress``: the run
     driver's bar (True, False, or None: in a terminal or a notebook, once the run has taken 2 s;
-    `pinnedballs.engine.progress`). ``status``: a callable told each stage (building, compiling, drawing).
+    `pinnedballs.util.progress`). ``status``: a callable told each stage (building, compiling, drawing).
 
     SIGINT/SIGTERM (main thread) while the spec is built or a checkpoint read (a user's factory
     may run there) raise KeyboardInterrupt at once: nothing has been written. During the run they ask
@@ -97,7 +97,7 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     `Simulation`), recorded as information in the results file; a run may resume on another device.
 
     A spec whose ``precision`` is ``"auto"``: where certified arithmetic cannot prove a decision, the run
-    starts again from its first step with more bits (`engine.arithmetic.next_precisions`), replacing what
+    starts again from its first step with more bits (`engine.field.arithmetic.next_precisions`), replacing what
     the attempt wrote, and tells ``log`` so in one line; its results record the bits it ran at, which
     ``resume`` continues at. Where no more bits can help, the `UncertifiedDecision` is raised as without.
     """

@@ -49,7 +49,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Callable
 
-from ..engine.errors import InputError
+from ..util.errors import InputError
 
 __all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "watch_parent", "WorkerDied",
            "MAX_DEATHS", "MAX_GREETING", "CONNECT_TIMEOUT", "PARENT_POLL", "ORPHANED"]

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..engine import checks
+from ..util import checks
 from ..analysis import observables as named
 from ..results.files import held_signals
 from ..results.format import RESULTS_NAME, Record

@@ -3,11 +3,11 @@
 A scheduler says which contact the engine tries next. The simple kind gives one jitted
 function, its `kernel`: ``pick(state, rng, n_contacts) -> (k, rng)``, with ``state`` its own
 ``int64`` array (from `initial_state`) and ``rng`` the simulation's random stream as a 4-tuple
-of uint64 words (`pinnedballs.engine.random`), advanced only through that module's functions.
-The engine wraps it (`engine.loops.pick_selector`) and owns the loop, its stop conditions, its
-counters and freeze detection (`pinnedballs.engine.loops`).
+of uint64 words (`pinnedballs.engine.streams.xoshiro`), advanced only through that module's functions.
+The engine wraps it (`engine.sequential.loops.pick_selector`) and owns the loop, its stop conditions, its
+counters and freeze detection (`pinnedballs.engine.sequential.loops`).
 
-A scheduler that picks in another way gives a whole `engine.loops.Selector` (`selector`): a
+A scheduler that picks in another way gives a whole `engine.sequential.loops.Selector` (`selector`): a
 ``select`` that may jump over picks (`RejectionFree`), functions that prepare its tables from
 ``state`` or hear of live contacts, and, if it must, its own loop for plain steps
 (`ColoredSweep`, which runs a colour class in parallel). Either way everything that changes lives
@@ -26,8 +26,8 @@ import numpy as np
 
 from numba import njit
 
-from ..engine.errors import FieldError, FieldTypeError, check_jitted
-from ..engine.loops import Selector, pick_selector
+from ..util.errors import FieldError, FieldTypeError, check_jitted
+from ..engine.sequential.loops import Selector, pick_selector
 
 __all__ = ["Scheduler", "check_pick", "PickOutOfRange"]
 
@@ -116,7 +116,7 @@ def checked_pick(pick: Callable, name: str) -> Callable:
     """``pick`` with its contact checked: `PickOutOfRange` naming ``name`` (raised from compiled code, so
     the run stops there) unless ``0 <= k < n_contacts``. For a user's pick: the compiled loop indexes
     the contact tables with ``k`` unchecked. (``name`` is a constant of the compiled code, and part of
-    its cache key, `engine.jitcache`.)"""
+    its cache key, `engine.jit.cache`.)"""
 
     @njit(inline="always")
     def checked(state, rng, n_contacts):
@@ -137,7 +137,7 @@ def check_pick(pick: Callable, name: str, state: np.ndarray, n_contacts: int) ->
     from numba import config, types
     from numba.core.errors import TypingError
 
-    from ..engine.random import load, seed_state
+    from ..engine.streams.xoshiro import load, seed_state
 
     if config.DISABLE_JIT:
         try:

@@ -30,15 +30,16 @@ from typing import Callable
 import numpy as np
 from numba import njit, prange
 
-from ..engine import checks
+from ..util import checks
 from ..engine.chain import COLLISIONS, LIVE, STEPS
 from ..engine.closing import closing_speed
-from ..engine.errors import FieldError
-from ..engine.jitcache import jit_cached_if_possible, njit_cached
-from ..engine.loops import Selector, contact_kernels, no_change
-from ..engine.margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
-from ..engine.random import bounded, load, store
-from ..engine.threads import TUNED_SEGMENT, ThreadTuner, check_threads, using
+from ..util.errors import FieldError
+from ..engine.jit.cache import jit_cached_if_possible, njit_cached
+from ..engine.sequential.loops import Selector, contact_kernels, no_change
+from ..engine.margin import (LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, collided_speed, near_collision, near_remnant,
+                             remnant_speed)
+from ..engine.streams.xoshiro import bounded, load, store
+from ..engine.threads.tuning import TUNED_SEGMENT, ThreadTuner, check_threads, using
 from .base import Scheduler
 
 __all__ = ["ColoredSweep", "colour_classes", "sweep_selector", "sweep_steps"]
@@ -170,13 +171,12 @@ def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Calla
             for m in prange(lo, hi):  # a matching: no two iterations touch the same ball
                 k = classes[m]
                 w = closing_speed(v, units, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], D, FLAT)
-                if attempt(v, pairs, ends, units, masses, params, k, True):
-                    part += 1
-                    smallest = min(smallest, w)  # the margin (engine.margin.track), as reductions
-                    near_hits += 1.0 if w <= NEAR * tau else 0.0
-                elif w > 0.0:
-                    largest = max(largest, w)
-                    near_rest += 1.0 if w * NEAR > tau else 0.0
+                hit = attempt(v, pairs, ends, units, masses, params, k, True)
+                part += 1 if hit else 0
+                smallest = min(smallest, collided_speed(hit, w))  # the margin (engine.margin), as reductions
+                largest = max(largest, remnant_speed(hit, w))
+                near_hits += near_collision(hit, w, tau)
+                near_rest += near_remnant(hit, w, tau)
             made += part
             taken += hi - lo
             _move_on(state, starts, order, hi - lo)

@@ -8,7 +8,7 @@ and collides a uniformly chosen live contact: ``steps``, ``collisions`` and the
 velocities have the joint law of `UniformRandomPair`'s (not its bits).
 
 **The draw.** ``G = 1 + floor(ln U / ln(1 - p))`` with ``U = 1 - u`` in ``(0, 1]``
-and ``u`` the stream's 53-bit uniform (`engine.random.random_float`): then
+and ``u`` the stream's 53-bit uniform (`engine.streams.xoshiro.random_float`): then
 ``P(G > g) = P(U <= (1 - p)^g) = (1 - p)^g`` exactly up to the 2^-53 grid of
 ``U``. ``ln(1 - p)`` is ``log1p(-p)``, accurate for tiny ``p``. ``p = 1`` gives
 ``G = 1`` without a draw; ``L = 0`` never collides (the paper's chain would pick
@@ -23,7 +23,7 @@ changed, so keeping it gives the same law as drawing afresh, and it makes a run
 split into calls (chunks, checkpoints, resume) bit-identical to one call.
 
 **The live set** is an array ``live[:L]`` plus a position map ``pos (M,) int64``
-(``-1``: not live). The engine's tracked loop (`engine.loops`) re-tests the contacts of the two
+(``-1``: not live). The engine's tracked loop (`engine.sequential.loops`) re-tests the contacts of the two
 balls of each collision and tells `changed` of each contact that became live or not: an append,
 or a swap with the last entry to remove.
 
@@ -41,10 +41,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..engine.jitcache import njit_cached
-from ..engine.errors import FieldError
-from ..engine.loops import Selector
-from ..engine.random import bounded, random_float
+from ..engine.jit.cache import njit_cached
+from ..util.errors import FieldError
+from ..engine.sequential.loops import Selector
+from ..engine.streams.xoshiro import bounded, random_float
 from .base import Scheduler
 
 __all__ = ["RejectionFree", "picks_until_live"]

@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..engine.jitcache import njit_cached
+from ..engine.jit.cache import njit_cached
 from .base import Scheduler
 
 __all__ = ["Replay", "pick_replay"]

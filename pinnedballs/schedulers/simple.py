@@ -7,13 +7,13 @@ from typing import Callable
 
 import numpy as np
 
-from ..engine import checks
-from ..engine.jitcache import njit_cached
-from ..engine.loops import Selector, no_begin, no_change, pick_selector
-from ..engine.threads import check_threads
-from ..engine.errors import FieldError
-from ..engine.philox import CACHE_WORDS, pick_counter, select_counter
-from ..engine.random import bounded
+from ..util import checks
+from ..engine.jit.cache import njit_cached
+from ..engine.sequential.loops import Selector, no_begin, no_change, pick_selector
+from ..engine.threads.tuning import check_threads
+from ..util.errors import FieldError
+from ..engine.streams.philox import CACHE_WORDS, pick_counter, select_counter
+from ..engine.streams.xoshiro import bounded
 from .base import Scheduler
 
 __all__ = ["UniformRandomPair", "Sweep", "RandomSweep", "pick_uniform", "pick_sweep", "pick_random_sweep"]
@@ -55,17 +55,17 @@ class UniformRandomPair(Scheduler):
 
     ``stream``: where the picks come from. ``"xoshiro"`` (the default, every published seed's bits):
     xoshiro256** words drawn in order. ``"counter"``: Philox4x64-10 keyed by the seed
-    (`engine.philox`), the pick of step ``s`` a function of ``(seed, s)`` alone, so any thread or a GPU
+    (`engine.streams.philox`), the pick of step ``s`` a function of ``(seed, s)`` alone, so any thread or a GPU
     computes any step's pick; the same law, other picks, and the stream that runs on every core
-    (`engine.reservations`) and on a GPU (``Simulation(..., device="cuda")``) with the bits of one core.
+    (`engine.threads.reservations`) and on a GPU (``Simulation(..., device="cuda")``) with the bits of one core.
 
     ``threads``: how many of numba's threads a run may use; None (the default) lets long runs on large
     systems use every core, each stretch on the count a `ThreadTuner` finds faster (never slower than
     one thread on a busy machine); 1 runs the sequential loop only. The bits never depend on it. On
-    the xoshiro stream the lattice is cut into regions (`engine.parallel`); a system runs on one thread
+    the xoshiro stream the lattice is cut into regions (`engine.threads.regions`); a system runs on one thread
     where regions do not pay: fewer than 65,536 contacts, many contacts joining the regions, or
     contacts joining balls far apart in index (a torus's wrap-around). On the counter stream batches
-    of picks run by deterministic reservations (`engine.reservations`), on any geometry."""
+    of picks run by deterministic reservations (`engine.threads.reservations`), on any geometry."""
 
     #: the streams a `UniformRandomPair` draws from
     STREAMS = ("xoshiro", "counter")

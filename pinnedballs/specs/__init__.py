@@ -17,7 +17,7 @@ checkpoint specs), `python` (a user's components and entry-point kinds), `run` (
 reading specs) and `errors` (`SpecError` and the messages of pydantic's errors).
 """
 
-from ..engine.errors import InputError
+from ..util.errors import InputError
 from .errors import SpecError
 from .base import Count, FilePath, Positive, engine_errors
 from .geometry import (FCCSpec, FlatTorusSpec, GeometrySpec, GraphPositionsSpec, HalfPlaneSpec, HCPSpec,

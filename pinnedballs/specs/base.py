@@ -11,9 +11,9 @@ from typing import Annotated, Any, Iterator
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from ..engine.errors import FieldError
+from ..util.errors import FieldError
 from .errors import SpecError
-from ..engine.limits import check_memory, format_bytes
+from ..util.limits import check_memory, format_bytes
 
 
 class _Spec(BaseModel):

@@ -10,7 +10,7 @@ from typing import Annotated, Any, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
-from ..engine.errors import FieldError, InputError
+from ..util.errors import FieldError, InputError
 
 __all__ = ["SpecError", "UserCodeError", "first_error", "failure"]
 

@@ -7,10 +7,10 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..engine.errors import FieldError
+from ..util.errors import FieldError
 from .errors import SpecError
 from ..geometry.base import Geometry
-from ..engine.limits import check_speeds
+from ..util.limits import check_speeds
 from .base import FilePath, _load_npy, _Spec
 from .python import PythonInitialSpec
 

@@ -12,11 +12,11 @@ from pydantic import AfterValidator, BaseModel, ValidationError, field_validator
 
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
-from ..engine.arithmetic import AUTO, MAX_PRECISION, auto_precisions
-from ..engine.errors import FieldError, InputError
+from ..engine.field.arithmetic import AUTO, MAX_PRECISION, auto_precisions
+from ..util.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from ..rules import check_resolution
-from ..engine.limits import check_memory
+from ..util.limits import check_memory
 from ..engine.state import mass_array
 from ..geometry.simulation import Simulation
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
@@ -45,7 +45,7 @@ class RunSpec(_Spec):
     arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
     certified arithmetic's bits per coefficient, None for its default, ``"auto"`` for the bits the run
     finds itself: it starts at the default and, where a decision cannot be proved, again from its first
-    step with 1.5 times the bits (`pinnedballs.engine.arithmetic.next_precisions`), the results recording
+    step with 1.5 times the bits (`pinnedballs.engine.field.arithmetic.next_precisions`), the results recording
     the bits it ran at; ``late_precision``: its bits once the first wave has passed, None for
     ``precision`` throughout) and the resolution.
 
@@ -130,7 +130,7 @@ class RunSpec(_Spec):
 
     def precisions(self) -> tuple[int | None, int | None]:
         """``(precision, late_precision)`` the run is built at: the spec's, or an ``"auto"`` spec's first
-        attempt (`pinnedballs.engine.arithmetic.auto_precisions`)."""
+        attempt (`pinnedballs.engine.field.arithmetic.auto_precisions`)."""
         if self.precision == AUTO:
             return auto_precisions(self.late_precision)
         return self.precision, self.late_precision

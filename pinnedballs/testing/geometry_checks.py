@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..engine.errors import FieldError
+from ..util.errors import FieldError
 from ..geometry.checks import UNIT_TOLERANCE, check_contacts
 from ..geometry.graph import GraphGeometry
 from .samples import fail, vector

@@ -3,7 +3,7 @@ naming the property and a small example.
 
 The checks run on a 4 x 3 flat torus (12 balls, 36 contacts; it never freezes) and, until frozen, on a
 3 x 4 half-plane (23 contacts) with one boundary ball sent inward; everything from fixed seeds. Picks
-are read through the engine's own `engine.loops.selector_picks` (what a run in exact arithmetic
+are read through the engine's own `engine.sequential.loops.selector_picks` (what a run in exact arithmetic
 follows), except for a scheduler that picks among live contacts (``selector().tracks``), whose picks
 depend on the velocities: it is checked through its runs.
 
@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..engine.loops import selector_picks
-from ..engine.random import seed_state
+from ..engine.sequential.loops import selector_picks
+from ..engine.streams.xoshiro import seed_state
 from ..geometry.graph import GraphGeometry
 from ..geometry.lattices import FlatTorus, HalfPlane
 from ..schedulers.base import PickOutOfRange

@@ -19,7 +19,7 @@ from hypothesis import assume
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ..engine.errors import FieldError
+from ..util.errors import FieldError
 from ..geometry.base import Geometry
 from ..geometry.graph import GraphGeometry
 from ..geometry.hyperbolic import HyperbolicPlane

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.engine import limits
-from pinnedballs.engine.errors import FieldError, FieldTypeError, InputError
+from pinnedballs.util import limits
+from pinnedballs.util.errors import FieldError, FieldTypeError, InputError
 from pinnedballs.specs import SpecError, engine_errors, parse_spec
 from helpers import TORUS, spec, write
 from helpers import assert_input_error, call  # exit 2, one line, no traceback

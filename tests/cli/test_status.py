@@ -114,7 +114,7 @@ class _Terminal(io.StringIO):
 @pytest.mark.parametrize("terminal, quiet, shown", [(True, False, True), (True, True, False), (False, False, False)],
                          ids=["terminal", "terminal --quiet", "pipe"])
 def test_reproduce_reports_its_stages_on_a_terminal_only(tmp_path, monkeypatch, terminal, quiet, shown):
-    import pinnedballs.reproduction as reproduction
+    import pinnedballs.run.reproduction as reproduction
 
     seen = {}
 

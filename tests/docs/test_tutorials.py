@@ -204,7 +204,7 @@ def test_exact_counts_and_every_order(tmp_path):
 #: cells run with every call showing its bar at once, as on a machine where each takes over 2 s
 #: (issue 34, item 3: a busy CI read a bar as a cell's output): tqdm's text on stderr, or its widget
 BARS_AT_ONCE = {"text": "import sys\nsys.modules['ipywidgets'] = None  # no widget: tqdm's text\n", "widget": ""}
-CELLS = ["import pinnedballs.engine.progress\npinnedballs.engine.progress.DELAY = 0.0\n"
+CELLS = ["import pinnedballs.util.progress\npinnedballs.util.progress.DELAY = 0.0\n"
          "import numpy as np\nimport pinnedballs as pb\n"
          "def kicked(g):\n    v = np.zeros((g.n_balls, 2))\n    v[g.boundary_center()] = [0.0, 1.0]\n    return v\n",
          "best = pb.search_max_collisions(pb.HalfPlane(2, 2), trials=20, seed=0)\nprint('most', best.collisions)",

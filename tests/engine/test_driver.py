@@ -24,7 +24,7 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.engine import driver
-from pinnedballs.engine.progress import DELAY
+from pinnedballs.util.progress import DELAY
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -10,7 +10,8 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.rules import collide_elastic
-from pinnedballs.engine.margin import MarginWarning, NEAR
+from pinnedballs.engine.margin import (NEAR, MarginWarning, collided_speed, near_collision, near_remnant, remnant_speed,
+                                      track)
 from pinnedballs.geometry.simulation import FreezeWarning
 from pinnedballs.rules import DEFAULT_RESOLUTION
 from helpers import thin_torus
@@ -213,3 +214,22 @@ def test_the_warning_is_about_the_callers_line_and_its_advice_applies():
     assert 'arithmetic="exact"' in str(built_in[0].message)
     said = str(mine[0].message)
     assert 'arithmetic="exact"' not in said and "give resolution= to make the criterion part of the model" in said
+
+
+def test_the_reductions_are_track_one_number_at_a_time():
+    """The parallel sweep keeps the margin as four reductions (`collided_speed`, `remnant_speed`, `near_collision`,
+    `near_remnant`); over every kind of pick (a collision far from the threshold and near it, a remnant near it
+    and far below it, a separating pair, an exact zero) in any order they give `track`'s four numbers."""
+    tau = 1e-15
+    picks = [(True, 3.0), (True, 5e-12), (False, 0.9e-15), (False, 1e-20), (False, -2.0), (False, 0.0),
+             (True, 7e-16 * 1e4), (False, 3e-21)]
+    for order in (picks, picks[::-1], picks[3:] + picks[:3]):
+        m = (np.inf, 0.0, 0.0, 0.0)
+        r = [np.inf, 0.0, 0.0, 0.0]
+        for hit, w in order:
+            m = track(hit, w, tau, *m)
+            r[0] = min(r[0], collided_speed(hit, w))
+            r[1] = max(r[1], remnant_speed(hit, w))
+            r[2] += near_collision(hit, w, tau)
+            r[3] += near_remnant(hit, w, tau)
+        assert tuple(m) == tuple(r) and r[2] == 2 and r[3] == 1, (m, r)

@@ -6,9 +6,9 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.engine.chain import NO_LIMIT
-from pinnedballs.engine.loops import NO_PATTERN
+from pinnedballs.engine.sequential.loops import NO_PATTERN
 from pinnedballs.engine.margin import new_margin
-from pinnedballs.engine.random import seed_state
+from pinnedballs.engine.streams.xoshiro import seed_state
 from pinnedballs.engine.rows import decode, row_pattern
 from pinnedballs.rules import collide_elastic, collide_masses
 from pinnedballs.schedulers.simple import pick_uniform

@@ -162,7 +162,7 @@ def test_a_geodesic_sphere_too_large_is_refused_from_its_size_before_building():
 
 
 def test_a_geodesic_sphere_beyond_what_a_grid_is_built_with_is_refused(monkeypatch):
-    from pinnedballs.engine import limits
+    from pinnedballs.util import limits
 
     monkeypatch.setattr(limits, "available_memory", lambda: None)  # a machine that does not say
     with pytest.raises(pb.FieldError, match=r"^frequency: a geodesic sphere of frequency 1,415 has 20,022,252 balls, "
@@ -262,7 +262,7 @@ def test_a_tiling_too_large_is_refused_from_its_ring_sizes_before_building(layer
 
 
 def test_a_tiling_beyond_the_memory_there_is_is_refused_with_both(monkeypatch):
-    from pinnedballs.engine import limits
+    from pinnedballs.util import limits
 
     monkeypatch.setattr(limits, "available_memory", lambda: 10**6)
     with pytest.raises(pb.FieldError, match=r"^layers: 10 rings of the \{3,7\} tiling \(76,616 balls\) needs about "

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.engine.errors import FieldError
+from pinnedballs.util.errors import FieldError
 from pinnedballs.geometry.base import LENGTHS
 from pinnedballs.specs import parse_spec
 from helpers import TORUS, call, spec, write

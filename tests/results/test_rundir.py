@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.engine.errors import InputError
+from pinnedballs.util.errors import InputError
 from pinnedballs.results.load import load
 from pinnedballs.results.rundir import LOCK_NAME, DirLock
 from helpers import TORUS, spec, write
@@ -81,8 +81,8 @@ import os, sys, warnings
 os.umask(0)  # the kernels' cache directories root makes on import stay writable for uid
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble
-from pinnedballs.engine import atomic as io
-from pinnedballs import reproduction
+from pinnedballs.util import atomic as io
+from pinnedballs.run import reproduction
 from pinnedballs.run import execute as runner
 from pinnedballs.results import rundir
 from pinnedballs import specs
@@ -142,7 +142,7 @@ STOP_AT_FIRST_CHECKPOINT = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
 from pinnedballs.engine import driver
-from pinnedballs.engine import atomic as io
+from pinnedballs.util import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 commit, count = io._commit, [0]
 def stopping(tmp, path):

@@ -9,8 +9,9 @@ import json
 
 import pytest
 
-from pinnedballs.engine import arithmetic, driver
-from pinnedballs.engine.fixed import FixedChain, UncertifiedDecision
+from pinnedballs.engine import driver
+from pinnedballs.engine.field import arithmetic
+from pinnedballs.engine.field.fixed import FixedChain, UncertifiedDecision
 from pinnedballs.results.load import load
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import execute as runner

@@ -13,8 +13,8 @@ import pinnedballs as pb
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.analysis import observables as obs
-from pinnedballs.reproduction import torus_row
-from pinnedballs.engine.errors import InputError
+from pinnedballs.run.reproduction import torus_row
+from pinnedballs.util.errors import InputError
 from pinnedballs.specs import parse_spec
 from helpers import pickled_by_value, thin_spec, write
 from pinnedballs.engine.margin import MarginWarning

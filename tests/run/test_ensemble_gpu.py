@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.engine.errors import InputError
+from pinnedballs.util.errors import InputError
 from pinnedballs.run import ensemble_gpu
 from pinnedballs.run.ensemble import run_replica
 from pinnedballs.specs.run import parse_spec

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.engine.errors import InputError
+from pinnedballs.util.errors import InputError
 from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
 from helpers import TORUS, call, frames_of, reference, resume, spec, write

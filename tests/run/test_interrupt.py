@@ -25,7 +25,7 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as observe
-from pinnedballs.engine import atomic
+from pinnedballs.util import atomic
 from pinnedballs.results.rundir import DirLock
 from pinnedballs.engine import driver
 
@@ -247,7 +247,7 @@ def test_sigint_to_a_python_run_at_a_random_moment(tmp_path, unbroken_steps, see
     _, err = child.communicate(timeout=60)
     done = pb.load(out)
     if done.complete:  # it had finished: the signal came as it exited (Python's own exit, or SIGINT's), or
-        # in its last chunk, noted and delivered when the run's block ended (`engine.sigint`): 130
+        # in its last chunk, noted and delivered when the run's block ended (`util.sigint`): 130
         assert child.returncode in (0, 130, -signal.SIGINT) and done.latest.identical(unbroken[1].latest)
         return
     # 130 from the child's `except KeyboardInterrupt`; -SIGINT when a second Ctrl-C lands in that clause

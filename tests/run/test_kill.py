@@ -36,7 +36,7 @@ CHILD = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
 from pinnedballs.engine import driver
-from pinnedballs.engine import atomic as io
+from pinnedballs.util import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 at, when = int(os.environ.get("KILL_AT", "0")), os.environ.get("KILL_WHEN", "")
 commits, commit = [0], io._commit

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.engine.errors import InputError
+from pinnedballs.util.errors import InputError
 from pinnedballs.results.load import load
 from helpers import TORUS, assert_identical, assert_input_error, call, reference, spec, write
 

@@ -18,7 +18,7 @@ from pinnedballs.run import execute as runner
 from pinnedballs.results.load import load
 from pinnedballs.specs import parse_spec
 import pinnedballs as pb
-from pinnedballs.engine.errors import InputError
+from pinnedballs.util.errors import InputError
 from pinnedballs.results.rundir import LOCK_NAME
 from helpers import HALF_PLANE, TORUS, assert_identical, assert_input_error, call, reference, resume, spec, write
 

@@ -14,7 +14,7 @@ from scipy import stats
 import pinnedballs as pb
 from numba import njit
 
-from pinnedballs.engine.random import load, seed_state, store
+from pinnedballs.engine.streams.xoshiro import load, seed_state, store
 from pinnedballs.schedulers.rejection_free import picks_until_live
 from pinnedballs.specs import parse_spec
 from helpers import HALF_PLANE, spec

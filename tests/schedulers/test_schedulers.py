@@ -235,7 +235,7 @@ def test_a_scheduler_written_for_the_old_loop_protocol_is_refused_with_what_to_d
 def _user_picks():
     from numba import njit
 
-    from pinnedballs.engine.random import bounded
+    from pinnedballs.engine.streams.xoshiro import bounded
 
     @njit
     def index_only(state, rng, n_contacts):

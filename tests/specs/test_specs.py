@@ -364,7 +364,7 @@ def test_missing_spec_file(tmp_path):
 
 def test_engine_errors_carry_their_field():
     """The engine names the argument as data; a spec maps it to its field without reading the message."""
-    from pinnedballs.engine.errors import FieldValueError
+    from pinnedballs.util.errors import FieldValueError
 
     with pytest.raises(FieldValueError) as info:
         pb.FlatTorus(5, 4)

@@ -11,7 +11,7 @@ import pytest
 from numba import njit
 
 import pinnedballs as pb
-from pinnedballs.engine.random import bounded
+from pinnedballs.engine.streams.xoshiro import bounded
 from pinnedballs.rules import CollisionRule, closing_speed, remnant_threshold
 from pinnedballs.testing import (check_contact_graph_round_trip, check_contact_tables, check_contacts_are_touching_pairs,
                                  check_energy_conserved_if_elastic, check_energy_never_created, check_exact_agrees,

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as _np
 
-from ..errors import FieldError
+from ...util.errors import FieldError
 
 if not hasattr(_np, "row_stack"):  # numba-cuda 0.30 overloads np.row_stack, which numpy 2.5 removed:
     _np.row_stack = _np.vstack     # without it, its first compile fails (AttributeError: row_stack)

@@ -1,7 +1,7 @@
 """`DeviceChain`: one simulation's chain on a GPU, run to the limits the CPU loop honours, with its bits.
 
 The velocities live on the GPU from the moment the chain is built; the host reads them only when
-asked (`velocities`). `run` is the engine's chunk protocol (`engine.loops`'s ``limited``: at most
+asked (`velocities`). `run` is the engine's chunk protocol (`engine.sequential.loops`'s ``limited``: at most
 ``max_steps`` steps, stopping at a total of ``max_collisions`` collisions and, with ``until_frozen``,
 right after the collision that leaves no live contact) on the counter stream, and leaves the
 counters, the stream's words and the closing margin as the CPU loop leaves them:
@@ -16,8 +16,8 @@ counters, the stream's words and the closing margin as the CPU loop leaves them:
   target collision is read from that batch's collisions (``hits``), and the chunk goes again to it.
 
 Batches hold `batch_size` picks by default (about a quarter of the balls, a power of two): the number of
-rounds a batch needs grows with its size over the number of balls (8 at a quarter, 11 at a half, 16 at
-one, measured on an H100 at 4000x2000), and the results never depend on it.
+rounds a batch needs grows with its size over the number of balls, each round a barrier of the whole grid,
+and a batch too small leaves the GPU idle (docs/performance.md); the results never depend on it.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ _NO_LIMIT = np.iinfo(np.int64).max
 
 def batch_size(n_balls: int) -> int:
     """Picks a batch by default: the power of two nearest a quarter of the balls, within [64, `MAX_BATCH`]
-    (measured on an H100 at 4000x2000: 2^19 picks, 0.23 of the balls, ran fastest of 2^18 to 2^21)."""
+    (the fastest share of the balls tried, docs/performance.md)."""
     return int(min(MAX_BATCH, max(64, 1 << max(0, round(np.log2(max(1, n_balls) / 4))))))
 
 
@@ -63,7 +63,7 @@ class DeviceChain:
 
     v: ``(n_balls, dim)`` velocities (copied to the GPU); ``contacts`` the geometry's `Contacts`;
     ``pattern`` its row pattern (`engine.rows`) or None; ``masses (n_balls,)``; ``params`` the rule's
-    params with the threshold last; ``collide`` the rule's (any: `compile.check_rule` has passed it); ``key`` the counter
+    params with the threshold last; ``collide`` the rule's (any that `compile.check_rule` passes); ``key`` the counter
     stream's ``(k0, k1)``; ``batch`` picks per batch (default `batch_size`); ``top`` the owner keys'
     first generation (tests lower it to reset often); ``blocks`` the grid (default: all that fit).
     """
@@ -228,12 +228,14 @@ class DeviceChain:
 
         chunk = max(CHUNK_PER_CONTACT * self.n_contacts, 4 * self.batch) \
             if until_frozen or max_collisions - int(counters[COLLISIONS]) <= max_steps else max_steps
-        taken, _, frozen, _, _ = limits_loop(mark, advance, live, settle)(None, None, int(counters[COLLISIONS]), max_steps, max_collisions,
+        to_limits = limits_loop(mark, advance, live, settle)
+        taken, _, frozen, _, _ = to_limits(None, None, int(counters[COLLISIONS]), max_steps, max_collisions,
                                            until_frozen, max(1, chunk))
         counters[LIVE] = 0 if frozen else -1
         return taken
 
-    def _again(self, start: int, before: int, steps: int, margin: np.ndarray, saved: np.ndarray) -> tuple[int, int, int]:
+    def _again(self, start: int, before: int, steps: int, margin: np.ndarray,
+               saved: np.ndarray) -> tuple[int, int, int]:
         """The chunk from step ``start`` (``before`` collisions) run again for ``steps`` steps from its saved
         velocities and margin ``saved``: `_launch`'s ``(steps, collisions, step after the last collision)``."""
         self._restore()

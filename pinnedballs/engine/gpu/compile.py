@@ -35,7 +35,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from ..closing import choose, choose_python, impulse_of, trial_form
-from ..errors import FieldError, described
+from ...util.errors import FieldError, described
 
 __all__ = ["SIMULATED", "contraction_off", "device_function", "device_trial", "python_twin", "check_rule", "ptx"]
 

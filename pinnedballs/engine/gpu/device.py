@@ -1,4 +1,4 @@
-"""Device functions of the GPU engine that the CPU writes otherwise: the counter stream (`engine.philox`) and
+"""Device functions of the GPU engine that the CPU writes otherwise: the counter stream (`engine.streams.philox`) and
 a contact read from its index (`engine.rows.decode`) or from the tables.
 
 A GPU run gives the bits of the CPU loop on the counter stream. The arithmetic of a collision and of the
@@ -18,7 +18,7 @@ import sys
 import numpy as np
 from numba import cuda
 
-from ..philox import M0, M1, W0, W1, ROUNDS
+from ..streams.philox import M0, M1, W0, W1, ROUNDS
 from .compile import SIMULATED, contraction_off
 
 __all__ = ["SIMULATED", "device", "launching", "counter_pick", "philox_block", "lemire", "contact_reader", "INF"]
@@ -73,12 +73,12 @@ def launching():
         sys.setswitchinterval(interval)
 
 
-# ---------------------------------------------------------------- the counter stream (engine.philox)
+# ---------------------------------------------------------------- the counter stream (engine.streams.philox)
 
 
 @device
 def philox_block(c0, c1, c2, c3, k0, k1):
-    """Philox4x64-10 at counter ``(c0, c1, c2, c3)``, key ``(k0, k1)``: `engine.philox.block`."""
+    """Philox4x64-10 at counter ``(c0, c1, c2, c3)``, key ``(k0, k1)``: `engine.streams.philox.block`."""
     for r in range(ROUNDS):
         if r > 0:
             k0 = add64(k0, _W0)
@@ -91,7 +91,7 @@ def philox_block(c0, c1, c2, c3, k0, k1):
 
 @device
 def lemire(x, n):
-    """``(k, accepted)``: `engine.philox.lemire`."""
+    """``(k, accepted)``: `engine.streams.philox.lemire`."""
     hi, lo = mulhilo(x, n)
     if lo < n:
         if lo < wrap(n):  # 2^64 mod n
@@ -110,7 +110,7 @@ def _word(w0, w1, w2, w3, q):
 
 @device
 def counter_pick(k0, k1, s, n):
-    """Step ``s``'s contact among ``n``: `engine.philox.counter_pick` (all uint64)."""
+    """Step ``s``'s contact among ``n``: `engine.streams.philox.counter_pick` (all uint64)."""
     r = _U0
     while True:
         w0, w1, w2, w3 = philox_block(s >> _U2, r, _U0, _U0, k0, k1)

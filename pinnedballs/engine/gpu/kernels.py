@@ -1,7 +1,7 @@
 """The GPU kernels of one chain: batches of picks run by deterministic reservations, and the freeze scan.
 
 **Deterministic reservations** (Blelloch, Fineman, Gibbons, Shun, PPoPP 2012). A *batch* takes the
-next ``K`` steps of the counter stream (`engine.philox`): every thread computes the picks of some
+next ``K`` steps of the counter stream (`engine.streams.philox`): every thread computes the picks of some
 steps (one Philox block gives four), decodes each contact and *reserves* its two balls: an atomic
 minimum of the pick's key on each ball's owner word. The batch then runs in *rounds*: in a round a
 pending pick runs iff it holds both of its balls (it is the lowest pending pick on each), and a pick
@@ -67,9 +67,8 @@ _U0 = np.uint64(0)
 #: how the grid's blocks meet between phases: ``"atomic"``, a counter in global memory the blocks spin on
 #: (an ordinary launch of blocks that all fit at once), or ``"grid"``, cooperative groups'
 #: ``this_grid().sync()`` (a cooperative launch). ``PINNEDBALLS_GPU_BARRIER`` chooses; the bits are the
-#: same. Measured on an H100 at 4000x2000 (docs/gpu.md): 3.57 G steps/s with the atomic counter, 3.06
-#: with the grid sync, whose call keeps about 250 registers a thread live (141 without): one block a
-#: multiprocessor instead of two.
+#: same. The atomic counter is the default: the grid sync's call keeps many more registers a thread live,
+#: so fewer blocks fit a multiprocessor (figures: docs/performance.md, "Why the engine is as it is").
 BARRIERS = ("atomic", "grid")
 
 
@@ -79,10 +78,9 @@ def barrier_kind() -> str:
     return kind if kind in BARRIERS else "atomic"
 
 
-#: threads a block of `chain_kernel`, and the registers a thread may use (None: as many as it needs); the
-#: fastest measured on an H100 at 4000x2000 (256 and None: 3.57 G steps/s; 128 threads 3.18, a cap of 128
-#: registers 3.54, of 96 3.53, 512 threads with 64 registers 2.85). ``PINNEDBALLS_GPU_BLOCK`` and
-#: ``PINNEDBALLS_GPU_MAXREG`` override them. The bits never depend on either.
+#: threads a block of `chain_kernel`, and the registers a thread may use (None: as many as it needs): the
+#: fastest of the shapes tried on a GPU (docs/performance.md, "Why the engine is as it is").
+#: ``PINNEDBALLS_GPU_BLOCK`` and ``PINNEDBALLS_GPU_MAXREG`` override them. The bits never depend on either.
 BLOCK, MAX_REGISTERS = 256, None
 
 
@@ -294,7 +292,7 @@ def chain_kernel(collide, dim: int, flat: bool, rows: bool, barrier: str = "atom
 def live_kernel(collide, dim: int, flat: bool, rows: bool):
     """``count_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, out)``: adds to
     ``out[0]`` the number of live contacts (those whose pick would change a velocity), as
-    `engine.loops.live_kernel`'s ``live_flags`` counts them."""
+    `engine.sequential.loops.live_kernel`'s ``live_flags`` counts them."""
     trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
 
     @cuda.jit

@@ -4,8 +4,8 @@ A replica that fits a thread (its velocities in GPU memory, its picks a function
 step) runs the engine's ``limited`` loop as the CPU runs it, within the limits of `engine.harness`
 compiled for the device: chunks of steps, a scan for a live contact after a chunk with a collision, the
 chunk that froze ended at its last collision (the counter stream needs no rewind: its next pick is the one
-of that step), the margin's remnant side as of that collision. So each replica's velocities, counters and margin are those of a `Simulation`
-on the CPU with the same seed (`run.ensemble_gpu` builds the ensemble's rows from them).
+of that step), the margin's remnant side as of that collision. So each replica's velocities, counters and
+margin are those of a `Simulation` on the CPU with the same seed (`run.ensemble_gpu` builds the ensemble's rows from them).
 
 `ReplicaChains` holds the replicas of one geometry and rule: velocities ``(R, N, dim)``, keys, the
 per-replica thresholds, and runs them all, each to its own limits, in one launch.
@@ -130,8 +130,8 @@ def replicas_kernel(collide, dim: int, flat: bool, rows: bool):
 #: lanes of a block that runs one replica (`lanes_kernel`): a batch of this many steps at a time
 LANES = 8 if SIMULATED else 32
 #: how replicas are laid out on the GPU: ``"thread"`` (`replicas_kernel`) or ``"block"`` (`lanes_kernel`);
-#: ``PINNEDBALLS_GPU_REPLICAS`` overrides it (the bits are the same). Measured on an H100 (docs/gpu.md):
-#: 16,384 replicas of 200x100 to frozen in 7.2 s one a thread, 9.0 s one a block
+#: ``PINNEDBALLS_GPU_REPLICAS`` overrides it (the bits are the same). One a thread is the default: the faster
+#: of the two on the ensembles tried (docs/performance.md)
 LAYOUT = "thread"
 
 

@@ -1,0 +1,397 @@
+"""The compiled loop of the fixed-point chain (`pinnedballs.engine.field.fixed`): picks tried in turn,
+every decision exact (policy "exact") or proved equal to exact arithmetic's (policy "certified").
+
+Plain data (shapes; ``L`` lines, ``m`` coefficients per component, ``P`` limbs): `Tables` (the
+geometry's contact lines), `State` (the velocities, their shadows and bounds) and `Scratch`.
+``info (4,)``: ``(x, E, bound, contact)`` of an uncertified decision, its closing speed ``w~ = x 2^E``
+and the bound in units of ``2^-S``; ``prog (7,) int64``:
+``(collisions, index of the last, collided since the last scan, live contacts or -1, picks to the
+next scan, a step at which not to stop for a due check, picks decided in fixed point)``, kept
+across calls.
+
+The float filter: a shadow is within ``9 * 2^-53`` of its size of the number it stands for (two
+limbs read, rounded, and one product by ``sqrt d``), so the float closing speed computed from the
+shadows is within ``FILTER * 2^-53 * usum (ms_i + ms_j) + TINY`` (``TINY`` covers underflow) of the
+exact one, with room to spare; only picks inside that band (widened by the bounds ``bmax`` in the
+certified policy) look further.
+
+The certified policy keeps its bounds in units of ``2^-S`` (the state's last place), so they neither
+underflow nor lose digits at any precision; a decision compares ``W``, read with its own exponent
+(`_normal`), with the bound scaled to it (`_beyond`). Only the band of the float filter (``bmax``, in
+the rows) is absolute, where an underflow is covered by ``TINY``.
+
+Every kernel is compiled without reference counting (see `limbs`), so the loop's many small
+inlined functions cost no atomic operations; the loop fetches the tables of picks a few steps
+ahead (`prefetch`), which hides the memory latency of systems larger than the cache.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..jit.intrinsics import prefetch
+from ..jit.cache import njit_cached
+from .limbs import diff_combination, exchange, field_sign, low_bits, scaled_float, shift_round, sign
+
+__all__ = ["Tables", "State", "Scratch", "run_picks", "count_live", "refresh_shadows", "FILTER", "TINY", "UP",
+           "SQRT2_UP", "DONE", "FROZEN", "WIDEN", "UNCERTIFIED", "UNCOUNTED", "DUE"]
+
+#: the float filter's band, in units of 2^-53 times the sizes (its error bound is about 20)
+FILTER = 64.0
+#: an absolute floor under the band: far above what underflow can lose (2^-1074 per operation)
+TINY = 2.0 ** -1000
+#: a float upper bound times UP stays one after up to three more rounded operations (2^-50 > 4 * 2^-53)
+UP = 1.0 + 2.0 ** -50
+#: sqrt(2) rounded up: G = sqrt(2) sum |rho| is computed as ``sum * SQRT2_UP * UP``
+SQRT2_UP = math.sqrt(2.0) * UP
+_U = 2.0 ** -53
+_SMALLEST = 5e-324
+
+#: how `run_picks` ends: the picks ran out (or ``collisions_left`` was reached); the run froze;
+#: a collision needs a wider state (exact policy); a pick, or a count of the live contacts, could
+#: not be certified; a check is due (the certified policy's narrowing, `fixed.FixedChain.narrow`)
+DONE, FROZEN, WIDEN, UNCERTIFIED, UNCOUNTED, DUE = 0, 1, 2, 3, 4, 5
+
+#: how many picks ahead `run_picks` fetches a pick's contact, its balls' shadows, and (when the
+#: float filter does not rule it out) their coefficients and bounds (measured: bench_exact.py)
+AHEAD_CONTACT, AHEAD_ROWS, AHEAD_BALLS = 24, 12, 6
+
+kernel = njit_cached(_nrt=False)
+inlined = njit_cached(_nrt=False, inline="always")
+
+
+class Tables(NamedTuple):
+    """A geometry's contacts by line. Contact ``k`` lies on line ``l = ls[k] >> 1``, with ``t_i = u_l``
+    or, when ``ls[k] & 1``, ``-u_l``. ``2^e[l] u_l`` has integer coefficients: ``(V_i - V_j) . u_l``
+    (at scale ``S + e``) has coefficient ``c`` equal to ``sum f (X_i[d, s] - X_j[d, s])`` over the
+    ``wcount[l, c]`` terms ``wterms[l, c] = (d, s, f)``; ``omega u_l``'s coefficient ``c`` of component
+    ``d`` (at scale ``S``) is ``sum f Omega[s]`` over ``kterms[l, d, c] = (s, f)``."""
+
+    pairs: np.ndarray  #: (E, 2) uint32
+    ls: np.ndarray  #: (E,) uint8
+    uf: np.ndarray  #: (L, dim) the lines' unit vectors as floats
+    usum: np.ndarray  #: (L,) the sums of their components' magnitudes, rounded up
+    e: np.ndarray  #: (L,) int64
+    wterms: np.ndarray  #: (L, m, T, 3) int64
+    wcount: np.ndarray  #: (L, m) int64
+    kterms: np.ndarray  #: (L, dim, m, T, 2) int64
+    kcount: np.ndarray  #: (L, dim, m) int64
+    coef: np.ndarray  #: (4, L, L): |u_l.u_m|, |P_perp(l) u_m|, ||P_perp(m) P_perp(l)||, |P_perp(m) u_l|, rounded up
+    root: np.ndarray  #: (3,): d, sqrt d, sqrt d rounded up
+
+
+class State(NamedTuple):
+    """The velocities, ``X / 2^S``, and what the loop keeps beside them."""
+
+    X: np.ndarray  #: (n, dim, m, P) uint64: each component's coefficients (`limbs`)
+    rows: np.ndarray  #: (n, dim + 2): shadows, size ms (0 exactly at rest), bmax (largest B, absolute)
+    dirty: np.ndarray  #: (n,) uint8: changed since the last `sync`
+    B: np.ndarray  #: (n, L): certified bounds along each line, in units of 2^-S
+    Pp: np.ndarray  #: (n, L): certified bounds across each line, in units of 2^-S
+    acc: np.ndarray  #: (2,): sum |rho| and G, rounded up, in units of 2^-S
+    T: np.ndarray  #: (P,): T[h] = 2^(64 (h + 1) - S), the scale of a float read from limb h down
+
+
+class Scratch(NamedTuple):
+    W: np.ndarray  #: (m, P): a closing speed, then omega
+    tmp: np.ndarray  #: (2, P)
+    big: np.ndarray  #: (3, 4P + 2): full squares for the rare exact signs
+
+
+@inlined
+def _closing(tables, X, i, j, l, W):
+    """``W = (V_i - V_j) . u_l`` exactly, at scale ``S + e[l]``."""
+    for c in range(W.shape[0]):
+        diff_combination(W[c], X[i], X[j], tables.wterms[l, c], tables.wcount[l, c])
+
+
+@inlined
+def _normal(W, root):
+    """``(x, err, E)``: the element ``W`` is within ``err 2^E`` of ``x 2^E`` (``|x| <= 1 + sqrt d``: no
+    overflow at any width; ``E`` the larger of its coefficients' exponents)."""
+    f0, e0 = scaled_float(W[0])
+    if W.shape[0] == 1:
+        return f0, 4.0 * _U * abs(f0) + TINY, e0
+    f1, e1 = scaled_float(W[1])
+    E = max(e0, e1)
+    a, b = math.ldexp(f0, int(e0 - E)), math.ldexp(f1, int(e1 - E))
+    return a + b * root[1], 9.0 * _U * (abs(a) + abs(b) * root[1]) + TINY, E
+
+
+@inlined
+def _absolute(x, E):
+    """``x 2^E`` as a float, 0 only when ``x`` is (an underflow keeps the sign and the smallest size)."""
+    y = math.ldexp(x, int(E))
+    return y if y != 0.0 or x == 0.0 else math.copysign(_SMALLEST, x)
+
+
+@inlined
+def _beyond(x, err, E, e, beta):
+    """1 when ``x 2^E`` (within ``err 2^E``) certainly exceeds ``beta 2^e``, 0 when it certainly lies
+    below ``-beta 2^e``, -1 when neither: the bound is scaled to ``2^E`` (rounded up, at least ``TINY``)."""
+    bound = max(math.ldexp(beta, int(e - E)), TINY)
+    if x - err > bound:
+        return 1
+    if x + err < -bound:
+        return 0
+    return -1
+
+
+@inlined
+def _exact_sign(W, root, scratch):
+    """The exact sign of the element ``W``."""
+    if W.shape[0] == 1:
+        return sign(W[0])
+    return field_sign(W[0], W[1], root[1], np.int64(root[0]), scratch.tmp[0], scratch.tmp[1], scratch.big)
+
+
+@inlined
+def _filter(tables, rows, k):
+    """The float filter on contact ``k``: ``(decision, l, s, x)``, decision 1 (live) or 0 (not) when
+    certain whatever the error bounds ``bmax`` allow, 2 when not; ``s`` the sign of ``t_i`` on ``u_l``;
+    ``x`` the closing speed in floats (NaN when both balls are at rest)."""
+    i, j = tables.pairs[k, 0], tables.pairs[k, 1]
+    code = tables.ls[k]
+    l, s = np.int64(code >> 1), 1.0 - 2.0 * (code & 1)
+    D = rows.shape[1] - 2
+    if rows[i, D] == 0.0 and rows[j, D] == 0.0:  # both at rest
+        return 0, l, s, np.nan
+    w = 0.0
+    for d in range(D):
+        w += (rows[i, d] - rows[j, d]) * tables.uf[l, d]
+    band = FILTER * _U * tables.usum[l] * (rows[i, D] + rows[j, D]) + TINY + (rows[i, D + 1] + rows[j, D + 1]) * UP
+    x = s * w
+    return (0 if x < -band else 1 if x > band else 2), l, s, x
+
+
+@inlined
+def _decide(k, tables, state, scale, certify, scratch, info):
+    """``(decision, computed, x)``: decision 1 when contact ``k`` is live (its closing speed exactly
+    positive), 0 when not, -1 when certified arithmetic cannot tell (``info``: ``w~`` and the bound);
+    ``computed``: ``scratch.W`` holds ``(V_i - V_j) . u_l`` in fixed point; ``x``: the closing speed
+    in floats (0 exactly when it is 0, NaN when both balls are at rest)."""
+    decision, l, s, x = _filter(tables, state.rows, k)
+    if decision < 2:
+        return decision, False, x
+    i, j = tables.pairs[k, 0], tables.pairs[k, 1]
+    beta = (state.B[i, l] + state.B[j, l]) * UP if certify else 0.0  # units of 2^-S
+    W = scratch.W
+    _closing(tables, state.X, i, j, l, W)
+    f, err, E = _normal(W, tables.root)
+    x = s * _absolute(f, E - scale - tables.e[l])
+    if beta == 0.0:  # w~ is w: its exact sign
+        return (1 if s * _exact_sign(W, tables.root, scratch) > 0 else 0), True, x
+    decision = _beyond(s * f, err, E, tables.e[l], beta)
+    if decision < 0:
+        info[0], info[1], info[2], info[3] = s * f, E - scale - tables.e[l], beta, k
+    return decision, True, x
+
+
+@inlined
+def _shadow(X, b, T, root, rows):
+    """Ball ``b``'s shadows and size from its coefficients."""
+    D, m = X.shape[1], X.shape[2]
+    size, moving = 0.0, False
+    for d in range(D):
+        f0, e0 = scaled_float(X[b, d, 0])
+        a = f0 * T[(e0 >> 6) - 1] if f0 != 0.0 else 0.0
+        moving = moving or f0 != 0.0
+        if m == 1:
+            rows[b, d] = a
+            size = max(size, abs(a))
+        else:
+            f1, e1 = scaled_float(X[b, d, 1])
+            c = f1 * T[(e1 >> 6) - 1] if f1 != 0.0 else 0.0
+            moving = moving or f1 != 0.0
+            rows[b, d] = a + c * root[1]
+            size = max(size, abs(a) + abs(c) * root[1])
+    rows[b, D] = max(size, _SMALLEST) if moving else 0.0
+
+
+@inlined
+def _band(bmax, scale):
+    """A largest bound in units of ``2^-scale`` as the float filter reads it: absolute, rounded up
+    (an underflow loses less than the filter's ``TINY``)."""
+    return math.ldexp(bmax, -int(scale)) * UP
+
+
+@kernel
+def refresh_shadows(X, T, root, rows, B, scale):
+    """Every ball's row (shadows, size, largest bound) from ``X`` and ``B`` (units of ``2^-scale``)."""
+    D = X.shape[1]
+    for b in range(X.shape[0]):
+        _shadow(X, b, T, root, rows)
+        bmax = 0.0
+        for m in range(B.shape[1]):
+            bmax = max(bmax, B[b, m])
+        rows[b, D + 1] = _band(bmax, scale)
+
+
+@inlined
+def _carry_bounds(state, coef, i, j, l, r, scale):
+    """The error bounds of balls ``i, j`` after their collision along line ``l`` with rounding ``|rho| <= r``
+    (units of ``2^-scale``): the parallel components are exchanged, the perpendicular ones kept; each
+    capped by ``G``."""
+    B, Pp, rows, G = state.B, state.Pp, state.rows, state.acc[1]
+    uu, nu, nn, un = coef[0], coef[1], coef[2], coef[3]
+    pi, pj = Pp[i, l], Pp[j, l]
+    ai, aj = (B[j, l] + r) * UP, (B[i, l] + r) * UP
+    D = rows.shape[1] - 2
+    bi, bj = 0.0, 0.0
+    for m in range(B.shape[1]):  # x y + z w: three roundings, less than UP's 2^-50 with room
+        B[i, m] = min(G, (pi * nu[l, m] + ai * uu[l, m]) * UP)
+        Pp[i, m] = min(G, (pi * nn[l, m] + ai * un[l, m]) * UP)
+        B[j, m] = min(G, (pj * nu[l, m] + aj * uu[l, m]) * UP)
+        Pp[j, m] = min(G, (pj * nn[l, m] + aj * un[l, m]) * UP)
+        bi, bj = max(bi, B[i, m]), max(bj, B[j, m])
+    rows[i, D + 1], rows[j, D + 1] = _band(bi, scale), _band(bj, scale)
+
+
+@inlined
+def _collide(k, tables, state, scale, certify, scratch):
+    """Collide contact ``k``, whose ``W`` is computed and closing speed positive. False (nothing
+    changed) when the exact policy needs a wider state first."""
+    X, W, root = state.X, scratch.W, tables.root
+    i, j, l = tables.pairs[k, 0], tables.pairs[k, 1], np.int64(tables.ls[k] >> 1)
+    m, bits = W.shape[0], 2 * tables.e[l]
+    r = 0.0
+    if bits > 0:  # omega: W with its lowest 2 e bits cleared, so that omega u_l is exact at scale S
+        if not certify:
+            for c in range(m):
+                if low_bits(W[c], bits) != 0:
+                    return False
+        rho0 = shift_round(W[0], W[0], bits)
+        rho1 = shift_round(W[1], W[1], bits) if m == 2 else 0
+        if rho0 != 0 or rho1 != 0:
+            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[l]))  # units of 2^-S
+    for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
+        for c in range(m):
+            exchange(X[i, d, c], X[j, d, c], W, tables.kterms[l, d, c], tables.kcount[l, d, c])
+    _shadow(X, i, state.T, root, state.rows)
+    _shadow(X, j, state.T, root, state.rows)
+    state.dirty[i], state.dirty[j] = 1, 1
+    if certify:
+        if r > 0.0:
+            state.acc[0] = (state.acc[0] + r) * UP
+            state.acc[1] = state.acc[0] * SQRT2_UP * UP
+        _carry_bounds(state, tables.coef, i, j, l, r, scale)
+    return True
+
+
+@kernel
+def count_live(tables, state, scale, certify, scratch, info):
+    """The number of live contacts, or -1 when a decision cannot be certified (``info`` says which)."""
+    live = 0
+    for k in range(tables.pairs.shape[0]):
+        decision, _, _ = _decide(k, tables, state, scale, certify, scratch, info)
+        if decision < 0:
+            return -1
+        live += decision
+    return live
+
+
+@inlined
+def _ahead(tables, state, certify, picks, t):
+    """Cache hints for the picks after ``t`` (no effect on any value): their contacts, their balls'
+    shadows, and the coefficients and bounds of balls the float filter does not rule out."""
+    n, pairs, rows = picks.shape[0], tables.pairs, state.rows
+    if t + AHEAD_CONTACT < n:
+        prefetch(pairs, picks[t + AHEAD_CONTACT])
+        prefetch(tables.ls, picks[t + AHEAD_CONTACT])
+    if t + AHEAD_ROWS < n:
+        k = picks[t + AHEAD_ROWS]
+        prefetch(rows, pairs[k, 0])
+        prefetch(rows, pairs[k, 1])
+    if t + AHEAD_BALLS < n:
+        k = picks[t + AHEAD_BALLS]
+        if _filter(tables, rows, k)[0] > 0:  # live or undecided
+            X = state.X
+            flat, size = X.reshape(-1), X.shape[1] * X.shape[2] * X.shape[3]
+            for b in (pairs[k, 0], pairs[k, 1]):
+                for q in range(0, size, 8):  # a cache line of limbs at a time, and the last
+                    prefetch(flat, b * size + q)
+                prefetch(flat, b * size + size - 1)
+                if certify:
+                    prefetch(state.B, b)
+                    prefetch(state.Pp, b)
+
+
+@inlined
+def _due(first, t, every, checked):
+    """The pick from ``t`` on whose step (``first`` + its index) is the first multiple of ``every`` other
+    than ``checked``: a check is due before it; -1 when ``every`` is 0 (none is ever due)."""
+    if every <= 0:
+        return -1
+    due = (first + t + every - 1) // every * every
+    return (due + every if due == checked else due) - first
+
+
+@kernel
+def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog, scratch, info,
+              margin, first, every):
+    """Try ``picks[t:]`` in turn: ``(how it ended, picks used)``; ``margin`` gathers the smallest
+    closing speed of a collision, the largest (nonzero) of a pick set aside, and the number of picks
+    set aside whose closing speed is exactly 0 between balls not both at rest.
+
+    DONE: all used, or stopped right after the ``collisions_left``-th collision of this run (``prog[0]``
+    counts them, ``at`` holds their indices); FROZEN: with ``until_frozen``, a scan (every ``chunk``
+    picks and at the end, when a collision happened since the last) found no live contact, so the
+    run ends right after its last collision; WIDEN: pick ``t`` needs a wider state (call again from
+    it); UNCERTIFIED: pick ``t`` cannot be certified (``info`` says why); UNCOUNTED: the scan after
+    ``t`` picks cannot be; DUE: with ``every > 0``, the step ``first + t`` of pick ``t`` is a multiple
+    of ``every`` other than ``prog[5]``: a check is due before it (call again from it).
+    """
+    made, last, fresh, countdown = prog[0], prog[1], prog[2], prog[4]
+    n = picks.shape[0]
+    status = DONE
+    due = _due(first, t, every, prog[5])  # one division a call, not one a pick
+    inside = 0
+    while t < n:
+        if t == due:
+            status = DUE
+            break
+        _ahead(tables, state, certify, picks, t)
+        k = picks[t]
+        decision, computed, x = _decide(k, tables, state, scale, certify, scratch, info)
+        if decision < 0:
+            status = UNCERTIFIED
+            break
+        if computed:  # the float filter could not decide it
+            inside += 1
+        if decision > 0:
+            margin[0] = min(margin[0], x)
+        elif x == 0.0:
+            margin[2] += 1.0
+        elif x > margin[1]:  # (False for NaN: both at rest)
+            margin[1] = x
+        if decision > 0:
+            if not computed:
+                _closing(tables, state.X, tables.pairs[k, 0], tables.pairs[k, 1], np.int64(tables.ls[k] >> 1),
+                         scratch.W)
+            if not _collide(k, tables, state, scale, certify, scratch):
+                status = WIDEN
+                break
+            at[made] = t
+            made, last, fresh = made + 1, t, 1
+            prog[3] = -1
+        t += 1
+        countdown -= 1
+        if made == collisions_left:
+            break
+        if until_frozen and fresh and (countdown <= 0 or t == n):
+            live = count_live(tables, state, scale, certify, scratch, info)
+            if live < 0:
+                status = UNCOUNTED
+                break
+            prog[3], fresh = live, 0
+            if live == 0:
+                status, t = FROZEN, last + 1
+                break
+        if countdown <= 0:
+            countdown = chunk
+    prog[0], prog[1], prog[2], prog[4] = made, last, fresh, countdown
+    prog[6] += inside
+    return status, t

@@ -1,0 +1,161 @@
+"""What a run in certified arithmetic resumes from (`CertifiedState`), and its velocities rounded
+to the nearest floats (`nearest_floats`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...util.errors import FieldError
+
+__all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text", "precisions_problem"]
+
+#: (as `fixed_kernels.UP` and `SQRT2_UP`: this module stays free of numba)
+_UP = 1.0 + 2.0 ** -50
+_SQRT2_UP = math.sqrt(2.0) * _UP
+
+
+def scaled_up(x: np.ndarray, shift: int) -> np.ndarray:
+    """``x 2^shift`` for floats ``x >= 0``, rounded up: exact unless it leaves the normal range; a
+    result that underflows is raised to the next float (so a bound stays a bound, never 0), one that
+    overflows is inf."""
+    x = np.asarray(x, dtype=np.float64)
+    with np.errstate(over="ignore"):  # inf: said by the caller's check
+        y = np.ldexp(x, int(shift))
+    tiny = (x > 0) & (y < 2.0 ** -1021)
+    y[tiny] = np.nextafter(y[tiny], np.inf)
+    return y
+
+
+def power_text(x: float, exponent: int) -> str:
+    """``x 2^exponent`` in words: a float where one holds it, else ``m * 2^e`` (for messages)."""
+    if x == 0.0:
+        return "0"
+    y = math.ldexp(x, exponent)
+    if 2.0 ** -1000 < abs(y) < 2.0 ** 1000:
+        return f"{y:.6g}"
+    m, e = math.frexp(x)  # |m| in [0.5, 1)
+    return f"{2 * m:.6g} * 2^{e - 1 + exponent}"
+
+
+def error_bound(bounds: np.ndarray, rounding: float, bound_scale: int = 0) -> tuple[float, float]:
+    """``(G, largest)`` from a certified state's ``bounds (n_balls, 2, L)`` and ``rounding`` (the sum
+    of every ``|rho|``), both in units of ``2^-bound_scale``: ``G = sqrt(2) * rounding`` bounds the
+    whole error vector (rounded up as the chain computes it), ``largest`` every ball's error
+    ``|V_i(exact) - V~_i|`` (the least over lines of ``hypot(B, Pp)``, rounded up, and at most ``G``).
+    Absolute floats, rounded up: a bound below the smallest float is 5e-324, not 0."""
+    G = rounding * _SQRT2_UP * _UP
+    largest = 0.0
+    if bounds.size:
+        largest = float(min(G, (np.min(np.hypot(bounds[:, 0], bounds[:, 1]), axis=1) * _UP).max()))
+    G, largest = scaled_up(np.array([G, largest]), -int(bound_scale)).tolist()
+    return G, largest
+
+
+@dataclass(frozen=True, eq=False)
+class CertifiedState:
+    """The state of a run in certified arithmetic (`pinnedballs.engine.field.fixed`), bit for bit.
+
+    limbs: ``(n_balls, dim, m, P) uint64``, each velocity component's ``m`` coefficients on the
+    field's basis as integers over ``2^scale`` in ``P`` little-endian 64-bit limbs, two's complement;
+    scale: ``S``; bounds: ``(n_balls, 2, L) float64``, each ball's error bounds along (``[:, 0]``,
+    ``B``) and across (``[:, 1]``, ``Pp``) each of the geometry's ``L`` contact lines; rounding: the
+    sum of every ``|rho|`` so far, rounded up (``G = sqrt(2)`` times it); bound_scale: bounds and
+    rounding are in units of ``2^-bound_scale`` (the chain writes ``S``: no underflow at any
+    precision; 0, absolute, in files written before it was kept); precision, late_precision: the
+    bits the chain ran at through the first wave and behind it (``64 P`` limbs, as built; 0: not
+    kept, in files written before; ``late_precision`` 0 also: none), which a spec's ``"precision":
+    "auto"`` resumes at (`pinnedballs.results.load.Results.simulation`).
+    """
+
+    limbs: np.ndarray
+    scale: int
+    bounds: np.ndarray
+    rounding: float
+    bound_scale: int = 0
+    precision: int = 0
+    late_precision: int = 0
+
+    def copy(self) -> "CertifiedState":
+        return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale,
+                              self.precision, self.late_precision)
+
+    def scalars(self) -> tuple:
+        return self.scale, self.rounding, self.bound_scale, self.precision, self.late_precision
+
+    def identical(self, other: "CertifiedState") -> bool:
+        return self.scalars() == other.scalars() and all(
+            a.dtype == b.dtype and np.array_equal(a, b) for a, b in ((self.limbs, other.limbs),
+                                                                      (self.bounds, other.bounds)))
+
+    def error_bound(self) -> tuple[float, float]:
+        """``(G, largest)``: see `error_bound`."""
+        return error_bound(self.bounds, self.rounding, self.bound_scale)
+
+    def check(self, shape: tuple[int, int, int], lines: int) -> None:
+        """A `FieldError` on ``certified`` unless this state fits ``shape = (n_balls, dim, m)`` and
+        ``lines``: limbs of that shape and ``scale < 64 P``, bounds finite and >= 0, rounding too."""
+        limbs, bounds = np.asarray(self.limbs), np.asarray(self.bounds)
+        if limbs.dtype != np.uint64 or limbs.ndim != 4 or limbs.shape[:3] != shape or limbs.shape[3] < 1:
+            raise FieldError("certified", f"limbs must be uint64 of shape (n_balls, dim, m, P) = {shape + ('P',)}, "
+                                          f"got {limbs.dtype} {limbs.shape}")
+        if not (isinstance(self.scale, (int, np.integer)) and 0 <= self.scale < 64 * limbs.shape[3]):
+            raise FieldError("certified", f"scale must be an integer in [0, {64 * limbs.shape[3]}), got {self.scale!r}")
+        if bounds.dtype != np.float64 or bounds.shape != (shape[0], 2, lines):
+            raise FieldError("certified", f"bounds must be float64 of shape ({shape[0]}, 2, {lines}), "
+                                          f"got {bounds.dtype} {bounds.shape}")
+        if not (np.isfinite(bounds).all() and (bounds >= 0).all()):
+            raise FieldError("certified", "bounds must be finite and >= 0")
+        if not (isinstance(self.rounding, float) and math.isfinite(self.rounding) and self.rounding >= 0):
+            raise FieldError("certified", f"rounding must be a finite float >= 0, got {self.rounding!r}")
+        if not (isinstance(self.bound_scale, (int, np.integer)) and 0 <= self.bound_scale < 64 * limbs.shape[3]):
+            raise FieldError("certified", f"bound_scale must be an integer in [0, {64 * limbs.shape[3]}), "
+                                          f"got {self.bound_scale!r}")
+        if not np.isfinite(scaled_up(bounds, int(self.scale) - int(self.bound_scale))).all():
+            raise FieldError("certified", "bounds must be finite in units of 2^-scale")
+        problem = precisions_problem(self.precision, self.late_precision, limbs.shape[3])
+        if problem:
+            raise FieldError("certified", problem)
+
+
+def precisions_problem(precision, late_precision, limbs: int) -> str:
+    """What is wrong with a `CertifiedState`'s ``precision`` and ``late_precision`` for a state of
+    ``limbs`` limbs ('' if nothing): 0 (not kept), or whole multiples of 64 bits with the state's ``64
+    limbs`` bits being one of them, the late one below the other (0: none)."""
+    whole = all(isinstance(b, (int, np.integer)) and not isinstance(b, bool) and b >= 0 and b % 64 == 0
+                for b in (precision, late_precision))
+    if not whole:
+        return f"precision and late_precision must be whole multiples of 64 bits, got {precision!r}, {late_precision!r}"
+    if precision == 0:
+        return "" if late_precision == 0 else f"late_precision must be 0 where precision is (not kept), got {late_precision}"
+    if late_precision >= precision or 64 * limbs not in (precision, late_precision):
+        return (f"a state of {64 * limbs} bits cannot be of a chain at precision {precision} and late_precision "
+                f"{late_precision} (0: none)")
+    return ""
+
+
+def nearest_floats(ints: np.ndarray, scale: int, d: int) -> np.ndarray:
+    """``(rows, dim)`` floats: each ``(a + b sqrt(d)) / 2^scale`` rounded to the nearest float, for the
+    integer coefficients ``ints (rows, dim, m)`` (``m`` 1 or 2). A rational is Python's correctly
+    rounded division of integers; an irrational lies between two integers over ``2^(scale + k)``
+    (``math.isqrt``), and ``k`` doubles until both round to the same float (the number is never
+    halfway between floats, so this ends)."""
+    out = np.empty(ints.shape[:2])
+    for n, row in enumerate(ints.tolist()):
+        for c, coefficients in enumerate(row):
+            a, b = (coefficients + [0])[:2]
+            out[n, c] = a / (1 << scale) if b == 0 else _nearest(a, b, scale, d)
+    return out
+
+
+def _nearest(a: int, b: int, scale: int, d: int) -> float:
+    k = 128
+    while True:
+        root = math.isqrt(d * b * b << (2 * k))  # root <= |b| sqrt(d) 2^k < root + 1
+        low = (a << k) + (root if b > 0 else -root - 1)
+        one = 1 << (scale + k)
+        if low / one == (low + 1) / one:
+            return low / one
+        k *= 2

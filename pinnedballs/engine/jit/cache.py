@@ -1,0 +1,163 @@
+"""numba's on-disk cache for loops that are closures over jitted functions.
+
+A compiled loop is a closure over a rule's ``collide`` and a scheduler's
+``pick``, so that numba inlines them. numba keys a closure's cache entry on a
+pickle of the values it captures, and a pickled dispatcher carries a
+per-process id: every process would miss and compile again (seconds each).
+`jit_cached_if_possible` keys them by name and source instead.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+from pathlib import Path
+from typing import Callable
+
+import itertools
+import secrets
+
+from numba import njit
+from numba.core.bytecode import FunctionIdentity
+from numba.core.caching import FunctionCache, IndexDataCacheFile
+from numba.core.dispatcher import Dispatcher
+
+__all__ = ["jit_cached_if_possible", "njit_cached", "INLINED"]
+
+#: the options of a kernel compiled on its own and inlined by LLVM into every function that calls it
+#: (``forceinline``), never called from Python (no wrappers to build)
+INLINED = dict(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+#: numba names a compiled function's symbols (its code and its environment, which holds the objects
+#: it returns: an array's dtype) after its qualified name, argument types and a per-process counter.
+#: Two closures of one function (one loop for two rules, one order kernel for two dimensions)
+#: compiled by two processes at the same count share every name, and once both are loaded from the
+#: disk cache into one process the second resolves to the first's environment: a wrong dtype, a
+#: SystemError, or worse. Counting from a random 62-bit start in each process makes names shared by
+#: two processes' compilations as unlikely as a 62-bit collision; the cache's keys do not use it.
+FunctionIdentity._unique_ids = itertools.count(secrets.randbits(62))
+
+
+class _KeyedCache(FunctionCache):
+    """numba's on-disk cache with `_KeyedFiles`: safe when processes fill it at once."""
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = _KeyedFiles(self._cache_path, self._impl.filename_base,
+                                       self._impl.locator.get_source_stamp())
+
+
+class _ClosureCache(_KeyedCache):
+    """numba's on-disk cache, keyed so that closures over jitted functions hit across processes.
+
+    numba keys a closure on a pickle of its captured values, and a pickled
+    dispatcher carries a per-process id: every process would miss and compile
+    again. Here every jitted function the loop reaches (through closures or
+    globals, recursively) counts by its module, name, bytecode and a hash of its
+    source file and of the engine's files, so an edit to a rule, a scheduler or a
+    helper they call, in any module, invalidates the entry.
+    """
+
+    def _index_key(self, sig, codegen):
+        parts = [self._py_func.__code__.co_code, *map(_constant, _cells(self._py_func))]
+        for f in reachable_functions(self._py_func):
+            parts += [f"{f.__module__}.{f.__qualname__}".encode(), f.__code__.co_code,
+                      _source_digest(_source_file(f)), *map(_constant, _cells(f))]
+        return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
+
+
+class _KeyedFiles(IndexDataCacheFile):
+    """numba's index and data files, with each entry's data file named after its key.
+
+    numba numbers a new entry's data file after the entries its index lists, and writes the index
+    before the data: two processes filling one cache at once (the test suite's workers) can give
+    two keys the same number, and the index one key while the file holds the other's machine code:
+    a loop compiled for one rule loaded for another. Named after the key, an entry's file holds
+    only that key's code; an index that loses a key to a concurrent write only costs a compile.
+    """
+
+    def save(self, key, data):
+        overloads = self._load_index()
+        name = self._data_name_pattern.replace("{number:d}", hashlib.sha256(repr(key).encode()).hexdigest()[:20])
+        if overloads.get(key) != name:
+            overloads[key] = name
+            self._save_index(overloads)
+        self._save_data(name, data)
+
+
+#: the package's files whose functions a loop inlines: an edit to one invalidates every loop
+_PACKAGE = Path(__file__).resolve().parents[2]
+_ENGINE_FILES = tuple(str(_PACKAGE / name) for name in (
+    "engine/jit/cache.py", "engine/jit/intrinsics.py", "engine/chain.py", "engine/sequential/loops.py",
+    "engine/streams/xoshiro.py", "engine/closing.py", "engine/margin.py", "engine/rows.py", "engine/harness.py",
+    "engine/selector.py", "rules.py", "schedulers/base.py", "schedulers/simple.py", "schedulers/rejection_free.py",
+    "schedulers/colored_sweep.py", "schedulers/replay.py"))
+
+
+def _cells(f: Callable) -> list:
+    return [cell.cell_contents for cell in f.__closure__ or ()]
+
+
+def _constant(value) -> bytes:
+    """A captured value as key material (a captured jitted function is keyed separately)."""
+    return b"<jitted>" if isinstance(value, Dispatcher) else repr(value).encode()
+
+
+def reachable_functions(py_func: Callable) -> list[Callable]:
+    """The Python functions behind every jitted function ``py_func`` uses, through its
+    closure or its globals, and the ones those use, in a fixed order."""
+    found, seen, stack = [], set(), [py_func]
+    while stack:
+        f = stack.pop()
+        used = _cells(f) + [f.__globals__.get(name) for name in f.__code__.co_names]
+        for value in used:
+            if isinstance(value, Dispatcher) and id(value.py_func) not in seen:
+                seen.add(id(value.py_func))
+                found.append(value.py_func)
+                stack.append(value.py_func)
+    return found
+
+
+def _source_file(f: Callable) -> str | None:
+    """The readable source file defining ``f``, or None (a notebook cell, ``exec``)."""
+    try:
+        path = inspect.getsourcefile(f)
+    except TypeError:
+        return None
+    return path if path and Path(path).is_file() else None
+
+
+@functools.cache
+def _source_digest(path: str) -> bytes:
+    """Hash of a source file and of the engine files every loop inlines."""
+    h = hashlib.sha256()
+    for name in sorted({path, *_ENGINE_FILES}):
+        h.update(Path(name).read_bytes())
+    return h.hexdigest().encode()
+
+
+def njit_cached(py_func: Callable | None = None, **options) -> Callable:
+    """``njit(cache=True, **options)``, its disk cache safe when processes fill it at once
+    (`_KeyedFiles`): numba's own numbers two signatures compiled at once in two processes alike,
+    and one process then loads the other's machine code."""
+    if py_func is None:
+        return functools.partial(njit_cached, **options)
+    dispatcher = njit(py_func, **options)
+    dispatcher._cache = _KeyedCache(py_func)
+    return dispatcher
+
+
+def jit_cached_if_possible(py_func: Callable | None = None, **options) -> Callable:
+    """``njit(**options)`` with `_ClosureCache` on disk, or no disk cache when a captured
+    function has no source file to key it by (it is then compiled once per process).
+
+    ``parallel=True`` compiles ``prange`` loops for all numba threads; the cached code
+    does not depend on the number of threads, which is chosen at run time."""
+    if py_func is None:
+        return functools.partial(jit_cached_if_possible, **options)
+    dispatcher = njit(py_func, **options)
+    if all(_source_file(f) for f in reachable_functions(py_func)):
+        dispatcher._cache = _ClosureCache(py_func)
+    return dispatcher

@@ -1,0 +1,81 @@
+"""The bars `util.progress` shows: tqdm's text bar, or its widget inside a Jupyter kernel with ipywidgets.
+
+Each bar tells its rate from a moment `Progress` sets (the call's start, or the end of its last
+compile: the time a compile takes is no speed), and '?' while it has none. The widget is displayed
+under an id, and closing it puts its final state in the output's text, which a saved notebook keeps
+beside the widget (tqdm's own leaves the state it was first displayed in: "0/6", "0.00 steps").
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+
+__all__ = ["open_bar", "widgets_available"]
+
+
+class _Rate:
+    """A tqdm bar whose rate counts from ``since``, ``(time, count)``; None: unknown, shown '?'."""
+
+    since = None
+
+    @property
+    def format_dict(self):
+        d = super().format_dict
+        d["rate"] = self._rate()
+        return d
+
+    def _rate(self) -> float:
+        if self.since is None:
+            return 0.0  # tqdm shows a rate of 0 as '?'
+        t, n = self.since
+        dt = self._time() - t
+        return (self.n - n) / dt if dt > 0 else 0.0
+
+
+class _Widget:
+    """tqdm's widget, displayed under an id: `close` shows its final state in the output's text too."""
+
+    def __init__(self, *args, **kwargs):
+        from IPython.display import display
+
+        super().__init__(*args, display=False, **kwargs)
+        self._handle = display(self.container, display_id=True)
+
+    def close(self) -> None:
+        super().close()
+        if self._handle is not None:
+            self._handle.update(self.container)
+            self._handle = None
+
+
+@functools.cache
+def _bar_class(widget: bool) -> type:
+    if widget:
+        from tqdm.notebook import tqdm as base
+
+        return type("WidgetBar", (_Rate, _Widget, base), {})
+    from tqdm.std import tqdm as base
+
+    return type("TextBar", (_Rate, base), {})
+
+
+@functools.cache
+def widgets_available() -> bool:
+    """Whether tqdm's notebook widget can be built (ipywidgets importable)."""
+    try:
+        from tqdm.notebook import IProgress
+    except ImportError:
+        return False
+    return IProgress is not None
+
+
+def open_bar(*, widget: bool, total: int | None, unit: str, desc: str, count: int, scale: bool, start: float,
+             since: tuple[float, int] | None):
+    """A bar shown now at ``count``, its elapsed time from ``start`` (``time.time()``), its rate from
+    ``since`` (see `_Rate`); ``widget``: tqdm's notebook widget, else its text bar on stderr."""
+    bar = _bar_class(widget)(total=total, initial=count, unit=f" {unit}", unit_scale=scale, desc=desc,
+                             file=sys.stderr, dynamic_ncols=True, smoothing=0)
+    bar.start_t, bar.since = start, since
+    bar.refresh()
+    return bar

@@ -1,0 +1,163 @@
+"""The fixed-point kernels against their plain-Python twin, Python's integers: every operation
+exact modulo 2^(64 P), signs exact, floats within their stated error."""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pinnedballs.engine.field import limbs
+
+P = 3
+MOD = 1 << (64 * P)
+HALF = MOD >> 1
+BIG = np.empty((3, 4 * P + 2), dtype=np.uint64)  # scratch of the full squares
+
+
+def wrap(x: int) -> int:
+    """``x`` modulo 2^(64 P), as a signed integer (what P limbs hold)."""
+    x %= MOD
+    return x - MOD if x >= HALF else x
+
+
+def arr(x: int) -> np.ndarray:
+    return limbs.to_limbs([x], P)[0]
+
+
+def val(a: np.ndarray) -> int:
+    return int(limbs.from_limbs(a[None])[0])
+
+
+# integers near the limb boundaries and the extremes, where carries and borrows ripple
+edges = st.sampled_from([0, 1, -1, 2**64 - 1, 2**64, -(2**64), 2**128 - 1, -(2**128), HALF - 1, -HALF,
+                         (1 << 63), -(1 << 63) - 1])
+numbers = st.one_of(edges, st.integers(-HALF, HALF - 1), st.integers(-(2**70), 2**70))
+small = st.integers(-(2**31) + 1, 2**31 - 1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(x=numbers, y=numbers)
+def test_add_and_subtract_are_those_of_integers_modulo_the_width(x, y):
+    a = arr(x)
+    limbs.add_to(a, arr(y))
+    assert val(a) == wrap(x + y)
+    out = np.empty(P, dtype=np.uint64)
+    limbs.sub_into(out, arr(x), arr(y))
+    assert val(out) == wrap(x - y)
+    limbs.negate_into(out, arr(x))
+    assert val(out) == wrap(-x)
+
+
+@settings(max_examples=300, deadline=None)
+@given(acc=numbers, x=numbers, c=small)
+def test_adding_a_small_multiple_is_that_of_integers(acc, x, c):
+    a = arr(acc)
+    limbs.addmul(a, arr(x), c)
+    assert val(a) == wrap(acc + c * x)
+
+
+@settings(max_examples=300, deadline=None)
+@given(x=numbers, bits=st.integers(1, 63))
+def test_a_rounded_shift_is_nearest_with_ties_up_and_returns_the_remainder(x, bits):
+    out = np.empty(P, dtype=np.uint64)
+    rest = limbs.shift_round(out, arr(x), bits)
+    q = (x + (1 << (bits - 1))) >> bits  # floor((x + half) / 2^bits): nearest, ties up
+    assert val(out) == wrap(q) and rest == x - (q << bits)
+    assert -(1 << (bits - 1)) <= rest < (1 << (bits - 1))
+    assert limbs.low_bits(arr(x), bits) == x % (1 << bits)
+
+
+@settings(max_examples=300, deadline=None)
+@given(x=numbers, scale=st.integers(-200, 1000))
+def test_sign_zero_and_float_of_a_number(x, scale):
+    """A float within 4 units of 2^-53 of the number, relatively (in the normal range)."""
+    a = arr(x)
+    assert limbs.sign(a) == (x > 0) - (x < 0) and limbs.is_zero(a) == (x == 0)
+    f, e = limbs.scaled_float(a)
+    assert abs(Fraction(f) * 2**e - x) <= Fraction(4, 2**53) * abs(x)
+    exact = Fraction(x, 2**scale) if scale >= 0 else Fraction(x * 2**-scale)
+    if x == 0 or 2**-1000 < abs(exact) < 2**1000:
+        assert abs(Fraction(limbs.to_float(a, scale)) - exact) <= Fraction(4, 2**53) * abs(exact)
+
+
+@settings(max_examples=300, deadline=None)
+@given(a=st.integers(0, HALF - 1), b=st.integers(0, HALF // 2), c=st.sampled_from([1, 2, 3, 5, 7, 2**31 - 1]))
+def test_squares_compare_as_integers(a, b, c):
+    assert limbs.compare_squares(arr(a), arr(b), c, BIG) == ((a * a > c * b * b) - (a * a < c * b * b))
+
+
+def exact_sign(w0: int, w1: int, d: int) -> int:
+    """The sign of w0 + w1 sqrt(d), by integers only."""
+    if w1 == 0 or (w0 > 0) == (w1 > 0) and w0 != 0:
+        return (w0 > 0) - (w0 < 0)
+    if w0 == 0:
+        return (w1 > 0) - (w1 < 0)
+    return (1 if w0 > 0 else -1) if w0 * w0 > d * w1 * w1 else (1 if w1 > 0 else -1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(w0=numbers, w1=st.integers(-(2**100), 2**100), d=st.sampled_from([2, 3]))
+def test_the_sign_of_an_element_of_a_quadratic_field_is_exact(w0, w1, d):
+    scratch = [np.empty(P, dtype=np.uint64) for _ in range(2)]
+    assert limbs.field_sign(arr(w0), arr(w1), math.sqrt(d), d, *scratch, BIG) == exact_sign(w0, w1, d)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_signs_of_near_cancellations_in_a_quadratic_field(d):
+    """Convergents of sqrt(d): w0 + w1 sqrt(d) within 1e-40 of zero, of both signs, where only the
+    full squares decide."""
+    a = math.isqrt(d)
+    h, k, h1, k1 = a, 1, 1, 0  # continued fraction convergents h/k of sqrt(d)
+    m, dd, aa = 0, 1, a
+    seen = set()
+    scratch = [np.empty(P, dtype=np.uint64) for _ in range(2)]
+    for _ in range(120):
+        m = dd * aa - m
+        dd = (d - m * m) // dd
+        aa = (a + m) // dd
+        h, h1 = aa * h + h1, h
+        k, k1 = aa * k + k1, k
+        if h >= HALF:
+            break
+        for w0, w1 in ((h, -k), (-h, k)):
+            assert limbs.field_sign(arr(w0), arr(w1), math.sqrt(d), d, *scratch, BIG) == exact_sign(w0, w1, d)
+            seen.add(exact_sign(w0, w1, d))
+    assert seen == {1, -1} and h > 2**100
+
+
+def test_integers_go_in_and_out_unchanged():
+    values = [0, 1, -1, HALF - 1, -HALF, 12345678901234567890123]
+    assert limbs.from_limbs(limbs.to_limbs(values, P)).tolist() == values
+    with pytest.raises(OverflowError):
+        limbs.to_limbs([HALF], P)
+
+
+@settings(max_examples=200, deadline=None)
+@given(xs=st.lists(numbers, min_size=4, max_size=4), ys=st.lists(numbers, min_size=4, max_size=4),
+       fs=st.lists(small, min_size=3, max_size=3), count=st.integers(0, 3))
+def test_a_linear_combination_of_differences_is_that_of_integers(xs, ys, fs, count):
+    """``sum f_t (x[d_t, s_t] - y[d_t, s_t])`` in one pass through the 128-bit accumulator."""
+    x = limbs.to_limbs(np.array(xs, dtype=object).reshape(2, 2), P)  # (dim, m, P)
+    y = limbs.to_limbs(np.array(ys, dtype=object).reshape(2, 2), P)
+    picked = [(0, 0), (1, 1), (1, 0)][:count]
+    terms = np.array([[d, s, f] for (d, s), f in zip(picked, fs)] or [[0, 0, 0]], dtype=np.int64)
+    out = np.empty(P, dtype=np.uint64)
+    limbs.diff_combination(out, x, y, terms, count)
+    expected = sum(f * (xs[2 * d + s] - ys[2 * d + s]) for (d, s), f in zip(picked, fs))
+    assert val(out) == wrap(expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(xi=numbers, xj=numbers, om=st.lists(numbers, min_size=2, max_size=2), fs=st.lists(small, min_size=2, max_size=2),
+       count=st.integers(0, 2))
+def test_an_exchange_moves_the_same_combination_out_of_one_number_and_into_the_other(xi, xj, om, fs, count):
+    a, b = arr(xi), arr(xj)
+    terms = np.array([[s, f] for s, f in zip((1, 0), fs)], dtype=np.int64)
+    limbs.exchange(a, b, limbs.to_limbs(om, P), terms, count)
+    k = sum(f * om[s] for s, f in list(zip((1, 0), fs))[:count])
+    assert (val(a), val(b)) == (wrap(xi - k), wrap(xj + k))
