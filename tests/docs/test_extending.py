@@ -163,3 +163,37 @@ def test_a_plain_python_pick_or_collide_is_refused_naming_the_component():
         pb.Simulation(geom, v, scheduler=Plain())
     with pytest.raises(TypeError, match=r"^rule: PlainRule.kernel\(\)'s collide must be a numba-compiled"):
         pb.Simulation(geom, v, rule=PlainRule())
+
+
+def test_spring_given_by_its_impulse_is_elastic_at_no_softening(doc):
+    """``soft = 0`` is the elastic rule for any masses (c_i = 2 m_j w / (m_i + m_j)): the impulse form's
+    collide, branchy or branch-free, gives the built-in rule's bits on a torus in equilibrium; with
+    ``soft > 0`` momentum is kept and energy lost."""
+    torus = pb.FlatTorus(6, 6)
+    v = np.random.default_rng(8).normal(size=(torus.n_balls, 2))
+    masses = np.random.default_rng(9).uniform(0.5, 2.0, torus.n_balls)
+    a = pb.Simulation(torus, v, rule=doc["Spring"](0.0), masses=masses, seed=2)
+    b = pb.Simulation(torus, v, rule=pb.Elastic(), masses=masses, seed=2)
+    a.run(steps=20_000)
+    b.run(steps=20_000)
+    np.testing.assert_array_equal(a.velocities, b.velocities)
+    soft = pb.Simulation(torus, v, rule=doc["Spring"](0.5), masses=masses, seed=2)
+    soft.run(steps=20_000)
+    np.testing.assert_allclose(soft.momentum(), b.momentum(), atol=1e-9)
+    assert soft.energy() < 0.5 * b.energy()
+
+
+def test_both_rules_run_on_the_gpu_with_the_cpus_bits(doc):
+    """The page's claim: a user's rule, whole or by its impulse, runs on ``device="cuda"`` (here numba-cuda's
+    simulator) with the CPU's bits."""
+    half = pb.HalfPlane.from_size(16, 8)
+    v = np.zeros((half.n_balls, 2))
+    v[half.boundary_center()] = [0.0, 3.0]
+    for rule in (doc["Sticky"](0.5), doc["Spring"](0.25)):
+        runs = []
+        for device in ("cpu", "cuda"):
+            sim = pb.Simulation(half, v, rule=rule, scheduler=pb.UniformRandomPair(stream="counter"), seed=4,
+                                device=device)
+            sim.run_until_frozen(max_steps=10**6, progress=False)
+            runs.append((sim.velocities.tobytes(), sim.steps, sim.collisions))
+        assert runs[0] == runs[1] and runs[0][2] > 10

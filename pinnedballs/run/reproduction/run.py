@@ -199,7 +199,8 @@ def _check_gpu(xplan: ExtendedPlan | None) -> None:
     """A `FieldError` on ``device`` now, not after the paper's sections, when no GPU can run the scaling study."""
     if xplan is not None:
         length, depth, _ = xplan.scaling[0]
-        check_device(scaling_spec(length, depth, xplan).build())
+        sim = scaling_spec(length, depth, xplan).build()
+        check_device(sim.engine.model, sim.arithmetic, sim.rule, sim.scheduler)
 
 
 def _device_note(xplan: ExtendedPlan | None) -> str:

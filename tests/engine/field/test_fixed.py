@@ -1,4 +1,4 @@
-"""The fixed-point chain against the rational one (`ExactChain`), collision for collision: the same
+"""The fixed-point chain against the rational one (`RationalChain`), collision for collision: the same
 collisions at the same steps, the same velocities bit for bit and the same exact values; its exact
 policy widening without changing a bit; its certified policy making exact arithmetic's decisions,
 or saying in one line that it cannot."""
@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 import pinnedballs as pb
 from helpers import SQRT3, chain, chain_along, cubic, fcc_cluster
-from pinnedballs.engine.field.rational import ExactChain
+from pinnedballs.engine.field.rational import RationalChain
 from gmpy2 import mpq
 
 from pinnedballs.engine.field.fixed import FixedChain, UncertifiedDecision, lines_of
@@ -24,9 +24,9 @@ FEW = settings(max_examples=25, deadline=None, derandomize=True, suppress_health
 
 
 def rational(g, v, **kwargs) -> pb.Simulation:
-    """An exact simulation run by the rational chain (today's `ExactChain`), whatever the geometry."""
+    """An exact simulation run by the rational chain (today's `RationalChain`), whatever the geometry."""
     sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
-    sim.engine.state.field_chain = ExactChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
+    sim.engine.state.field_chain = RationalChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
     sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 
@@ -331,13 +331,13 @@ def test_certified_arithmetic_refuses_what_only_the_rational_chain_runs(kwargs, 
         pb.Simulation(g, v, arithmetic="certified", **kwargs)
     assert str(info.value).startswith("arithmetic: certified arithmetic needs equal masses") and words in str(info.value)
     assert 'arithmetic="exact" runs it' in str(info.value)
-    assert isinstance(pb.Simulation(g, v, arithmetic="exact", **kwargs).engine.state.field_chain, ExactChain)
+    assert isinstance(pb.Simulation(g, v, arithmetic="exact", **kwargs).engine.state.field_chain, RationalChain)
 
 
 def test_hcp_keeps_the_rational_chain_and_certified_says_why():
     g = pb.HCP(3, 3, 2, periodic=False)
     v = np.random.default_rng(0).normal(size=(g.n_balls, 3))
-    assert isinstance(pb.Simulation(g, v, arithmetic="exact").engine.state.field_chain, ExactChain)
+    assert isinstance(pb.Simulation(g, v, arithmetic="exact").engine.state.field_chain, RationalChain)
     with pytest.raises(ValueError, match=r"^arithmetic: certified .* not in Q or one Q\(sqrt d\)"):
         pb.Simulation(g, v, arithmetic="certified")
 

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import pinnedballs as pb
 from helpers import HALF_PLANE, call, spec, write
-from pinnedballs.engine.field.rational import ExactChain
+from pinnedballs.engine.field.rational import RationalChain
 from pinnedballs.engine.field.fixed import FixedChain
 from pinnedballs.engine.field.fixed_state import CertifiedState, nearest_floats, precisions_problem
 from pinnedballs.engine import driver
@@ -29,7 +29,7 @@ def inward(g) -> np.ndarray:
 
 def rational(g, v, **kwargs) -> pb.Simulation:
     sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
-    sim.engine.state.field_chain = ExactChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
+    sim.engine.state.field_chain = RationalChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
     sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 

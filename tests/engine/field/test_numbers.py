@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from pinnedballs.engine.field.numbers import Exact, Field, NotExact, recognise, squarefree
+from pinnedballs.engine.field.numbers import FieldNumber, Field, NotExact, recognise, squarefree
 
 
 def value(field: Field, x: tuple, bits: int = 2000) -> mpfr:
@@ -70,13 +70,13 @@ def test_signs_are_exact_where_floats_cannot_tell():
 
 def test_exact_numbers_compute_and_print():
     field = Field((1, 3))
-    half_root3 = Exact(field, (mpq(0), mpq(1, 2)))
+    half_root3 = FieldNumber(field, (mpq(0), mpq(1, 2)))
     assert str(half_root3 * half_root3) == "3/4" and half_root3 * half_root3 == Fraction(3, 4)
     assert str(1 - half_root3) == "1 - 1/2*sqrt(3)"
     assert float(1 - half_root3) == float(value(field, (mpq(1), mpq(-1, 2))))
     assert half_root3 > 0.866 and half_root3 < 0.8661 and (-half_root3).sign() == -1
     with pytest.raises(TypeError, match=r"cannot mix numbers of Q\(sqrt\(3\)\) and Q\(sqrt\(2\)\)"):
-        half_root3 + Exact(Field((1, 2)), (mpq(0), mpq(1)))
+        half_root3 + FieldNumber(Field((1, 2)), (mpq(0), mpq(1)))
 
 
 @pytest.mark.parametrize("geometry, basis", [

@@ -15,7 +15,7 @@ from pinnedballs.engine.threads.regions import (BAND_HOPS, MIN_PARALLEL_CONTACTS
                                          contact_windows, region_cuts)
 from pinnedballs.engine.streams.xoshiro import load, next_uint64, seed_state
 from pinnedballs.engine.rows import row_pattern
-from pinnedballs.engine.threads import using
+from pinnedballs.engine.threads.tuning import using
 from pinnedballs.rules import collide_elastic, collide_masses
 from pinnedballs.schedulers.simple import pick_uniform
 from helpers import pick_loops

@@ -14,7 +14,7 @@ from pinnedballs.engine.streams.xoshiro import seed_state
 from pinnedballs.engine.threads.reservations import (BALLS_PER_WORD, CROSSING, MAX_CROSSING_SHARE, MIN_BATCH,
                                              ReservationChain, batch_size, range_bounds, row_contact)
 from pinnedballs.engine.rows import decode, row_pattern
-from pinnedballs.engine.threads import using
+from pinnedballs.engine.threads.tuning import using
 from pinnedballs.rules import threshold
 
 

@@ -13,7 +13,7 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.engine.threads import tuning as threads
-from pinnedballs.engine.threads import ThreadTuner
+from pinnedballs.engine.threads.tuning import ThreadTuner
 
 
 @pytest.mark.parametrize("given,expected", [(None, "passive"), ("active", "active")])
