@@ -72,7 +72,7 @@ except ValueError as exc:
 out["seconds"] = time.process_time() - start
 out["collisions"], out["steps"] = sim.collisions, sim.steps
 out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-chain = sim._exact
+chain = sim.engine.state.field_chain
 if chain is not None:
     out["limbs"], out["widenings"] = chain.P, chain.widenings
     out["narrowed"] = getattr(chain, "narrowed", None)

@@ -89,8 +89,8 @@ def digest(v) -> str:
 
 
 def state(sim) -> dict:
-    return dict(steps=sim.steps, collisions=sim.collisions, rng=[int(x) for x in sim._rng],
-                margin=[float(x) for x in sim._margin], v=digest(sim.velocities))
+    return dict(steps=sim.steps, collisions=sim.collisions, rng=[int(x) for x in sim.engine.state.rng],
+                margin=[float(x) for x in sim.engine.state.margin], v=digest(sim.velocities))
 
 
 def half(length, depth):
@@ -131,11 +131,11 @@ def compile_times() -> None:
     chain = time.perf_counter() - t
     from pinnedballs.engine.gpu.replicas import ReplicaChains
     t = time.perf_counter()
-    rc = ReplicaChains(sim.velocities[None], sim._params[None], sim._rng[None, :2], g.contacts, None, sim._mass_array,
-                       sim._collide)
+    rc = ReplicaChains(sim.velocities[None], sim.engine.model.params[None], sim.engine.state.rng[None, :2], g.contacts, None, sim.engine.model.masses,
+                       sim.engine.model.collide)
     rc.run(np.array([[10, 2**62, 0]]), 4096)
     emit(part="compile", chain_s=round(chain, 2), replicas_s=round(time.perf_counter() - t, 2),
-         grid_blocks=sim._backend.chain.grid(), barrier=sim._backend.chain.barrier)
+         grid_blocks=sim.engine.chain.grid(), barrier=sim.engine.chain.barrier)
 
 
 def compare(name, geometry, v, run, masses=None, rule=None, batch=None, top=None) -> None:
@@ -146,10 +146,10 @@ def compare(name, geometry, v, run, masses=None, rule=None, batch=None, top=None
         if device == "cuda" and (batch or top):
             from pinnedballs.engine.backends import DeviceBackend
             from pinnedballs.engine.gpu.chain import DeviceChain
-            sim._backend.chain = DeviceChain(sim.velocities, geometry.contacts, geometry.row_pattern, sim._mass_array,
-                                             sim._params, sim._collide, sim._rng[:2], batch=batch,
+            sim.engine.chain = DeviceChain(sim.velocities, geometry.contacts, geometry.row_pattern, sim.engine.model.masses,
+                                             sim.engine.model.params, sim.engine.model.collide, sim.engine.state.rng[:2], batch=batch,
                                              **({"top": top} if top else {}))
-            assert isinstance(sim._backend, DeviceBackend)
+            assert isinstance(sim.engine, DeviceBackend)
         t = time.perf_counter()
         run(sim)
         out[device] = (state(sim), time.perf_counter() - t, sim)
@@ -157,7 +157,7 @@ def compare(name, geometry, v, run, masses=None, rule=None, batch=None, top=None
     gpu = out["cuda"][2]
     emit(part="bits", case=name, balls=geometry.n_balls, equal=same, **out["cuda"][0],
          cpu_s=round(out["cpu"][1], 3), gpu_s=round(out["cuda"][1], 3),
-         **({} if same else {"cpu": out["cpu"][0]}), stats=gpu._backend.chain.stats)
+         **({} if same else {"cpu": out["cpu"][0]}), stats=gpu.engine.chain.stats)
 
 
 def bits_small() -> None:
@@ -203,9 +203,9 @@ def speed() -> None:
         for k in ((64, 256) if SMOKE else (1 << 18, 1 << 19, 1 << 20, 1 << 21)):
             if left() < 60:
                 return
-            chain = DeviceChain(v, g.contacts, g.row_pattern, base._mass_array, base._params, base._collide,
-                                base._rng[:2], batch=k)
-            counters, rng, margin = base._counters.copy(), base._rng.copy(), base._margin.copy()
+            chain = DeviceChain(v, g.contacts, g.row_pattern, base.engine.model.masses, base.engine.model.params, base.engine.model.collide,
+                                base.engine.state.rng[:2], batch=k)
+            counters, rng, margin = base.engine.state.counters.copy(), base.engine.state.rng.copy(), base.engine.state.margin.copy()
             chain.run(counters, rng, margin, 1000 if SMOKE else 10 ** 8, 2**63 - 1, False)
             steps = int(min(5e9, 2e9 * g.n_balls / 577_000)) if not SMOKE else 2000
             t = time.perf_counter()
@@ -238,9 +238,9 @@ def tune(length=4000, depth=2000) -> None:
         for k in ((256,) if SMOKE else (1 << 19,)):
             try:
                 t = time.perf_counter()
-                chain = DeviceChain(v, g.contacts, g.row_pattern, base._mass_array, base._params, base._collide,
-                                    base._rng[:2], batch=k)
-                counters, rng, margin = base._counters.copy(), base._rng.copy(), base._margin.copy()
+                chain = DeviceChain(v, g.contacts, g.row_pattern, base.engine.model.masses, base.engine.model.params, base.engine.model.collide,
+                                    base.engine.state.rng[:2], batch=k)
+                counters, rng, margin = base.engine.state.counters.copy(), base.engine.state.rng.copy(), base.engine.state.margin.copy()
                 chain.run(counters, rng, margin, 1000 if SMOKE else 10**8, 2**63 - 1, False)
                 compile_s = time.perf_counter() - t
                 steps = 2000 if SMOKE else 2 * 10**9
@@ -272,8 +272,8 @@ def frozen(length, depth) -> None:
     sim = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
     if BEST.get("batch") and length >= 4000:  # the batch the tuning found fastest at this size
         from pinnedballs.engine.gpu.chain import DeviceChain
-        sim._backend.chain = DeviceChain(sim.velocities, g.contacts, g.row_pattern, sim._mass_array, sim._params,
-                                         sim._collide, sim._rng[:2], batch=BEST["batch"])
+        sim.engine.chain = DeviceChain(sim.velocities, g.contacts, g.row_pattern, sim.engine.model.masses, sim.engine.model.params,
+                                         sim.engine.model.collide, sim.engine.state.rng[:2], batch=BEST["batch"])
     t = time.perf_counter()
     done = sim.run_until_frozen(max_steps=2 * 10**12, progress=False)
     wall = time.perf_counter() - t
@@ -281,7 +281,7 @@ def frozen(length, depth) -> None:
     emit(part="frozen", size=f"{length}x{depth}", balls=g.n_balls, frozen=done, steps=sim.steps,
          collisions=sim.collisions, wall=round(wall, 2), gsteps_per_s=round(sim.steps / wall / 1e9, 3),
          energy=sim.energy(), margin=sim.closing_margin().describe(), v=digest(sim.velocities),
-         batch=sim._backend.chain.batch, stats=sim._backend.chain.stats)
+         batch=sim.engine.chain.batch, stats=sim.engine.chain.stats)
 
 
 def replicas(length, depth, count) -> None:
@@ -295,8 +295,8 @@ def replicas(length, depth, count) -> None:
     seeds = np.random.SeedSequence(2026).spawn(count)
     keys = np.stack([counter_stream(seed_state(s))[:2] for s in seeds])
     V = np.broadcast_to(probe.velocities, (count, *probe.velocities.shape))
-    P = np.broadcast_to(probe._params, (count, len(probe._params)))
-    rc = ReplicaChains(V, P, keys, g.contacts, None, probe._mass_array, probe._collide)
+    P = np.broadcast_to(probe.engine.model.params, (count, len(probe.engine.model.params)))
+    rc = ReplicaChains(V, P, keys, g.contacts, None, probe.engine.model.masses, probe.engine.model.collide)
     setup = time.perf_counter() - t
     t = time.perf_counter()
     rc.run(np.tile(np.array([10**9, 2**62, 1]), (count, 1)), max(4096, 4 * g.n_contacts))
@@ -307,7 +307,7 @@ def replicas(length, depth, count) -> None:
         sim = pb.Simulation(g, v0, scheduler=counter(), seed=seeds[r])
         sim.run_until_frozen(max_steps=10**9, progress=False)
         checks.append(bool(np.array_equal(sim.velocities, rc.velocities(r)) and sim.steps == st[r, 0]
-                           and sim.collisions == st[r, 1] and np.array_equal(sim._margin, rc.margin[r])))
+                           and sim.collisions == st[r, 1] and np.array_equal(sim.engine.state.margin, rc.margin[r])))
     emit(part="replicas", layout=rc.layout, size=f"{length}x{depth}", replicas=count, frozen=int(st[:, 3].sum()), wall=round(wall, 3),
          setup_s=round(setup, 2), steps=int(st[:, 0].sum()), gsteps_per_s=round(st[:, 0].sum() / wall / 1e9, 2),
          mean_collisions=float(st[:, 1].mean()), sd_collisions=float(st[:, 1].std(ddof=1)),

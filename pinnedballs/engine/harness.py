@@ -33,30 +33,45 @@ from __future__ import annotations
 
 from typing import Callable
 
-__all__ = ["limits_loop"]
+__all__ = ["limits_loop", "given", "taken"]
 
 
-def limits_loop(mark: Callable, advance: Callable, live: Callable, settle: Callable) -> Callable:
-    """``run(data, carry, collisions, max_steps, max_collisions, until_frozen, chunk) -> (taken, collisions,
-    frozen, last, carry)``: the chain run to its limits (module docstring) from ``collisions`` so far;
-    ``last`` the steps taken up to the call's last collision (-1: none)."""
+def given(data, carry, collisions, max_steps, max_collisions, until_frozen, chunk):
+    """`limits_loop`'s ``prepare`` by default: the loop's own arguments, as they are."""
+    return data, carry, collisions, max_steps, max_collisions, until_frozen, chunk
 
-    def run_to_limits(data, carry, collisions, max_steps, max_collisions, until_frozen, chunk):
-        taken, frozen, last_at = 0, False, -1
+
+def taken(data, carry, steps, collisions, frozen, last):
+    """`limits_loop`'s ``finish`` by default: ``(taken, collisions, frozen, last, carry)``."""
+    return steps, collisions, frozen, last, carry
+
+
+def limits_loop(mark: Callable, advance: Callable, live: Callable, settle: Callable, prepare: Callable = given,
+                finish: Callable = taken) -> Callable:
+    """``run(*args)``: ``prepare(*args) -> (data, carry, collisions, max_steps, max_collisions, until_frozen, chunk)``,
+    the chain run to its limits from ``collisions`` so far (module docstring), then ``finish(data, carry, taken,
+    collisions, frozen, last)``, ``last`` the steps taken up to the call's last collision (-1: none). By default
+    ``run(data, carry, collisions, max_steps, max_collisions, until_frozen, chunk) -> (taken, collisions, frozen,
+    last, carry)``; a compiled loop gives its own ``prepare`` and ``finish`` (its arguments in, its counters out),
+    so that numba compiles the loop as that loop itself, its chunk inlined one level deep."""
+
+    def run_to_limits(*args):
+        data, carry, collisions, max_steps, max_collisions, until_frozen, chunk = prepare(*args)
+        taken_, frozen, last_at = 0, False, -1
         if until_frozen and not live(data, carry):
             frozen = True
-        while not frozen and taken < max_steps and collisions < max_collisions:
-            count = min(chunk, max_steps - taken)
+        while not frozen and taken_ < max_steps and collisions < max_collisions:
+            count = min(chunk, max_steps - taken_)
             left = max_collisions - collisions
             start = mark(data, carry, count, left)
-            used, made, last, carry = advance(data, carry, count, left, taken, collisions)
+            used, made, last, carry = advance(data, carry, count, left, taken_, collisions)
             collisions += made
             if last >= 0:
-                last_at = taken + last + 1
+                last_at = taken_ + last + 1
             if until_frozen and last >= 0 and not live(data, carry):
                 frozen, used = True, last + 1  # the run ends right after its last collision
             carry = settle(data, start, carry, used, count, frozen)
-            taken += used
-        return taken, collisions, frozen, last_at, carry
+            taken_ += used
+        return finish(data, carry, taken_, collisions, frozen, last_at)
 
     return run_to_limits

@@ -35,7 +35,7 @@ from ..engine.chain import COLLISIONS, LIVE, STEPS
 from ..engine.closing import closing_speed
 from ..util.errors import FieldError
 from ..engine.jit.cache import jit_cached_if_possible, njit_cached
-from ..engine.sequential.loops import Selector, contact_kernels, no_change
+from ..engine.sequential.loops import Selector, contact_kernels, copy_into, no_change
 from ..engine.margin import (LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, collided_speed, near_collision, near_remnant,
                              remnant_speed)
 from ..engine.streams.xoshiro import bounded, load, store
@@ -140,7 +140,7 @@ def sweep_selector(shuffle: bool) -> tuple[Callable, Callable]:
     @njit(inline="always")
     def begin(state, aux, flags):
         order = aux[2]
-        order[:] = class_order(state, order.shape[0], SHUFFLE)
+        copy_into(order, class_order(state, order.shape[0], SHUFFLE))
 
     return select, begin
 
@@ -156,7 +156,7 @@ def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Calla
     @jit_cached_if_possible(parallel=True)
     def steps(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, margin, max_steps):
         classes, starts, order = aux
-        order[:] = class_order(state, order.shape[0], SHUFFLE)
+        copy_into(order, class_order(state, order.shape[0], SHUFFLE))
         taken, made, rng = 0, 0, load(rng_words)
         tau = params[params.shape[0] - 1]
         smallest, largest = margin[SMALLEST], margin[LARGEST]

@@ -61,7 +61,7 @@ from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..harness import limits_loop
 from ..closing import WRITE, branch_free_form, choose, closing_speed, compiled_form
 from ..jit.intrinsics import fixed_width, prefetch
-from ..jit.cache import jit_cached_if_possible
+from ..jit.cache import INLINED, jit_cached_if_possible, njit_cached
 from ..margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
 from ..streams.xoshiro import load, store
 from ..rows import decode
@@ -129,6 +129,14 @@ class Loops(NamedTuple):
     limited_prefetched_logged: Callable
     limited_rows_logged: Callable
     tracked_logged: Callable
+
+
+@njit_cached(inline="always")
+def copy_into(dst, src):
+    """``dst[:] = src`` for two arrays of one length, element by element: numba compiles a slice assignment
+    with its shape-mismatch error, whose message formatting takes seconds to compile on a first run."""
+    for q in range(src.shape[0]):
+        dst[q] = src[q]
 
 
 @functools.cache
@@ -309,39 +317,49 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     #: the table loop may run blocks without a branch: a rule given by its impulse, one step a pick, a rate that can pay
     FREE = tried_free is not None and not skips and PERCENT <= 100
 
-    @njit(inline="always")
-    def chunk(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
-              tau, m):
-        """Up to ``count`` steps, stopping right after the ``collisions_left``-th collision:
-        ``(steps taken, collisions, step index of the last collision or -1, rng, margin)``. With
-        ``LOG`` (a compile-time constant), collision ``c`` is written to ``log[c] = (step, contact)``,
-        its step counted from ``base``."""
-        taken, made, last = 0, 0, -1
-        at_last = (m[1], m[3])  # the margin's remnant side as of the last collision (see `make_limited`)
-        while taken < count:
-            k, g, rng = select(state, aux, rng, n, count - taken)
-            taken += g
-            if SKIPS and k < 0:
-                break
-            hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
-            if hit:
-                if LOG:
-                    log[made, 0], log[made, 1] = base + taken, k
-                made += 1
-                last = taken - 1
-                at_last = (m[1], m[3])
-                if made == collisions_left:
+    # The chunks: each is the harness's ``advance(data, carry, count, left, taken, collisions)`` of one loop
+    # (`make_limited` says ``data`` and ``carry``), written for it, so numba inlines one level less.
+
+    def table_chunk(LOG):
+        """Up to ``count`` steps, stopping right after the ``collisions_left``-th collision: ``(steps taken,
+        collisions, step index of the last collision or -1, carry)``. With ``LOG``, collision ``c`` is written
+        to ``log[c] = (step, contact)``, its step counted as ``counters[STEPS]`` counts it."""
+
+        @njit(inline="always")
+        def chunk(data, carry, count, collisions_left, before, collisions):
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+            rng, m, at_last, free = carry
+            log, base = log[collisions - first:], base + before
+            taken, made, last = 0, 0, -1
+            at_last = (m[1], m[3])  # the margin's remnant side as of the last collision (see `make_limited`)
+            while taken < count:
+                k, g, rng = select(state, aux, rng, n, count - taken)
+                taken += g
+                if SKIPS and k < 0:
                     break
-        return taken, made, last, rng, m, at_last
+                hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
+                if hit:
+                    if LOG:
+                        log[made, 0], log[made, 1] = base + taken, k
+                    made += 1
+                    last = taken - 1
+                    at_last = (m[1], m[3])
+                    if made == collisions_left:
+                        break
+            return taken, made, last, (rng, m, at_last, free)
+
+        return chunk
 
     @njit(inline="always")
-    def chunk_blocks(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, tau, m, free):
+    def chunk_blocks(data, carry, count, collisions_left, before, collisions):
         """`chunk` without a log for a selector of one step a pick, in blocks of `BLOCK` steps: a block tries
         its picks with ``tried`` (a branch on each collision) or, after a block that collided on
         `BRANCH_FREE_PERCENT` of its picks or more, with ``tried_free`` (no branch: about half the picks of a
         lattice in equilibrium collide, and a branch on them is mispredicted about as often). The same bits,
-        counts and margin either way. ``free``: how the first block runs; the choice for the next is returned
-        last."""
+        counts and margin either way. ``free`` (in ``carry``): how the first block runs; the choice for the
+        next comes back in it."""
+        v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+        rng, m, at_last, free = carry
         taken, made, last = 0, 0, -1
         smallest, largest, near_hits, near_rest = m
         at_last = (largest, near_rest)  # the margin's remnant side as of the last collision ...
@@ -395,78 +413,90 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             settled = last
             taken += size
             free = (made - start) * 100 >= PERCENT * size
-        return taken, made, last, rng, (smallest, largest, near_hits, near_rest), at_last, free
+        return taken, made, last, (rng, (smallest, largest, near_hits, near_rest), at_last, free)
 
-    @njit(inline="always")
-    def chunk_prefetched(v, pairs, ends, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log,
-                         base, tau, m):
-        """`chunk`, fetching ahead the rows of picks drawn `LOOKAHEAD` steps early (one step per pick).
-        A chunk that stops early leaves the stream past picks it drew: the caller rewinds."""
-        made, last, taken = 0, -1, count
-        at_last = (m[1], m[3])
-        ring = np.empty(_RING, dtype=np.int64)
-        for t in range(min(LOOKAHEAD, count)):
-            k, _, rng = select(state, aux, rng, n, 1)
-            ring[t] = k
-            prefetch(pairs, k)
-            prefetch(ends, k)
-        for t in range(count):
-            if t + LOOKAHEAD < count:
+    def prefetched_chunk(LOG):
+        """`table_chunk`'s, fetching ahead the rows of picks drawn `LOOKAHEAD` steps early (one step per pick).
+        A chunk that stops early leaves the stream past picks it drew: the harness rewinds (``settle``)."""
+
+        @njit(inline="always")
+        def chunk(data, carry, count, collisions_left, before, collisions):
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+            rng, m, at_last, free = carry
+            log, base = log[collisions - first:], base + before
+            made, last, taken = 0, -1, count
+            at_last = (m[1], m[3])
+            ring = np.empty(_RING, dtype=np.int64)
+            for t in range(min(LOOKAHEAD, count)):
                 k, _, rng = select(state, aux, rng, n, 1)
-                ring[(t + LOOKAHEAD) % _RING] = k
+                ring[t] = k
                 prefetch(pairs, k)
                 prefetch(ends, k)
-            if t + HALFWAY < count:
-                k = ring[(t + HALFWAY) % _RING]
-                prefetch(v, pairs[k, 0])
-                prefetch(v, pairs[k, 1])
-            k = ring[t % _RING]
-            hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
-            if hit:
-                if LOG:
-                    log[made, 0], log[made, 1] = base + t + 1, k
-                made += 1
-                last = t
-                at_last = (m[1], m[3])
-                if made == collisions_left:
-                    taken = t + 1
-                    break
-        return taken, made, last, rng, m, at_last
+            for t in range(count):
+                if t + LOOKAHEAD < count:
+                    k, _, rng = select(state, aux, rng, n, 1)
+                    ring[(t + LOOKAHEAD) % _RING] = k
+                    prefetch(pairs, k)
+                    prefetch(ends, k)
+                if t + HALFWAY < count:
+                    k = ring[(t + HALFWAY) % _RING]
+                    prefetch(v, pairs[k, 0])
+                    prefetch(v, pairs[k, 1])
+                k = ring[t % _RING]
+                hit, m = tried(v, units, masses, params, pairs[k, 0], pairs[k, 1], ends[k, 0], ends[k, 1], tau, m)
+                if hit:
+                    if LOG:
+                        log[made, 0], log[made, 1] = base + t + 1, k
+                    made += 1
+                    last = t
+                    at_last = (m[1], m[3])
+                    if made == collisions_left:
+                        taken = t + 1
+                        break
+            return taken, made, last, (rng, m, at_last, free)
 
-    @njit(inline="always")
-    def chunk_rows(v, pattern, units, masses, params, state, aux, rng, n, count, collisions_left, LOG, log, base,
-                   tau, m):
-        """`chunk_prefetched` reading each contact from the row ``pattern``: picks drawn and decoded
+        return chunk
+
+    def rows_chunk(LOG):
+        """`prefetched_chunk`'s, reading each contact from the row ``pattern``: picks drawn and decoded
         `ROWS_AHEAD` steps early, their two velocity rows fetched then."""
-        made, last, taken = 0, -1, count
-        at_last = (m[1], m[3])
-        ring = np.empty((_RING, 5), dtype=np.int64)  # (k, i, j, a, b) of the picks drawn ahead
-        for t in range(min(ROWS_AHEAD, count)):
-            k, _, rng = select(state, aux, rng, n, 1)
-            i, j, a, b = decode(pattern, np.int64(k))
-            ring[t, 0], ring[t, 1], ring[t, 2], ring[t, 3], ring[t, 4] = k, i, j, a, b
-            prefetch(v, i)
-            prefetch(v, j)
-        for t in range(count):
-            if t + ROWS_AHEAD < count:
+
+        @njit(inline="always")
+        def chunk(data, carry, count, collisions_left, before, collisions):
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+            rng, m, at_last, free = carry
+            log, base = log[collisions - first:], base + before
+            made, last, taken = 0, -1, count
+            at_last = (m[1], m[3])
+            ring = np.empty((_RING, 5), dtype=np.int64)  # (k, i, j, a, b) of the picks drawn ahead
+            for t in range(min(ROWS_AHEAD, count)):
                 k, _, rng = select(state, aux, rng, n, 1)
                 i, j, a, b = decode(pattern, np.int64(k))
-                s = (t + ROWS_AHEAD) % _RING
-                ring[s, 0], ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4] = k, i, j, a, b
+                ring[t, 0], ring[t, 1], ring[t, 2], ring[t, 3], ring[t, 4] = k, i, j, a, b
                 prefetch(v, i)
                 prefetch(v, j)
-            s = t % _RING
-            hit, m = tried(v, units, masses, params, ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4], tau, m)
-            if hit:
-                if LOG:
-                    log[made, 0], log[made, 1] = base + t + 1, ring[s, 0]
-                made += 1
-                last = t
-                at_last = (m[1], m[3])
-                if made == collisions_left:
-                    taken = t + 1
-                    break
-        return taken, made, last, rng, m, at_last
+            for t in range(count):
+                if t + ROWS_AHEAD < count:
+                    k, _, rng = select(state, aux, rng, n, 1)
+                    i, j, a, b = decode(pattern, np.int64(k))
+                    s = (t + ROWS_AHEAD) % _RING
+                    ring[s, 0], ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4] = k, i, j, a, b
+                    prefetch(v, i)
+                    prefetch(v, j)
+                s = t % _RING
+                hit, m = tried(v, units, masses, params, ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4], tau, m)
+                if hit:
+                    if LOG:
+                        log[made, 0], log[made, 1] = base + t + 1, ring[s, 0]
+                    made += 1
+                    last = t
+                    at_last = (m[1], m[3])
+                    if made == collisions_left:
+                        taken = t + 1
+                        break
+            return taken, made, last, (rng, m, at_last, free)
+
+        return chunk
 
     def make_limited(MODE, LOG):
         """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched. The run to the
@@ -480,27 +510,11 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         def mark(data, carry, count, left):
             """The chunk's start: the stream in ``carry`` (a value), the scheduler's state copied."""
             state, saved = data[7], data[10]
-            saved[:] = state
+            copy_into(saved, state)
             return carry
 
-        @njit(inline="always")
-        def advance(data, carry, count, left, taken, collisions):
-            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags = data
-            rng, m, at_last, free = carry
-            at = log[collisions - first:]
-            if MODE == 2:
-                used, made, last, rng, m, at_last = chunk_rows(v, pattern, units, masses, params, state, aux, rng, n,
-                                                               count, left, LOG, at, base + taken, tau, m)
-            elif MODE == 1:
-                used, made, last, rng, m, at_last = chunk_prefetched(v, pairs, ends, units, masses, params, state, aux,
-                                                                     rng, n, count, left, LOG, at, base + taken, tau, m)
-            elif BLOCKS:
-                used, made, last, rng, m, at_last, free = chunk_blocks(v, pairs, ends, units, masses, params, state,
-                                                                       aux, rng, n, count, left, tau, m, free)
-            else:
-                used, made, last, rng, m, at_last = chunk(v, pairs, ends, units, masses, params, state, aux, rng, n,
-                                                          count, left, LOG, at, base + taken, tau, m)
-            return used, made, last, (rng, m, at_last, free)
+        advance = rows_chunk(LOG) if MODE == 2 else prefetched_chunk(LOG) if MODE == 1 else \
+            chunk_blocks if BLOCKS else table_chunk(LOG)
 
         @njit(inline="always")
         def live(data, carry):
@@ -514,30 +528,30 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             if frozen:
                 m = (m[0], at_last[0], m[2], at_last[1])
             if used < count and (AHEAD or frozen):
-                state[:] = saved
+                copy_into(state, saved)
                 begin(state, aux, flags)
                 rng = replay(state, aux, start[0], n, used)
             return rng, m, at_last, free
 
-        to_limits = njit(inline="always")(limits_loop(mark, advance, live, settle))
-
-        @jit_cached_if_possible
-        def run(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
-                max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
+        @njit(**INLINED)
+        def prepare(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
+                    max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
             v, pairs, ends, units = shaped(v, pairs, ends, units)
             n, rng = pairs.shape[0], load(rng_words)
-            tau = params[params.shape[0] - 1]
             m = (margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS])
             flags = np.empty(0, dtype=np.uint8)
             begin(state, aux, flags)
             collisions, base = counters[COLLISIONS], counters[STEPS]
             if LOG:  # no more collisions in this call than the log holds
                 max_collisions = min(max_collisions, collisions + log.shape[0])
-            data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, collisions, tau,
-                    flags)
+            data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, collisions,
+                    params[params.shape[0] - 1], flags, rng_words, counters, margin)
             free = False  # the first block of the table loop has a branch (`chunk_blocks`)
-            taken, collisions, frozen, last, carry = to_limits(data, (rng, m, (m[1], m[3]), free), collisions,
-                                                               max_steps, max_collisions, until_frozen, chunk_steps)
+            return data, (rng, m, (m[1], m[3]), free), collisions, max_steps, max_collisions, until_frozen, chunk_steps
+
+        @njit(inline="always")
+        def finish(data, carry, taken, collisions, frozen, last):
+            base, rng_words, counters, margin = data[12], data[16], data[17], data[18]
             store(rng_words, carry[0])
             margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS] = carry[1]
             counters[STEPS] += taken
@@ -546,6 +560,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             if last >= 0:
                 counters[LAST] = base + last
             return taken
+
+        run = jit_cached_if_possible(limits_loop(mark, advance, live, settle, prepare, finish))
         return run
 
     def make_tracked(LOG):
