@@ -24,9 +24,9 @@ carry) -> bool`` and ``settle(data, start, carry, used, count, frozen) -> carry`
 engine reads, ``carry`` what a chunk changes (returned, so that the loop is a function of plain values),
 ``left`` the collisions still allowed, ``used``/``made`` the chunk's steps and collisions and ``last`` the
 chunk's step index of its last collision (-1: none). The compiled sequential loops compile it with numba
-(`engine.sequential.loops`: ``data`` and ``carry`` tuples, every function inlined); the threaded, exact and GPU chains
-call it as Python (`engine.backends`, `engine.gpu.chain`); a GPU's replicas compile it for the device
-(`engine.gpu.replicas`).
+(`engine.sequential.loops`: ``data`` and ``carry`` tuples, every function inlined); the threaded, exact and
+GPU chains call it as Python (`engine.backends`, `engine.gpu.chain`); a GPU's replicas compile it for the
+device (`engine.gpu.replicas`).
 """
 
 from __future__ import annotations
@@ -48,9 +48,10 @@ def taken(data, carry, steps, collisions, frozen, last):
 
 def limits_loop(mark: Callable, advance: Callable, live: Callable, settle: Callable, prepare: Callable = given,
                 finish: Callable = taken) -> Callable:
-    """``run(*args)``: ``prepare(*args) -> (data, carry, collisions, max_steps, max_collisions, until_frozen, chunk)``,
-    the chain run to its limits from ``collisions`` so far (module docstring), then ``finish(data, carry, taken,
-    collisions, frozen, last)``, ``last`` the steps taken up to the call's last collision (-1: none). By default
+    """``run(*args)``: ``prepare(*args) -> (data, carry, collisions, max_steps, max_collisions, until_frozen,
+    chunk)``, the chain run to its limits from ``collisions`` so far (module docstring), then ``finish(data,
+    carry, taken, collisions, frozen, last)``, ``last`` the steps taken up to the call's last collision (-1:
+    none). By default
     ``run(data, carry, collisions, max_steps, max_collisions, until_frozen, chunk) -> (taken, collisions, frozen,
     last, carry)``; a compiled loop gives its own ``prepare`` and ``finish`` (its arguments in, its counters out),
     so that numba compiles the loop as that loop itself, its chunk inlined one level deep."""

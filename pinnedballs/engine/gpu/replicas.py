@@ -23,7 +23,7 @@ from . import load
 from ..margin import track as margin_track
 from .chain import upload_contacts
 from .compile import device_function, device_trial
-from ..harness import limits_loop
+from ..harness import given, limits_loop, taken
 from .device import SIMULATED, contact_reader, device, launching, lemire, philox_block, counter_pick
 
 __all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
@@ -105,7 +105,10 @@ def replicas_kernel(collide, dim: int, flat: bool, rows: bool):
             m1, m3 = at1, at3
         return m0, m1, m2, m3, at1, at3, q, w0, w1, w2, w3
 
-    to_limits = device(limits_loop(mark, advance, live, settle))
+    # the harness and its prepare as device functions of their own (numba inlines no function called with or
+    # taking *args; NVVM inlines them)
+    to_limits = cuda.jit(device=True)(limits_loop(mark, advance, live, settle, cuda.jit(device=True)(given),
+                                                  device(taken)))
 
     @cuda.jit
     def run(V, pairs, ends, table, meta, inverse, units, masses, P, keys, state, M, limits, chunk):

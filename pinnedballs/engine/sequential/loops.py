@@ -20,8 +20,8 @@ a *step* is a pick, a *collision* a pick that changed velocities.
   finds the system frozen ends at its last collision, the random stream and the scheduler's state
   restored to the start of the chunk and its picks replayed up to that collision.
   Where ``limited`` reads the tables (they fit in cache), for a rule written by its impulse and a selector
-  of one step a pick, it runs its chunks in blocks of `BLOCK` steps, each one with a branch on every pick's collision or,
-  after a block that collided on `BRANCH_FREE_PERCENT` of its picks or more, without one
+  of one step a pick, it runs its chunks in blocks of `BLOCK` steps, each one with a branch on every pick's
+  collision or, after a block that collided on `BRANCH_FREE_PERCENT` of its picks or more, without one
   (`free_trial_kernel`): on a lattice in equilibrium about half the picks collide, and a branch on them is
   mispredicted nearly as often; where few picks collide (a half-plane near its freeze) the branch is right
   nearly always and costs less than computing every collision (docs/performance.md). The same bits either
@@ -327,7 +327,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
 
         @njit(inline="always")
         def chunk(data, carry, count, collisions_left, before, collisions):
-            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, _ = data[:16]
             rng, m, at_last, free = carry
             log, base = log[collisions - first:], base + before
             taken, made, last = 0, 0, -1
@@ -358,7 +358,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         lattice in equilibrium collide, and a branch on them is mispredicted about as often). The same bits,
         counts and margin either way. ``free`` (in ``carry``): how the first block runs; the choice for the
         next comes back in it."""
-        v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+        v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, _ = data[:16]
         rng, m, at_last, free = carry
         taken, made, last = 0, 0, -1
         smallest, largest, near_hits, near_rest = m
@@ -421,7 +421,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
 
         @njit(inline="always")
         def chunk(data, carry, count, collisions_left, before, collisions):
-            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, _ = data[:16]
             rng, m, at_last, free = carry
             log, base = log[collisions - first:], base + before
             made, last, taken = 0, -1, count
@@ -463,7 +463,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
 
         @njit(inline="always")
         def chunk(data, carry, count, collisions_left, before, collisions):
-            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, flags, _, _, _ = data
+            v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, _ = data[:16]
             rng, m, at_last, free = carry
             log, base = log[collisions - first:], base + before
             made, last, taken = 0, -1, count
