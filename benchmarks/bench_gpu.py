@@ -93,6 +93,15 @@ def state(sim) -> dict:
                 margin=[float(x) for x in sim.engine.state.margin], v=digest(sim.velocities))
 
 
+def device_chain(sim, v, **options):
+    """A `DeviceChain` of ``sim``'s chain (its model and stream key) from velocities ``v``, with ``options``."""
+    from pinnedballs.engine.gpu.chain import DeviceChain
+
+    g, model = sim.geometry, sim.engine.model
+    return DeviceChain(v, g.contacts, g.row_pattern, model.masses, model.params, model.collide, sim.engine.state.rng[:2],
+                       **options)
+
+
 def half(length, depth):
     return pb.HalfPlane.from_size(length / 10, depth / 10) if SMOKE else pb.HalfPlane.from_size(length, depth)
 
@@ -131,11 +140,29 @@ def compile_times() -> None:
     chain = time.perf_counter() - t
     from pinnedballs.engine.gpu.replicas import ReplicaChains
     t = time.perf_counter()
-    rc = ReplicaChains(sim.velocities[None], sim.engine.model.params[None], sim.engine.state.rng[None, :2], g.contacts, None, sim.engine.model.masses,
-                       sim.engine.model.collide)
+    model, state = sim.engine.model, sim.engine.state
+    rc = ReplicaChains(sim.velocities[None], model.params[None], state.rng[None, :2], g.contacts, None, model.masses,
+                       model.collide)
     rc.run(np.array([[10, 2**62, 0]]), 4096)
     emit(part="compile", chain_s=round(chain, 2), replicas_s=round(time.perf_counter() - t, 2),
-         grid_blocks=sim.engine.chain.grid(), barrier=sim.engine.chain.barrier)
+         grid_blocks=sim.engine.chain.grid(), barrier=sim.engine.chain.barrier,
+         resources=kernel_resources({"chain": sim.engine.chain._kernel, "live": sim.engine.chain._live,
+                              "replicas": rc._kernel}))
+
+
+def kernel_resources(kernels: dict) -> dict:
+    """Registers a thread, local (spilled) bytes a thread and shared bytes a block of each compiled kernel (none
+    under the simulator)."""
+    out = {}
+    for name, kernel in kernels.items():
+        try:
+            out[name] = {sig: dict(registers=kernel.get_regs_per_thread(sig),
+                                   local=kernel.get_local_mem_per_thread(sig),
+                                   shared=kernel.get_shared_mem_per_block(sig)) for sig in kernel.overloads}
+            out[name] = {str(k): v for k, v in out[name].items()}
+        except Exception as exc:  # noqa: BLE001 - the simulator keeps no machine code
+            out[name] = f"not known here ({type(exc).__name__})"
+    return out
 
 
 def compare(name, geometry, v, run, masses=None, rule=None, batch=None, top=None) -> None:
@@ -145,10 +172,7 @@ def compare(name, geometry, v, run, masses=None, rule=None, batch=None, top=None
         sim = pb.Simulation(geometry, v, scheduler=counter(), seed=11, masses=masses, rule=rule, device=device)
         if device == "cuda" and (batch or top):
             from pinnedballs.engine.backends import DeviceBackend
-            from pinnedballs.engine.gpu.chain import DeviceChain
-            sim.engine.chain = DeviceChain(sim.velocities, geometry.contacts, geometry.row_pattern, sim.engine.model.masses,
-                                             sim.engine.model.params, sim.engine.model.collide, sim.engine.state.rng[:2], batch=batch,
-                                             **({"top": top} if top else {}))
+            sim.engine.chain = device_chain(sim, sim.velocities, batch=batch, **({"top": top} if top else {}))
             assert isinstance(sim.engine, DeviceBackend)
         t = time.perf_counter()
         run(sim)
@@ -192,7 +216,6 @@ def bits_large() -> None:
 
 
 def speed() -> None:
-    from pinnedballs.engine.gpu.chain import DeviceChain
     sizes = [(1000, 500), (2000, 1000), (4000, 2000)]
     for length, depth in sizes:
         g = half(length, depth)
@@ -203,9 +226,9 @@ def speed() -> None:
         for k in ((64, 256) if SMOKE else (1 << 18, 1 << 19, 1 << 20, 1 << 21)):
             if left() < 60:
                 return
-            chain = DeviceChain(v, g.contacts, g.row_pattern, base.engine.model.masses, base.engine.model.params, base.engine.model.collide,
-                                base.engine.state.rng[:2], batch=k)
-            counters, rng, margin = base.engine.state.counters.copy(), base.engine.state.rng.copy(), base.engine.state.margin.copy()
+            chain = device_chain(base, v, batch=k)
+            counters, rng, margin = (x.copy() for x in (base.engine.state.counters, base.engine.state.rng,
+                                                        base.engine.state.margin))
             chain.run(counters, rng, margin, 1000 if SMOKE else 10 ** 8, 2**63 - 1, False)
             steps = int(min(5e9, 2e9 * g.n_balls / 577_000)) if not SMOKE else 2000
             t = time.perf_counter()
@@ -225,7 +248,6 @@ VARIANTS = [("grid", 256, None), ("atomic", 256, None), ("atomic", 128, None), (
 def tune(length=4000, depth=2000) -> None:
     """Steps a second of each launch shape (barrier, threads a block, registers a thread) at one size, from one
     shared state; the fastest is kept (``PINNEDBALLS_GPU_*``) for the parts after."""
-    from pinnedballs.engine.gpu.chain import DeviceChain
     g = half(length, depth)
     base = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
     base.run(steps=2000 if SMOKE else 50 * g.n_contacts, progress=False)
@@ -238,9 +260,9 @@ def tune(length=4000, depth=2000) -> None:
         for k in ((256,) if SMOKE else (1 << 19,)):
             try:
                 t = time.perf_counter()
-                chain = DeviceChain(v, g.contacts, g.row_pattern, base.engine.model.masses, base.engine.model.params, base.engine.model.collide,
-                                    base.engine.state.rng[:2], batch=k)
-                counters, rng, margin = base.engine.state.counters.copy(), base.engine.state.rng.copy(), base.engine.state.margin.copy()
+                chain = device_chain(base, v, batch=k)
+                counters, rng, margin = (x.copy() for x in (base.engine.state.counters, base.engine.state.rng,
+                                                            base.engine.state.margin))
                 chain.run(counters, rng, margin, 1000 if SMOKE else 10**8, 2**63 - 1, False)
                 compile_s = time.perf_counter() - t
                 steps = 2000 if SMOKE else 2 * 10**9
@@ -271,9 +293,7 @@ def frozen(length, depth) -> None:
     g = pb.HalfPlane.from_size(length / 100, depth / 100) if SMOKE else half(length, depth)
     sim = pb.Simulation(g, single(g), scheduler=counter(), seed=1, device="cuda")
     if BEST.get("batch") and length >= 4000:  # the batch the tuning found fastest at this size
-        from pinnedballs.engine.gpu.chain import DeviceChain
-        sim.engine.chain = DeviceChain(sim.velocities, g.contacts, g.row_pattern, sim.engine.model.masses, sim.engine.model.params,
-                                         sim.engine.model.collide, sim.engine.state.rng[:2], batch=BEST["batch"])
+        sim.engine.chain = device_chain(sim, sim.velocities, batch=BEST["batch"])
     t = time.perf_counter()
     done = sim.run_until_frozen(max_steps=2 * 10**12, progress=False)
     wall = time.perf_counter() - t
