@@ -4,11 +4,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
 
@@ -105,8 +106,10 @@ def _run(args: argparse.Namespace) -> int:
         from ..results.load import load
 
         res = load(path)
-        print(f"{res.stop_reason or res.status}: {res.steps:,} steps, {res.collisions:,} collisions, "
-              f"energy {res.energy:.12g}, {'frozen' if res.frozen else 'not frozen'}; wrote {path.parent}")
+        reason = res.stop_reason or res.status
+        frozen = "" if reason == "frozen" else f", {'frozen' if res.frozen else 'not frozen'}"  # said once
+        print(f"{reason}: {res.steps:,} steps, {res.collisions:,} collisions, energy {res.energy:.12g}{frozen}; "
+              f"wrote {path.parent}")
     return EXIT_OK
 
 
@@ -220,16 +223,18 @@ def info(args: argparse.Namespace) -> int:
         f"geometry:    {kinds['geometry']}: {len(res.positions)} balls, {len(res.pairs)} contacts, "
         f"dim {res.velocities.shape[1]}",
         f"run:         {kinds.get('initial', 'given velocities')}, {kinds['rule']}, {kinds['scheduler']}, {made}",
+        f"random:      {_stream(res)}",
+        f"device:      {res.device}{' (simulated)' if res.simulated else ''}",
         f"steps:       {res.steps:,}",
         f"collisions:  {res.collisions:,}",
         f"energy:      {res.energy:.12g} (initially {res.initial_energy:.12g})",
-        f"approaching: {res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})",
+        f"approaching: {_approaching(res)}",
         *_arithmetic(res),
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few(res.snapshots.steps.tolist())}"
                                                 if len(res.snapshots) else ""),
         *_margin(res),
-        f"time:        {_duration(res.elapsed_seconds)} in {res.checkpoints} checkpoint(s); "
-        f"written by pinnedballs {res.version}",
+        f"time:        {_duration(res.elapsed_seconds)} running the chain in {res.checkpoints} checkpoint(s) (building, "
+        f"compiling and figures not counted); written by pinnedballs {res.version}",
     ]
     print("\n".join(lines))
     return EXIT_OK
@@ -266,16 +271,39 @@ def _counted(n: int, noun: str) -> str:
     return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
+def _approaching(res) -> str:
+    if res.approaching < 0:  # a failed run's state, whose live contacts certified arithmetic could not count
+        return "unknown (certified arithmetic could not count the live contacts at these bits)"
+    return f"{res.approaching:,} contacts ({'frozen' if res.frozen else 'not frozen'})"
+
+
+def _stream(res) -> str:
+    """The random stream a run's scheduler draws its picks from, in words."""
+    scheduler = res.spec.scheduler.model_dump() if res.spec is not None else res.run.get("scheduler")
+    scheduler = scheduler if isinstance(scheduler, dict) else {}
+    if scheduler.get("stream") == "counter":
+        return "counter (Philox4x64-10: the pick of step s a function of the seed and s alone)"
+    fixed = scheduler.get("kind") == "sweep" or (scheduler.get("kind") == "colored_sweep" and not scheduler.get("shuffle"))
+    return "xoshiro256**" + (" (unused: this scheduler's order is fixed)" if fixed else "")
+
+
 def _arithmetic(res) -> list[str]:
-    """The arithmetic line: none for floats; for a certified run, what it proves and its error bound."""
+    """The arithmetic: its name and what it keeps; for a certified run, what it proves, its bits and its error
+    bounds in words."""
     name = res.run.get("arithmetic") or (res.spec.arithmetic if res.spec is not None else "float")
     certified = res.latest.certified
     if certified is not None:
         G, largest = certified.error_bound()
+        what = ("no rounding yet: the certified velocities are exact arithmetic's" if G == 0 else
+                f"bounds how far all the certified velocities together (the length of the whole difference) are "
+                f"from exact arithmetic's; {largest:.3g} bounds each ball's")
         return [f"arithmetic:  certified (every decision proved equal to exact arithmetic's: exact counts); "
                 f"velocities within {largest:.3g} of exact arithmetic's (error bound G = {G:.3g}), "
-                f"{64 * certified.limbs.shape[-1]} bits{_bits(res.spec, certified)}"]
-    return [] if name == "float" else [f"arithmetic:  {name}"]
+                f"{64 * certified.limbs.shape[-1]} bits{_bits(res.spec, certified)}",
+                f"             G = {G:.3g} (in the velocities' units) {what}" if G else f"             G = 0: {what}"]
+    if name == "exact":
+        return ["arithmetic:  exact (every velocity held exactly: exact counts)"]
+    return [f"arithmetic:  {name}" + (" (64-bit floating point)" if name == "float" else "")]
 
 
 def _bits(spec, certified) -> str:
@@ -290,10 +318,15 @@ def _bits(spec, certified) -> str:
 
 
 def _status(res) -> str:
-    """What a run is doing: done (and why), interrupted, running (and who writes it), or stopped
-    without a word (killed: no process holds its directory)."""
+    """What a run is doing: done (and why), failed (where, why and what to do instead), interrupted, running
+    (and who writes it), or stopped without a word (killed: no process holds its directory)."""
     if res.complete:
         return f"done ({res.stop_reason})"
+    if res.failure is not None:
+        from ..results.format import failed_run
+
+        remedy = res.failure.get("remedy")
+        return f"{failed_run(res.failure)}; it cannot go on" + (f": {remedy}" if isinstance(remedy, str) else "")
     how = "--resume" if res.spec is not None else "pb.load(DIR).simulation()"
     if res.status == "interrupted":
         return f"interrupted (continue with {how})"
@@ -356,8 +389,9 @@ def _ensemble(args, status) -> int:
 
     replicas = check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
-    if args.device == "cuda" and (args.workers is not None or args.dask is not None):
-        raise InputError("--device cuda runs the replicas on the GPU from this process: give no --workers or --dask")
+    if args.device == "cuda" and args.workers is not None:
+        raise InputError("--device cuda runs the replicas on a GPU (this machine's, or each Dask worker's with --dask): "
+                         "give no --workers")
     if args.workers is not None:
         check_count("--workers", args.workers)
         if args.dask is not None:
@@ -367,7 +401,9 @@ def _ensemble(args, status) -> int:
     spec = spec.seeded()  # one seed for the whole ensemble, recorded in its spec.json
     out = check_out_dir(args.out, args.force)
     status("building the geometry")
-    spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
+    sim = spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
+    if args.device == "cuda":
+        spec.check_device(sim, here=args.dask is None)  # the stream and a GPU: before the lock makes the directory
     status.clear()
     client = None
     if args.dask is not None:
@@ -422,11 +458,42 @@ def reproduce_command(args) -> int:
         if args.workers is not None:
             check_count("--workers", args.workers)
         check_out_dir(args.out, args.force)
+        if args.device == "cuda":  # numba-cuda and a GPU, before anything runs (with --extended or without)
+            from ..engine.gpu import load as gpu
+
+            gpu()
     shown = status.shown  # the stages and bars on a terminal only
-    log = (lambda message: print(message, file=sys.stderr, flush=True)) if shown else None
-    report = reproduction.reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
-                       progress=shown, log=log, extended=args.extended, device=args.device)
+    stage: list[str] = []  # the stage running: a note names the run it is about, on a terminal or not
+
+    def log(message: str) -> None:
+        stage[:] = [message.partition("] ")[2] or message]  # "[  2.4 s] half-plane 200x100: single run"
+        if shown:
+            print(message, file=sys.stderr, flush=True)
+
+    with _naming_notes(stage):
+        report = reproduction.reproduce(args.out, quick=args.quick, force=args.force, workers=args.workers,
+                                        progress=shown, log=log, extended=args.extended, device=args.device)
     results = json.loads((report.parent / "results.json").read_text(encoding="utf-8"))
     if not args.quiet:
         print(f"wrote {report} in {results['wall_seconds']:.1f} s")
     return 1 if results["failures"] else 0
+
+
+@contextlib.contextmanager
+def _naming_notes(stage: list[str]) -> Iterator[None]:
+    """A thin-margin note (`engine.margin.MarginWarning`, which `main` says in one line) prefixed with the stage
+    that ran when it came (``stage[0]``: "half-plane 200x100: single run"), so that it names its run."""
+    import warnings
+
+    from ..engine.margin import MarginWarning
+
+    with warnings.catch_warnings():  # keeps the filters; puts the outer showwarning back after
+        outer = warnings.showwarning
+
+        def named(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, MarginWarning) and stage:
+                message = category(f"{stage[0]}: {message}")
+            outer(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = named
+        yield

@@ -10,13 +10,19 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
     /                 attrs: format, format_version, version (package), spec (JSON, "" for a run
                              built in Python), run (JSON: what a Python run was built from),
                              status ("running" | "done" | "interrupted": stopped by an exception
-                             or a signal, at the state saved here), stop_reason, created, updated,
+                             or a signal, at the state saved here | "failed": stopped where it
+                             cannot go on, at the state saved here), stop_reason, created, updated,
                              elapsed_seconds, checkpoints, checked (the snapshot trigger was
                              checked at the state's counts), observables (JSON names),
                              segments (JSON [[file, first, count], ...]),
                              digests (JSON {file: SHA-256} of static.h5 and every segment),
                              device ("cpu" | "cuda": where the run's last stretch ran; information only,
-                             absent from files written before 2026-11-27)
+                             absent from files written before 2026-11-27), simulated (true where
+                             numba-cuda's simulator stood in for the GPU; absent from older files),
+                             failure (a failed run's only: JSON {"error": the exception's class,
+                             "message": its one line, "steps": the step the run stood at, "precision",
+                             "late_precision": certified arithmetic's bits (0: none), "narrowed",
+                             "remedy": what to do instead})
     /geometry         -> static.h5: positions (n, k), pairs (E, 2) int32, t_i (E, d), t_j (E, d),
                          masses (n,) [only if given], boundary_distance (n,) and boundary_outward
                          (n, d) [with a boundary], frames (n, d, k) [curved]; attrs radius, view
@@ -25,7 +31,8 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
     /observables      one column per recorded observable (`pinnedballs.analysis.observables`): (F,) or (F, ...)
     /state            the latest state, enough to resume bit for bit: velocities (n, d),
                       rng_state (4,) uint64, scheduler_state (L,) int64, momentum (d,);
-                      attrs steps, collisions, energy, approaching, frozen;
+                      attrs steps, collisions, energy, approaching (-1, `index.UNKNOWN`: a failed
+                      run whose live contacts certified arithmetic could not count), frozen;
                       margin (4,) float64 [a float run's]: its closing margin so far (`engine.margin`:
                       the smallest closing speed of a collision, inf before the first; the largest
                       positive one set aside; the counts within a factor 1e4 of the threshold), with
@@ -42,7 +49,7 @@ whose segments all exist. A segment the index does not list (a kill between the 
 renames) is removed when the run continues. An HDF5 file appended in place would be
 smaller to describe but can be left unreadable by a kill in the middle of a write.
 
-Format 2 is format 3 without the digests and the status "interrupted"; format 1 is a single
+Format 2 is format 3 without the digests and the statuses "interrupted" and "failed"; format 1 is a single
 file, copied whole at each checkpoint. Both still load; continuing such a run converts it to
 format 3 first. A file written before runs kept their margin (of any format) has no
 ``/state/margin``: its margin is unknown (`Results.closing_margin` is None), and stays so when
@@ -64,7 +71,7 @@ from ..util.errors import InputError
 from ..engine.state import RunState
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",
-           "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES"]
+           "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES", "failed_run"]
 
 FORMAT = "pinnedballs-results"
 FORMAT_VERSION = 3
@@ -132,3 +139,20 @@ def results_path(path: str | os.PathLike) -> Path:
 def data_dir(path: Path) -> Path:
     """The directory of the static file and the segments beside the index ``path``."""
     return path.with_name(DATA_DIR) if path.name == RESULTS_NAME else path.with_name(path.stem + ".data")
+
+
+def failed_run(failure: dict) -> str:
+    """A failed run's ``failure`` (the attribute, `Results.failure`) in words: ``"failed at step 25,158 at 64 bits:
+    certified arithmetic cannot decide contact ..."`` (what the file does not say is left out)."""
+    def whole(key: str) -> int | None:
+        value = failure.get(key)
+        return int(value) if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else None
+
+    steps, top, late = whole("steps"), whole("precision"), whole("late_precision")
+    where = "" if steps is None else f" at step {steps:,}"
+    if failure.get("narrowed") is True and late:
+        where += f" at {late} bits behind the first wave"
+    elif top:
+        where += f" at {top} bits"
+    said = failure.get("decision") or failure.get("message")
+    return f"failed{where}" + (f": {' '.join(said.split())}" if isinstance(said, str) and said else "")

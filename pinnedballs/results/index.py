@@ -22,10 +22,12 @@ from .digest import file_digest
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, ResultsError
 
 __all__ = ["Damage", "check_format", "check_attributes", "check_initial", "segment_list", "check_digests", "check_links",
-           "STATUSES"]
+           "STATUSES", "UNKNOWN"]
 
-#: what ``status`` may say: "interrupted" since format 3
-STATUSES = {1: ("running", "done"), 2: ("running", "done"), 3: ("running", "done", "interrupted")}
+#: what ``status`` may say: "interrupted" and "failed" since format 3
+STATUSES = {1: ("running", "done"), 2: ("running", "done"), 3: ("running", "done", "interrupted", "failed")}
+#: ``/state``'s ``approaching`` of a failed run whose live contacts could not be counted (certified arithmetic)
+UNKNOWN = -1
 _SEGMENT = re.compile(r"frames_(\d{9})\.h5")
 
 
@@ -65,15 +67,22 @@ _INITIAL = {"energy": float, "approaching": int}
 
 def check_attributes(f: h5py.File, version: int) -> None:
     """Every attribute of the index the reader uses is there, of its type, and sane (counts >= 0,
-    finite numbers, a known status, ``frozen`` exactly when nothing approaches, the state's ``keys``);
+    finite numbers, a known status, ``frozen`` exactly when nothing approaches, the state's ``keys``;
+    a failed run's ``failure``, and its ``approaching`` `UNKNOWN` where it could not be counted);
     those of ``/initial`` (in the static file) are `check_initial`'s."""
     root = {**_ROOT, **(_ROOT_2 if version >= 2 else {}), **(_ROOT_3 if version >= 3 else {})}
-    for group, table in (("/", root), ("state", _STATE)):
-        for name, kind in table.items():
-            _attribute(group, name, f[group].attrs.get(name), kind)
     where = "/ (attribute status)"
+    _attribute("/", "status", f.attrs.get("status"), str)
     if f.attrs["status"] not in STATUSES[version]:
         raise Damage(where, f"must be {' or '.join(map(repr, STATUSES[version]))}, got {_short(f.attrs['status'])}")
+    failed = f.attrs["status"] == "failed"
+    if failed:
+        _attribute("/", "failure", f.attrs.get("failure"), "json-object")
+    for group, table in (("/", root), ("state", _STATE)):
+        for name, kind in table.items():
+            value = f[group].attrs.get(name)
+            if not (failed and group == "state" and name == "approaching" and _is(value, int) and value == UNKNOWN):
+                _attribute(group, name, value, kind)
     state = f["state"].attrs
     if bool(state["frozen"]) != (state["approaching"] == 0):
         raise Damage("state/frozen", f"is {bool(state['frozen'])} with {state['approaching']} contacts "

@@ -50,7 +50,10 @@ class Results:
     (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact
     arithmetic, or one begun before runs kept their margin).
     device: where its last stretch ran, ``"cpu"`` or ``"cuda"`` (information: not part of the spec, and
-    no number depends on it).
+    no number depends on it); simulated: whether numba-cuda's simulator stood in for the GPU there.
+    failure: why a failed run (``status`` "failed") cannot go on, as the file keeps it (`format`:
+    ``message``, ``steps``, ``precision``, ``late_precision``, ``narrowed``, ``remedy``); None otherwise.
+    approaching: -1 where a failed run's live contacts could not be counted.
     """
 
     path: Path
@@ -77,6 +80,8 @@ class Results:
     format_version: int = FORMAT_VERSION
     closing_margin: ClosingMargin | None = None
     device: str = "cpu"
+    simulated: bool = False
+    failure: dict | None = None
 
     @property
     def velocities(self) -> np.ndarray:
@@ -121,8 +126,8 @@ class Results:
     @property
     def complete(self) -> bool:
         """True once the run reached its stop (``status`` "done"); False for a checkpoint of a run still
-        going ("running"), killed ("running" too: its last checkpoint) or stopped by an exception or a
-        signal ("interrupted": the state it stopped in)."""
+        going ("running"), killed ("running" too: its last checkpoint), stopped by an exception or a
+        signal ("interrupted": the state it stopped in) or where it cannot go on ("failed": `failure`)."""
         return self.status == "done"
 
     @property
@@ -321,7 +326,8 @@ def read(p: Path, f: h5py.File) -> Results:
         latest=latest, run=json.loads(f.attrs.get("run", "") or "{}"), format_version=version,
         closing_margin=None if margin is None else ClosingMargin.of(
             margin, float(s["margin"].attrs["threshold"]), float(s["margin"].attrs["resolution"])),
-        device=str(f.attrs.get("device", "cpu")),
+        device=str(f.attrs.get("device", "cpu")), simulated=bool(f.attrs.get("simulated", False)),
+        failure=json.loads(f.attrs["failure"]) if f.attrs["status"] == "failed" else None,  # checked
     )
 
 

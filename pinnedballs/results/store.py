@@ -60,11 +60,12 @@ class ResultsStore:
     @classmethod
     def create(cls, path: str | os.PathLike, *, spec: str, run: str, geometry: Geometry, masses,
                initial: Record, version: str, criterion: tuple[float, float] | None = None,
-               device: str = "cpu") -> "ResultsStore":
+               device: str = "cpu", simulated: bool = False) -> "ResultsStore":
         """Write ``static.h5`` and an index with no snapshots. ``spec``: the run spec as JSON, or "";
         ``run``: JSON describing a run built in Python, or ""; ``criterion``: the simulation's
         ``(threshold, resolution)``, kept with the margin of each state that has one; ``device``: where the
-        run goes (information, in the attribute ``device``)."""
+        run goes, and ``simulated``: whether numba-cuda's simulator stood in for the GPU (information, in
+        the attributes ``device`` and ``simulated``)."""
         path = Path(path)
         data = data_dir(path)
         data.mkdir(parents=True, exist_ok=True)
@@ -73,7 +74,8 @@ class ResultsStore:
         now = _now()
         attrs = dict(format=FORMAT, format_version=FORMAT_VERSION, version=version, spec=spec, run=run,
                      status="running", stop_reason="", created=now, updated=now, elapsed_seconds=0.0,
-                     checkpoints=0, checked=False, observables=json.dumps(list(initial.values)), device=device)
+                     checkpoints=0, checked=False, observables=json.dumps(list(initial.values)), device=device,
+                     simulated=bool(simulated))
         columns = {k: (v.dtype.str, v.shape) for k, v in initial.values.items()}
         store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static}, criterion=criterion)
         store.write_index(initial, attrs, store.segments, store.digests)
@@ -107,11 +109,14 @@ class ResultsStore:
         return store
 
     def checkpoint(self, frames: list[Record], state: Record, *, status: str = "running", stop_reason: str = "",
-                   elapsed_seconds: float | None = None, checked: bool = True) -> None:
+                   elapsed_seconds: float | None = None, checked: bool = True, failure: dict | None = None) -> None:
         """Append ``frames`` (as one new segment; those already stored are skipped) and replace the
         state: the new index is renamed over the old one only once the segment is on disk.
-        ``status``: "running", "done" or "interrupted"; ``checked``: the snapshot trigger was
-        checked at the state's counts."""
+        ``status``: "running", "done", "interrupted" or "failed" (a run that cannot go on: ``failure``
+        says why, in the attribute ``failure`` as JSON, see `format`); ``checked``: the snapshot trigger
+        was checked at the state's counts."""
+        if (status == "failed") != (failure is not None):
+            raise ValueError("failure: a failed run's checkpoint says why, and only a failed run's")
         frames = [r for r in frames if r.state.steps > self.last_step]
         segments, digests, count = list(self.segments), dict(self.digests), self.frames
         if frames:
@@ -119,8 +124,11 @@ class ResultsStore:
             digests[name] = _write_segment(self.data_dir / name, frames, list(self.columns))
             segments.append([name, count, len(frames)])
             count += len(frames)
-        attrs = {**self.attrs, "status": status, "stop_reason": stop_reason, "updated": _now(),
-                 "checkpoints": int(self.attrs["checkpoints"]) + 1, "checked": checked}
+        attrs = {k: v for k, v in self.attrs.items() if k != "failure"}
+        attrs.update(status=status, stop_reason=stop_reason, updated=_now(),
+                     checkpoints=int(self.attrs["checkpoints"]) + 1, checked=checked)
+        if failure is not None:
+            attrs["failure"] = json.dumps(failure)
         if elapsed_seconds is not None:
             attrs["elapsed_seconds"] = float(elapsed_seconds)
         self.write_index(state, attrs, segments, digests)

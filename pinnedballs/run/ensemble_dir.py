@@ -4,7 +4,8 @@
 
 The directory holds ``replicas.csv`` (a row per replica and snapshot, and one for each final
 state), ``summary.json`` (how it ran) and ``spec.json``. A directory without them, or a file
-that does not parse, is an `InputError` naming the file (and the row and column of a bad cell).
+that does not parse, or a table cut short (a row with fewer cells than its header, a replica without a
+row), is an `InputError` naming the file (and the row and column of a bad cell).
 """
 
 from __future__ import annotations
@@ -75,19 +76,40 @@ def load_ensemble(path: str | os.PathLike) -> EnsembleResult:
         raw = read_table(out / TABLE_NAME)
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{out / TABLE_NAME}: not a readable table ({' '.join(str(exc).split())})") from None
-    rows = [{k: _cell(k, v, f"{out / TABLE_NAME}: row {n + 2}") for k, v in row.items() if k is not None}
-            for n, row in enumerate(raw)]
-    for n, row in enumerate(rows):
-        if "replica" not in row or not (ERROR_COLUMN in row or all(k in row for k in KEY_COLUMNS[:5])):
-            raise InputError(f"{out / TABLE_NAME}: row {n + 2}: must have the columns {', '.join(KEY_COLUMNS[:5])}")
-        if ERROR_COLUMN not in row:
-            row.setdefault("stop_reason", "")  # a snapshot's row: written as an empty cell
     replicas = summary.get("replicas")
     if not isinstance(replicas, int) or isinstance(replicas, bool) or replicas < 1:
         raise InputError(f"{out / SUMMARY_NAME}: replicas: must be a count >= 1, got {replicas!r}")
+    table = out / TABLE_NAME
+    for n, row in enumerate(raw):
+        if None in row.values():  # csv's cell for each column past the row's last
+            raise InputError(f"{table}: row {n + 2}: has fewer cells than the header has columns (cut short, or "
+                             f"damaged)")
+    rows = [{k: _cell(k, v, f"{table}: row {n + 2}") for k, v in row.items() if k is not None}
+            for n, row in enumerate(raw)]
+    for n, row in enumerate(rows):
+        if "replica" not in row or not (ERROR_COLUMN in row or all(k in row for k in KEY_COLUMNS[:5])):
+            raise InputError(f"{table}: row {n + 2}: must have the columns {', '.join(KEY_COLUMNS[:5])}")
+        if not 0 <= row["replica"] < replicas:
+            raise InputError(f"{table}: row {n + 2}: replica {row['replica']} is not one of the {replicas} "
+                             f"replicas {SUMMARY_NAME} counts")
+        if ERROR_COLUMN not in row:
+            row.setdefault("stop_reason", "")  # a snapshot's row: written as an empty cell
+    _check_every_replica(table, rows, replicas)
     wall = summary.get("wall_seconds")
     return EnsembleResult(spec, replicas, rows, str(summary.get("where", "")),
                           float(wall) if isinstance(wall, (int, float)) and not isinstance(wall, bool) else math.nan)
+
+
+def _check_every_replica(table: Path, rows: list[dict], replicas: int) -> None:
+    """An `InputError` naming ``table`` unless it holds rows of each of the ``replicas`` (every replica writes at
+    least one: its final state, or its error): a table cut short is never read as a whole ensemble."""
+    missing = sorted(set(range(replicas)) - {row["replica"] for row in rows})
+    if not missing:
+        return
+    which = f"replica {missing[0]}" if len(missing) == 1 else \
+        f"{len(missing)} replicas ({', '.join(map(str, missing[:3]))}{', ...' if len(missing) > 3 else ''})"
+    held = "holds no rows" if not rows else f"holds no row of {which}"
+    raise InputError(f"{table}: {held}, but {SUMMARY_NAME} counts {replicas} replicas (cut short, or damaged)")
 
 
 def describe(result: EnsembleResult, path: Path) -> list[str]:

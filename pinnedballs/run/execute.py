@@ -24,7 +24,7 @@ from ..engine.driver import Writer, drive
 from ..util.errors import InputError
 from ..engine.field.fixed import UncertifiedDecision
 from ..util.atomic import remove, tmp_path, write_text_atomic
-from ..results.format import DATA_DIR, RESULTS_NAME, Record
+from ..results.format import DATA_DIR, RESULTS_NAME, Record, failed_run
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
@@ -82,7 +82,9 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
     unless ``force`` (which replaces our files) or ``resume``: that continues the run there from its
     last checkpoint (the same spec; a finished run is left as it is), or starts it where none is yet
     (a missing or empty ``out_dir``, or one a run killed before its first checkpoint left), telling
-    ``log`` so in one line; anything else is refused (`check_resumable`). A new run that fails before its
+    ``log`` so in one line; anything else is refused (`check_resumable`), and so is a run that failed where it
+    cannot go on (a decision certified arithmetic cannot make: the file says "failed", `ResultsWriter`), which
+    continuing would only fail again. A new run that fails before its
     first step (a user's scheduler refused at its first pick) leaves nothing: what it wrote, and the
     directories made for it, are removed (a run ``force`` replaced is gone). ``progress``: the run
     driver's bar (True, False, or None: in a terminal or a notebook, once the run has taken 2 s;
@@ -259,8 +261,12 @@ def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resum
 
 
 def _resumed(spec: RunSpec, path: Path, device: str = "cpu") -> Simulation | None:
-    """The simulation at the last checkpoint in ``path`` of the same ``spec``, or None if that run is complete."""
+    """The simulation at the last checkpoint in ``path`` of the same ``spec``, or None if that run is complete;
+    an `InputError` saying why and what to do if that run failed where it cannot go on."""
     res = load(path)
+    if res.failure is not None:
+        raise InputError(f"--resume: the run in {res.run_dir} {failed_run(res.failure)}; continuing it would fail "
+                         f"the same way: {res.failure.get('remedy') or 'run it again with --force'}")
     _check_same_run(res, spec)
     if not (path.parent / "spec.json").exists():
         write_text_atomic(path.parent / "spec.json", res.spec.to_json() + "\n")

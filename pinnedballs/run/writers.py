@@ -15,13 +15,18 @@ read it; ``pb.load("DIR").simulation()`` continues the run bit for bit, and
 A run stopped by Ctrl-C (KeyboardInterrupt) or by any other exception is saved as it stopped:
 the writer checkpoints the state the simulation is in, with every snapshot due at it, marks
 the results "interrupted", releases the directory and lets the exception go on. A Ctrl-C
-during a checkpoint is held until the checkpoint is written (`held_signals`).
+during a checkpoint is held until the checkpoint is written (`held_signals`). A run stopped by a
+decision certified arithmetic cannot make (`UncertifiedDecision`) cannot go on: it is saved the same
+way at the last state the chain passed through, marked "failed", with the failure's words, step and
+bits and what to do instead (`failure`); its own error goes on, never one of saving it, and continuing
+it is refused.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -31,14 +36,18 @@ from .._version import __version__
 from ..util import checks
 from ..analysis import observables as named
 from ..results.files import held_signals
-from ..results.format import RESULTS_NAME, Record
+from ..results.format import RESULTS_NAME, Record, failed_run
+from ..results.index import UNKNOWN
 from ..results.rundir import BIRTH, DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from ..rules import DEFAULT_RESOLUTION
+from ..util.errors import InputError
 from ..engine.driver import Writer
+from ..engine.field.arithmetic import AUTO, next_precisions
+from ..engine.field.fixed import UncertifiedDecision
 from ..engine.triggers import Counts, Trigger
 
-__all__ = ["ResultsWriter", "OnSnapshot", "describe_run"]
+__all__ = ["ResultsWriter", "OnSnapshot", "describe_run", "failure", "simulated"]
 
 #: a snapshot's checkpoint is skipped (kept for the next one) if the last write was
 #: more recent than this many times its own duration: checkpoints stay under ~10 % of the time
@@ -143,30 +152,48 @@ class ResultsWriter(Writer):
 
     def abort(self, sim, checked: Counts | None) -> None:
         """Checkpoint the state ``sim`` stopped in, marked "interrupted", with the snapshot due at it
-        if the driver had not recorded it yet; release the directory (see the module's docstring)."""
+        if the driver had not recorded it yet; release the directory (see the module's docstring).
+        The exception being handled is the one that stopped the run: an `UncertifiedDecision` marks the
+        state "failed" (`failure`)."""
         if not self._running:
             self.close()
             return
+        stopping = sys.exc_info()[1]
+        failed = stopping if isinstance(stopping, UncertifiedDecision) else None
         try:
             with held_signals():
-                state, was_checked = self._stopped_state(sim, checked)
-                self._checkpoint(state, status="interrupted", checked=was_checked)
+                state, was_checked = self._stopped_state(sim, checked, failed is not None)
+                self._checkpoint(state, status="interrupted" if failed is None else "failed", checked=was_checked,
+                                 failure=None if failed is None else failure(failed, sim.steps, self.spec))
                 self._checked = (state.state.steps, state.state.collisions) if was_checked else None
         finally:
             self._stopped()
 
-    def _stopped_state(self, sim, checked: Counts | None) -> tuple[Record, bool]:
+    def _stopped_state(self, sim, checked: Counts | None, failed: bool = False) -> tuple[Record, bool]:
         """The state to save when the run stopped, and whether the trigger was checked at its counts:
         ``sim``'s own, once any snapshot due at it is recorded; if that snapshot cannot be taken (the
-        error that stopped the run?), the last state whose snapshots all are."""
+        error that stopped the run?) or its live contacts cannot be counted, the last state whose snapshots
+        all are; but a run that ``failed`` (`abort`), which never goes on, keeps ``sim``'s own (the trigger
+        unchecked where its snapshot could not be taken; ``approaching`` `UNKNOWN` where certified
+        arithmetic cannot count the live contacts)."""
         now = (sim.steps, sim.collisions)
         last = self.pending[-1].state.steps if self.pending else self.store.last_step
+        before = (self.pending[-1], True) if self.pending else (self.store.state, bool(self.store.attrs["checked"]))
+        was_checked = True
         if self.trigger is not None and checked != now and last != now[0] and self.trigger.fires(checked, now):
             try:
                 self.pending.append(Record.of(sim, self.names))
             except Exception:  # noqa: BLE001 - saving what is sound comes first
-                return (self.pending[-1], True) if self.pending else (self.store.state, bool(self.store.attrs["checked"]))
-        return Record.of(sim, ()), True
+                if not failed:
+                    return before
+                was_checked = False
+        try:
+            return Record.of(sim, ()), was_checked
+        except UncertifiedDecision:  # its live contacts cannot be counted at these bits
+            if not failed:
+                return before
+            momentum = np.asarray(sim.momentum(), dtype=np.float64)
+            return Record(sim.get_state(), sim.energy(), momentum, UNKNOWN), was_checked
 
     def _stopped(self) -> None:
         self._running = False
@@ -189,22 +216,29 @@ class ResultsWriter(Writer):
         self._checked = (sim.steps, sim.collisions)
         self._checkpoint(Record.of(sim, self.names))
 
-    def _checkpoint(self, state: Record, status: str = "running", reason: str = "", checked: bool = True) -> None:
+    def _checkpoint(self, state: Record, status: str = "running", reason: str = "", checked: bool = True,
+                    failure: dict | None = None) -> None:
         t = time.monotonic()
         with held_signals():  # a Ctrl-C lands after the checkpoint, never inside it
             self.store.checkpoint([r for r in self.pending if r.state.steps <= state.state.steps], state,
-                                  status=status, stop_reason=reason, elapsed_seconds=self.elapsed(), checked=checked)
+                                  status=status, stop_reason=reason, elapsed_seconds=self.elapsed(), checked=checked,
+                                  failure=failure)
             self.pending = [r for r in self.pending if r.state.steps > state.state.steps]
             self._saved = (state.state.steps, state.state.collisions)
-            self._running = status == "running"  # a run saved as done or interrupted is never saved again
+            self._running = status == "running"  # a run saved as done, interrupted or failed is never saved again
         self._last = time.monotonic()
         self._cost = self._last - t
 
     def _open(self, sim) -> ResultsStore:
         if self.resume and self.path.exists():
             store = ResultsStore.reopen(self.path)
+            if store.attrs["status"] == "failed":
+                said = json.loads(store.attrs["failure"])
+                raise InputError(f"resume: the run in {self.out_dir} {failed_run(said)}; continuing it would fail "
+                                 f"the same way: {said.get('remedy') or 'run it again'}")
             _check_continues(store, sim, self.path)
             store.attrs["device"] = getattr(sim, "device", "cpu")
+            store.attrs["simulated"] = simulated(store.attrs["device"])
             self._elapsed0 = float(store.attrs["elapsed_seconds"])
             stored = tuple(json.loads(store.attrs["observables"]))
             if stored != self.names:
@@ -221,10 +255,51 @@ class ResultsWriter(Writer):
         initial = Record.of(sim, self.names)
         spec = self.spec.model_dump_json() if self.spec is not None else ""
         run = "" if self.spec is not None else json.dumps(describe_run(sim, self))
+        device = getattr(sim, "device", "cpu")
         return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
                                    initial=initial, version=__version__, criterion=(sim.threshold, sim.resolution),
-                                   device=getattr(sim, "device", "cpu"))
+                                   device=device, simulated=simulated(device))
 
+
+def simulated(device: str) -> bool:
+    """Whether a run on ``device`` runs under numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``: its kernels
+    as Python threads on the CPU), not on a GPU."""
+    if device != "cuda":
+        return False
+    from ..engine.gpu.compile import SIMULATED
+
+    return bool(SIMULATED)
+
+
+def failure(exc: UncertifiedDecision, steps: int, spec=None) -> dict:
+    """What a results file keeps of a run that failed on ``exc`` at step ``steps`` (`results.format`): the
+    error's words, the step, the bits, and what to do instead (``spec``: the run's `RunSpec`, None for a run
+    built in Python, which is told in Python's words)."""
+    return {"error": type(exc).__name__, "message": " ".join(str(exc).split()),
+            "decision": " ".join((exc.decision or str(exc)).split()), "steps": int(steps),
+            "precision": int(exc.precision), "late_precision": int(exc.late_precision), "narrowed": bool(exc.narrowed),
+            "remedy": _remedy(exc, spec)}
+
+
+def _remedy(exc: UncertifiedDecision, spec) -> str:
+    """What to do instead of continuing a run that failed on ``exc`` (``spec``: its `RunSpec`, None for a run built
+    in Python): more bits where they can help (through the first wave, or behind it where the state had narrowed),
+    else exact arithmetic."""
+    cli = spec is not None
+    exact = '"arithmetic": "exact"' if cli else 'arithmetic="exact"'
+    again = "run it again (--force)" if cli else "run it again"
+    late = int(exc.late_precision)
+    if next_precisions(exc, late or None) is None:
+        return f"{again} with {exact}: no more bits can help"
+    if cli and spec.precision == AUTO:  # stopped before it could start again with more bits
+        return f'{again}: "precision": "auto" starts again with more bits'
+    if exc.narrowed and late:
+        more = f'a "late_precision" above {late} bits' if cli else f"late_precision above {late} bits"
+    else:
+        more = f"more than {int(exc.precision)} bits" if cli else f"precision above {int(exc.precision)} bits"
+    if cli:
+        return f'{again} with "precision": "auto" (the run finds its bits) or {more}, or with {exact}'
+    return f"{again} with {more}, or with {exact}"
 
 
 class OnSnapshot(Writer):

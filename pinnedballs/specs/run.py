@@ -33,6 +33,10 @@ __all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe"]
 
 MassesField = Union[Positive, FilePath]
 
+#: the scheduler a GPU runs, as the engine names it (Python) and as a spec states it (JSON)
+_COUNTER_PYTHON = "UniformRandomPair(stream='counter')"
+_COUNTER_JSON = '{"kind": "uniform_random_pair", "stream": "counter"}'
+
 
 def _known_observable(name: str) -> str:
     if name not in OBSERVABLES:
@@ -199,6 +203,9 @@ class RunSpec(_Spec):
         ``masses`` already built (or read back from a results file), on ``device``."""
         seq = seed if seed is not None else self.seed_sequence()
         initial = "initial.path" if isinstance(self.initial, FromFileSpec) else "initial"
+        if self.resolution is not None and self.arithmetic != "float":  # as the precision outside certified arithmetic
+            raise SpecError("resolution", f"is the collision criterion of float arithmetic; this run's is "
+                                          f"{self.arithmetic!r}")
         rule, scheduler = self.rule.build(), self.scheduler.build()
         precision, late_precision = self.precisions()
         try:
@@ -222,10 +229,34 @@ class RunSpec(_Spec):
         except UserCodeError:
             raise
         except SpecError as exc:
+            if exc.path == "device":
+                raise self._in_spec_words(exc) from None
             files = {"geometry": getattr(self.geometry, "positions", None),
                      "initial.path": getattr(self.initial, "path", None),
                      "masses": self.masses if isinstance(self.masses, str) else None}
             raise _in_file(exc, files[exc.path]) if files.get(exc.path) else exc from None
+
+    def check_device(self, sim: Simulation, *, here: bool = True) -> None:
+        """A `SpecError` on ``device`` unless a GPU can run ``sim`` (built from this spec on the CPU): what
+        `engine.backends.check_device` asks (float arithmetic, the counter stream, numba-cuda and a GPU: in this
+        process unless ``here`` is False), said in the spec's words."""
+        from ..engine.backends import check_device
+
+        try:
+            with engine_errors("device", {"device": "device"}):
+                check_device(sim.engine.model, sim.arithmetic, sim.rule, sim.scheduler, here=here)
+        except SpecError as exc:
+            raise self._in_spec_words(exc) from None
+
+    def _in_spec_words(self, exc: SpecError) -> SpecError:
+        """A refusal on ``device`` naming the scheduler the GPU runs, and this spec's, as a spec's JSON states them
+        (not as Python builds them)."""
+        if not exc.problem.startswith(f"'cuda' runs {_COUNTER_PYTHON} "):
+            return exc
+        mine = {"kind": self.scheduler.kind, **self.scheduler.model_dump(mode="json", exclude_defaults=True,
+                                                                          exclude={"kind"})}
+        return SpecError("device", f"'cuda' runs the scheduler {_COUNTER_JSON} (the pick of step s a function of "
+                                   f"the seed and s); this spec's scheduler, {json.dumps(mine)}, runs on the CPU")
 
     def to_json(self) -> str:
         """The spec as indented JSON, defaults filled in and paths absolute."""
@@ -356,11 +387,26 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     if spec.trajectory is not None:
         snapshots += f", trajectory.gsd: {_how_many(spec.trajectory, spec.stop, 'frame')}"
     rule = label(spec.rule) + (f"(r={spec.rule.r})" if spec.rule.kind == "restitution" else "")
+    arithmetic = _arithmetic(spec, sim)
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {label(spec.initial)}, energy {sim.energy():.6g}; {rule}, {label(spec.scheduler)}; "
-            f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"
+            + (f"{arithmetic}; " if arithmetic else "")
+            + f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"
                                                  + ("" if spec.replica is None else f", replica {spec.replica}"))
             + ("" if spec.resolution is None else f"; resolution {spec.resolution:.3g}"))
+
+
+def _arithmetic(spec: RunSpec, sim: Simulation) -> str:
+    """The run's arithmetic and bits in words (nothing for floats, the default): ``"exact arithmetic"``,
+    ``"certified arithmetic, 768 bits through the first wave, 256 behind it"``, ``"certified arithmetic, 768
+    bits"``, or an ``"auto"`` run's ``"certified arithmetic, precision auto: 768 bits to start, more where ..."``."""
+    if spec.arithmetic != "certified":
+        return "" if spec.arithmetic == "float" else f"{spec.arithmetic} arithmetic"
+    top, late = getattr(sim.engine.state.field_chain, "bits", (0, 0))
+    bits = f"{top} bits through the first wave, {late} behind it" if late else f"{top} bits"
+    if spec.precision == AUTO:
+        return f"certified arithmetic, precision auto: {bits} to start, more where a decision cannot be proved"
+    return f"certified arithmetic, {bits}"
 
 
 def _shape(g: BaseModel, geometry: Geometry) -> str:

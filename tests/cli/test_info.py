@@ -31,7 +31,8 @@ def test_info_of_a_short_run_says_how_long_it_took(tmp_path):
     res = pb.load(out)
     code, stdout, err = call("info", out)
     assert (code, err) == (0, "") and 0 < res.elapsed_seconds < 60
-    assert f"time:        {_duration(res.elapsed_seconds)} in 2 checkpoint(s); written by pinnedballs" in stdout
+    assert (f"time:        {_duration(res.elapsed_seconds)} running the chain in 2 checkpoint(s) (building, compiling "
+            f"and figures not counted); written by pinnedballs") in stdout
     assert "time:        0.0 s" not in stdout
 
 

@@ -130,7 +130,7 @@ def test_reproduce_reports_its_stages_on_a_terminal_only(tmp_path, monkeypatch, 
     err = _Terminal() if terminal else io.StringIO()
     monkeypatch.setattr(sys, "stderr", err)
     assert cli.main(["reproduce", "--out", str(tmp_path / "r"), *(["--quiet"] if quiet else [])]) == 0
-    assert seen["progress"] is shown and (seen["log"] is not None) is shown
+    assert seen["progress"] is shown  # the stages are told in any case (a note names its run), and shown here only:
     text = err.getvalue()
     if shown:
         assert text == (f"{status.CLEAR}pinnedballs: loading the reproduction ...{status.CLEAR}"

@@ -223,6 +223,7 @@ class FixedChain(FieldChain):
         if len(rows):
             self.X[rows, :, 0] = to_limbs([[int(Fraction(x) * (1 << self.S)) for x in v[b]] for b in rows], self.P)
         self.live, self.failure, self._at = -1, None, None
+        self._after = None  #: the step the last `run` ended after (None: not known), for messages
         #: the smallest closing speed counted as a collision, the largest nonzero one set aside, and the
         #: number of picks set aside with closing speed exactly 0 (balls not both at rest), so far
         self.margin = np.array([np.inf, -np.inf, 0.0])
@@ -304,7 +305,7 @@ class FixedChain(FieldChain):
         """Decide every contact; keep and return the number of live ones."""
         live = count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
         if live < 0:
-            raise self._uncertified(None, None)
+            raise self._uncertified(None, self._after)
         self.live = live
         return live
 
@@ -336,6 +337,7 @@ class FixedChain(FieldChain):
                 break
         made, self.live = int(prog[0]), int(prog[3])
         self.inside += int(prog[6])
+        self._after = first_step + t - 1
         if status == DONE and until_frozen and self.live < 0:  # stopped by collisions_left: is it frozen?
             self.live = count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
             status = UNCOUNTED if self.live < 0 else status
@@ -355,6 +357,7 @@ class FixedChain(FieldChain):
     def collide(self, k: int) -> bool:
         """Collide contact ``k`` if it is live; True if it was (a failure to certify raises)."""
         _, made, _ = self.run(np.array([k]), 1, False)
+        self._after = None  # one contact, at no step of a run
         failure, self.failure = self.failure, None
         if failure is not None:
             raise failure
@@ -425,7 +428,7 @@ class FixedChain(FieldChain):
             raise ValueError("a velocity is larger than the energy of the velocities given allows") from None
         self.X = X
         self._reshadow()
-        self.live = -1
+        self.live, self._after = -1, None
 
     def _reshadow(self) -> None:
         """Shadows, rest flags and ``shadow`` from ``X`` for every ball."""
@@ -453,4 +456,4 @@ class FixedChain(FieldChain):
         self.acc[1] = self.acc[0] * SQRT2_UP * UP
         self._scratch()
         self._reshadow()
-        self.live = -1
+        self.live, self._after = -1, None
