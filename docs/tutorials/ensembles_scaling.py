@@ -32,7 +32,8 @@ import numpy as np
 import pandas as pd
 import pinnedballs as pb
 
-work = Path(tempfile.mkdtemp(prefix="pinnedballs-ensembles-"))
+scratch = tempfile.TemporaryDirectory(prefix="pinnedballs-ensembles-")  # removed when the kernel stops
+work = Path(scratch.name)
 
 
 def half_plane(length: int, depth: int) -> pb.RunSpec:
@@ -111,6 +112,12 @@ ax.legend();
 # `cluster=` sends the replicas to a Dask cluster: here a `LocalCluster` of two worker processes
 # on this machine, in practice one spread over many (`pinnedballs ensemble --dask ADDRESS` from the
 # command line). The table is the same, bit for bit, wherever the replicas ran.
+#
+# In a script (not a notebook) start the cluster under `if __name__ == "__main__":`: Dask's worker
+# processes import the script again, and without the guard each starts a cluster of its own ("Nanny
+# failed to start"). *Getting started* (`docs/getting-started.md`, "Many replicas: ensembles and Dask")
+# has that script, a cluster started by hand (`dask scheduler`, `dask worker ADDRESS`, `--dask ADDRESS`)
+# and a recipe for SLURM.
 
 # %%
 from dask.distributed import LocalCluster
@@ -134,3 +141,9 @@ on_dask.save(work / "ensemble_60x30")
 back = pb.load_ensemble(work / "ensemble_60x30")
 print(back.to_pandas().equals(on_dask.to_pandas()))
 back
+
+# %% [markdown]
+# The scratch folder goes when the kernel stops; to remove it now:
+
+# %%
+scratch.cleanup()

@@ -19,17 +19,21 @@
 # way: how a geometry and a simulation show themselves in a notebook, the figures, the same run from a
 # spec file, and its numbers as a table.
 #
-# This page is a notebook: open `docs/tutorials/first_run.py` in Jupyter (with jupytext) or run
-# `jupytext --to notebook first_run.py`. It runs top to bottom in about half a minute.
+# This page is a notebook: open `docs/tutorials/first_run.py` in Jupyter (with jupytext), or run it
+# headless into a notebook with its outputs, `jupytext --to notebook --execute docs/tutorials/first_run.py`
+# (both from `python3 -m pip install ".[notebook]"`). It runs top to bottom in about half a minute.
 
 # %%
+# %matplotlib inline
 import tempfile
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pinnedballs as pb
 
-work = Path(tempfile.mkdtemp(prefix="pinnedballs-tutorial-"))  # a scratch folder for the run directories
+scratch = tempfile.TemporaryDirectory(prefix="pinnedballs-tutorial-")  # removed when the kernel stops
+work = Path(scratch.name)  # the run directories go here
 
 # %% [markdown]
 # ## The geometry
@@ -66,13 +70,9 @@ sim
 # `ax`, it draws there, so states sit side by side:
 
 # %%
-from pinnedballs.plot.base import new_figure
-
-fig = new_figure((12, 3.8))
-left, right = fig.subplots(1, 2)
+fig, (left, right) = plt.subplots(1, 2, figsize=(12, 3.8), layout="constrained")
 pb.Simulation(half, v, seed=0).plot(ax=left, title="the start")
-sim.plot(ax=right, title=f"frozen after {sim.collisions:,} collisions")
-fig
+sim.plot(ax=right, title=f"frozen after {sim.collisions:,} collisions");
 
 # %% [markdown]
 # ## The same run from a spec, as `pinnedballs run` does it
@@ -158,3 +158,9 @@ float(speeds.isel(snapshot=-1).max())  # reads the final state, and only it
 
 # %%
 res.animate(work / "halfplane.gif", fps=2)
+
+# %% [markdown]
+# The scratch folder and the run in it go when the kernel stops; to remove them now:
+
+# %%
+scratch.cleanup()

@@ -27,6 +27,7 @@
 # in a notebook is compiled once per kernel (one defined in a module is cached on disk).
 
 # %%
+# %matplotlib inline
 import networkx as nx
 import numpy as np
 from numba import njit
@@ -258,12 +259,11 @@ table
 # `ax=`, it draws there.
 
 # %%
-from pinnedballs.plot.base import new_figure
+import matplotlib.pyplot as plt
 
-fig = new_figure((15, 5.0))
-for ax, (name, sim) in zip(fig.subplots(1, 3), runs.items()):
+fig, axes = plt.subplots(1, 3, figsize=(15, 5.0), layout="constrained")
+for ax, (name, sim) in zip(axes, runs.items()):
     sim.plot(ax=ax, title=f"{name}:\nfrozen after {sim.collisions} collisions")
-fig
 
 # %% [markdown]
 # The honeycomb, every ball given a random velocity, under a lossier rule: a simulation shows

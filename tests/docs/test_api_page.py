@@ -43,6 +43,14 @@ def test_every_name_a_guide_teaches_is_on_the_api_page(page):
     assert not missing, f"{page} teaches names the API page does not document: {missing}"
 
 
+@pytest.mark.parametrize("tutorial", sorted(p.name for p in (DOCS / "tutorials").glob("*.py")))
+def test_a_tutorial_imports_only_names_the_api_page_documents(tutorial):
+    """A tutorial teaches the public API: no internal helper (it imported `pinnedballs.plot.base.new_figure`)."""
+    api = documented()
+    internal = sorted(n for n in taught(f"tutorials/{tutorial}") if n not in api and canonical(n) not in api)
+    assert not internal, f"{tutorial} imports names the API page does not document: {internal}"
+
+
 def test_every_public_name_is_on_the_api_page():
     api = documented()
     assert not [n for n in pb.__all__ if n != "__version__" and f"pinnedballs.{n}" not in api]

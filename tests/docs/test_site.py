@@ -44,6 +44,46 @@ def test_every_extra_the_docs_advise_is_in_pyproject_and_installs_from_the_check
     assert 'pip install ".[movies]"' in MP4_MISSING
 
 
+def extras() -> dict[str, list[str]]:
+    return tomllib.loads(text(ROOT / "pyproject.toml"))["project"]["optional-dependencies"]
+
+
+def names(requirements: list[str]) -> set[str]:
+    return {re.match(r"[\w.-]+", r).group(0).lower() for r in requirements}
+
+
+def test_the_notebook_extra_opens_the_tutorials_and_runs_them_headless():
+    """The README's tutorials need jupytext, and its headless command nbclient and a kernel: the notebook extra
+    installs them, and the README gives the command."""
+    assert {"jupyterlab", "ipywidgets", "jupytext", "nbclient", "ipykernel"} <= names(extras()["notebook"])
+    readme = text(ROOT / "README.md")
+    assert 'pip install ".[notebook]"' in readme
+    assert re.search(r"^jupytext --to notebook --execute docs/tutorials/\w+\.py", readme, flags=re.M)
+
+
+def test_the_test_extra_leaves_numba_cuda_to_the_cuda_extra_and_ci_installs_it():
+    """numba-cuda pulls about 520 MB of CUDA packages: `.[test]` leaves it out, the GPU tests skip without it, and
+    CI installs it before the suite so that they run there."""
+    assert "numba-cuda" not in names(extras()["test"]) and "numba-cuda" in names(extras()["cuda"])
+    ci = text(ROOT / ".ci" / "run")
+    suite = ci.index("python3 -m pytest -q\n")
+    assert -1 < ci.index('pip install --quiet --disable-pip-version-check ".[cuda]"') < suite
+    assert -1 < ci.index('python3 -c "import numba_cuda"') < suite          # so that no GPU test is skipped there
+
+
+#: the test modules of the GPU engine, under numba-cuda's simulator
+GPU_TESTS = ["tests/engine/gpu/test_gpu.py", "tests/run/reproduction/test_device.py", "tests/run/test_device_runs.py",
+             "tests/run/test_ensemble_gpu.py", "tests/docs/test_extending.py", "tests/docs/test_user_pages.py"]
+
+
+def test_the_gpu_engines_tests_skip_without_numba_cuda():
+    """Each says ``pytest.importorskip("numba_cuda")`` (numba's own, older ``numba.cuda`` imports without
+    numba-cuda but cannot run the kernels), so `.[test]` alone runs the suite."""
+    for name in GPU_TESTS:
+        source = text(ROOT / name)
+        assert re.search(r"device=[\"']cuda[\"']|numba_cuda", source) and 'importorskip("numba_cuda"' in source, name
+
+
 # ---------------------------------------------------------------- 5.3: the first command, the home page
 
 

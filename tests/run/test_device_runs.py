@@ -3,6 +3,11 @@ the CPU's snapshots and state, records where it ran, and a checkpoint continues 
 
 import h5py
 import numpy as np
+import pytest
+
+# the GPU engine needs numba-cuda (numba's own, older numba.cuda imports without it but cannot run the kernels)
+pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
+                                         "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
 
 import pinnedballs as pb
 from pinnedballs.specs.run import parse_spec
