@@ -314,23 +314,31 @@ class DeviceBackend(Backend):
         return self.approaching() == 0
 
 
-def check_device(model: Model, arithmetic: str, rule, scheduler) -> None:
+def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool = True) -> None:
     """A `FieldError` unless a chain can run on a GPU: float arithmetic and the counter stream (other schedulers
     and arithmetics run on the CPU), numba-cuda installed, the rule's functions compiled for the GPU with the
     CPU's rounding (`gpu.compile.check_rule`: any rule, a user's too), and a GPU. ``rule`` and ``scheduler``
-    name them in the message."""
-    from .gpu import importable, load
+    name them in the message. ``here=False``: the chain runs elsewhere (a cluster's GPUs), so this process
+    needs neither a GPU nor numba-cuda (without it the rule is compiled where it runs)."""
+    from .gpu import GPUUnavailable, importable, load
     from .gpu.compile import check_rule
 
     if arithmetic != "float":
         raise FieldError("device", f"'cuda' runs float arithmetic; {arithmetic} arithmetic runs on the CPU")
     if not model.selector.counter:
-        raise FieldError("device", f"'cuda' runs UniformRandomPair(stream='counter') (the pick of step s a function "
-                                   f"of the seed and s); {described(scheduler)} runs on the CPU")
-    importable()  # numba-cuda, or one line saying it is missing
+        raise FieldError("device", "'cuda' runs UniformRandomPair(stream='counter') (in a spec {\"kind\": "
+                                   "\"uniform_random_pair\", \"stream\": \"counter\"}: the pick of step s a function of "
+                                   f"the seed and s); {described(scheduler)} runs on the CPU")
+    try:
+        importable()  # numba-cuda, or one line saying it is missing
+    except GPUUnavailable:
+        if here:
+            raise
+        return
     g = model.geometry
     check_rule(rule, model.collide, g.dim, bool(g.contacts.flat))
-    load()  # a GPU, or one line saying there is none
+    if here:
+        load()  # a GPU, or one line saying there is none
 
 
 def backend_for(model: Model, state: ChainState, arithmetic: str, device: str, listeners: list,

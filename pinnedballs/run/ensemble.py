@@ -294,8 +294,11 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
 
     ``device="cuda"``: on an NVIDIA GPU (`run.ensemble_gpu`): small systems one replica a GPU thread,
     large ones one after another on the whole GPU; the same rows as on the CPU for the same seeds. It
-    runs specs a GPU runs (float arithmetic, a built-in rule, ``UniformRandomPair(stream="counter")``),
-    with the built-in task, in this process (``workers`` and Dask do not apply).
+    runs specs a GPU runs (float arithmetic, ``UniformRandomPair(stream="counter")``, any rule that compiles
+    for one), with the built-in task: in this process (``workers`` does not apply), or, with ``dask_address``
+    or ``cluster``, on the GPUs of a Dask cluster whose workers each own one (dask-cuda's
+    ``LocalCUDACluster`` on one machine, or a cluster's GPU nodes: docs/gpu.md), the replicas in groups of at
+    most `ensemble_gpu.WORKER_GROUP`, a group a job; a group whose worker is lost runs again elsewhere.
 
     Ctrl-C stops it within a second or so and raises KeyboardInterrupt; the replicas done so far
     are discarded (each can be run again alone, `run_replica`, to the same rows). Local processes are
@@ -311,9 +314,9 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
         raise InputError("workers, dask_address, cluster: give at most one")
     device = checks.choice("device", device, DEVICES)
     observe = _gpu_observe(task) if device == "cuda" else None
-    if device == "cuda" and (observe is None or dask_address is not None or cluster is not None):
+    if device == "cuda" and observe is None:
         raise InputError("device: 'cuda' runs the built-in replica task (run_replica, or a functools.partial of it "
-                         "giving observe=) in this process, without Dask or a cluster")
+                         "giving observe=)")
     task = run_replica if task is None else task
     seeds = np.random.SeedSequence(spec.seed).spawn(replicas)
     jobs = {k: (_attempt, task, spec, k, seeds[k]) for k in range(replicas)}
@@ -329,7 +332,9 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
             done.append(1)
             bar.update(len(done))
 
-        if device == "cuda":
+        if device == "cuda" and (dask_address is not None or cluster is not None):
+            where, results = _on_cluster_gpus(spec, seeds, observe, dask_address, cluster, bar)
+        elif device == "cuda":
             from .ensemble_gpu import run_on_gpu
 
             where = "GPU"
@@ -353,6 +358,39 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     if spec.stop.frozen and spec.arithmetic == "float" and spec.resolution is None and result.thin():
         warnings.warn(_thin_note(result), MarginWarning, stacklevel=2)
     return result
+
+
+def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address, cluster, bar) -> tuple[str, dict]:
+    """``(where, rows by replica)`` of the replicas run on the GPUs of a Dask cluster (`run_ensemble`'s ``device=
+    "cuda"`` with ``dask_address`` or ``cluster``): the spec checked here (this process needs no GPU), every
+    worker asked whether it sees one, then the replicas in groups (`ensemble_gpu.groups`), a group a job on a
+    worker's GPU; a group whose worker is lost runs again elsewhere (`executors.on_dask`), and the rows are the
+    same however the replicas were grouped."""
+    from ..engine.backends import check_device
+    from .ensemble_gpu import gpu_workers, groups, on_worker_gpu
+
+    proto = spec.build(seed=seeds[0])
+    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler, here=False)
+    client, own = executors.dask_client(dask_address, cluster)
+    try:
+        parts = groups(len(seeds), gpu_workers(client))
+        jobs = {g: (on_worker_gpu, spec, r.start, [seeds[k] for k in r], observe, replica_row)
+                for g, r in enumerate(parts)}
+        done = []
+
+        def tick() -> None:  # a group done: its replicas on the bar
+            done.append(1)
+            bar.update(min(len(seeds), sum(len(parts[g]) for g in range(len(done)))))
+
+        def lost(g: int, exc: BaseException) -> dict:  # its worker died or was lost, twice
+            return {k: [_error_row(k, seeds[k], exc)] for k in parts[g]}
+
+        out = executors.on_dask(client, jobs, tick, lost)
+        where = f"dask {client.scheduler.address} (a GPU a worker)"
+    finally:
+        if own:
+            client.close()
+    return where, {k: rows for part in out.values() for k, rows in part.items()}
 
 
 def _gpu_observe(task: Task | None) -> Observe | None:

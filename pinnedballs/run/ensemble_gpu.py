@@ -26,7 +26,8 @@ from ..engine.state import RunState, mass_array
 from ..geometry.simulation import check_velocities
 from ..rules import threshold
 
-__all__ = ["run_on_gpu", "Replica", "MAX_THREAD_CONTACTS", "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS"]
+__all__ = ["run_on_gpu", "on_worker_gpu", "groups", "gpu_workers", "Replica", "MAX_THREAD_CONTACTS",
+           "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS", "WORKER_GROUP"]
 
 #: systems with more contacts than this run one replica at a time on the whole GPU
 MAX_THREAD_CONTACTS = 1 << 16
@@ -34,23 +35,69 @@ MAX_THREAD_CONTACTS = 1 << 16
 REPLICA_MEMORY_SHARE = 0.5
 #: steps a replica takes in one launch at most (a launch cannot be interrupted: Ctrl-C waits for it)
 LAUNCH_STEPS = 1 << 26
+#: replicas one Dask job runs on its worker's GPU at most: the unit Dask runs again elsewhere when a worker is lost
+WORKER_GROUP = 1 << 14
 
 
-def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Callable[[], None]) -> dict[int, list]:
-    """The rows of replicas ``0 .. len(seeds) - 1`` of ``spec``, by replica. ``row_of(sim, index, seed, at,
-    state, frozen, reason, observe)`` builds one row (`ensemble.replica_row`) with ``observe``'s columns,
+def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Callable[[], None],
+               first: int = 0) -> dict[int, list]:
+    """The rows of replicas ``first .. first + len(seeds) - 1`` of ``spec`` (their ``seeds``), by replica.
+    ``row_of(sim, index, seed, at, state, frozen, reason, observe)`` builds one row (`ensemble.replica_row`) with ``observe``'s columns,
     ``tick()`` is told of each replica done."""
     proto = spec.build(seed=seeds[0])
     # floats, the counter stream, a rule the GPU runs with the CPU's bits, numba-cuda and a GPU: or one line why
     check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler)
     if proto.geometry.n_contacts > MAX_THREAD_CONTACTS:
-        return _one_at_a_time(spec, seeds, observe, row_of, tick)
+        return _one_at_a_time(spec, seeds, observe, row_of, tick, first)
     out: dict[int, list] = {}
     for group in _groups(len(seeds), proto):
-        out.update(_Group(spec, proto, [(k, seeds[k]) for k in group], observe, row_of).run())
+        out.update(_Group(spec, proto, [(first + k, seeds[k]) for k in group], observe, row_of).run())
         for _ in group:
             tick()
     return out
+
+
+# ---------------------------------------------------------------- on a cluster's GPUs
+
+
+def on_worker_gpu(spec, first: int, seeds: list, observe: Callable, row_of: Callable) -> dict[int, list]:
+    """A Dask job: the rows of replicas ``first, first + 1, ...`` (their ``seeds``) of ``spec``, run on the GPU
+    of the worker that runs it (`run_on_gpu`), by replica."""
+    return run_on_gpu(spec, seeds, observe, row_of, lambda: None, first)
+
+
+def groups(replicas: int, workers: int, most: int = WORKER_GROUP) -> list[range]:
+    """Replica indices in jobs for ``workers`` GPUs: as many jobs as workers (or more, of at most ``most``
+    replicas each), in order. The rows never depend on how they are grouped."""
+    size = max(1, min(most, -(-replicas // max(1, workers))))
+    return [range(a, min(replicas, a + size)) for a in range(0, replicas, size)]
+
+
+def _sees_a_gpu() -> str:
+    """On a worker: "" when it can run a GPU chain, else the one line saying why not."""
+    from ..engine.gpu import GPUUnavailable, load
+
+    try:
+        load()
+    except GPUUnavailable as exc:
+        return exc.problem
+    return ""
+
+
+def gpu_workers(client) -> int:
+    """The number of the workers of ``client``'s cluster, each of which must see a GPU (numba-cuda's simulator
+    counts); an `InputError` on ``device`` naming those that do not, or saying there are none."""
+    from ..util.errors import InputError
+
+    seen = client.run(_sees_a_gpu)
+    if not seen:
+        raise InputError("device: 'cuda' on Dask: the cluster has no worker")
+    lacking = {worker: why for worker, why in seen.items() if why}
+    if lacking:
+        worker, why = sorted(lacking.items())[0]
+        raise InputError(f"device: 'cuda' on Dask needs a GPU on every worker; {len(lacking)} of {len(seen)} have "
+                         f"none ({worker}: {why})")
+    return len(seen)
 
 
 class _Rows(Writer):
@@ -72,14 +119,14 @@ class _Rows(Writer):
                                      self.observe))
 
 
-def _one_at_a_time(spec, seeds, observe, row_of, tick) -> dict[int, list]:
+def _one_at_a_time(spec, seeds, observe, row_of, tick, first: int) -> dict[int, list]:
     out = {}
     for k, seed in enumerate(seeds):
         sim = spec.build(seed=seed, device="cuda")
         sim.warns_thin_margin = False  # the ensemble says it once
-        rows = _Rows(spec, k, seed, observe, row_of)
+        rows = _Rows(spec, first + k, seed, observe, row_of)
         drive(sim, spec.stop.build(), [rows])
-        out[k] = rows.rows
+        out[first + k] = rows.rows
         tick()
     return out
 

@@ -41,6 +41,7 @@ class GPUUnavailable(FieldError):
 def importable():
     """numba-cuda's ``cuda`` module (no GPU needed); else `GPUUnavailable` saying it is not installed, in one line."""
     try:
+        import numba_cuda  # noqa: F401 - numba itself still ships an older numba.cuda, which this engine cannot use
         from numba import cuda
     except ImportError as exc:
         raise GPUUnavailable(f"'cuda' needs numba-cuda, which is not installed ({INSTALL}): {exc}") from None
