@@ -5,6 +5,7 @@ balls approach and collide. See ``docs/`` and the README for a tour.
 """
 
 import sys as _sys
+from typing import TYPE_CHECKING as _TYPE_CHECKING
 
 from .util.moved import install as _install_moved
 
@@ -14,6 +15,7 @@ from ._version import __version__  # noqa: E402 - after the finder: a moved path
 from .analysis.maxima import MaxCollisionsResult, search_max_collisions
 from .analysis.observables import register as register_observable
 from .analysis.orders import OrdersResult, explore_orders
+from .engine.margin import MarginWarning
 from .util.errors import FieldError, FieldTypeError, InputError
 from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane,
                        Sphere)
@@ -30,7 +32,7 @@ from .run.gsd_writer import GSDWriter
 from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
-from .geometry.simulation import RunState, Simulation
+from .geometry.simulation import FreezeWarning, RunState, Simulation
 from .specs.errors import SpecError
 from .specs.run import RunSpec, load_spec
 from .plot import display as _display  # noqa: F401 - how a geometry and a simulation show themselves
@@ -47,7 +49,22 @@ __all__ = [
     "explore_orders", "OrdersResult",
     "ResultsWriter", "GSDWriter", "CollisionLog", "Writer", "Stop", "Trigger", "AtSteps", "EverySteps", "AtCollisions", "EveryCollisions",
     "register_observable", "InputError", "FieldError", "FieldTypeError", "SpecError",
+    "MarginWarning", "FreezeWarning", "GPUUnavailable",
 ]
+
+if _TYPE_CHECKING:  # for readers of the source (type checkers, the API page): `__getattr__` imports it when asked
+    from .engine.gpu import GPUUnavailable
+
+
+def __getattr__(name: str):
+    """``pb.GPUUnavailable``, imported when first asked for: ``import pinnedballs`` leaves the GPU engine's
+    package (and numba-cuda, which it never imports before a GPU run) alone."""
+    if name == "GPUUnavailable":
+        from .engine.gpu import GPUUnavailable
+
+        globals()[name] = GPUUnavailable
+        return GPUUnavailable
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 # hypothesis came first: st.from_type(pb.Geometry) and the others draw from the kit's strategies, which
 # register themselves as they are imported (_pinnedballs_hypothesis.py says why here)

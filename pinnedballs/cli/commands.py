@@ -251,7 +251,12 @@ def _margin(res) -> list[str]:
     m = res.closing_margin
     if m is None:
         arithmetic = res.spec.arithmetic if res.spec is not None else res.run.get("arithmetic", "float")
-        if arithmetic in ("exact", "certified"):
+        if arithmetic == "certified":
+            smallest = getattr(res, "smallest_exact_collision", None)
+            said = "unknown (a file written before certified runs kept it)" if smallest is None else \
+                f"{smallest:.3g} thresholds of the float criterion"
+            return [f"margin:      every closing speed's sign proved exact; the smallest collision: {said}"]
+        if arithmetic == "exact":
             return [f"margin:      none kept ({arithmetic} arithmetic: every closing speed's sign is exact)"]
         return ["margin:      unknown (this run began before runs kept their closing margin)"]
     from ..engine.margin import NEAR

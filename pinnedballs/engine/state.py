@@ -29,7 +29,7 @@ class RunState:
     component's coefficients on its number field's basis (``velocities`` are then their roundings);
     margin: the closing margin so far, ``(4,) float64`` (`engine.margin`), of a float run (None: not
     kept, as in exact arithmetic or a results file written before margins were); certified: for a run
-    in certified arithmetic, its fixed-point velocities and error bounds
+    in certified arithmetic, its fixed-point velocities, error bounds and the margin of its decisions
     (`pinnedballs.engine.field.fixed_state.CertifiedState`; ``velocities`` are their nearest floats).
     """
 

@@ -347,10 +347,16 @@ class Simulation:
 
     @property
     def smallest_exact_collision(self) -> float | None:
-        """Exact or certified arithmetic (fixed-point engine): the smallest closing speed counted as a collision
-        since the run was built or loaded, in thresholds (`threshold`); None otherwise or before one."""
-        margin = getattr(self._field, "margin", None)
-        return float(margin[0] / self.threshold) if margin is not None and np.isfinite(margin[0]) else None
+        """Exact or certified arithmetic (fixed-point engine): the smallest closing speed counted as a collision,
+        in thresholds (`threshold`); None otherwise, before one, or where unknown. A certified run's covers the
+        whole run, resumed or not (its state keeps it: `CertifiedState.margin`), and is unknown after a resume
+        from a state that did not keep it (a results file written before); an exact run's covers the picks
+        since the simulation was built."""
+        field = self._field
+        margin = getattr(field, "margin", None)
+        if margin is None or not getattr(field, "margin_kept", True) or not np.isfinite(margin[0]):
+            return None
+        return float(margin[0] / self.threshold)
 
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
@@ -363,7 +369,8 @@ class Simulation:
     # ------------------------------------------------------------ state for checkpoints
     def get_state(self) -> RunState:
         """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
-        margin too: None in exact or certified arithmetic, where it is not kept)."""
+        margin too: a float run's as ``margin``, a certified run's decisions' in ``certified``; none is kept
+        in exact arithmetic)."""
         st, field = self._engine.state, self._field
         exact = field.coefficients() if self.arithmetic == "exact" else None
         certified = field.certified_state() if self.arithmetic == "certified" else None

@@ -131,10 +131,18 @@ def results_html(res) -> str:
                     f"{kinds.get('scheduler', '?')}"),
             ("steps", _count(res.steps)), ("collisions", _count(res.collisions)),
             ("energy", f"{_number(res.energy)} (initially {_number(res.initial_energy)})"),
-            ("frozen", "yes" if res.frozen else f"no: {res.approaching:,} contacts approaching"),
+            ("frozen", _frozen(res)),
             ("snapshots", f"{len(snaps)}" + (f" at steps {steps}" if len(snaps) else "")),
             ("seed", res.spec.seed if res.spec is not None else "built in Python")]
     return _table("Results", rows)
+
+
+def _frozen(res) -> str:
+    """Whether a run's latest state is frozen, in words; unknown where certified arithmetic could not count
+    its live contacts (a failed run's ``approaching`` -1)."""
+    if res.approaching < 0:
+        return "unknown: certified arithmetic could not count the live contacts at these bits"
+    return "yes" if res.frozen else f"no: {res.approaching:,} contacts approaching"
 
 
 def ensemble_html(result) -> str:

@@ -25,7 +25,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from ..util.errors import FieldError
-from ..engine.field.fixed_state import precisions_problem
+from ..engine.field.fixed_state import margin_problem as certified_margin_problem, precisions_problem
 from ..engine.state import margin_problem
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error
@@ -115,6 +115,9 @@ def _check(f: h5py.File) -> None:
         masses = _array(f, "geometry/masses", "f", (n,))
         if not (masses > 0).all():
             raise Damage("geometry/masses", "must be > 0")
+    rigid = f["geometry"].attrs.get("rigid")  # absent: a file written before it was kept (False)
+    if rigid is not None and not isinstance(rigid, (bool, np.bool_)):
+        raise Damage("geometry (attribute rigid)", f"must be true or false, got {rigid!r}")
     _array(f, "initial/velocities", "f", (n, d))
     _array(f, "state/velocities", "f", (n, d))
     _check_against_spec(f, n, d, pairs)
@@ -239,7 +242,7 @@ def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int, 
 def _check_certified(f: h5py.File, n: int, d: int) -> None:
     """The fixed point and bounds of a run in certified arithmetic (`CertifiedState`): limbs
     ``(n, d, m, P) uint64``, bounds ``(n, 2, L)`` floats >= 0, an integer scale, a rounding >= 0, an
-    integer bound_scale where there is one."""
+    integer bound_scale where there is one, and a margin a certified state can hold where there is one."""
     limbs, bounds = _dataset(f, "state/certified/limbs"), _dataset(f, "state/certified/bounds")
     if limbs.ndim != 4 or limbs.shape[:2] != (n, d) or limbs.dtype != np.uint64:
         raise Damage("state/certified/limbs", f"must be uint64 of shape ({n}, {d}, m, P), got {limbs.dtype} {limbs.shape}")
@@ -265,6 +268,10 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
     problem = precisions_problem(attrs.get("precision", 0), attrs.get("late_precision", 0), limbs.shape[3])
     if problem:
         raise Damage("state/certified", problem)
+    if "margin" in attrs:  # absent: not kept (files written before), unknown
+        problem = certified_margin_problem(np.asarray(attrs["margin"]))
+        if problem:
+            raise Damage("state/certified (attribute margin)", problem.removeprefix("margin").lstrip(": "))
 
 
 def _check_exact(f: h5py.File, n: int, d: int) -> None:

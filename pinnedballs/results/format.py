@@ -25,7 +25,9 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                              "remedy": what to do instead})
     /geometry         -> static.h5: positions (n, k), pairs (E, 2) int32, t_i (E, d), t_j (E, d),
                          masses (n,) [only if given], boundary_distance (n,) and boundary_outward
-                         (n, d) [with a boundary], frames (n, d, k) [curved]; attrs radius, view
+                         (n, d) [with a boundary], frames (n, d, k) [curved]; attrs radius, view,
+                         rigid (`Geometry.rigid`, which a geometry read back from the file keeps;
+                         absent from older files: false)
     /initial          -> static.h5: velocities (n, d), momentum (d,); attrs energy, approaching
     /snapshots        velocities (F, n, d); steps, collisions (links to /observables)
     /observables      one column per recorded observable (`pinnedballs.analysis.observables`): (F,) or (F, ...)
@@ -36,7 +38,15 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                       margin (4,) float64 [a float run's]: its closing margin so far (`engine.margin`:
                       the smallest closing speed of a collision, inf before the first; the largest
                       positive one set aside; the counts within a factor 1e4 of the threshold), with
-                      attrs threshold and resolution (the run's criterion)
+                      attrs threshold and resolution (the run's criterion);
+                      exact (n, d, m) text [a run in exact arithmetic's]: its exact velocities;
+                      certified [a run in certified arithmetic's] (`CertifiedState`): limbs
+                      (n, d, m, P) uint64, bounds (n, 2, L); attrs scale, rounding, bound_scale,
+                      precision, late_precision, margin (3,) float64: its decisions' closing margin
+                      since the run began (the smallest closing speed of a collision, inf before the
+                      first; the largest nonzero one set aside, -inf: none; the picks set aside at
+                      closing speed exactly 0), absent from files written before it was kept and
+                      from runs continued from them (unknown)
 
 ``/geometry`` and ``/initial`` are external links, ``/snapshots`` and ``/observables``
 virtual datasets over the segments, so ``h5py`` reads the index like one file.

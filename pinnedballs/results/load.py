@@ -15,12 +15,13 @@ import numpy as np
 from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
 from ..engine.margin import ClosingMargin
-from ..engine.state import RunState
+from ..engine.state import RunState, mass_array
 from ..geometry.simulation import Simulation
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..engine.field.arithmetic import AUTO
 from ..util.errors import InputError
-from ..engine.field.fixed_state import CertifiedState
+from ..engine.field.fixed_state import SMALLEST, CertifiedState
+from ..rules import check_resolution, threshold
 from ..specs.errors import SpecError, UserCodeError
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
@@ -47,8 +48,9 @@ class Results:
     spec: the `RunSpec`, or None for a run built in Python, which ``run`` describes
     (``geometry``, ``rule``, ``scheduler``: each component's own spec, else ``{"class": ...}``).
     closing_margin: how near its collision criterion the run's picks came, at the latest state
-    (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact
-    arithmetic, or one begun before runs kept their margin).
+    (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact or
+    certified arithmetic, or one begun before runs kept their margin). A certified run's margin is that
+    of its decisions (`smallest_exact_collision`).
     device: where its last stretch ran, ``"cpu"`` or ``"cuda"`` (information: not part of the spec, and
     no number depends on it); simulated: whether numba-cuda's simulator stood in for the GPU there.
     failure: why a failed run (``status`` "failed") cannot go on, as the file keeps it (`format`:
@@ -122,6 +124,20 @@ class Results:
     @property
     def radius(self) -> float:
         return self.stored.radius
+
+    @property
+    def smallest_exact_collision(self) -> float | None:
+        """A run in certified arithmetic: the smallest closing speed it counted as a collision, up to the latest
+        state, in thresholds (as `Simulation.smallest_exact_collision`: the float criterion's threshold, which
+        does not decide here); None before its first collision, in other arithmetics, and where the file keeps
+        none (a run begun before certified states kept their margin: unknown)."""
+        certified = self.latest.certified
+        if certified is None or certified.margin is None or not np.isfinite(certified.margin[SMALLEST]):
+            return None
+        resolution = self.spec.resolution if self.spec is not None else self.run.get("resolution")
+        criterion = threshold(self.initial_velocities, mass_array(self.masses, len(self.initial_velocities)),
+                              check_resolution(resolution))
+        return float(certified.margin[SMALLEST] / criterion)
 
     @property
     def complete(self) -> bool:
@@ -304,9 +320,11 @@ def read(p: Path, f: h5py.File) -> Results:
     certified = None
     if "certified" in s:
         c = s["certified"]
+        decided = c.attrs.get("margin")  # its decisions' margin; absent: not kept (files before it was), unknown
         certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]),
                                    int(c.attrs.get("bound_scale", 0)),  # 0: absolute (files before it was kept)
-                                   int(c.attrs.get("precision", 0)), int(c.attrs.get("late_precision", 0)))
+                                   int(c.attrs.get("precision", 0)), int(c.attrs.get("late_precision", 0)),
+                                   None if decided is None else np.array(decided, dtype=np.float64))
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
                       s["scheduler_state"][()], exact, margin, certified)
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
@@ -341,14 +359,17 @@ def _frame_files(p: Path, f: h5py.File, version: int) -> list[FrameFile]:
 
 def stored_geometry(g: h5py.Group) -> StoredGeometry:
     """The geometry in the group ``/geometry`` of a results file: its contacts and, in files that
-    store them, its boundary, frames and view (``complete``: all that reading the run needs)."""
+    store them, its boundary, frames and view (``complete``: all that reading the run needs), and
+    whether it is `Geometry.rigid` (False in files written before it was kept)."""
     boundary = None
     if "boundary_distance" in g:
         boundary = Boundary(g["boundary_distance"][()], g["boundary_outward"][()])
     view = g.attrs.get("view")
-    return StoredGeometry(g["positions"][()], g["pairs"][()], g["t_i"][()], g["t_j"][()],
-                          float(g.attrs.get("radius", 1.0)), boundary=boundary,
-                          frames=g["frames"][()] if "frames" in g else None, view=None if view is None else str(view))
+    stored = StoredGeometry(g["positions"][()], g["pairs"][()], g["t_i"][()], g["t_j"][()],
+                            float(g.attrs.get("radius", 1.0)), boundary=boundary,
+                            frames=g["frames"][()] if "frames" in g else None, view=None if view is None else str(view))
+    stored.rigid = bool(g.attrs.get("rigid", False))
+    return stored
 
 
 def scalar(value):

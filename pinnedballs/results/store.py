@@ -183,6 +183,7 @@ def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> st
         g["t_i"], g["t_j"] = c.t_i, c.t_j
         g.attrs["radius"] = float(getattr(geometry, "radius", 1.0))
         g.attrs["view"] = geometry.view
+        g.attrs["rigid"] = bool(geometry.rigid)  # `Geometry.rigid`: a torus's, when the file stands in for it
         boundary = geometry.boundary
         if boundary is not None:
             g["boundary_distance"], g["boundary_outward"] = boundary.distance, boundary.outward
@@ -230,6 +231,8 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
         c.attrs.update(scale=state.certified.scale, rounding=state.certified.rounding,
                        bound_scale=state.certified.bound_scale,  # bounds in units of 2^-bound_scale
                        precision=state.certified.precision, late_precision=state.certified.late_precision)
+        if state.certified.margin is not None:  # its decisions' margin (none: unknown, a run begun before it was kept)
+            c.attrs["margin"] = np.asarray(state.certified.margin, dtype=np.float64)
     s["momentum"] = record.momentum
     s.attrs.update(energy=record.energy, approaching=record.approaching, frozen=record.frozen)
     if criterion is not None and state.margin is not None:

@@ -9,10 +9,12 @@ the jobs of a lost worker itself, and gives up (``KilledWorker``) on one that wa
 died more often than its scheduler allows (``distributed.scheduler.allowed-failures``): `on_dask`
 runs each of those again alone, so that a death there is its own. A local pool breaks as a whole
 when one of its processes dies, failing every job still in it: `on_processes` kills the other
-processes at once (each job running there is lost too), runs again the jobs that had not started,
-and runs each one that was running alone; a job whose process dies `MAX_DEATHS` times is reported
-(`WorkerDied`), and so is every job left when pools break `MAX_DEATHS` times in a row before any job
-ends. Jobs are deterministic, so a job run again gives the same bits.
+processes at once (each job running there is lost too) and runs every job left in a fresh pool, the
+lost ones first, in parallel as before; a job lost `LOST_BESIDE_OTHERS` times in pools beside others
+then runs alone (the process that kills its pool each time is told apart from those beside it), and
+one whose process dies alone `MAX_DEATHS` times is reported (`WorkerDied`), and so is every job left
+when pools break `MAX_DEATHS` times in a row before any job ends. Jobs are deterministic, so a job run
+again gives the same bits.
 
 A Ctrl-C in the main process stops the ensemble at once: local processes are killed (they ignore
 SIGINT themselves, so a terminal's Ctrl-C, which reaches them too, is handled in one place), the
@@ -52,11 +54,14 @@ from typing import Callable
 from ..util.errors import InputError
 
 __all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "watch_parent", "WorkerDied",
-           "MAX_DEATHS", "MAX_GREETING", "CONNECT_TIMEOUT", "PARENT_POLL", "ORPHANED"]
+           "MAX_DEATHS", "LOST_BESIDE_OTHERS", "MAX_GREETING", "CONNECT_TIMEOUT", "PARENT_POLL", "ORPHANED"]
 
 #: deaths of the process running a job, alone, after which the job is reported instead of run again (and
 #: pools broken in a row before any job ended, after which every job left is)
 MAX_DEATHS = 3
+#: times a job may be lost in broken pools beside other jobs (running when the pool broke) before it runs
+#: alone: once, a worker killed from outside, costs one run again in parallel with the others
+LOST_BESIDE_OTHERS = 2
 #: seconds between a pool process's checks that the process that started it is alive
 PARENT_POLL = 0.5
 #: the exit status of a pool process whose parent died
@@ -93,18 +98,15 @@ def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: O
     the module's docstring)."""
     results: dict = {}
     with tempfile.TemporaryDirectory(prefix="pinnedballs-jobs-") as marks:
-        todo, barren = dict(jobs), 0
+        todo, barren, lost = dict(jobs), 0, {}  # lost: index -> pools broken beside others while it ran
         while todo:
             before = len(results)
-            running = _pool(todo, workers, Path(marks), results, tick, on_error)
-            for k in running:  # alone: a death is then its own
-                for _ in range(MAX_DEATHS):
-                    if not _pool({k: todo[k]}, 1, Path(marks), results, tick, on_error):
-                        break
-                else:
-                    results[k] = on_error(k, WorkerDied(f"the process running it died {MAX_DEATHS} times (killed, or "
-                                                        f"out of memory?)"))
-                    tick()
+            for k in [k for k in todo if lost.get(k, 0) >= LOST_BESIDE_OTHERS]:  # alone: a death is then its own
+                _alone(k, todo[k], Path(marks), results, tick, on_error)
+            left = {k: job for k, job in todo.items() if k not in results}  # the lost ones first: they ran first
+            if left:
+                for k in _pool(left, min(workers, len(left)), Path(marks), results, tick, on_error):
+                    lost[k] = lost.get(k, 0) + 1
             todo = {k: job for k, job in todo.items() if k not in results}
             barren = barren + 1 if len(results) == before else 0  # the pool broke before any job ended
             if todo and barren == MAX_DEATHS:
@@ -114,6 +116,17 @@ def on_processes(jobs: dict, workers: int, tick: Callable[[], None], on_error: O
                     tick()
                 break
     return results
+
+
+def _alone(k: int, job, marks: Path, results: dict, tick, on_error: OnError) -> None:
+    """Run the job ``k`` alone on a process, again each time that process dies, until it ends or has died
+    `MAX_DEATHS` times (then reported); a pool that broke before the job began leaves it to run again."""
+    for _ in range(MAX_DEATHS):
+        if not _pool({k: job}, 1, marks, results, tick, on_error):
+            return
+    results[k] = on_error(k, WorkerDied(f"the process running it died {MAX_DEATHS} times (killed, or out of "
+                                        f"memory?)"))
+    tick()
 
 
 def _pool(jobs: dict, workers: int, marks: Path, results: dict, tick, on_error: OnError) -> list:

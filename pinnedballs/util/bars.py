@@ -3,7 +3,9 @@
 Each bar tells its rate from a moment `Progress` sets (the call's start, or the end of its last
 compile: the time a compile takes is no speed), and '?' while it has none. The widget is displayed
 under an id, and closing it puts its final state in the output's text, which a saved notebook keeps
-beside the widget (tqdm's own leaves the state it was first displayed in: "0/6", "0.00 steps").
+beside the widget (tqdm's own leaves the state it was first displayed in: "0/6", "0.00 steps"). Closed
+with ``failed=`` (`Progress` says how the call ended), the widget is red only for an error or an
+interruption: tqdm's own close takes any count below the total for one.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 import functools
 import sys
 
-__all__ = ["open_bar", "widgets_available"]
+__all__ = ["open_bar", "close_bar", "widgets_available"]
 
 
 class _Rate:
@@ -42,8 +44,16 @@ class _Widget:
         super().__init__(*args, display=False, **kwargs)
         self._handle = display(self.container, display_id=True)
 
-    def close(self) -> None:
+    def close(self, failed: bool | None = None) -> None:
+        """Close on the final state, coloured by how the call ended: ``failed`` True (an error, an
+        interruption) tqdm's danger red, False its normal end's colour whatever the count (a call may end
+        normally below its total: a search exhausted before its bound), None tqdm's own guess (red below
+        the total)."""
+        shown = not self.disable  # (closing disables it)
         super().close()
+        if failed is not None and shown:
+            pbar = self.container.children[1]
+            pbar.bar_style = "danger" if failed else ("success" if self.leave else pbar.bar_style)
         if self._handle is not None:
             self._handle.update(self.container)
             self._handle = None
@@ -79,3 +89,12 @@ def open_bar(*, widget: bool, total: int | None, unit: str, desc: str, count: in
     bar.start_t, bar.since = start, since
     bar.refresh()
     return bar
+
+
+def close_bar(bar, failed: bool) -> None:
+    """Close a bar `open_bar` made on its final state; ``failed``: whether its call ended by an error or an
+    interruption (a widget is red then, and only then: `_Widget.close`)."""
+    if isinstance(bar, _Widget):
+        bar.close(failed=failed)
+    else:
+        bar.close()

@@ -10,7 +10,8 @@ While numba compiles (`util.compiling`) the bar says "compiling", drawn by a thr
 compiling call holds the caller's; its rate counts from the end of the last compile.
 
 `Progress` is updated with absolute counts (`Progress.update`) and closed when its block ends, showing
-its final state.
+its final state: in a notebook, red only when the block ended by an exception (an error, a Ctrl-C), not
+when the call ended below its total (a search that ran out of states before its bound).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import sys
 import threading
 import time
 
-from .bars import open_bar, widgets_available
+from .bars import close_bar, open_bar, widgets_available
 from .compiling import CompileWatch
 from .errors import FieldTypeError
 
@@ -93,8 +94,10 @@ class Progress:
                 bar.set_postfix_str(self._postfix, refresh=False)
             bar.update(done - bar.n)
 
-    def close(self) -> None:
-        """Stop hearing compiles; the bar, if built, shows its final state."""
+    def close(self, failed: bool = False) -> None:
+        """Stop hearing compiles; the bar, if built, shows its final state: a notebook's widget in its
+        normal colour, or red where the call ``failed`` (an error or an interruption), whatever the count
+        (a call may end normally below its total)."""
         if not self.visible:
             return
         self._watch.stop()
@@ -103,14 +106,14 @@ class Progress:
         self._stop_ticker()
         with self._lock:
             if self.bar is not None:
-                self.bar.close()
+                close_bar(self.bar, failed)
                 self.bar = None
 
     def __enter__(self) -> "Progress":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, value, traceback) -> None:
+        self.close(failed=kind is not None)
 
     # ------------------------------------------------------------ the bar, under the lock
     def _opened(self):

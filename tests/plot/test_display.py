@@ -129,3 +129,18 @@ def test_without_matplotlib_a_notebook_gets_the_tables_alone():
             " sorted(g._repr_mimebundle_())]))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True).stdout
     assert json.loads(out) == [[], None, False, 6, ["text/html"]]
+
+
+def test_a_failed_certified_runs_results_say_its_freeze_is_unknown(tmp_path):
+    """Issue 42: certified arithmetic at 64 bits cannot count this run's live contacts (``approaching`` -1):
+    the table says unknown, not "no: -1 contacts approaching"."""
+    at_64_bits = spec(HALF_PLANE, geometry={"kind": "half_plane", "length": 30, "depth": 15}, seed=1,
+                      initial__ball="boundary_center", initial__direction="inward", arithmetic="certified",
+                      precision=64)
+    code, _, err = call("run", write(tmp_path / "s.json", at_64_bits), "--out", tmp_path / "r", "--quiet",
+                        "--no-figures")
+    res = pb.load(tmp_path / "r")
+    assert code == 2 and (res.status, res.approaching) == ("failed", -1), err
+    table = rows(res._repr_html_())
+    assert table["status"].startswith("failed")
+    assert table["frozen"] == "unknown: certified arithmetic could not count the live contacts at these bits"

@@ -80,6 +80,44 @@ def test_pools_whose_processes_all_die_at_birth_end_with_every_replica_reported(
                                 f"ended (killed, or out of memory?)"} for k in range(3)]
 
 
+#: seconds a replica run again waits for the other one lost beside it to run again too
+TOGETHER = 30.0
+
+
+def killed_beside_another(spec, index, seed, *, where: Path):
+    """A replica task whose process dies running replica 0 the first time, once replica 1 runs beside it (both
+    are then lost); each run again of replicas 0 and 1 waits (at most `TOGETHER` s) for the other's to begin,
+    and writes when it began and ended ("span-<index>")."""
+    died = where / "died"
+    if index == 0 and not died.exists():
+        while not (where / "first-1").exists():
+            time.sleep(0.01)
+        died.touch()
+        os.kill(os.getpid(), signal.SIGKILL)
+    if index == 1 and not died.exists():
+        (where / "first-1").touch()
+        time.sleep(60)  # killed with its pool long before
+    if index in (0, 1):
+        begun = time.time()
+        (where / f"again-{index}").touch()
+        while not (where / f"again-{1 - index}").exists() and time.time() < begun + TOGETHER:
+            time.sleep(0.01)
+        (where / f"span-{index}").write_text(f"{begun!r} {time.time()!r}")
+    return ens.run_replica(spec, index, seed)
+
+
+def test_replicas_lost_with_a_killed_process_run_again_in_parallel(tmp_path):
+    """Issue 42: a worker killed (replica 0's) takes replica 1, running beside it, down with it; both run again
+    at the same time in a fresh pool, not one after the other, to the rows of an undisturbed ensemble."""
+    task = functools.partial(killed_beside_another, where=tmp_path)
+    result = ens.run_ensemble(parse_spec(SHORT), 4, workers=2, task=task, progress=False)
+    assert (tmp_path / "died").exists() and result.failures == []
+    assert result.rows == undisturbed(SHORT, 4)
+    (begun0, ended0), (begun1, ended1) = ([float(t) for t in (tmp_path / f"span-{k}").read_text().split()]
+                                          for k in (0, 1))
+    assert max(begun0, begun1) < min(ended0, ended1)  # both ran again at once
+
+
 def test_the_command_line_names_the_replica_and_how_to_run_it_alone(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(ens, "run_replica", _dying_replica)  # the default task, looked up when the ensemble runs
     spec = tmp_path / "s.json"

@@ -225,8 +225,12 @@ class FixedChain(FieldChain):
         self.live, self.failure, self._at = -1, None, None
         self._after = None  #: the step the last `run` ended after (None: not known), for messages
         #: the smallest closing speed counted as a collision, the largest nonzero one set aside, and the
-        #: number of picks set aside with closing speed exactly 0 (balls not both at rest), so far
+        #: number of picks set aside with closing speed exactly 0 (balls not both at rest), so far: since the
+        #: run began (a certified state keeps it, `set_certified_state`), else since this chain was built
         self.margin = np.array([np.inf, -np.inf, 0.0])
+        #: whether ``margin`` covers the run from its start: False once resumed from a certified state that did
+        #: not keep it (a file written before), whose margin is then unknown
+        self.margin_kept = True
         self.widenings = 0
         #: picks the float filter could not decide, decided in fixed point, in this object's life (a
         #: measure of the work, counting picks a frozen chunk tried after its last collision too)
@@ -444,12 +448,16 @@ class FixedChain(FieldChain):
 
     def certified_state(self) -> CertifiedState:
         return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S,
-                              *self.bits)
+                              *self.bits, self.margin.copy() if self.margin_kept else None)
 
     def set_certified_state(self, state: CertifiedState) -> None:
         """Take a `CertifiedState` of this geometry (checked by the caller); its bounds rescaled to units
-        of ``2^-S`` (rounded up)."""
+        of ``2^-S`` (rounded up), its margin as it is (one that kept none leaves the margin unknown,
+        `margin_kept`)."""
         self.X, self.S, self.P = state.limbs.copy(), int(state.scale), state.limbs.shape[-1]
+        self.margin_kept = state.margin is not None
+        self.margin = np.array([np.inf, -np.inf, 0.0]) if state.margin is None else \
+            np.array(state.margin, dtype=np.float64)
         shift = self.S - int(state.bound_scale)
         self.B, self.Pp = scaled_up(state.bounds[:, 0], shift), scaled_up(state.bounds[:, 1], shift)
         self.acc[0] = float(scaled_up(np.array([state.rounding]), shift)[0])

@@ -10,7 +10,12 @@ import numpy as np
 
 from ...util.errors import FieldError
 
-__all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text", "precisions_problem"]
+__all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text", "precisions_problem",
+           "margin_problem", "SMALLEST", "LARGEST", "ZEROS"]
+
+#: the entries of a certified state's ``margin`` (`CertifiedState`): the smallest closing speed counted as a
+#: collision, the largest nonzero one set aside, the picks set aside whose closing speed is exactly 0
+SMALLEST, LARGEST, ZEROS = 0, 1, 2
 
 #: (as `fixed_kernels.UP` and `SQRT2_UP`: this module stays free of numba)
 _UP = 1.0 + 2.0 ** -50
@@ -67,7 +72,11 @@ class CertifiedState:
     precision; 0, absolute, in files written before it was kept); precision, late_precision: the
     bits the chain ran at through the first wave and behind it (``64 P`` limbs, as built; 0: not
     kept, in files written before; ``late_precision`` 0 also: none), which a spec's ``"precision":
-    "auto"`` resumes at (`pinnedballs.results.load.Results.simulation`).
+    "auto"`` resumes at (`pinnedballs.results.load.Results.simulation`); margin: the closing margin of
+    the chain's decisions since the run began (`FixedChain.margin`), ``(3,) float64``: the smallest
+    closing speed counted as a collision (inf: none yet), the largest nonzero one set aside (-inf: none),
+    the picks set aside whose closing speed is exactly 0 (`SMALLEST`, `LARGEST`, `ZEROS`); None: not kept
+    (a file written before it was, or a run resumed from one: unknown).
     """
 
     limbs: np.ndarray
@@ -77,18 +86,22 @@ class CertifiedState:
     bound_scale: int = 0
     precision: int = 0
     late_precision: int = 0
+    margin: np.ndarray | None = None
 
     def copy(self) -> "CertifiedState":
         return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale,
-                              self.precision, self.late_precision)
+                              self.precision, self.late_precision, None if self.margin is None else self.margin.copy())
 
     def scalars(self) -> tuple:
         return self.scale, self.rounding, self.bound_scale, self.precision, self.late_precision
 
     def identical(self, other: "CertifiedState") -> bool:
+        """True when ``other`` is this state bit for bit: limbs, bounds, scalars, and the margins where both
+        keep one (a state that kept none, None, says nothing of it)."""
         return self.scalars() == other.scalars() and all(
             a.dtype == b.dtype and np.array_equal(a, b) for a, b in ((self.limbs, other.limbs),
-                                                                      (self.bounds, other.bounds)))
+                                                                      (self.bounds, other.bounds))) \
+            and (self.margin is None or other.margin is None or np.array_equal(self.margin, other.margin))
 
     def error_bound(self) -> tuple[float, float]:
         """``(G, largest)``: see `error_bound`."""
@@ -118,6 +131,26 @@ class CertifiedState:
         problem = precisions_problem(self.precision, self.late_precision, limbs.shape[3])
         if problem:
             raise FieldError("certified", problem)
+        problem = "" if self.margin is None else margin_problem(self.margin)
+        if problem:
+            raise FieldError("certified", problem)
+
+
+def margin_problem(margin) -> str:
+    """What is wrong with ``margin`` as a `CertifiedState`'s ('' if nothing): ``(3,) float64``, the smallest
+    collision's closing speed >= 0 (inf: none yet; 0 only where a float could not hold it), the largest set
+    aside's below inf (-inf: none), the exact zeros set aside a whole number >= 0."""
+    m = np.asarray(margin)
+    if m.shape != (3,) or m.dtype != np.float64:
+        return f"margin must be 3 float64 numbers, got {m.dtype} {m.shape}"
+    smallest, largest, zeros = m.tolist()
+    if not smallest >= 0:
+        return f"margin: the smallest collision's closing speed must be >= 0 (inf: none yet), got {smallest}"
+    if not largest < math.inf:
+        return f"margin: the largest closing speed set aside must be a number below inf (-inf: none), got {largest}"
+    if not (math.isfinite(zeros) and zeros >= 0 and zeros == math.floor(zeros)):
+        return f"margin: the picks set aside at closing speed 0 must be a whole number >= 0, got {zeros}"
+    return ""
 
 
 def precisions_problem(precision, late_precision, limbs: int) -> str:

@@ -1,0 +1,102 @@
+"""The margin of a certified run's decisions survives a resume (issue 42): its state keeps the smallest closing
+speed counted as a collision (and the largest set aside, and the exact zeros), its results file too, bit for
+bit, so a run resumed from its file knows its smallest genuine collision, as `Results` does; a file written
+before certified states kept it reads as before (unknown), and stays unknown when continued."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+import pinnedballs as pb
+from pinnedballs.results.digest import HEADER_SIZE, seal
+
+#: the 6x8 half-plane, seed 2: its smallest genuine collision, about 4.4e10 thresholds, comes at step 700 or
+#: so, and it freezes at step 1,693
+SPLIT = 1000
+
+
+def certified() -> pb.Simulation:
+    g = pb.HalfPlane(6, 8)
+    v = np.zeros((g.n_balls, 2))
+    v[g.boundary_center()] = [0.3, 14.0]
+    return pb.Simulation(g, v, seed=2, arithmetic="certified")
+
+
+@pytest.fixture(scope="module")
+def whole() -> pb.Simulation:
+    sim = certified()
+    assert sim.run_until_frozen(max_steps=10**6)
+    return sim
+
+
+def split_run(where: Path) -> pb.Simulation:
+    sim = certified()
+    sim.run(steps=SPLIT, writers=[pb.ResultsWriter(where)])
+    return sim
+
+
+def rewritten(run: Path, change) -> None:
+    """The run's index changed by ``change(h5py.File)`` and sealed again, as pinnedballs would have written it."""
+    path = run / "results.h5"
+    with h5py.File(path, "r+") as f:
+        change(f)
+    path.write_bytes(seal(path.read_bytes()[HEADER_SIZE:]))
+
+
+def test_a_run_resumed_from_its_file_knows_its_smallest_collision(tmp_path, whole):
+    smallest = whole.smallest_exact_collision
+    assert 4e10 < smallest < 5e10 and whole.steps > SPLIT
+    split = split_run(tmp_path / "r")
+    res = pb.load(tmp_path / "r")
+    assert res.smallest_exact_collision == split.smallest_exact_collision == smallest  # reached before the split
+    assert np.array_equal(res.latest.certified.margin, split.get_state().certified.margin)
+    resumed = res.simulation()
+    assert resumed.get_state().identical(split.get_state()) and resumed.smallest_exact_collision == smallest
+    resumed.run_until_frozen(max_steps=10**6)
+    assert resumed.get_state().identical(whole.get_state())  # the margin of the decisions too, bit for bit
+    assert resumed.smallest_exact_collision == smallest
+
+
+def test_a_file_written_before_the_margin_was_kept_reads_as_unknown(tmp_path, whole):
+    split_run(tmp_path / "r")
+    rewritten(tmp_path / "r", lambda f: f["state/certified"].attrs.__delitem__("margin"))
+    res = pb.load(tmp_path / "r")
+    assert res.latest.certified.margin is None and res.smallest_exact_collision is None
+    resumed = res.simulation()
+    resumed.run_until_frozen(max_steps=10**6)
+    # the same run, whose margin the picks since the resume cannot speak for: unknown
+    assert resumed.get_state().identical(whole.get_state()) and resumed.get_state().certified.margin is None
+    assert resumed.smallest_exact_collision is None
+
+
+def test_a_margin_a_certified_state_cannot_hold_is_refused(tmp_path):
+    sim = split_run(tmp_path / "r")
+    state = sim.get_state()
+    bad = state.replace(certified=dataclasses.replace(state.certified, margin=np.array([np.nan, -np.inf, 0.0])))
+    with pytest.raises(ValueError, match=r"^certified: margin: the smallest collision's closing speed must be >= 0"):
+        sim.set_state(bad)
+    assert sim.get_state().identical(state)
+    rewritten(tmp_path / "r", lambda f: f["state/certified"].attrs.__setitem__("margin", np.array([1.0, 2.0, 0.5])))
+    with pytest.raises(pb.ResultsError, match=r"state/certified \(attribute margin\): the picks set aside at closing "
+                                              r"speed 0 must be a whole number >= 0, got 0.5"):
+        pb.load(tmp_path / "r")
+
+
+def test_info_says_a_certified_runs_smallest_collision(tmp_path, whole, capsys):
+    """``pinnedballs info`` on a certified run: its signs proved exact, and its smallest collision in thresholds of
+    the float criterion (unknown for a file written before it was kept)."""
+    from pinnedballs.cli.main import main
+
+    split_run(tmp_path / "r")
+    assert main(["info", str(tmp_path / "r")]) == 0
+    margin, = [line for line in capsys.readouterr().out.splitlines() if line.startswith("margin:")]
+    assert margin == (f"margin:      every closing speed's sign proved exact; the smallest collision: "
+                      f"{whole.smallest_exact_collision:.3g} thresholds of the float criterion")
+    rewritten(tmp_path / "r", lambda f: f["state/certified"].attrs.__delitem__("margin"))
+    assert main(["info", str(tmp_path / "r")]) == 0
+    assert "the smallest collision: unknown (a file written before certified runs kept it)" in capsys.readouterr().out
