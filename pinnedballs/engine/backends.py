@@ -53,7 +53,11 @@ class Backend:
 
     def run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         """At most ``max_steps`` steps (never past the counter's range), stopping at a total of ``max_collisions``
-        collisions and, with ``until_frozen``, right after the collision that leaves no live contact."""
+        collisions and, with ``until_frozen``, right after the collision that leaves no live contact. A state left
+        between two states by an error inside a compiled loop (``state.broken``) cannot go on."""
+        if self.state.broken:
+            raise FieldError("simulation", f"cannot go on: {self.state.broken}; build it again (or load its last "
+                                           f"checkpoint)")
         return self._run(min(max_steps, NO_LIMIT - self.state.steps), max_collisions, until_frozen)
 
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
@@ -106,6 +110,13 @@ class LoopBackend(Backend):
 
     # ------------------------------------------------------------ the protocol
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        try:
+            return self._loops(max_steps, max_collisions, until_frozen)
+        except Exception as exc:  # raised inside a compiled loop (a user's pick): its velocities moved, counters not
+            self.state.broken = f"it stopped between two states on {type(exc).__name__}: {exc}"
+            raise
+
+    def _loops(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         if self.listeners:
             return self._run_logged(max_steps, max_collisions, until_frozen)
         chain, s, tables = self.chain(), self.model.selector, self.tables()

@@ -73,6 +73,7 @@ class ChainState:
     scheduler: np.ndarray
     margin: np.ndarray
     field_chain: object = None
+    broken: str = ""
 
     @property
     def steps(self) -> int:

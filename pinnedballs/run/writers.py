@@ -160,14 +160,28 @@ class ResultsWriter(Writer):
             return
         stopping = sys.exc_info()[1]
         failed = stopping if isinstance(stopping, UncertifiedDecision) else None
+        broken = getattr(getattr(getattr(sim, "engine", None), "state", None), "broken", "")
         try:
             with held_signals():
-                state, was_checked = self._stopped_state(sim, checked, failed is not None)
-                self._checkpoint(state, status="interrupted" if failed is None else "failed", checked=was_checked,
-                                 failure=None if failed is None else failure(failed, sim.steps, self.spec))
+                if broken:  # stopped between two states (a user's pick out of range): the last sound one, failed
+                    state, was_checked = self._last_sound()
+                    said = " ".join(str(stopping).split()) or broken
+                    self._checkpoint(state, status="failed", checked=was_checked, failure={
+                        "error": type(stopping).__name__, "message": said, "decision": said, "steps": int(sim.steps),
+                        "remedy": "mend what failed, then run it again (--force)" if self.spec is not None else
+                        "mend what failed, then run it again"})
+                else:
+                    state, was_checked = self._stopped_state(sim, checked, failed is not None)
+                    self._checkpoint(state, status="interrupted" if failed is None else "failed", checked=was_checked,
+                                     failure=None if failed is None else failure(failed, sim.steps, self.spec))
                 self._checked = (state.state.steps, state.state.collisions) if was_checked else None
         finally:
             self._stopped()
+
+    def _last_sound(self) -> tuple[Record, bool]:
+        """The last state recorded whole (a snapshot pending, else the last checkpoint) and whether its trigger
+        was checked."""
+        return (self.pending[-1], True) if self.pending else (self.store.state, bool(self.store.attrs["checked"]))
 
     def _stopped_state(self, sim, checked: Counts | None, failed: bool = False) -> tuple[Record, bool]:
         """The state to save when the run stopped, and whether the trigger was checked at its counts:
@@ -178,7 +192,7 @@ class ResultsWriter(Writer):
         arithmetic cannot count the live contacts)."""
         now = (sim.steps, sim.collisions)
         last = self.pending[-1].state.steps if self.pending else self.store.last_step
-        before = (self.pending[-1], True) if self.pending else (self.store.state, bool(self.store.attrs["checked"]))
+        before = self._last_sound()
         was_checked = True
         if self.trigger is not None and checked != now and last != now[0] and self.trigger.fires(checked, now):
             try:
