@@ -326,11 +326,13 @@ class FixedChain(FieldChain):
             self._at = np.empty(len(picks), dtype=np.int64)
         at = self._at
         prog = np.array([0, -1, 0, self.live, self.chunk, self._checked, 0], dtype=np.int64)
+        at_last = self.margin[1:].copy()  # margin[1:] at this run's last collision (`run_picks`)
         t, left = 0, min(collisions_left, len(picks) + 1)  # int64 in the kernel
         while True:
             every = self.every if self.late_P is not None and self.P > self.late_P else 0
             status, t = run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left, until_frozen,
-                                  self.chunk, at, prog, self.scratch, self.info, self.margin, first_step, every)
+                                  self.chunk, at, prog, self.scratch, self.info, self.margin, at_last, first_step,
+                                  every)
             if status == WIDEN:
                 self.widen()
             elif status == DUE:

@@ -331,10 +331,12 @@ def _due(first, t, every, checked):
 
 @kernel
 def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog, scratch, info,
-              margin, first, every):
+              margin, at_last, first, every):
     """Try ``picks[t:]`` in turn: ``(how it ended, picks used)``; ``margin`` gathers the smallest
     closing speed of a collision, the largest (nonzero) of a pick set aside, and the number of picks
-    set aside whose closing speed is exactly 0 between balls not both at rest.
+    set aside whose closing speed is exactly 0 between balls not both at rest. ``at_last`` ``(2,)``:
+    ``margin[1:]`` as it was at the last collision (kept across the calls of one run, as ``prog``), to
+    which a freeze rewinds it with the picks (those tried after the last collision are not the run's).
 
     DONE: all used, or stopped right after the ``collisions_left``-th collision of this run (``prog[0]``
     counts them, ``at`` holds their indices); FROZEN: with ``until_frozen``, a scan (every ``chunk``
@@ -376,6 +378,7 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
                 break
             at[made] = t
             made, last, fresh = made + 1, t, 1
+            at_last[0], at_last[1] = margin[1], margin[2]
             prog[3] = -1
         t += 1
         countdown -= 1
@@ -389,6 +392,7 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
             prog[3], fresh = live, 0
             if live == 0:
                 status, t = FROZEN, last + 1
+                margin[1], margin[2] = at_last[0], at_last[1]
                 break
         if countdown <= 0:
             countdown = chunk
