@@ -7,7 +7,10 @@ balls approach and collide. See ``docs/`` and the README for a tour.
 import sys as _sys
 from typing import TYPE_CHECKING as _TYPE_CHECKING
 
-from .util.moved import install as _install_moved
+from .util.startup import from_the_first_instant as _from_the_first_instant
+
+_from_the_first_instant(only_if_starting=True)  # the command line: a Ctrl-C while numpy, numba... import is one line
+from .util.moved import install as _install_moved  # noqa: E402
 
 _install_moved()  # module paths that moved still import, with a DeprecationWarning (`util.moved`)
 

@@ -72,11 +72,12 @@ def run(args: argparse.Namespace) -> int:
     """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
     (`interrupts.exit_status`)."""
     from ..run.execute import Interrupted
-    from .interrupts import exit_status, fingerprint, interrupted_by, sigint_ignored
+    from .interrupts import exit_status, fingerprint, interrupted_by, running, sigint_ignored
 
     if args.force and args.resume:
         raise UsageError("run: give --force or --resume, not both")
     before = fingerprint(Path(args.out))
+    running(Path(args.out), args.resume)  # a Ctrl-C while numba compiles may end it at once
     try:
         return _run(args)
     except (KeyboardInterrupt, Interrupted):

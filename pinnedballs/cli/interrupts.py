@@ -1,7 +1,18 @@
 """What a Ctrl-C means for the exit status of ``pinnedballs run``: the status says what the results
 file says (issue 20). 0 when the run is done, even if the Ctrl-C came during its final write or
 its figures; 130 when it stopped before its end, the file then saying "interrupted" at the state
-it stopped in (or, if this command never touched it, as it was)."""
+it stopped in (or, if this command never touched it, as it was).
+
+At any moment (issue 42): the package's ``__init__`` calls `util.startup.from_the_first_instant` before
+anything else in the command line, so a Ctrl-C while the package is imported (the first second or so) is one
+line, ``pinnedballs: interrupted``, and status 130, not Python's traceback of the import it landed in; and
+``python -m pinnedballs`` calls `exit_while_compiling` once the package is imported, so a Ctrl-C while numba compiles (seconds on a first run; numba cannot be
+interrupted safely) ends ``pinnedballs run`` at once, with one line saying what the run directory holds:
+every file of a run is written whole (`util.atomic`), its last checkpoint (from step 0, written as the run
+starts) is complete, and ``--resume`` continues from it. (Other commands, whose workers a process ended at
+once could leave behind, wait for the compile as before.) This module imports no more than the standard
+library and `util.startup` when it is loaded.
+"""
 
 from __future__ import annotations
 
@@ -10,21 +21,26 @@ import os
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Iterator
 
-from ..results.format import RESULTS_NAME, ResultsError
+from ..util.startup import EXIT_INTERRUPTED, end_at_once, from_the_first_instant, starts_the_command_line
 
-__all__ = ["fingerprint", "exit_status", "interrupted_by", "sigint_ignored", "EXIT_OK", "EXIT_INTERRUPTED"]
+__all__ = ["fingerprint", "exit_status", "interrupted_by", "sigint_ignored", "from_the_first_instant",
+           "starts_the_command_line", "exit_while_compiling", "running", "EXIT_OK", "EXIT_INTERRUPTED"]
 
-EXIT_OK, EXIT_INTERRUPTED = 0, 130
+EXIT_OK = 0
+#: when this command began (loaded before it runs): a results file changed since is its own
+_BEGAN_NS = time.time_ns()
+_RESULTS_NAME = "results.h5"  # `results.format.RESULTS_NAME`, without importing h5py before it is needed
 
 
 def fingerprint(out: Path) -> tuple | None:
     """What identifies the version of ``out/results.h5`` on disk (None if there is none): each
     checkpoint replaces the file, so a new one has another inode."""
     try:
-        st = os.stat(out / RESULTS_NAME)
+        st = os.stat(out / _RESULTS_NAME)
     except OSError:
         return None
     return st.st_dev, st.st_ino, st.st_mtime_ns, st.st_size
@@ -36,6 +52,7 @@ def exit_status(out: Path, before: tuple | None, new_run: bool, figures: bool) -
     before: the `fingerprint` of its results file when the command began; new_run: the command was
     to start a run (not ``--resume``), so a finished run it never touched is not its own; figures:
     the command was to draw them."""
+    from ..results.format import ResultsError
     from ..results.load import load
 
     touched = fingerprint(out) != before
@@ -82,6 +99,50 @@ def sigint_ignored() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+
+
+def exit_while_compiling() -> None:
+    """From now on a Ctrl-C while numba compiles ends the command at once with one line and status 130
+    (`util.sigint.on_compile_interrupt`; module docstring). Imports numba: call it once the package is."""
+    from ..util.sigint import on_compile_interrupt
+
+    on_compile_interrupt(_end_while_compiling)
+
+
+def running(out: Path, resume: bool) -> None:
+    """This command is ``pinnedballs run`` into ``out`` (``--resume``: continuing it): what a Ctrl-C while
+    numba compiles may end at once (`exit_while_compiling`)."""
+    global _running
+    _running = (Path(out), bool(resume))
+
+
+#: ``(out, resume)`` of the ``run`` this command is (`running`), or None: another command
+_running: tuple[Path, bool] | None = None
+
+
+def _end_while_compiling() -> bool:
+    """A Ctrl-C while numba compiled in ``pinnedballs run``: the command ended at once, with one line saying
+    what its directory holds (a results file this command wrote is a whole checkpoint of the run, from step 0
+    on). Declined (False) for the other commands, whose workers a process ended at once could leave behind."""
+    if _running is None:
+        return False
+    (out, resume), said = _running, "interrupted while numba compiled"
+    try:
+        written = os.stat(out / _RESULTS_NAME).st_mtime_ns >= _BEGAN_NS
+    except OSError:
+        written = False
+    if written:
+        _end(f"{said}; the checkpoint in {out} is complete: continue with --resume")
+    if resume:
+        _end(f"{said}, before the run went on; {out} is as it was: continue with --resume")
+    _end(f"{said}, before the run wrote anything in {out}")
+
+
+def _end(message: str) -> None:
+    """``pinnedballs: message`` on stderr (clearing a status line or a bar on a terminal), status 130 at once."""
+    from .status import CLEAR, is_terminal
+
+    end_at_once(message, CLEAR if is_terminal(sys.stderr) else "")
 
 
 def _say(message: str) -> None:

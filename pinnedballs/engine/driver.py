@@ -11,7 +11,8 @@ the speed of the one before (at most `GROWTH` times longer), never less than `CH
 steps per contact (so per-chunk work over the contacts stays small) nor more than `CHUNK_STEPS`
 (tests lower it for many small chunks), and cut short at the stop and at the next count any trigger
 names. Before the first chunk, a call of no steps compiles the loop (once per process: numba caches
-it on disk) and changes no bit of the state.
+it on disk) and changes no bit of the state; it compiles only what a call of no steps runs: a threaded
+chain (`engine.threads`) compiles its loops in the first chunks that run them.
 
 Each pass of the loop, in this order:
 
@@ -26,8 +27,12 @@ Each pass of the loop, in this order:
 
 Ctrl-C. While the chunks run (main thread), SIGINT is held to the end of the chunk it came in
 (`sigint.deferred`), so a run always stops on a state the chain passed through, whole: continuing
-it gives the bits of a run never interrupted. The compiling call comes before, outside: a Ctrl-C
-there stops at once, the state untouched.
+it gives the bits of a run never interrupted. The compiling call runs on a thread of its own
+(`sigint.Deferred.aside`; on the CPU): a Ctrl-C during it stops the run at once (KeyboardInterrupt, the
+state untouched), while numba, which cannot be interrupted safely, finishes the compile on that thread (the
+next run waits for it). What a chunk compiles itself still holds a Ctrl-C to the chunk's end: a threaded
+chain's loops (seconds, on a first run of a large system) and the logging loops. A command line ends the
+process at once instead (`sigint.on_compile_interrupt`).
 
 If anything raises on the way (Ctrl-C's KeyboardInterrupt, a writer's error, ...), every writer
 already attached is told (`Writer.abort`, with the counts at which the driver last checked its
@@ -38,6 +43,7 @@ in, with any snapshot due at it that was not yet recorded.
 from __future__ import annotations
 
 import time
+import weakref
 from typing import Callable, Sequence
 
 from ..util.progress import Progress, shown
@@ -222,9 +228,7 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Calla
         run.attach()
         _, collisions = run.limits()
         with _progress(sim, stop, progress) as bar, deferred() as held:
-            # compiles the chunks' loop; a Ctrl-C meanwhile waits for the compiler (numba's registries
-            # are left half made by an exception inside it, and the process could compile nothing more)
-            sim.engine.run(0, NO_LIMIT if collisions is None else collisions, stop.until_frozen)
+            _compile(sim.engine, held, NO_LIMIT if collisions is None else collisions, stop.until_frozen)
             run.start()
             while (limits := run.next()) is not None:
                 steps, collisions = limits
@@ -240,6 +244,28 @@ def drive(sim, stop: Stop, writers: Sequence[Writer] = (), *, after_chunk: Calla
     except BaseException:
         run.abort()
         raise
+
+
+#: the compiling calls each engine has made, by `_compiling_kind`: made again, they compile nothing
+_compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _compile(engine, held: Deferred, collisions: int, until_frozen: bool) -> None:
+    """The compiling call, ``engine.run(0, collisions, until_frozen)``: aside (`Deferred.aside`, a Ctrl-C
+    meanwhile stops the run at once) the first time an engine makes it, here after (a thread's start costs
+    more than the call)."""
+    kind = _compiling_kind(engine, collisions, until_frozen)
+    made = _compiled.setdefault(engine, set())
+    if kind in made or engine.name != "cpu":  # a GPU's context belongs to the thread that made it
+        engine.run(0, collisions, until_frozen)
+        return
+    held.aside(engine.run, 0, collisions, until_frozen)
+    made.add(kind)
+
+
+def _compiling_kind(engine, collisions: int, until_frozen: bool) -> tuple:
+    """What picks the loops a call of the engine runs: a stop at a freeze, at a collision count, a listener."""
+    return until_frozen, collisions != NO_LIMIT, bool(getattr(engine, "listeners", None))
 
 
 def _progress(sim, stop: Stop, progress) -> Progress:

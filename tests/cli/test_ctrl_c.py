@@ -112,10 +112,9 @@ def test_while_the_command_line_imports(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.xfail(strict=True, reason="Python imports the package (its __init__: numpy, numba, h5py, ...) "
-                                       "before __main__'s first line; pinnedballs/__init__.py must call "
-                                       "cli.interrupts.from_the_first_instant(only_if_starting=True) first")
 def test_while_the_package_imports(tmp_path):
+    """Python imports the package (its ``__init__``: numpy, numba, h5py, ...) before ``__main__``'s first line:
+    the package's first line hands a Ctrl-C there to the command line's words."""
     code, err, _ = program(tmp_path, "import:numba", tmp_path / "out")
     assert (code, err) == (130, "pinnedballs: interrupted\n")
 

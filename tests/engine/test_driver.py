@@ -11,6 +11,7 @@ between compiled calls).
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import signal
@@ -201,3 +202,54 @@ def test_sigint_stops_a_python_run_at_a_chunk_and_it_continues_to_the_same_bits(
     for name in whole:
         if name != "interrupted":
             assert np.array_equal(got[name], whole[name]), name
+
+
+# ---------------------------------------------------------------- a Ctrl-C while the loop compiles
+
+COMPILING = """
+import json, os, signal, sys, tempfile, time
+import numpy as np
+from numba.core import event
+import pinnedballs as pb
+
+def system():
+    g = pb.FlatTorus(12, 12)
+    return pb.Simulation(g, np.random.default_rng(3).standard_normal((g.n_balls, 2)), seed=8)
+
+sent = []
+
+class CtrlC(event.Listener):  # Ctrl-C as numba begins to compile the loop (seconds with an empty cache)
+    def on_start(self, ev):
+        if getattr(ev.data["dispatcher"].py_func, "__name__", "") == "run_to_limits" and not sent:
+            sent.append(time.monotonic())
+            os.kill(os.getpid(), signal.SIGINT)
+
+    def on_end(self, ev):
+        pass
+
+event.register("numba:compile", CtrlC())
+sim, start = system(), system().get_state()
+try:
+    sim.run(steps=5000, progress=False)
+    waited = None
+except KeyboardInterrupt:
+    waited = time.monotonic() - sent[0]
+untouched = sim.get_state().identical(start)
+sim.run(steps=5000, progress=False)  # waits for the compile left running, then runs
+whole = system()
+whole.run(steps=5000, progress=False)
+print(json.dumps({"waited": waited, "untouched": untouched, "same": sim.get_state().identical(whole.get_state())}))
+"""
+
+
+@pytest.mark.slow
+def test_a_ctrl_c_while_the_loop_compiles_stops_the_run_at_once_untouched(tmp_path):
+    """The driver's compiling call runs aside (`sigint.Deferred.aside`): a Ctrl-C as the loop's first compile
+    begins raises KeyboardInterrupt at once, the simulation as it was (before: after the compile, seconds, and
+    the first chunk). The compile goes on alone; the next run waits for it and ends on the unbroken bits."""
+    done = subprocess.run([sys.executable, "-c", COMPILING], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+    assert done.returncode == 0, done.stderr
+    got = json.loads(done.stdout.splitlines()[-1])
+    assert got["waited"] is not None and got["waited"] < 1.0  # the compile takes 2 s or more
+    assert got["untouched"] and got["same"]

@@ -1,8 +1,12 @@
-"""SIGINT held while a chunk runs and handed on between chunks (`pinnedballs.util.sigint`)."""
+"""SIGINT held while a chunk runs and handed on between chunks (`pinnedballs.util.sigint`); a call aside
+(the driver's compiling call) left at once by a Ctrl-C."""
 
 from __future__ import annotations
 
+import os
 import signal
+import threading
+import time
 
 import pytest
 
@@ -60,3 +64,59 @@ def test_an_exception_leaving_the_block_drops_what_is_noted():
             signal.raise_signal(signal.SIGINT)
             raise RuntimeError("a writer failed")
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+# ---------------------------------------------------------------- a call aside (the driver's compiling call)
+
+
+def test_a_call_aside_gives_its_value_and_its_exception():
+    with deferred() as held:
+        assert held.aside(lambda a, b: a + b, 2, 3) == 5
+        with pytest.raises(ZeroDivisionError):
+            held.aside(lambda: 1 / 0)
+
+
+def test_a_ctrl_c_while_a_call_aside_runs_is_raised_at_once_and_the_next_call_waits_for_it():
+    """As a compile aside: KeyboardInterrupt while the call goes on on its thread; the next call aside
+    starts only once it has ended."""
+    finished, order = threading.Event(), []
+
+    def slow_call():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(2.0)
+        order.append("first call ended")
+        finished.set()
+
+    with pytest.raises(KeyboardInterrupt):
+        with deferred() as held:
+            held.aside(slow_call)
+    assert not finished.is_set()  # not waited for
+    with deferred() as held:
+        held.aside(lambda: order.append("second call"))
+    assert order == ["first call ended", "second call"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_handler_that_only_notes_a_ctrl_c_still_stops_a_call_aside():
+    """A command line's handler asks the run to stop between chunks: during a compile nothing has run yet,
+    so the run stops there."""
+    got = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: got.append(signum))
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with deferred() as held:
+                held.aside(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.3)))
+        assert got == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        with deferred() as held:
+            held.aside(lambda: None)  # the first call's end
+
+
+def test_a_call_aside_runs_here_where_nothing_is_deferred():
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with deferred() as held:
+            assert held.aside(threading.current_thread) is threading.main_thread()
+    finally:
+        signal.signal(signal.SIGINT, previous)
