@@ -247,7 +247,7 @@ def _first_fault(pairs, ends, units, n_balls, mode, positions, box, stated, fram
         for c in range(k):
             x = positions[j, c] - positions[i, c]
             if np.isfinite(box[c]):
-                x -= box[c] * np.round(x / box[c])
+                x -= box[c] * np.rint(x / box[c])  # np.round's halves to even: its first compile costs 0.5 s more
             d[c] = x
             length2 += x * x
         if mode == FLAT and not abs(np.sqrt(length2) - contact) <= rtol * contact:
@@ -279,7 +279,9 @@ def _first_repeat(pairs, n_balls, stop):
 
     Its scratch is uint32, as the tables are (contact and ball indices below 2**32; `raw_tables`): 4 bytes a
     ball three times and 4 a contact (int64 took 24 a ball: 36 MB beside a 1000x1000 torus's 30 MB tables)."""
-    start = np.zeros(n_balls + 1, dtype=np.uint32)
+    start = np.empty(n_balls + 1, dtype=np.uint32)
+    for b in range(n_balls + 1):  # zeros, without compiling np.zeros
+        start[b] = 0
     for e in range(stop):
         start[min(pairs[e, 0], pairs[e, 1]) + 1] += 1
     for b in range(n_balls):

@@ -4,7 +4,10 @@ A compiled loop is a closure over a rule's ``collide`` and a scheduler's
 ``pick``, so that numba inlines them. numba keys a closure's cache entry on a
 pickle of the values it captures, and a pickled dispatcher carries a
 per-process id: every process would miss and compile again (seconds each).
-`jit_cached_if_possible` keys them by name and source instead.
+`jit_cached_if_possible` keys them by name and source instead: a function's
+source file, or, for one no file holds (a notebook's cell), its source as
+`linecache` keeps it and the values of the globals it reads (`function_key`),
+so a notebook's rule compiles once, not in every new kernel.
 """
 
 from __future__ import annotations
@@ -12,18 +15,21 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
+import types
 from pathlib import Path
 from typing import Callable
 
 import itertools
 import secrets
+import sys
 
+import numpy as np
 from numba import njit
 from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
 
-__all__ = ["jit_cached_if_possible", "njit_cached", "INLINED"]
+__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "INLINED"]
 
 #: the options of a kernel compiled on its own and inlined by LLVM into every function that calls it
 #: (``forceinline``), never called from Python (no wrappers to build)
@@ -64,7 +70,7 @@ class _ClosureCache(_KeyedCache):
         parts = [self._py_func.__code__.co_code, *map(_constant, _cells(self._py_func))]
         for f in reachable_functions(self._py_func):
             parts += [f"{f.__module__}.{f.__qualname__}".encode(), f.__code__.co_code,
-                      _source_digest(_source_file(f)), *map(_constant, _cells(f))]
+                      function_key(f) or b"", *map(_constant, _cells(f))]
         return (sig, codegen.magic_tuple(), hashlib.sha256(b"\0".join(parts)).hexdigest())
 
 
@@ -101,8 +107,16 @@ def _cells(f: Callable) -> list:
 
 
 def _constant(value) -> bytes:
-    """A captured value as key material (a captured jitted function is keyed separately)."""
-    return b"<jitted>" if isinstance(value, Dispatcher) else repr(value).encode()
+    """A captured value as key material (a captured jitted function is keyed separately; an array by all its
+    elements, which its repr leaves out beyond a thousand)."""
+    if isinstance(value, Dispatcher):
+        return b"<jitted>"
+    return _array_key(value) if isinstance(value, np.ndarray) else repr(value).encode()
+
+
+def _array_key(a: np.ndarray) -> bytes:
+    data = a.tobytes() if a.dtype != object else repr(a.tolist()).encode()
+    return f"array {a.dtype} {a.shape} ".encode() + hashlib.sha256(data).hexdigest().encode()
 
 
 def reachable_functions(py_func: Callable) -> list[Callable]:
@@ -138,6 +152,58 @@ def _source_digest(path: str) -> bytes:
     return h.hexdigest().encode()
 
 
+def function_key(f: Callable) -> bytes | None:
+    """How ``f``, a Python function a loop reaches, is known on disk (beside its name, bytecode and closure):
+    its source file with the engine's files (`_source_digest`); for a function no file holds (a notebook's
+    cell, an IPython prompt), its source as `linecache` keeps it (IPython does) with the engine's files and the
+    values of the globals it reads, which numba compiles in as constants (`_global_key`). None when neither
+    can be had (``exec`` of a string): no disk cache."""
+    path = _source_file(f)
+    if path is not None:
+        return _source_digest(path)
+    try:
+        source = inspect.getsource(f)
+    except (OSError, TypeError):
+        return None
+    names = [(name, _global_key(f.__globals__[name])) for name in sorted(_names(f.__code__)) if name in f.__globals__]
+    if any(key is None for _, key in names):
+        return None
+    h = hashlib.sha256(_source_digest(_ENGINE_FILES[0]) + source.encode())  # the engine's files alone
+    for name, key in names:
+        h.update(b"\0" + name.encode() + b"=" + key)
+    return h.hexdigest().encode()
+
+
+def _names(code: types.CodeType) -> set[str]:
+    """The global (and attribute) names ``code`` and the code objects inside it read."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _names(const)
+    return names
+
+
+def _global_key(value) -> bytes | None:
+    """A global a function without a source file reads, as key material; None for one that cannot be keyed
+    (an object numba would compile in whose value a key cannot see: no disk cache)."""
+    if isinstance(value, Dispatcher):
+        return b"<jitted>"  # keyed as a reachable function of its own
+    if isinstance(value, types.ModuleType):
+        return b"module " + value.__name__.encode()
+    if value is None or isinstance(value, (bool, int, float, complex, str, bytes, np.generic)):
+        return f"{type(value).__name__} {value!r}".encode()
+    if isinstance(value, np.ndarray):
+        return _array_key(value)
+    if isinstance(value, tuple):
+        parts = [_global_key(v) for v in value]
+        return None if None in parts else b"(" + b",".join(parts) + b")"
+    module = getattr(value, "__module__", None)
+    if callable(value) and isinstance(module, str) and module != "__main__" and \
+            getattr(sys.modules.get(module), "__file__", None):
+        return f"{module}.{getattr(value, '__qualname__', getattr(value, '__name__', ''))}".encode()  # a library's
+    return None
+
+
 def njit_cached(py_func: Callable | None = None, **options) -> Callable:
     """``njit(cache=True, **options)``, its disk cache safe when processes fill it at once
     (`_KeyedFiles`): numba's own numbers two signatures compiled at once in two processes alike,
@@ -150,14 +216,14 @@ def njit_cached(py_func: Callable | None = None, **options) -> Callable:
 
 
 def jit_cached_if_possible(py_func: Callable | None = None, **options) -> Callable:
-    """``njit(**options)`` with `_ClosureCache` on disk, or no disk cache when a captured
-    function has no source file to key it by (it is then compiled once per process).
+    """``njit(**options)`` with `_ClosureCache` on disk, or no disk cache when a function it reaches
+    cannot be keyed (`function_key`: it is then compiled once per process).
 
     ``parallel=True`` compiles ``prange`` loops for all numba threads; the cached code
     does not depend on the number of threads, which is chosen at run time."""
     if py_func is None:
         return functools.partial(jit_cached_if_possible, **options)
     dispatcher = njit(py_func, **options)
-    if all(_source_file(f) for f in reachable_functions(py_func)):
+    if all(function_key(f) is not None for f in reachable_functions(py_func)):
         dispatcher._cache = _ClosureCache(py_func)
     return dispatcher

@@ -60,16 +60,17 @@ from numba import njit
 from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..harness import limits_loop
 from ..closing import WRITE, branch_free_form, choose, closing_speed, compiled_form
-from ..jit.intrinsics import fixed_width, prefetch
-from ..jit.cache import INLINED, jit_cached_if_possible, njit_cached
+from ..jit.intrinsics import prefetch
+from ..jit.cache import jit_cached_if_possible, njit_cached
 from ..margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
 from ..streams.xoshiro import load, store
 from ..rows import decode
 from ..selector import NO_AUX, Selector, no_begin, no_change, pick_selector  # the selector protocol, re-exported
+from .start import fixed_rows, limited_prepare  # re-exported
 
 __all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel",
-           "free_trial_kernel", "fixed_rows", "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN", "FREEZE_CHUNK_PER_CONTACT",
-           "UNKNOWN", "NO_PATTERN", "BLOCK", "BRANCH_FREE_PERCENT"]
+           "free_trial_kernel", "fixed_rows", "limited_prepare", "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN",
+           "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN", "NO_PATTERN", "BLOCK", "BRANCH_FREE_PERCENT"]
 
 #: picks drawn ahead, and how far ahead the velocity rows are fetched, in the prefetching loops
 LOOKAHEAD, HALFWAY = 8, 4
@@ -137,22 +138,6 @@ def copy_into(dst, src):
     with its shape-mismatch error, whose message formatting takes seconds to compile on a first run."""
     for q in range(src.shape[0]):
         dst[q] = src[q]
-
-
-@functools.cache
-def fixed_rows(dim: int) -> Callable:
-    """``shaped(v, pairs, ends, units) -> (v, pairs, ends, units)``: the same arrays (views,
-    same memory) with their row lengths ``dim`` and 2 as compile-time constants, so the loop
-    finds a row with a shift or ``lea`` instead of a multiply by a shape held in memory."""
-    D = dim
-
-    @njit(inline="always")
-    def shaped(v, pairs, ends, units):
-        if v.shape[1] != D or units.shape[1] != D or pairs.shape[1] != 2 or ends.shape[1] != 2:
-            raise ValueError("the loop's tables do not have the row lengths it was built for")
-        return fixed_width(v, D), fixed_width(pairs, 2), fixed_width(ends, 2), fixed_width(units, D)
-
-    return shaped
 
 
 @functools.cache
@@ -428,13 +413,13 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             at_last = (m[1], m[3])
             ring = np.empty(_RING, dtype=np.int64)
             for t in range(min(LOOKAHEAD, count)):
-                k, _, rng = select(state, aux, rng, n, 1)
+                k, _, rng = select(state, aux, rng, n, np.int64(1))
                 ring[t] = k
                 prefetch(pairs, k)
                 prefetch(ends, k)
             for t in range(count):
                 if t + LOOKAHEAD < count:
-                    k, _, rng = select(state, aux, rng, n, 1)
+                    k, _, rng = select(state, aux, rng, n, np.int64(1))
                     ring[(t + LOOKAHEAD) % _RING] = k
                     prefetch(pairs, k)
                     prefetch(ends, k)
@@ -470,14 +455,14 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
             at_last = (m[1], m[3])
             ring = np.empty((_RING, 5), dtype=np.int64)  # (k, i, j, a, b) of the picks drawn ahead
             for t in range(min(ROWS_AHEAD, count)):
-                k, _, rng = select(state, aux, rng, n, 1)
+                k, _, rng = select(state, aux, rng, n, np.int64(1))
                 i, j, a, b = decode(pattern, np.int64(k))
                 ring[t, 0], ring[t, 1], ring[t, 2], ring[t, 3], ring[t, 4] = k, i, j, a, b
                 prefetch(v, i)
                 prefetch(v, j)
             for t in range(count):
                 if t + ROWS_AHEAD < count:
-                    k, _, rng = select(state, aux, rng, n, 1)
+                    k, _, rng = select(state, aux, rng, n, np.int64(1))
                     i, j, a, b = decode(pattern, np.int64(k))
                     s = (t + ROWS_AHEAD) % _RING
                     ring[s, 0], ring[s, 1], ring[s, 2], ring[s, 3], ring[s, 4] = k, i, j, a, b
@@ -533,21 +518,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                 rng = replay(state, aux, start[0], n, used)
             return rng, m, at_last, free
 
-        @njit(**INLINED)
-        def prepare(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
-                    max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
-            v, pairs, ends, units = shaped(v, pairs, ends, units)
-            n, rng = pairs.shape[0], load(rng_words)
-            m = (margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS])
-            flags = np.empty(0, dtype=np.uint8)
-            begin(state, aux, flags)
-            collisions, base = counters[COLLISIONS], counters[STEPS]
-            if LOG:  # no more collisions in this call than the log holds
-                max_collisions = min(max_collisions, collisions + log.shape[0])
-            data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, collisions,
-                    params[params.shape[0] - 1], flags, rng_words, counters, margin)
-            free = False  # the first block of the table loop has a branch (`chunk_blocks`)
-            return data, (rng, m, (m[1], m[3]), free), collisions, max_steps, max_collisions, until_frozen, chunk_steps
+        prepare = limited_prepare(begin, dim, LOG)
 
         @njit(inline="always")
         def finish(data, carry, taken, collisions, frozen, last):
