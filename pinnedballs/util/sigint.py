@@ -103,7 +103,11 @@ class Deferred:
                 self.waiting = True
                 if self.pending:  # noted before the wait began (as the thread started)
                     raise _Woken
-                events[0].wait()  # an Event's wait may be left by an exception; a Thread's join may not (gh-90882)
+                # an Event's wait may be left by an exception (a Thread's join may not, gh-90882); in slices,
+                # because the signal may reach the compiling thread, and Python runs its handler only on the
+                # main thread's next instruction, which a wait without end would never come to
+                while not events[0].wait(_SLICE):
+                    pass
                 self.waiting = False
                 events.pop(0)
             except _Woken:
@@ -115,6 +119,8 @@ class Deferred:
                 self.waiting = False
 
 
+#: seconds between two looks at a SIGINT while `Deferred.aside` waits
+_SLICE = 0.05
 #: the calls `Deferred.aside` stopped waiting for, still running (their `threading.Event`s)
 _unfinished: list = []
 #: what a SIGINT during a compile calls instead of waiting for it (`on_compile_interrupt`), or None
