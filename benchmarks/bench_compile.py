@@ -47,8 +47,11 @@ from numba import njit
 import pinnedballs as pb
 try:
     from pinnedballs.engine.streams.xoshiro import bounded
-except ImportError:  # the layout before issue 16
-    from pinnedballs.random import bounded
+except ImportError:
+    try:  # the layout before engine/ had rooms
+        from pinnedballs.engine.random import bounded
+    except ImportError:  # the layout before issue 16
+        from pinnedballs.random import bounded
 from pinnedballs.rules import CollisionRule, closing_speed
 try:
     from pinnedballs.rules import remnant_threshold

@@ -46,7 +46,7 @@ from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..closing import trial_form
 from ..harness import limits_loop
 from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
-from ..jit.cache import jit_cached_if_possible, njit_cached
+from ..jit.cache import INLINED, jit_cached_if_possible, njit_cached
 from ..streams.jump import jump, jump_polynomial
 from ..margin import merge_margin, track
 from .tuning import TUNED_SEGMENT, ThreadTuner, using
@@ -164,10 +164,11 @@ def counted_trial(collide: Callable, dim: int, flat: bool) -> Callable:
     """``attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made) -> (m, last, made)``: try
     contact ``(i, j, a, b)``, the pick at ``position``, by the rule's trial (`closing.trial_form`), and count
     it: the margin ``m`` (`margin.track`), the position of the last collision and the collisions, updated.
-    What a thread of a threaded chain does with each pick it runs."""
+    What a thread of a threaded chain does with each pick it runs. Compiled once on its own and inlined by
+    LLVM (a worker calls it from three places: inlined by numba, each typed the rule's form again, 2 s each)."""
     trial = trial_form(collide, dim, flat)
 
-    @njit(inline="always")
+    @jit_cached_if_possible(**INLINED)
     def attempt(v, units, masses, params, i, j, a, b, position, tau, m, last, made):
         hit, w = trial(v, units, masses, params, i, j, a, b, True)
         m = track(hit, w, tau, m[0], m[1], m[2], m[3])
