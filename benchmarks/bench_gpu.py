@@ -304,8 +304,11 @@ def frozen(length, depth) -> None:
          batch=sim.engine.chain.batch, stats=sim.engine.chain.stats)
 
 
-def replicas(length, depth, count) -> None:
+def replicas(length, depth, count, rows: bool = True) -> None:
+    """``count`` replicas to frozen, one a thread, their picks decoded from the lattice's row pattern (``rows``,
+    what `run_ensemble(device="cuda")` runs) or read from the contact tables."""
     from pinnedballs.engine.gpu.replicas import ReplicaChains
+    from pinnedballs.run.ensemble_gpu import replica_pattern
     from pinnedballs.engine.streams.philox import counter_stream
     from pinnedballs.engine.streams.xoshiro import seed_state
     g = half(length, depth)
@@ -316,7 +319,8 @@ def replicas(length, depth, count) -> None:
     keys = np.stack([counter_stream(seed_state(s))[:2] for s in seeds])
     V = np.broadcast_to(probe.velocities, (count, *probe.velocities.shape))
     P = np.broadcast_to(probe.engine.model.params, (count, len(probe.engine.model.params)))
-    rc = ReplicaChains(V, P, keys, g.contacts, None, probe.engine.model.masses, probe.engine.model.collide)
+    pattern = replica_pattern(g) if rows else None
+    rc = ReplicaChains(V, P, keys, g.contacts, pattern, probe.engine.model.masses, probe.engine.model.collide)
     setup = time.perf_counter() - t
     t = time.perf_counter()
     rc.run(np.tile(np.array([10**9, 2**62, 1]), (count, 1)), max(4096, 4 * g.n_contacts))
@@ -328,7 +332,7 @@ def replicas(length, depth, count) -> None:
         sim.run_until_frozen(max_steps=10**9, progress=False)
         checks.append(bool(np.array_equal(sim.velocities, rc.velocities(r)) and sim.steps == st[r, 0]
                            and sim.collisions == st[r, 1] and np.array_equal(sim.engine.state.margin, rc.margin[r])))
-    emit(part="replicas", layout=rc.layout, size=f"{length}x{depth}", replicas=count, frozen=int(st[:, 3].sum()), wall=round(wall, 3),
+    emit(part="replicas", layout=rc.layout, contacts="rows" if pattern is not None else "tables", size=f"{length}x{depth}", replicas=count, frozen=int(st[:, 3].sum()), wall=round(wall, 3),
          setup_s=round(setup, 2), steps=int(st[:, 0].sum()), gsteps_per_s=round(st[:, 0].sum() / wall / 1e9, 2),
          mean_collisions=float(st[:, 1].mean()), sd_collisions=float(st[:, 1].std(ddof=1)),
          checked_against_cpu=checks)
@@ -387,7 +391,8 @@ def replicas_layouts() -> None:
             break
         os.environ["PINNEDBALLS_GPU_REPLICAS"] = layout
         t = time.perf_counter()
-        replicas(200, 100, 8 if SMOKE else 16384)
+        for rows in (False, True):
+            replicas(200, 100, 8 if SMOKE else 16384, rows)
         times[layout] = time.perf_counter() - t
     if times:
         os.environ["PINNEDBALLS_GPU_REPLICAS"] = min(times, key=times.get)
@@ -401,7 +406,8 @@ PARTS = {
     "bits_quick": lambda: part("bits", bits_quick, need=20),
     "speed": lambda: part("speed", speed, need=60),
     "frozen2000": lambda: part("frozen", frozen, 2000, 1000, need=40),
-    "replicas": lambda: part("replicas", replicas, 200, 100, 8 if SMOKE else 16384, need=25),
+    "replicas": lambda: [part("replicas", replicas, 200, 100, 8 if SMOKE else 16384, rows, need=25)
+                         for rows in (False, True)],  # the tables, then the row pattern (what ensembles run)
     "replicas_layouts": lambda: part("replicas", replicas_layouts, need=25),
     # 4000x2000 takes about 457e9 steps (the probe's run): only when a measured rate says it fits
     "frozen4000": lambda: part("frozen", frozen, 4000, 2000, need=min(BUDGET, 20 + (1.5e4 if SMOKE else 4.6e11) / max(

@@ -20,13 +20,14 @@ import numpy as np
 from ..engine.backends import check_device
 from ..engine.chain import NO_LIMIT
 from ..engine.driver import Drive, Writer, drive
+from ..engine.rows import row_pattern
 from ..engine.streams.philox import counter_stream
 from ..engine.streams.xoshiro import seed_state
 from ..engine.state import RunState, mass_array
 from ..geometry.simulation import check_velocities
 from ..rules import threshold
 
-__all__ = ["run_on_gpu", "on_worker_gpu", "groups", "gpu_workers", "Replica", "MAX_THREAD_CONTACTS",
+__all__ = ["run_on_gpu", "on_worker_gpu", "groups", "gpu_workers", "Replica", "replica_pattern", "MAX_THREAD_CONTACTS",
            "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS", "WORKER_GROUP"]
 
 #: systems with more contacts than this run one replica at a time on the whole GPU
@@ -179,6 +180,14 @@ class Replica:
                         np.zeros(1, dtype=np.int64), None, self.chains.margin[self.r].copy(), None)
 
 
+def replica_pattern(g) -> tuple | None:
+    """The lattice's row pattern (`engine.rows`) for the replica kernels, or None (not a lattice): a
+    replica's thread decodes its picks from it instead of reading four entries of the contact tables a
+    pick, at any size (the CPU's loops read the tables below `rows.MIN_BALLS`, where they stay in cache)."""
+    shape = g.row_shape()
+    return None if shape is None else row_pattern(g.contacts.pairs, g.contacts.ends, *shape, min_balls=0)
+
+
 class _Group:
     """Replicas of one spec on the GPU, each driven to its snapshots and its stop (module docstring)."""
 
@@ -197,8 +206,8 @@ class _Group:
             params.append(np.append(model.params[:-1], tau))
             keys.append(counter_stream(seed_state(seed))[:2])
             thresholds.append(tau)
-        self.chains = ReplicaChains(np.stack(v), np.stack(params), np.stack(keys), g.contacts, None, masses,
-                                    model.collide)
+        self.chains = ReplicaChains(np.stack(v), np.stack(params), np.stack(keys), g.contacts, replica_pattern(g),
+                                    masses, model.collide)
         self.rows = [_Rows(spec, k, seed, observe, row_of) for k, seed in members]
         self.drives = [Drive(Replica(self.chains, r, proto, thresholds[r]), spec.stop.build(), [self.rows[r]],
                              chunk=LAUNCH_STEPS) for r in range(len(members))]

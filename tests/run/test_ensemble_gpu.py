@@ -43,6 +43,15 @@ def test_the_gpu_gives_the_cpus_rows(stop, snapshots):
     assert same_rows(cpu, gpu)
 
 
+def test_a_lattices_replicas_decode_their_picks_from_its_row_pattern():
+    """The half-plane above (600 balls, below the CPU's row-pattern size) runs its replicas on the pattern, with
+    the CPU's rows (the test above); a graph has none, and its replicas read the tables."""
+    g = pb.HalfPlane.from_size(20, 10)
+    assert g.row_pattern is None and ensemble_gpu.replica_pattern(g) is not None
+    graph = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
+    assert ensemble_gpu.replica_pattern(graph) is None
+
+
 def test_large_systems_run_one_replica_after_another(monkeypatch):
     monkeypatch.setattr(ensemble_gpu, "MAX_THREAD_CONTACTS", 10)
     s = spec({"frozen": True, "max_steps": 10**6}, {"every_collisions": 100})

@@ -129,17 +129,20 @@ def test_a_state_resumed_on_the_gpu_goes_on_bit_for_bit():
     assert state(later) == state(whole)
 
 
-@pytest.mark.parametrize("layout", ["block", "thread"])
-def test_replicas_are_the_cpus_simulations(layout, monkeypatch):
+@pytest.mark.parametrize("layout, rows", [("block", False), ("block", True), ("thread", False), ("thread", True)])
+def test_replicas_are_the_cpus_simulations(layout, rows, monkeypatch):
     """Each replica runs to its own limits (frozen, a step count, a collision target) and ends as the CPU's
     simulation with its seed: velocities, counters, margin; one a block (its lanes running batches of steps)
-    or one a thread."""
+    or one a thread, its contacts read from the tables or decoded from the lattice's row pattern."""
     monkeypatch.setenv("PINNEDBALLS_GPU_REPLICAS", layout)
     g = pb.HalfPlane.from_size(20, 10)
     seeds = np.random.SeedSequence(3).spawn(4)
     sims = [pb.Simulation(g, single(g), scheduler=COUNTER, seed=s) for s in seeds]
+    pattern = row_pattern(g.contacts.pairs, g.contacts.ends, *g.row_shape(), min_balls=0) if rows else None
+    assert (pattern is not None) == rows
     chains = ReplicaChains(np.stack([s.velocities for s in sims]), np.stack([s.engine.model.params for s in sims]),
-                           np.stack([s.engine.state.rng[:2] for s in sims]), g.contacts, None, sims[0].engine.model.masses, sims[0].engine.model.collide)
+                           np.stack([s.engine.state.rng[:2] for s in sims]), g.contacts, pattern,
+                           sims[0].engine.model.masses, sims[0].engine.model.collide)
     limits = np.array([[10**6, NO_LIMIT, 1], [700, NO_LIMIT, 0], [10**6, 60, 1], [10**6, NO_LIMIT, 1]])
     chains.run(limits, 512)
     sims[0].run_until_frozen(max_steps=10**6, progress=False)
