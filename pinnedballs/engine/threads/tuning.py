@@ -80,6 +80,12 @@ class ThreadTuner:
     always fresh: if the machine gets busy and it drops below another count's latest rate, the tuner
     moves to that count at once.
 
+    The first segment on each count is not timed, only run (a trial's share of the units): it may compile
+    or load the count's loops and start numba's threads. Nor is a trial shorter than `MIN_TRIAL_SECONDS`
+    kept. Both once made the threads' first trial, a single batch of a run's first small chunk, look
+    slower than one thread's, so that a run on 2 idle cores stayed on one (1.28x slower) until its next
+    trial, hundreds of millions of steps later.
+
     ``candidates``: the thread counts to try (default: `most_threads` and 1).
     """
 
@@ -89,6 +95,9 @@ class ThreadTuner:
     MAX_PERIOD = 384
     #: a trial (a count without a fresh rate) runs this many times fewer units than it is offered
     TRIAL_SHARE = 8
+    #: a segment shorter than this (seconds) says little of its count's rate (a parallel call's start, a
+    #: threads' wake-up): a trial that short is not kept, and the count is tried again on the next offer
+    MIN_TRIAL_SECONDS = 0.01
 
     def __init__(self, candidates: tuple[int, ...] | None = None):
         most = most_threads()
@@ -97,6 +106,7 @@ class ThreadTuner:
         self.since = 0  # segments since the latest trial
         self.period = self.PERIOD
         self.winner: int | None = None  # the best count at the latest trial
+        self.warm: set[int] = set()  # the counts that ran a first, untimed segment
 
     def choose(self) -> int:
         """The thread count for the next segment: an untimed candidate, else the fastest."""
@@ -111,10 +121,18 @@ class ThreadTuner:
         TRIAL_SHARE)``; returns ``n``: the caller offers the rest again."""
         count = self.choose()
         n = units if count in self.rates else max(1, units // self.TRIAL_SHARE)
+        if count not in self.warm:  # its first segment: run, not timed (class docstring)
+            with using(count):
+                segment(n)
+            self.warm.add(count)
+            return n
         start = time.perf_counter()
         with using(count):
             segment(n)
-        self.rates[count] = n / max(time.perf_counter() - start, 1e-9)
+        elapsed = time.perf_counter() - start
+        if count not in self.rates and elapsed < self.MIN_TRIAL_SECONDS:
+            return n  # too short to judge by: tried again on the next offer
+        self.rates[count] = n / max(elapsed, 1e-9)
         self.since += 1
         if self.since >= self.period and len(self.rates) == len(self.candidates):
             best = self.choose()
