@@ -76,13 +76,21 @@ def test_a_call_aside_gives_its_value_and_its_exception():
             held.aside(lambda: 1 / 0)
 
 
-def test_a_ctrl_c_while_a_call_aside_runs_is_raised_at_once_and_the_next_call_waits_for_it():
+@pytest.mark.parametrize("to_thread", [False, True], ids=["to the process", "to the call's thread"])
+def test_a_ctrl_c_while_a_call_aside_runs_is_raised_at_once_and_the_next_call_waits_for_it(to_thread):
     """As a compile aside: KeyboardInterrupt while the call goes on on its thread; the next call aside
-    starts only once it has ended."""
+    starts only once it has ended. A process's SIGINT may reach any of its threads, and Python runs the
+    handler on the main thread at its next instruction: the wait comes to one every few hundredths of a
+    second (before, a signal the system handed to the call's thread waited for the call to end: 3.3 s of a
+    compile in one CI run)."""
     finished, order = threading.Event(), []
 
     def slow_call():
-        os.kill(os.getpid(), signal.SIGINT)
+        if to_thread:
+            time.sleep(0.2)  # the main thread waits by now
+            signal.pthread_kill(threading.get_ident(), signal.SIGINT)
+        else:  # at once: perhaps before the wait begins
+            os.kill(os.getpid(), signal.SIGINT)
         time.sleep(2.0)
         order.append("first call ended")
         finished.set()
@@ -95,26 +103,6 @@ def test_a_ctrl_c_while_a_call_aside_runs_is_raised_at_once_and_the_next_call_wa
         held.aside(lambda: order.append("second call"))
     assert order == ["first call ended", "second call"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-
-
-def test_a_ctrl_c_the_system_hands_to_the_call_asides_thread_is_raised_at_once():
-    """A process's SIGINT may reach any of its threads; Python runs the handler on the main thread, at its next
-    instruction: the wait for the call aside comes to one every few hundredths of a second (before, it waited
-    for the call to end: 3.3 s of a compile in one CI run)."""
-    finished = threading.Event()
-
-    def slow_call():
-        time.sleep(0.2)  # the main thread waits by now
-        signal.pthread_kill(threading.get_ident(), signal.SIGINT)  # to this thread, not the main one
-        time.sleep(2.0)
-        finished.set()
-
-    with pytest.raises(KeyboardInterrupt):
-        with deferred() as held:
-            held.aside(slow_call)
-    assert not finished.is_set()  # not waited for
-    with deferred() as held:
-        held.aside(lambda: None)  # the first call's end
 
 
 def test_a_handler_that_only_notes_a_ctrl_c_still_stops_a_call_aside():

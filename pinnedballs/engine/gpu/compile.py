@@ -35,6 +35,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from ..closing import choose, choose_python, impulse_of, trial_form
+from ..jit.cache import code_names
 from ...util.errors import FieldError, described
 
 __all__ = ["SIMULATED", "contraction_off", "device_function", "device_trial", "python_twin", "check_rule", "ptx"]
@@ -102,14 +103,6 @@ def python_twin(f: Callable) -> Callable:
     return _twin(f, {})
 
 
-def _names(code: types.CodeType) -> set[str]:
-    names = set(code.co_names)
-    for const in code.co_consts:
-        if isinstance(const, types.CodeType):
-            names |= _names(const)
-    return names
-
-
 def _twin(f, memo: dict):
     if not isinstance(f, Dispatcher):
         return _INTRINSICS.get(f, f) if _hashable(f) else f
@@ -120,7 +113,7 @@ def _twin(f, memo: dict):
     scope = dict(py.__globals__)
     twin = types.FunctionType(py.__code__, scope, py.__name__, py.__defaults__, closure or None)
     memo[id(f)] = twin
-    for name in _names(py.__code__):
+    for name in code_names(py.__code__):
         if name in scope:
             scope[name] = _twin(scope[name], memo)
     return twin

@@ -29,7 +29,7 @@ from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
 
-__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "INLINED"]
+__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "code_names", "INLINED"]
 
 #: the options of a kernel compiled on its own and inlined by LLVM into every function that calls it
 #: (``forceinline``), never called from Python (no wrappers to build)
@@ -165,7 +165,7 @@ def function_key(f: Callable) -> bytes | None:
         source = inspect.getsource(f)
     except (OSError, TypeError):
         return None
-    names = [(name, _global_key(f.__globals__[name])) for name in sorted(_names(f.__code__)) if name in f.__globals__]
+    names = [(name, _global_key(f.__globals__[name])) for name in sorted(code_names(f.__code__)) if name in f.__globals__]
     if any(key is None for _, key in names):
         return None
     h = hashlib.sha256(_source_digest(_ENGINE_FILES[0]) + source.encode())  # the engine's files alone
@@ -174,12 +174,12 @@ def function_key(f: Callable) -> bytes | None:
     return h.hexdigest().encode()
 
 
-def _names(code: types.CodeType) -> set[str]:
+def code_names(code: types.CodeType) -> set[str]:
     """The global (and attribute) names ``code`` and the code objects inside it read."""
     names = set(code.co_names)
     for const in code.co_consts:
         if isinstance(const, types.CodeType):
-            names |= _names(const)
+            names |= code_names(const)
     return names
 
 
