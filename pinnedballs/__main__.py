@@ -1,6 +1,6 @@
 """``python -m pinnedballs``: the command line (`cli.main`). A Ctrl-C at any moment is one line on stderr
-and exit status 130 (`cli.interrupts`): from the first instant, while the package is imported, and while
-numba compiles."""
+and exit status 130: while the package is imported (its ``__init__`` sees the command line starting,
+`util.startup`), and while numba compiles (`cli.interrupts.exit_while_compiling`)."""
 
 import sys
 
@@ -8,9 +8,8 @@ from .cli import interrupts
 
 
 def command_line() -> int:
-    """The program: its Ctrl-C handled from here on, then `cli.main.main` (what the ``pinnedballs`` script
-    may call too)."""
-    interrupts.from_the_first_instant()  # before the heavy imports
+    """The program (the ``pinnedballs`` script's too): a Ctrl-C while numba compiles ends it at once, then
+    `cli.main.main`."""
     from .cli.main import main
 
     interrupts.exit_while_compiling()

@@ -25,10 +25,10 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from ..util.startup import EXIT_INTERRUPTED, end_at_once, from_the_first_instant, starts_the_command_line
+from ..util.startup import EXIT_INTERRUPTED, end_at_once
 
-__all__ = ["fingerprint", "exit_status", "interrupted_by", "sigint_ignored", "from_the_first_instant",
-           "starts_the_command_line", "exit_while_compiling", "running", "EXIT_OK", "EXIT_INTERRUPTED"]
+__all__ = ["fingerprint", "exit_status", "interrupted_by", "sigint_ignored", "exit_while_compiling", "running",
+           "EXIT_OK", "EXIT_INTERRUPTED"]
 
 EXIT_OK = 0
 #: when this command began (loaded before it runs): a results file changed since is its own
