@@ -25,7 +25,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from ..util.errors import FieldError
-from ..engine.field.fixed_state import margin_problem as certified_margin_problem, precisions_problem
+from ..engine.field.fixed_state import bound_rule_problem, margin_problem as certified_margin_problem, precisions_problem
 from ..engine.state import margin_problem
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error
@@ -268,6 +268,13 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
     problem = precisions_problem(attrs.get("precision", 0), attrs.get("late_precision", 0), limbs.shape[3])
     if problem:
         raise Damage("state/certified", problem)
+    if "bound_batch" in attrs:  # absent: the bound rule in step order (files written before the batched rule)
+        pending = np.asarray(attrs.get("pending", np.zeros(0)))
+        problem = bound_rule_problem(attrs["bound_batch"], attrs.get("bound_at"),
+                                     tuple(pending.tolist()) if pending.dtype.kind == "u" else (None,),
+                                     attrs.get("unfolded", np.nan))
+        if problem:
+            raise Damage("state/certified", problem)
     if "margin" in attrs:  # absent: not kept (files written before), unknown
         problem = certified_margin_problem(np.asarray(attrs["margin"]))
         if problem:

@@ -46,7 +46,9 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                       since the run began (the smallest closing speed of a collision, inf before the
                       first; the largest nonzero one set aside, -inf: none; the picks set aside at
                       closing speed exactly 0), absent from files written before it was kept and
-                      from runs continued from them (unknown)
+                      from runs continued from them (unknown); bound_batch, bound_at, pending (2,)
+                      uint64, unfolded: the batched bound rule's state (`CertifiedState`), absent from
+                      files written before it (their runs resume under the rule in step order)
 
 ``/geometry`` and ``/initial`` are external links, ``/snapshots`` and ``/observables``
 virtual datasets over the segments, so ``h5py`` reads the index like one file.

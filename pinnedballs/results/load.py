@@ -324,7 +324,11 @@ def read(p: Path, f: h5py.File) -> Results:
         certified = CertifiedState(c["limbs"][()], int(c.attrs["scale"]), c["bounds"][()], float(c.attrs["rounding"]),
                                    int(c.attrs.get("bound_scale", 0)),  # 0: absolute (files before it was kept)
                                    int(c.attrs.get("precision", 0)), int(c.attrs.get("late_precision", 0)),
-                                   None if decided is None else np.array(decided, dtype=np.float64))
+                                   None if decided is None else np.array(decided, dtype=np.float64),
+                                   # absent: the bound rule in step order (files before the batched rule)
+                                   int(c.attrs.get("bound_batch", 0)), int(c.attrs.get("bound_at", -1)),
+                                   tuple(int(x) for x in c.attrs.get("pending", (0, 0))),
+                                   float(c.attrs.get("unfolded", 0.0)))
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
                       s["scheduler_state"][()], exact, margin, certified)
     names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])

@@ -58,13 +58,14 @@ from gmpy2 import mpq
 from ...util.errors import FieldError
 from .chain import FieldChain
 from .numbers import Field, NotExact, recognise
-from .fixed_kernels import (DONE, DUE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables,
-                            count_live, refresh_shadows, run_picks)
+from .fixed_kernels import (DONE, DUE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables, cap,
+                            count_live, fold, refresh_shadows, run_picks, unfolded)
 from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
 from .limbs import from_limbs, to_limbs
 from ..sequential.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT
 
-__all__ = ["FixedChain", "NotFixed", "UncertifiedDecision", "Lines", "lines_of", "HEADROOM", "PRECISION"]
+__all__ = ["FixedChain", "NotFixed", "UncertifiedDecision", "Lines", "lines_of", "bound_batch", "HEADROOM",
+           "PRECISION"]
 
 #: bits above the speed scale V (sign, 2V closing speeds, and slack)
 HEADROOM = 6
@@ -152,8 +153,27 @@ def lines_of(geometry) -> Lines:
             wcount[n, c_] += 1
             kterms[n, d, c_, kcount[n, d, c_]] = s_, f
             kcount[n, d, c_] += 1
-    tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, _coefficients(field, lines, dim), root)
+    tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, _coefficients(field, lines, dim), root,
+                    int(e.max()), _largest_rounding(e, root, m))
     return Lines(field, units, tables)
+
+
+def _largest_rounding(e: np.ndarray, root: np.ndarray, m: int) -> float:
+    """The largest ``|rho|`` a collision rounds off, in units of ``2^-S``, rounded up: `fixed_kernels._collide`'s
+    ``r`` with ``|rho_0|, |rho_1|`` at their largest, ``2^(2e - 1)`` (0 on a line with ``e = 0``: no rounding)."""
+    largest = 0.0
+    for el in e.tolist():
+        if el > 0:
+            half = math.ldexp(1.0, 2 * el - 1)
+            largest = max(largest, math.ldexp((half + (half * root[2] * UP if m == 2 else 0.0)) * UP, -el) * UP)
+    return largest
+
+
+def bound_batch(n_contacts: int, emax: int) -> int:
+    """Steps a batch of the batched bound rule (`fixed_kernels._round_off`): the power of two at or above the
+    contacts, within [2^10, 2^22], and small enough that a batch's exact sums of ``|rho|`` fit 63 bits."""
+    K = 1 << max(10, min(22, (max(1, n_contacts) - 1).bit_length()))
+    return min(K, 1 << max(0, 62 - 2 * int(emax)))
 
 
 def _coefficients(field: Field, lines: list, dim: int) -> np.ndarray:
@@ -218,6 +238,10 @@ class FixedChain(FieldChain):
         self.rows[:, dim] = np.abs(v).max(axis=1)
         self.dirty = np.zeros(n, dtype=np.uint8)
         self.B, self.Pp, self.acc = np.zeros((n, L)), np.zeros((n, L)), np.zeros(2)
+        #: the bound rule's sums not yet folded and ``[K, the batch of G]`` (`fixed_kernels._round_off`): batched
+        self.rho = np.zeros(2, dtype=np.uint64)
+        self.bound = np.array([bound_batch(geometry.n_contacts, self.tables.emax), -1], dtype=np.int64)
+        self.acc[1] = cap(0.0, self.tables.rmax * self.bound[0])
         self.X = np.zeros((n, dim, self.field.m, self.P), dtype=np.uint64)
         rows = np.flatnonzero(self.rows[:, dim])
         if len(rows):
@@ -248,7 +272,7 @@ class FixedChain(FieldChain):
         self.info = np.zeros(4)
 
     def _state(self) -> tuple:
-        return State(self.X, self.rows, self.dirty, self.B, self.Pp, self.acc, self.T)
+        return State(self.X, self.rows, self.dirty, self.B, self.Pp, self.acc, self.T, self.rho, self.bound)
 
     # ------------------------------------------------------------ exact policy: widening
     def widen(self) -> None:
@@ -291,9 +315,10 @@ class FixedChain(FieldChain):
         self.B, self.Pp = scaled_up(self.B, -64 * k), scaled_up(self.Pp, -64 * k)
         self.B[rounded] = (self.B[rounded] + per) * UP
         self.Pp[rounded] = (self.Pp[rounded] + per) * UP
+        self._fold_pending()
         whole = float(scaled_up(self.acc[:1], -64 * k)[0])
         self.acc[0] = (whole + math.sqrt(int(rounded.sum())) * UP * per * UP) * UP
-        self.acc[1] = self.acc[0] * SQRT2_UP * UP
+        self._set_cap()
         self.X, self.P, self.S = high, self.late_P, S
         self._scratch()
         self._reshadow()
@@ -446,11 +471,27 @@ class FixedChain(FieldChain):
     @property
     def error_bound(self) -> tuple[float, float]:
         """``(G, largest)``: bounds on the whole error vector and on each ball's (`fixed_state.error_bound`)."""
-        return error_bound(np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S)
+        return error_bound(np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S, self._unfolded())
 
     def certified_state(self) -> CertifiedState:
         return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S,
-                              *self.bits, self.margin.copy() if self.margin_kept else None)
+                              *self.bits, self.margin.copy() if self.margin_kept else None, int(self.bound[0]),
+                              int(self.bound[1]), tuple(int(x) for x in self.rho), self._unfolded())
+
+    def _set_cap(self) -> None:
+        """``G`` from ``acc[0]``: in step order ``sqrt(2)`` times it, batched its `fixed_kernels.cap`."""
+        K = int(self.bound[0])
+        self.acc[1] = self.acc[0] * SQRT2_UP * UP if K == 0 else cap(float(self.acc[0]), self.tables.rmax * K)
+
+    def _unfolded(self) -> float:
+        """The batched rule's sums not yet folded, as a float in units of ``2^-S`` rounded up (0: none)."""
+        return float(unfolded(self.rho, self.tables.emax, self.tables.root[2])) if self.rho.any() else 0.0
+
+    def _fold_pending(self) -> None:
+        """The batched rule's sums not yet folded, folded into ``acc[0]`` (before ``S`` changes)."""
+        if self.bound[0] > 0:
+            fold(self.acc, self.rho, self.bound, self.bound[1], self.tables.emax, self.tables.rmax,
+                 self.tables.root[2])
 
     def set_certified_state(self, state: CertifiedState) -> None:
         """Take a `CertifiedState` of this geometry (checked by the caller); its bounds rescaled to units
@@ -463,7 +504,9 @@ class FixedChain(FieldChain):
         shift = self.S - int(state.bound_scale)
         self.B, self.Pp = scaled_up(state.bounds[:, 0], shift), scaled_up(state.bounds[:, 1], shift)
         self.acc[0] = float(scaled_up(np.array([state.rounding]), shift)[0])
-        self.acc[1] = self.acc[0] * SQRT2_UP * UP
+        self.rho[:] = np.array(state.pending, dtype=np.uint64)
+        self.bound[:] = state.bound_batch, state.bound_at
+        self._set_cap()
         self._scratch()
         self._reshadow()
         self.live, self._after = -1, None

@@ -36,7 +36,7 @@ from ..jit.intrinsics import prefetch
 from ..jit.cache import njit_cached
 from .limbs import diff_combination, exchange, field_sign, low_bits, scaled_float, shift_round, sign
 
-__all__ = ["Tables", "State", "Scratch", "run_picks", "count_live", "refresh_shadows", "FILTER", "TINY", "UP",
+__all__ = ["Tables", "State", "Scratch", "run_picks", "cap", "fold", "unfolded", "count_live", "refresh_shadows", "FILTER", "TINY", "UP",
            "SQRT2_UP", "DONE", "FROZEN", "WIDEN", "UNCERTIFIED", "UNCOUNTED", "DUE"]
 
 #: the float filter's band, in units of 2^-53 times the sizes (its error bound is about 20)
@@ -81,6 +81,8 @@ class Tables(NamedTuple):
     kcount: np.ndarray  #: (L, dim, m) int64
     coef: np.ndarray  #: (4, L, L): |u_l.u_m|, |P_perp(l) u_m|, ||P_perp(m) P_perp(l)||, |P_perp(m) u_l|, rounded up
     root: np.ndarray  #: (3,): d, sqrt d, sqrt d rounded up
+    emax: int  #: the largest ``e``
+    rmax: float  #: the largest ``|rho|`` a collision can round off, in units of ``2^-S``, rounded up
 
 
 class State(NamedTuple):
@@ -91,8 +93,10 @@ class State(NamedTuple):
     dirty: np.ndarray  #: (n,) uint8: changed since the last `sync`
     B: np.ndarray  #: (n, L): certified bounds along each line, in units of 2^-S
     Pp: np.ndarray  #: (n, L): certified bounds across each line, in units of 2^-S
-    acc: np.ndarray  #: (2,): sum |rho| and G, rounded up, in units of 2^-S
+    acc: np.ndarray  #: (2,): sum |rho| and G, rounded up, in units of 2^-S (batched: the sum folded so far)
     T: np.ndarray  #: (P,): T[h] = 2^(64 (h + 1) - S), the scale of a float read from limb h down
+    rho: np.ndarray  #: (2,) uint64: the batched rule's sums of |rho_0|, |rho_1| not yet folded, in units of 2^-(S + emax)
+    bound: np.ndarray  #: (2,) int64: the batched rule's steps a batch ``K`` (0: the rule in step order), the batch of G
 
 
 class Scratch(NamedTuple):
@@ -251,20 +255,67 @@ def _carry_bounds(state, coef, i, j, l, r, scale):
 
 
 @inlined
-def _collide(k, tables, state, scale, certify, scratch):
-    """Collide contact ``k``, whose ``W`` is computed and closing speed positive. False (nothing
+def cap(base, rmaxK):
+    """The batched rule's ``G`` through a batch whose earlier batches rounded off ``base`` in all (units of
+    ``2^-S``): ``sqrt(2) (base + K rmax)``, rounded up (the batch's own collisions add at most ``K rmax``)."""
+    return (base + rmaxK) * SQRT2_UP * UP
+
+
+@inlined
+def unfolded(rho, emax, root_up):
+    """The batched rule's exact sums ``rho`` as a float in units of ``2^-S``, rounded up."""
+    part = float(rho[0]) * UP + float(rho[1]) * UP * root_up * UP  # float(x) * UP >= x
+    return math.ldexp(part * UP, -int(emax))
+
+
+@inlined
+def fold(acc, rho, bound, batch, emax, rmax, root_up):
+    """The batched rule's fold: the exact sums ``rho`` added to ``acc[0]`` (rounded up) and cleared, ``G =
+    acc[1]`` the cap of a batch after them (`cap`), ``bound[1] = batch``."""
+    if rho[0] != 0 or rho[1] != 0:
+        acc[0] = (acc[0] + unfolded(rho, emax, root_up)) * UP
+        rho[0], rho[1] = 0, 0
+    acc[1] = cap(acc[0], rmax * bound[0])
+    bound[1] = batch
+
+
+@inlined
+def _round_off(state, tables, step, l, rho0, rho1, r):
+    """What a collision at ``step`` along line ``l`` rounded off (``rho0 + rho1 sqrt d`` in units of
+    ``2^-(S + e)``, ``r`` its bound in units of ``2^-S``) added to the sum behind ``G``. In step order
+    (``K = 0``, files written before the batched rule): ``acc[0] += r``, rounded up. Batched (``K > 0``): the
+    first collision of a batch of ``K`` steps folds the sums of the batches before (`fold`); ``G`` is then
+    fixed for the batch, and the collision's ``|rho|`` is added to exact integer sums, so that neither
+    depends on the order the batch's collisions are made in (a GPU's, by reservations)."""
+    K = state.bound[0]
+    if K == 0:
+        if r > 0.0:
+            state.acc[0] = (state.acc[0] + r) * UP
+            state.acc[1] = state.acc[0] * SQRT2_UP * UP
+        return
+    batch = step // K
+    if batch != state.bound[1]:
+        fold(state.acc, state.rho, state.bound, batch, tables.emax, tables.rmax, tables.root[2])
+    shift = np.uint64(tables.emax - tables.e[l])
+    state.rho[0] += np.uint64(abs(rho0)) << shift
+    state.rho[1] += np.uint64(abs(rho1)) << shift
+
+
+@inlined
+def _collide(k, tables, state, scale, certify, scratch, step):
+    """Collide contact ``k`` at ``step``, whose ``W`` is computed and closing speed positive. False (nothing
     changed) when the exact policy needs a wider state first."""
     X, W, root = state.X, scratch.W, tables.root
     i, j, l = tables.pairs[k, 0], tables.pairs[k, 1], np.int64(tables.ls[k] >> 1)
     m, bits = W.shape[0], 2 * tables.e[l]
-    r = 0.0
+    r, rho0, rho1 = 0.0, np.int64(0), np.int64(0)
     if bits > 0:  # omega: W with its lowest 2 e bits cleared, so that omega u_l is exact at scale S
         if not certify:
             for c in range(m):
                 if low_bits(W[c], bits) != 0:
                     return False
         rho0 = shift_round(W[0], W[0], bits)
-        rho1 = shift_round(W[1], W[1], bits) if m == 2 else 0
+        rho1 = shift_round(W[1], W[1], bits) if m == 2 else np.int64(0)
         if rho0 != 0 or rho1 != 0:
             r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[l]))  # units of 2^-S
     for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
@@ -274,9 +325,7 @@ def _collide(k, tables, state, scale, certify, scratch):
     _shadow(X, j, state.T, root, state.rows)
     state.dirty[i], state.dirty[j] = 1, 1
     if certify:
-        if r > 0.0:
-            state.acc[0] = (state.acc[0] + r) * UP
-            state.acc[1] = state.acc[0] * SQRT2_UP * UP
+        _round_off(state, tables, step, l, rho0, rho1, r)
         _carry_bounds(state, tables.coef, i, j, l, r, scale)
     return True
 
@@ -373,7 +422,7 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
             if not computed:
                 _closing(tables, state.X, tables.pairs[k, 0], tables.pairs[k, 1], np.int64(tables.ls[k] >> 1),
                          scratch.W)
-            if not _collide(k, tables, state, scale, certify, scratch):
+            if not _collide(k, tables, state, scale, certify, scratch, first + t):
                 status = WIDEN
                 break
             at[made] = t

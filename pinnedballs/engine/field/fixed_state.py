@@ -11,6 +11,7 @@ import numpy as np
 from ...util.errors import FieldError
 
 __all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text", "precisions_problem",
+           "bound_rule_problem",
            "margin_problem", "SMALLEST", "LARGEST", "ZEROS"]
 
 #: the entries of a certified state's ``margin`` (`CertifiedState`): the smallest closing speed counted as a
@@ -45,13 +46,14 @@ def power_text(x: float, exponent: int) -> str:
     return f"{2 * m:.6g} * 2^{e - 1 + exponent}"
 
 
-def error_bound(bounds: np.ndarray, rounding: float, bound_scale: int = 0) -> tuple[float, float]:
+def error_bound(bounds: np.ndarray, rounding: float, bound_scale: int = 0, unfolded: float = 0.0) -> tuple[float, float]:
     """``(G, largest)`` from a certified state's ``bounds (n_balls, 2, L)`` and ``rounding`` (the sum
     of every ``|rho|``), both in units of ``2^-bound_scale``: ``G = sqrt(2) * rounding`` bounds the
-    whole error vector (rounded up as the chain computes it), ``largest`` every ball's error
-    ``|V_i(exact) - V~_i|`` (the least over lines of ``hypot(B, Pp)``, rounded up, and at most ``G``).
-    Absolute floats, rounded up: a bound below the smallest float is 5e-324, not 0."""
-    G = rounding * _SQRT2_UP * _UP
+    whole error vector (rounded up as the chain computes it; ``unfolded``: the batched rule's sums
+    not yet in ``rounding``, added), ``largest`` every ball's error ``|V_i(exact) - V~_i|`` (the least over lines of
+    ``hypot(B, Pp)``, rounded up, and at most ``G``). Absolute floats, rounded up: a bound below the
+    smallest float is 5e-324, not 0."""
+    G = (rounding + unfolded) * _UP * _SQRT2_UP * _UP
     largest = 0.0
     if bounds.size:
         largest = float(min(G, (np.min(np.hypot(bounds[:, 0], bounds[:, 1]), axis=1) * _UP).max()))
@@ -77,6 +79,13 @@ class CertifiedState:
     closing speed counted as a collision (inf: none yet), the largest nonzero one set aside (-inf: none),
     the picks set aside whose closing speed is exactly 0 (`SMALLEST`, `LARGEST`, `ZEROS`); None: not kept
     (a file written before it was, or a run resumed from one: unknown).
+
+    The bound rule (`pinnedballs.engine.field.fixed_kernels._round_off`): bound_batch ``K``, the steps a batch
+    of the batched rule, whose ``G`` does not depend on the order of a batch's collisions (a GPU's), or 0:
+    the rule in step order of files written before it (such a state resumes under that rule, on the CPU);
+    bound_at: the batch of the last collision (-1: none yet); pending: the exact sums of ``|rho_0|`` and
+    ``|rho_1|`` of that batch, not yet in ``rounding`` (units of ``2^-(bound_scale + e_max)``); unfolded:
+    those sums as a float in units of ``2^-bound_scale``, rounded up (for `error_bound`).
     """
 
     limbs: np.ndarray
@@ -87,13 +96,19 @@ class CertifiedState:
     precision: int = 0
     late_precision: int = 0
     margin: np.ndarray | None = None
+    bound_batch: int = 0
+    bound_at: int = -1
+    pending: tuple = (0, 0)
+    unfolded: float = 0.0
 
     def copy(self) -> "CertifiedState":
         return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale,
-                              self.precision, self.late_precision, None if self.margin is None else self.margin.copy())
+                              self.precision, self.late_precision, None if self.margin is None else self.margin.copy(),
+                              self.bound_batch, self.bound_at, tuple(self.pending), self.unfolded)
 
     def scalars(self) -> tuple:
-        return self.scale, self.rounding, self.bound_scale, self.precision, self.late_precision
+        return (self.scale, self.rounding, self.bound_scale, self.precision, self.late_precision, self.bound_batch,
+                self.bound_at, tuple(int(x) for x in self.pending), self.unfolded)
 
     def identical(self, other: "CertifiedState") -> bool:
         """True when ``other`` is this state bit for bit: limbs, bounds, scalars, and the margins where both
@@ -105,7 +120,7 @@ class CertifiedState:
 
     def error_bound(self) -> tuple[float, float]:
         """``(G, largest)``: see `error_bound`."""
-        return error_bound(self.bounds, self.rounding, self.bound_scale)
+        return error_bound(self.bounds, self.rounding, self.bound_scale, self.unfolded)
 
     def check(self, shape: tuple[int, int, int], lines: int) -> None:
         """A `FieldError` on ``certified`` unless this state fits ``shape = (n_balls, dim, m)`` and
@@ -128,7 +143,8 @@ class CertifiedState:
                                           f"got {self.bound_scale!r}")
         if not np.isfinite(scaled_up(bounds, int(self.scale) - int(self.bound_scale))).all():
             raise FieldError("certified", "bounds must be finite in units of 2^-scale")
-        problem = precisions_problem(self.precision, self.late_precision, limbs.shape[3])
+        problem = precisions_problem(self.precision, self.late_precision, limbs.shape[3]) or \
+            bound_rule_problem(self.bound_batch, self.bound_at, self.pending, self.unfolded)
         if problem:
             raise FieldError("certified", problem)
         problem = "" if self.margin is None else margin_problem(self.margin)
@@ -150,6 +166,26 @@ def margin_problem(margin) -> str:
         return f"margin: the largest closing speed set aside must be a number below inf (-inf: none), got {largest}"
     if not (math.isfinite(zeros) and zeros >= 0 and zeros == math.floor(zeros)):
         return f"margin: the picks set aside at closing speed 0 must be a whole number >= 0, got {zeros}"
+    return ""
+
+
+def bound_rule_problem(bound_batch, bound_at, pending, unfolded) -> str:
+    """What is wrong with a `CertifiedState`'s bound rule ('' if nothing): ``bound_batch`` 0 or a power of two,
+    ``bound_at`` a whole number >= -1, ``pending`` two whole numbers in [0, 2^63), ``unfolded`` a finite float >= 0
+    (0 only when nothing is pending); under the rule in step order (``bound_batch`` 0) nothing pending."""
+    def whole(x):
+        return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+    if not (whole(bound_batch) and bound_batch >= 0 and bound_batch & (bound_batch - 1) == 0):
+        return f"bound_batch must be 0 or a power of two, got {bound_batch!r}"
+    if not (whole(bound_at) and bound_at >= -1):
+        return f"bound_at must be a whole number >= -1, got {bound_at!r}"
+    if not (len(pending) == 2 and all(whole(x) and 0 <= x < 1 << 63 for x in pending)):
+        return f"pending must be two whole numbers in [0, 2^63), got {pending!r}"
+    if not (isinstance(unfolded, float) and math.isfinite(unfolded) and unfolded >= 0 and (unfolded > 0) == any(pending)):
+        return f"unfolded must be a finite float >= 0, above 0 exactly when a sum is pending, got {unfolded!r}"
+    if bound_batch == 0 and (any(pending) or bound_at != -1):
+        return "a state under the bound rule in step order (bound_batch 0) has no pending sums or bound_at"
     return ""
 
 

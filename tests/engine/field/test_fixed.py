@@ -5,6 +5,7 @@ or saying in one line that it cannot."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -489,20 +490,27 @@ def test_an_exact_zero_hidden_by_rounding_past_960_bits_stops_the_run_in_one_lin
     assert f"its closing speed 0 is within the error bound 1 * 2^-{chain.S - 1}" in message  # 2 (1 + 2^-50) last places
 
 
+def in_step_order(sim: pb.Simulation) -> pb.Simulation:
+    """``sim`` (certified, not yet run) under the bound rule in step order of files written before the batched one."""
+    state = sim.get_state()
+    sim.set_state(state.replace(certified=dataclasses.replace(state.certified, bound_batch=0)))
+    return sim
+
+
 def test_a_certified_state_with_absolute_bounds_resumes_as_the_run_that_wrote_it():
-    """Files written before bounds were kept in last places hold them absolute (``bound_scale`` 0):
-    taken from such a state, a certified run ends on the state, bounds included, of the run never
-    stopped."""
+    """Files written before bounds were kept in last places hold them absolute (``bound_scale`` 0), and
+    were written under the bound rule in step order: taken from such a state, a certified run ends on
+    the state, bounds included, of the run never stopped."""
     g = pb.HalfPlane.from_size(40, 20)  # rounds at 128 bits
-    whole = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128)
+    whole = in_step_order(pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128))
     whole.run_until_frozen(max_steps=10**6)
-    half = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128)
+    half = in_step_order(pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128))
     while not half.get_state().certified.bounds.any():  # to the first rounding, and a little further
         half.run(steps=500)
     half.run(steps=500)
     state = half.get_state()
     c = state.certified
-    assert half.steps < whole.steps
+    assert half.steps < whole.steps and c.bound_batch == 0
     old = CertifiedState(c.limbs, c.scale, np.ldexp(c.bounds, -c.scale), math.ldexp(c.rounding, -c.scale), 0)
     resumed = pb.Simulation(g, inward(g), seed=1, arithmetic="certified", precision=128)
     resumed.set_state(state.replace(certified=old))

@@ -5,6 +5,7 @@ nearest floats."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gmpy2
@@ -122,6 +123,16 @@ def test_a_certified_state_is_checked_before_it_is_taken():
          "certified: a state of 768 bits cannot be of a chain at precision 1024 and late_precision 0 (0: none)"),
         (state.replace(certified=CertifiedState(c.limbs, c.scale, c.bounds, c.rounding, c.bound_scale, 0, 256)),
          "certified: late_precision must be 0 where precision is (not kept), got 256"),
+        (state.replace(certified=dataclasses.replace(c, bound_batch=1000)),
+         "certified: bound_batch must be 0 or a power of two, got 1000"),
+        (state.replace(certified=dataclasses.replace(c, bound_at=-2)),
+         "certified: bound_at must be a whole number >= -1, got -2"),
+        (state.replace(certified=dataclasses.replace(c, pending=(1 << 63, 0), unfolded=1.0)),
+         "certified: pending must be two whole numbers in [0, 2^63), got (9223372036854775808, 0)"),
+        (state.replace(certified=dataclasses.replace(c, pending=(3, 0), unfolded=0.0)),
+         "certified: unfolded must be a finite float >= 0, above 0 exactly when a sum is pending, got 0.0"),
+        (state.replace(certified=dataclasses.replace(c, bound_batch=0, bound_at=2)),
+         "certified: a state under the bound rule in step order (bound_batch 0) has no pending sums or bound_at"),
     ]
     for bad, words in cases:
         with pytest.raises(ValueError) as info:
