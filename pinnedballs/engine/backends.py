@@ -325,17 +325,23 @@ class DeviceBackend(Backend):
         return self.approaching() == 0
 
 
-def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool = True) -> None:
-    """A `FieldError` unless a chain can run on a GPU: float arithmetic and the counter stream (other schedulers
-    and arithmetics run on the CPU), numba-cuda installed, the rule's functions compiled for the GPU with the
+def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool = True, replicas: bool = False) -> None:
+    """A `FieldError` unless a chain can run on a GPU: float or certified arithmetic (``replicas``, an ensemble's
+    replicas together: float) and the counter stream (other schedulers and arithmetics run on the CPU), numba-cuda installed, the rule's functions compiled for the GPU with the
     CPU's rounding (`gpu.compile.check_rule`: any rule, a user's too), and a GPU. ``rule`` and ``scheduler``
     name them in the message. ``here=False``: the chain runs elsewhere (a cluster's GPUs), so this process
     needs neither a GPU nor numba-cuda (without it the rule is compiled where it runs)."""
     from .gpu import GPUUnavailable, importable, load
     from .gpu.compile import check_rule
 
-    if arithmetic != "float":
-        raise FieldError("device", f"'cuda' runs float arithmetic; {arithmetic} arithmetic runs on the CPU")
+    if replicas and arithmetic != "float":
+        raise FieldError("device", f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic "
+                                   "runs on the CPU, or one replica a call (pinnedballs run SPEC --device cuda)"
+                         if arithmetic == "certified" else
+                         f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic runs on the CPU")
+    if arithmetic not in ("float", "certified"):
+        raise FieldError("device", f"'cuda' runs float and certified arithmetic; {arithmetic} arithmetic runs on the "
+                                   "CPU (certified arithmetic proves its decisions: arithmetic='certified')")
     if not model.selector.counter:
         raise FieldError("device", "'cuda' runs UniformRandomPair(stream='counter') (in a spec {\"kind\": "
                                    "\"uniform_random_pair\", \"stream\": \"counter\"}: the pick of step s a function of "
@@ -347,7 +353,8 @@ def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool =
             raise
         return
     g = model.geometry
-    check_rule(rule, model.collide, g.dim, bool(g.contacts.flat))
+    if arithmetic == "float":  # certified arithmetic runs its own kernels (`gpu.certified`), for elastic rules alone
+        check_rule(rule, model.collide, g.dim, bool(g.contacts.flat))
     if here:
         load()  # a GPU, or one line saying there is none
 
@@ -357,6 +364,11 @@ def backend_for(model: Model, state: ChainState, arithmetic: str, device: str, l
     """The backend running a chain in ``arithmetic`` on ``device`` (checked first: `check_device`)."""
     if device == "cuda":
         check_device(model, arithmetic, rule, scheduler)
+        if state.field_chain is not None:  # certified: the CPU's chain, its picks tried on the GPU
+            from .gpu.certified import DevicePicks
+
+            state.field_chain.picks = DevicePicks()
+            return FieldBackend(model, state, listeners)
         return DeviceBackend(model, state, listeners)
     if state.field_chain is not None:
         return FieldBackend(model, state, listeners)

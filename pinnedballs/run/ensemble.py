@@ -370,7 +370,7 @@ def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address,
     from .ensemble_gpu import gpu_workers, groups, on_worker_gpu
 
     proto = spec.build(seed=seeds[0])
-    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler, here=False)
+    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler, here=False, replicas=True)
     client, own = executors.dask_client(dask_address, cluster)
     try:
         parts = groups(len(seeds), gpu_workers(client))

@@ -196,6 +196,14 @@ def _coefficients(field: Field, lines: list, dim: int) -> np.ndarray:
     return out
 
 
+class CPUPicks:
+    """Where `FixedChain` tries its picks: the CPU's kernels (`fixed_kernels.run_picks`, `count_live`); a GPU's
+    stand in for them with the same arguments (`pinnedballs.engine.gpu.certified.DevicePicks`)."""
+
+    run_picks = staticmethod(run_picks)
+    count_live = staticmethod(count_live)
+
+
 class FixedChain(FieldChain):
     """The velocities of ``geometry``'s balls in fixed point, and their collisions (module docstring).
 
@@ -261,6 +269,7 @@ class FixedChain(FieldChain):
         self.inside = 0
         chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * geometry.n_contacts)
         self.chunk, self.block = chunk, 4 * chunk
+        self.picks = CPUPicks()  #: where the picks are tried (a GPU's `DevicePicks`)
         self._scratch()
 
     def _scratch(self) -> None:
@@ -332,7 +341,7 @@ class FixedChain(FieldChain):
 
     def count_live(self) -> int:
         """Decide every contact; keep and return the number of live ones."""
-        live = count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
+        live = self.picks.count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
         if live < 0:
             raise self._uncertified(None, self._after)
         self.live = live
@@ -355,7 +364,7 @@ class FixedChain(FieldChain):
         t, left = 0, min(collisions_left, len(picks) + 1)  # int64 in the kernel
         while True:
             every = self.every if self.late_P is not None and self.P > self.late_P else 0
-            status, t = run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left, until_frozen,
+            status, t = self.picks.run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left, until_frozen,
                                   self.chunk, at, prog, self.scratch, self.info, self.margin, at_last, first_step,
                                   every)
             if status == WIDEN:
@@ -370,7 +379,7 @@ class FixedChain(FieldChain):
         self.inside += int(prog[6])
         self._after = first_step + t - 1
         if status == DONE and until_frozen and self.live < 0:  # stopped by collisions_left: is it frozen?
-            self.live = count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
+            self.live = self.picks.count_live(self.tables, self._state(), self.S, self.certify, self.scratch, self.info)
             status = UNCOUNTED if self.live < 0 else status
         if status == UNCERTIFIED:
             self.failure = self._uncertified(first_step + t, None)
@@ -497,6 +506,9 @@ class FixedChain(FieldChain):
         """Take a `CertifiedState` of this geometry (checked by the caller); its bounds rescaled to units
         of ``2^-S`` (rounded up), its margin as it is (one that kept none leaves the margin unknown,
         `margin_kept`)."""
+        if state.bound_batch == 0 and not isinstance(self.picks, CPUPicks):
+            raise FieldError("certified", "a certified state written under the bound rule in step order (files before "
+                                          "the batched rule) resumes on the CPU only: device='cpu'")
         self.X, self.S, self.P = state.limbs.copy(), int(state.scale), state.limbs.shape[-1]
         self.margin_kept = state.margin is not None
         self.margin = np.array([np.inf, -np.inf, 0.0]) if state.margin is None else \

@@ -35,6 +35,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from ..closing import choose, choose_python, impulse_of, trial_form
+from ..field import limbs
 from ..jit.cache import code_names
 from ...util.errors import FieldError, described
 
@@ -81,8 +82,10 @@ def contraction_off():
 
 # ---------------------------------------------------------------- the simulator's twins
 
-#: jitted callables that are no Python functions (numba intrinsics), and what their twins call instead
-_INTRINSICS = {choose: choose_python}
+#: jitted callables that are no Python functions (numba intrinsics, and functions built on them), and what their
+#: twins call instead
+_INTRINSICS = {choose: choose_python, limbs._mac_intrinsic: limbs._mac_python,
+               limbs._mac_top_intrinsic: limbs._mac_top_python, limbs._next_limb_jit: limbs._next_limb_python}
 
 
 def device_function(f: Callable) -> Callable:
@@ -104,8 +107,10 @@ def python_twin(f: Callable) -> Callable:
 
 
 def _twin(f, memo: dict):
+    if _hashable(f) and f in _INTRINSICS:
+        return _INTRINSICS[f]
     if not isinstance(f, Dispatcher):
-        return _INTRINSICS.get(f, f) if _hashable(f) else f
+        return f
     if id(f) in memo:
         return memo[id(f)]
     py = f.py_func

@@ -1,0 +1,108 @@
+"""Certified arithmetic on a GPU (`engine.gpu.certified`), under numba-cuda's simulator: the CPU's certified run
+bit for bit (steps, collisions, the fixed-point state, its bounds and margin), exact arithmetic's counts, the same
+one-line failure at the same step, and one clear line where a GPU run cannot go."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
+                                         "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
+
+import pinnedballs as pb
+from pinnedballs.engine.field.fixed import UncertifiedDecision
+from pinnedballs.engine.gpu.certified import DevicePicks
+from pinnedballs.util.errors import FieldError
+
+COUNTER = pb.UniformRandomPair(stream="counter", threads=1)
+
+
+def grid_velocities(g, seed: int) -> np.ndarray:
+    """Gaussian velocities on a grid of ``2^-45``: 64 bits hold them, and collisions soon round."""
+    rng = np.random.default_rng(seed)
+    return np.round(rng.normal(size=(g.n_balls, 2)) * 2**45) / 2**45
+
+
+def single(g) -> np.ndarray:
+    v = np.zeros((g.n_balls, 2))
+    v[g.boundary_center()] = [0.0, np.sqrt(200.0)]
+    return v
+
+
+def both(g, v, run, **kwargs) -> list:
+    """``run(sim)`` for a certified simulation on the CPU and on the GPU."""
+    out = []
+    for device in ("cpu", "cuda"):
+        sim = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="certified", device=device, **kwargs)
+        run(sim)
+        out.append(sim)
+    return out
+
+
+def pieces(sim) -> None:
+    sim.run(steps=150)
+    sim.run(collisions=sim.collisions + 40)
+    assert sim.run_until_frozen(max_steps=10**5)
+
+
+def test_certified_on_a_gpu_is_the_cpus_run_bit_for_bit_and_exact_arithmetics_count():
+    """Split into a run of steps, a collision target and a run to frozen: the GPU's state is the CPU's, bounds,
+    rounding, the batched rule's pending sums and margin included, though it made the collisions in rounds; the
+    count is exact arithmetic's."""
+    g = pb.HalfPlane(8, 8)
+    v = grid_velocities(g, 3)
+    cpu, gpu = both(g, v, pieces, seed=4, precision=64)
+    c = gpu.get_state().certified
+    assert gpu.get_state().identical(cpu.get_state()) and c.identical(cpu.get_state().certified)
+    assert c.rounding > 0 and any(c.pending) and c.bounds.any() and c.bound_batch > 0  # it rounded
+    stats = gpu.engine.state.field_chain.picks.stats
+    assert stats["rounds"] > 10 * stats["segments"] and stats["again"] >= 1  # in rounds; the target made again
+    exact = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="exact", seed=4)
+    exact.run_until_frozen(max_steps=10**5)
+    assert (gpu.steps, gpu.collisions) == (exact.steps, exact.collisions) == (1781, 323)
+    assert gpu.closing_margin().smallest_collision == cpu.closing_margin().smallest_collision
+
+
+def test_a_pick_it_cannot_decide_stops_both_devices_at_the_same_step_with_the_same_line():
+    g = pb.HalfPlane.from_size(16, 8)
+    failures = []
+
+    def run(sim):
+        with pytest.raises(UncertifiedDecision) as info:
+            sim.run_until_frozen(max_steps=10**5)
+        failures.append(str(info.value))
+
+    cpu, gpu = both(g, single(g), run, seed=1, precision=64)
+    assert failures[0] == failures[1] and "\n" not in failures[0]
+    assert "cannot decide contact 80 (balls 28, 37) at step 330: its closing speed" in failures[0]
+    assert gpu.steps == cpu.steps == 329 and gpu.get_state().identical(cpu.get_state())
+
+
+def test_a_narrowed_run_and_a_run_to_frozen_from_one_ball():
+    """``late_precision``: the checks for narrowing cut the GPU's segments where the CPU checks; a single moving
+    ball's run to frozen at the default bits."""
+    g = pb.HalfPlane(5, 5)
+    cpu, gpu = both(g, grid_velocities(g, 0), lambda s: s.run_until_frozen(max_steps=10**5), seed=0, precision=128,
+                    late_precision=64)
+    assert gpu.get_state().identical(cpu.get_state()) and gpu.engine.state.field_chain.narrowed == 896
+    g = pb.HalfPlane.from_size(16, 8)
+    cpu, gpu = both(g, single(g), lambda s: s.run_until_frozen(max_steps=10**5), seed=0)
+    assert gpu.get_state().identical(cpu.get_state()) and gpu.steps == 1184 and gpu.is_frozen()
+
+
+def test_what_a_gpu_cannot_run_in_certified_arithmetic_is_refused_in_one_line():
+    g = pb.HalfPlane(4, 4)
+    v = single(g)
+    with pytest.raises(FieldError, match="^device: 'cuda' runs float and certified arithmetic; exact arithmetic runs "
+                                         "on the CPU"):
+        pb.Simulation(g, v, scheduler=COUNTER, arithmetic="exact", device="cuda")
+    cpu = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="certified", seed=1)
+    state = cpu.get_state()
+    old = state.replace(certified=dataclasses.replace(state.certified, bound_batch=0))
+    gpu = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="certified", seed=1, device="cuda")
+    with pytest.raises(FieldError, match=r"^certified: a certified state written under the bound rule in step order "
+                                         r"\(files before the batched rule\) resumes on the CPU only: device='cpu'$"):
+        gpu.set_state(old)
+    assert gpu.get_state().identical(state)
+    assert isinstance(gpu.engine.state.field_chain.picks, DevicePicks)
