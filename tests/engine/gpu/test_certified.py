@@ -91,6 +91,15 @@ def test_a_narrowed_run_and_a_run_to_frozen_from_one_ball():
     assert gpu.get_state().identical(cpu.get_state()) and gpu.steps == 1184 and gpu.is_frozen()
 
 
+def test_fcc_in_q_sqrt_2_on_a_gpu_is_the_cpus():
+    g = pb.FCC(2, 2, 2)
+    rng = np.random.default_rng(1)
+    v = np.round(rng.normal(size=(g.n_balls, 3)) * 2**45) / 2**45
+    cpu, gpu = both(g, v, lambda s: s.run(steps=400), seed=2, precision=64)
+    assert gpu.get_state().identical(cpu.get_state()) and gpu.collisions > 100
+    assert any(gpu.get_state().certified.pending) and gpu.get_state().certified.bounds.any()  # it rounded
+
+
 def test_what_a_gpu_cannot_run_in_certified_arithmetic_is_refused_in_one_line():
     g = pb.HalfPlane(4, 4)
     v = single(g)
@@ -106,3 +115,50 @@ def test_what_a_gpu_cannot_run_in_certified_arithmetic_is_refused_in_one_line():
         gpu.set_state(old)
     assert gpu.get_state().identical(state)
     assert isinstance(gpu.engine.state.field_chain.picks, DevicePicks)
+
+
+_PTX = r"""
+import re
+import numpy as np
+from numba import typeof
+from numba.cuda import types as T
+import pinnedballs as pb
+from pinnedballs.engine.gpu import certified
+from pinnedballs.engine.gpu.compile import ptx
+_, attempt, live = certified._kernels()
+for g in (pb.HalfPlane(3, 3), pb.FCC(2, 2, 2)):  # Q(sqrt 3) and Q(sqrt 2)
+    f = pb.Simulation(g, np.ones((g.n_balls, g.dim)), arithmetic="certified").engine.state.field_chain
+    A = lambda a, more=0: T.Array(typeof(a).dtype, a.ndim + more, "C")
+    tables = [A(a) if isinstance(a, np.ndarray) else typeof(a) for a in f.tables]
+    state = [A(a) for a in f._state()]
+    scratch = [A(a, 1) for a in f.scratch]
+    a1 = lambda t: T.Array(t, 1, "C")
+    shared = (*tables, *state[:7], T.Array(T.uint64, 2, "C"), state[8], *scratch, T.Array(T.float64, 2, "C"))
+    for name, kernel, sig in (
+            ("attempt", attempt, (a1(T.int64), a1(T.int32), T.int64, a1(T.uint32), a1(T.uint32), T.uint32, T.uint32,
+                                  a1(T.int32), a1(T.int32), T.int64, T.int64, T.boolean, *shared, a1(T.int8),
+                                  a1(T.float64), a1(T.uint8))),
+            ("live", live, (T.int64, T.int64, T.boolean, *tables, *state, *scratch, T.Array(T.float64, 2, "C"),
+                            a1(T.int64)))):
+        code = ptx(kernel.py_func, sig)
+        print(name, len(re.findall(r"\bfma\.[a-z.]*f64", code)), len(re.findall(r"\bmul\.rn\.f64", code)),
+              len(re.findall(r"^\s*(?:mul|add|sub)\.f64", code, re.M)))
+"""
+
+
+@pytest.mark.slow
+def test_the_certified_kernels_round_every_operation_as_the_cpu_does():
+    """Compiled for sm_90 (no GPU needed), the certified kernels' PTX, in Q(sqrt 3) and Q(sqrt 2): no fused
+    multiply-add on doubles (the bounds and the float filter round as the CPU's) and only round-to-nearest
+    products and sums."""
+    import subprocess
+    import sys
+
+    from helpers import ROOT
+
+    out = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, cwd=ROOT, timeout=900,
+                         env={"NUMBA_ENABLE_CUDASIM": "0", "PATH": "/usr/bin:/bin", "HOME": str(ROOT)})
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = [line.split() for line in out.stdout.splitlines()]
+    assert len(lines) == 4, out.stdout
+    assert all(fma == "0" and int(mul) > 0 and loose == "0" for _, fma, mul, loose in lines), out.stdout
