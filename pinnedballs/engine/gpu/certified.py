@@ -251,7 +251,11 @@ class DevicePicks:
         """Picks ``t`` to ``end`` (one batch of the bound rule), stopping after the ``left``-th collision or before a
         pick that cannot be decided: ``(outcome, closing speeds, inside)`` of the picks used (the last one
         undecided, its outcome negative, when that is why it stopped)."""
-        saved = [a.copy_to_host() for a in d["state"][:5]]
+        saved = d.get("saved")  # a copy of the segment's start, on the GPU
+        if saved is None or any(a.shape != b.shape for a, b in zip(saved, d["state"][:5])):
+            saved = d["saved"] = [self.cuda.device_array_like(a) for a in d["state"][:5]]
+        for copy, there in zip(saved, d["state"][:5]):
+            copy.copy_to_device(there)
         acc, rho, bound = state.acc.copy(), state.rho.copy(), state.bound.copy()
         batch = (first + t) // K
         if batch != bound[1]:  # the batch's first collision folds the batches before (taken back if none)
@@ -266,8 +270,8 @@ class DevicePicks:
             stop = int(hits[left - 1]) + 1
         if stop < len(outcome) or len(undecided):  # again, to the pick it stops at
             self.stats["again"] += 1
-            for there, host in zip(d["state"][:5], saved):
-                there.copy_to_device(host)
+            for there, copy in zip(d["state"][:5], saved):
+                there.copy_to_device(copy)
             outcome, xs, inside, sums = self._rounds(d, state, scale, certify, t, t + stop, first)
             if len(undecided) and stop == int(undecided[0]):  # the pick itself, for run_picks to hand on
                 outcome = np.append(outcome, np.int8(_UNDECIDED))
@@ -300,7 +304,7 @@ class DevicePicks:
         while n > 0:
             if g < 1:  # (at the start, and when the generations run out) every owner word free, then reserve
                 g = TOP
-                owners = d["own"] = [cuda.to_device(np.full(len(state.rows), EMPTY, dtype=np.uint32)) for _ in (0, 1)]
+                owners = [cuda.to_device(np.full(len(state.rows), EMPTY, dtype=np.uint32)) for _ in (0, 1)]
                 self._launch(reserve, picks, order, n, pairs, owners[g & 1], np.uint32(g << KEY_BITS))
             self.stats["rounds"] += 1
             count.copy_to_device(np.zeros(1, dtype=np.int32))
