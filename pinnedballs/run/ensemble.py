@@ -44,7 +44,7 @@ from ..rules import DEFAULT_RESOLUTION
 from ..util.progress import Progress
 from ..geometry.base import Geometry
 from ..util.atomic import write_text_atomic
-from ..specs.run import RunSpec
+from ..specs.run import BUILD_DEVICE, RunSpec
 from . import executors
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row", "margin_columns",
@@ -299,6 +299,8 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     or ``cluster``, on the GPUs of a Dask cluster whose workers each own one (dask-cuda's
     ``LocalCUDACluster`` on one machine, or a cluster's GPU nodes: docs/gpu.md), the replicas in groups of at
     most `ensemble_gpu.WORKER_GROUP`, a group a job; a group whose worker is lost runs again elsewhere.
+    A certified spec on ``"cuda"`` runs its replicas one at a time on this process's GPU, with any task (every
+    simulation it builds from a spec is built there: `specs.run.BUILD_DEVICE`), the CPU's rows; not on a cluster.
 
     Ctrl-C stops it within a second or so and raises KeyboardInterrupt; the replicas done so far
     are discarded (each can be run again alone, `run_replica`, to the same rows). Local processes are
@@ -313,8 +315,12 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
         raise InputError("workers, dask_address, cluster: give at most one")
     device = checks.choice("device", device, DEVICES)
-    observe = _gpu_observe(task) if device == "cuda" else None
-    if device == "cuda" and observe is None:
+    one_by_one = device == "cuda" and spec.arithmetic == "certified"  # any task, one replica at a time on the GPU
+    if one_by_one and (dask_address is not None or cluster is not None):
+        raise InputError("device: 'cuda' runs a certified ensemble's replicas one at a time on this process's GPU; "
+                         "on a Dask cluster, certified replicas run on its CPUs (device='cpu')")
+    observe = _gpu_observe(task) if device == "cuda" and not one_by_one else None
+    if device == "cuda" and not one_by_one and observe is None:
         raise InputError("device: 'cuda' runs the built-in replica task (run_replica, or a functools.partial of it "
                          "giving observe=)")
     task = run_replica if task is None else task
@@ -332,7 +338,10 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
             done.append(1)
             bar.update(len(done))
 
-        if device == "cuda" and (dask_address is not None or cluster is not None):
+        if one_by_one:
+            where = "GPU, one replica at a time"
+            results = _on_this_gpu(spec, jobs, tick)
+        elif device == "cuda" and (dask_address is not None or cluster is not None):
             where, results = _on_cluster_gpus(spec, seeds, observe, dask_address, cluster, bar)
         elif device == "cuda":
             from .ensemble_gpu import run_on_gpu
@@ -391,6 +400,21 @@ def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address,
         if own:
             client.close()
     return where, {k: rows for part in out.values() for k, rows in part.items()}
+
+
+def _on_this_gpu(spec: RunSpec, jobs: dict, tick: Callable[[], None]) -> dict:
+    """The results of ``jobs`` run in this process, one after another, every simulation a task builds from a spec
+    built on the GPU (`specs.run.BUILD_DEVICE`): a certified ensemble on ``device="cuda"``, whose spec is checked
+    first (`engine.backends.check_device`)."""
+    from ..engine.backends import check_device
+
+    proto = spec.build(seed=0)
+    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler)
+    token = BUILD_DEVICE.set("cuda")
+    try:
+        return executors.in_process(jobs, tick)
+    finally:
+        BUILD_DEVICE.reset(token)
 
 
 def _gpu_observe(task: Task | None) -> Observe | None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextvars
 import json
 import os
 from pathlib import Path
@@ -28,7 +29,12 @@ from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
 
-__all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe"]
+__all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe", "BUILD_DEVICE"]
+
+#: the device `RunSpec.build` builds on when none is named: ``"cpu"``; an ensemble whose replicas run on a GPU one
+#: at a time in this process (certified arithmetic, `pinnedballs.run.ensemble.run_ensemble`) sets ``"cuda"``
+#: around them, so that any replica task builds its simulation there
+BUILD_DEVICE: contextvars.ContextVar[str] = contextvars.ContextVar("BUILD_DEVICE", default="cpu")
 
 
 MassesField = Union[Positive, FilePath]
@@ -178,10 +184,12 @@ class RunSpec(_Spec):
             raise SpecError("masses", f"{self.masses}: must all be finite and > 0")
         return m
 
-    def build(self, seed: int | np.random.SeedSequence | None = None, device: str = "cpu") -> Simulation:
+    def build(self, seed: int | np.random.SeedSequence | None = None, device: str | None = None) -> Simulation:
         """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``
         (with neither, fresh entropy: see `Simulation`). ``device``: where it runs (``"cpu"``, ``"cuda"``),
-        not part of the spec: the same spec gives the same bits on either."""
+        not part of the spec: the same spec gives the same bits on either (None: `BUILD_DEVICE`'s, ``"cpu"``
+        unless an ensemble's replicas run on a GPU one at a time)."""
+        device = BUILD_DEVICE.get() if device is None else device
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
             raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "

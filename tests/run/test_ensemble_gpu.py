@@ -78,3 +78,22 @@ def test_what_a_gpu_ensemble_refuses():
     xoshiro = spec({"steps": 100}, scheduler={"kind": "uniform_random_pair"})
     with pytest.raises(ValueError, match="runs UniformRandomPair\\(stream='counter'\\)"):
         pb.run_ensemble(xoshiro, 2, device="cuda")
+
+
+def test_a_certified_ensemble_runs_one_replica_at_a_time_on_the_gpu_with_the_cpus_rows():
+    """Certified arithmetic: each replica a certified chain on the GPU (`engine.gpu.certified`), any task (here
+    the scaling study's, which runs a replica again without narrowing when it fails narrowed); the CPU's rows.
+    On a Dask cluster it is refused in one line."""
+    from pinnedballs.run.reproduction.extended.scaling_study import certified_replica
+
+    s = parse_spec({"geometry": {"kind": "half_plane", "length": 10, "depth": 5},
+                    "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 100},
+                    "scheduler": {"kind": "uniform_random_pair", "stream": "counter"}, "arithmetic": "certified",
+                    "precision": 128, "stop": {"steps": 120}, "seed": 7})
+    cpu = pb.run_ensemble(s, 2, workers=1, progress=False, task=certified_replica)
+    gpu = pb.run_ensemble(s, 2, device="cuda", progress=False, task=certified_replica)
+    assert gpu.where == "GPU, one replica at a time" and not gpu.failures and same_rows(cpu, gpu)
+    assert all(row["collisions"] > 10 for row in gpu.rows if row["at"] == "final")
+    with pytest.raises(InputError, match="^device: 'cuda' runs a certified ensemble's replicas one at a time on this "
+                                         "process's GPU; on a Dask cluster, certified replicas run on its CPUs"):
+        pb.run_ensemble(s, 2, device="cuda", dask_address="tcp://127.0.0.1:1")

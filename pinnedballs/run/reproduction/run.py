@@ -102,7 +102,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         failures: list[dict] = []
 
         def ensemble(name: str, spec: RunSpec, replicas: int, **kwargs) -> ens.EnsembleResult:
-            on_gpu = device == "cuda" and _runs_on_gpu(spec)
+            on_gpu = device == "cuda" and _runs_on_gpu(spec, xplan)
             say_t(f"ensemble {name}: {replicas} replicas{' on the GPU' if on_gpu else ''}")
             where = {"device": "cuda"} if on_gpu else {"workers": workers}
             result = ens.run_ensemble(spec, replicas, progress=progress, **where, **kwargs)
@@ -189,10 +189,15 @@ def _extended_plan(extended: bool | ExtendedPlan, quick: bool, device: str) -> E
     return dataclasses.replace(extended, stream="counter") if device == "cuda" else extended
 
 
-def _runs_on_gpu(spec: RunSpec) -> bool:
-    """Whether ``device="cuda"`` runs ``spec``'s ensemble on the GPU: float arithmetic on the counter stream
+def _runs_on_gpu(spec: RunSpec, xplan: ExtendedPlan | None) -> bool:
+    """Whether ``device="cuda"`` runs ``spec``'s ensemble on the GPU: float arithmetic (its replicas together) or
+    certified (one at a time, sizes of at least ``xplan.exact_gpu_min_balls``) on the counter stream
     (`engine.backends.check_device`; anything else it asks of a spec, it refuses in `run_ensemble` itself)."""
-    return spec.arithmetic == "float" and getattr(spec.scheduler, "stream", None) == "counter"
+    if getattr(spec.scheduler, "stream", None) != "counter":
+        return False
+    if spec.arithmetic == "certified":
+        return xplan is not None and spec.geometry.build().n_balls >= xplan.exact_gpu_min_balls
+    return spec.arithmetic == "float"
 
 
 def _check_gpu(xplan: ExtendedPlan | None) -> None:
@@ -208,8 +213,9 @@ def _device_note(xplan: ExtendedPlan | None) -> str:
     paper = "device cuda: the paper's figures keep their published seeds on the xoshiro stream and run on the CPU"
     if xplan is None:
         return paper + "; nothing else runs here (the GPU runs the extended scaling study: extended=True, --extended)"
-    return (paper + "; the scaling study runs on the GPU on the counter stream (its exact counts, certified "
-            "arithmetic, on the CPU on the same picks), the other extended studies on the CPU")
+    return (paper + "; the scaling study runs on the GPU on the counter stream (its exact counts too, certified "
+            f"arithmetic, one replica at a time, from {xplan.exact_gpu_min_balls:,} balls), the other extended "
+            "studies on the CPU")
 
 
 def _plain(value):

@@ -22,11 +22,12 @@ from pinnedballs.run import ensemble as ens
 
 TINY = dict(sizes=((10, 5), (20, 10)), detail=(20, 10), torus=(8, 8), steps=(3_000, 6_000), long_steps=20_000,
             collisions=30, replicas=4, size_replicas=2)
-#: 10x5 (15 balls) counted exactly, N_e beyond it at 20x10 (60 balls): the exact count on the CPU, the rest on the GPU
+#: 10x5 (15 balls) counted exactly, N_e beyond it at 20x10 (60 balls): every count on the GPU (the exact one, certified
+#: arithmetic, one replica at a time)
 TINY_X = rp.ExtendedPlan(scaling=((10, 5, 2), (20, 10, 2)), exact_max_balls=15, resolution_max_balls=60,
                          resolutions=(1e-6,), torus_sides=(6,), torus_times=(50,), torus_replicas=2, sphere_frequency=2,
                          hyperbolic_layers=(1,), hyperbolic_replicas=2, fcc=((2, 2, 2),), fcc_replicas=2,
-                         orders_replicas=4, orders_max_states=200)
+                         orders_replicas=4, orders_max_states=200, exact_gpu_min_balls=0)
 PAPER_ENSEMBLES = ("half_plane_10x5", "half_plane_20x10", "paper_lattice", "torus")
 
 
@@ -55,7 +56,7 @@ def test_the_gpu_gives_the_cpus_scaling_rows_on_the_counter_stream(on_cuda, tmp_
 
     cpu = ext.scaling(dataclasses.replace(TINY_X, stream="counter"), tmp_path, on_cpu)
     assert _without_seconds(x["scaling"]) == json.loads(json.dumps(_without_seconds(cpu["rows"])))
-    assert x["scaling_ran_on"] == {"float": ["GPU"], "exact": ["in-process"], "N_e": ["GPU"]}
+    assert x["scaling_ran_on"] == {"float": ["GPU"], "exact": ["GPU, one replica at a time"], "N_e": ["GPU"]}
     assert cpu["ran_on"] == {"float": ["in-process"], "exact": ["in-process"], "N_e": ["in-process"]}
     xoshiro = ext.scaling(TINY_X, tmp_path, on_cpu)["rows"]  # the default stream: the same seeds, other picks
     assert [r["steps_mean"] for r in xoshiro] != [r["steps_mean"] for r in x["scaling"]]
@@ -66,23 +67,25 @@ def test_the_gpu_gives_the_cpus_scaling_rows_on_the_counter_stream(on_cuda, tmp_
 
 
 @pytest.mark.slow
-def test_only_the_scaling_studys_float_ensembles_run_on_the_gpu_and_the_log_says_so_once(on_cuda):
+def test_only_the_scaling_studys_ensembles_run_on_the_gpu_and_the_log_says_so_once(on_cuda):
     out, log, results = on_cuda
     notes = [line for line in log if line.startswith("device cuda:")]
     assert len(notes) == 1 and log[0] == notes[0]  # once, before anything runs
     assert "paper's figures keep their published seeds on the xoshiro stream and run on the CPU" in notes[0]
     assert "scaling study runs on the GPU on the counter stream" in notes[0]
     on_gpu = sorted(line.split("ensemble ", 1)[1].split(":")[0] for line in log if line.endswith(" on the GPU"))
-    assert on_gpu == ["scaling_10x5", "scaling_10x5_N_1e-06", "scaling_20x10", "scaling_20x10_N_1e-06"]
+    assert on_gpu == ["scaling_10x5", "scaling_10x5_N_1e-06", "scaling_10x5_exact", "scaling_20x10",
+                      "scaling_20x10_N_1e-06"]
     assert results["device"] == "cuda"
     for name in on_gpu:  # every replica froze, on the counter stream
         spec = json.loads((out / "ensembles" / name / "spec.json").read_text())
-        assert spec["scheduler"]["stream"] == "counter" and spec["arithmetic"] == "float"
+        assert spec["scheduler"]["stream"] == "counter"
+        assert spec["arithmetic"] == ("certified" if name.endswith("exact") else "float")
         with open(out / "ensembles" / name / "replicas.csv") as f:
             assert [row["frozen"] for row in csv.DictReader(f) if row["at"] == "final"] == ["1", "1"]
     text = (out / "report.md").read_text()
     assert ("Picks from the **counter stream**" in text and "Ran: float counts on the GPU; exact counts (certified "
-            "arithmetic) on the CPU (in-process); N_e on the GPU." in text)
+            "arithmetic) on the GPU, one replica at a time; N_e on the GPU." in text)
 
 
 @pytest.mark.slow
@@ -136,6 +139,17 @@ def test_cuda_runs_the_gpu_plan_and_any_plan_on_the_counter_stream(chosen_plan):
     assert chosen_plan(extended=True, quick=True) == rp.EXTENDED_QUICK and rp.EXTENDED_QUICK.stream == "xoshiro"
 
 
+def test_a_gpu_counts_exactly_the_sizes_of_its_plan():
+    """With ``device="cuda"``, the scaling study's certified ensembles of at least ``exact_gpu_min_balls`` balls run
+    on the GPU, smaller ones on the CPU; float ones always on the GPU, the xoshiro stream never."""
+    plan = dataclasses.replace(TINY_X, stream="counter", exact_gpu_min_balls=60)
+    small, large = (ext.scaling_spec(*size, plan, arithmetic="certified") for size in ((10, 5), (20, 10)))
+    assert (small.build().geometry.n_balls, large.build().geometry.n_balls) == (15, 60)
+    assert [rp.run._runs_on_gpu(s, plan) for s in (small, large)] == [False, True]
+    assert rp.run._runs_on_gpu(ext.scaling_spec(10, 5, plan), plan)
+    assert not rp.run._runs_on_gpu(ext.scaling_spec(20, 10, TINY_X, arithmetic="certified"), TINY_X)  # xoshiro
+
+
 def test_the_gpu_plan_fits_the_issue():
     """EXTENDED_FULL's sizes up to 1000x500, then 2000x1000 (8 replicas) and 4000x2000 (4): float and N_e at every
     size, the exact count where the CPU plan has it."""
@@ -165,6 +179,8 @@ def test_scaling_specs_draw_from_the_plans_stream():
     ("stream", None, "stream: the scaling study's UniformRandomPair stream must be 'xoshiro' or 'counter', got None"),
     *(("resolution_max_balls", bad, "resolution_max_balls: must be a whole number of balls >= 0 or None (up to "
                                     f"exact_max_balls), got {bad!r}") for bad in (-1, 1.5, True, "60")),
+    *(("exact_gpu_min_balls", bad, f"exact_gpu_min_balls: must be a whole number of balls >= 0, got {bad!r}")
+      for bad in (-1, 2.5, None)),
 ])
 def test_bad_new_plan_fields_name_themselves(tmp_path, field, bad, message):
     plan = dataclasses.replace(TINY_X, **{field: bad})

@@ -36,6 +36,10 @@ class ExtendedPlan:
     #: the exact count's certified arithmetic narrows to this many bits once the first wave has passed
     #: (`Simulation`'s ``late_precision``; None: the default precision throughout)
     exact_late_precision: int | None = 256
+    #: with ``device="cuda"``, sizes of at least this many balls are counted exactly on the GPU, one replica at a
+    #: time (`engine.gpu.certified`); smaller ones on the CPU's workers, in parallel (a small system's picks leave
+    #: a GPU idle: its rounds hold few picks each)
+    exact_gpu_min_balls: int = 100_000
     resolutions: tuple[float, ...] = (1e-6, 1e-9, 1e-12)   #: criteria e of the N_e counts
     torus_sides: tuple[int, ...] = (16, 38, 76, 128)   #: square tori ``side x side``
     torus_times: tuple[int, ...] = (100, 300, 1000, 3000, 10000, 30000)   #: steps per ball
@@ -79,6 +83,8 @@ def check_extended_plan(plan: ExtendedPlan) -> None:
     """`InputError` naming the field of a plan that cannot run."""
     if not _whole(plan.exact_max_balls):
         raise InputError(f"exact_max_balls: must be a whole number of balls >= 0, got {plan.exact_max_balls!r}")
+    if not _whole(plan.exact_gpu_min_balls):
+        raise InputError(f"exact_gpu_min_balls: must be a whole number of balls >= 0, got {plan.exact_gpu_min_balls!r}")
     if plan.resolution_max_balls is not None and not _whole(plan.resolution_max_balls):
         raise InputError(f"resolution_max_balls: must be a whole number of balls >= 0 or None (up to exact_max_balls), "
                          f"got {plan.resolution_max_balls!r}")

@@ -60,7 +60,7 @@ def _stream(x: dict) -> list[str]:
     """Which stream the scaling study drew its picks from, and where each count ran."""
     stream = x.get("scaling_stream", "xoshiro")  # results written before the plan had a stream: xoshiro
     ran_on = x.get("scaling_ran_on", {})
-    on = lambda where: "the GPU" if where == "GPU" else f"the CPU ({where})"  # noqa: E731 (`EnsembleResult.where`)
+    on = lambda where: f"the {where}" if where.startswith("GPU") else f"the CPU ({where})"  # noqa: E731 (`EnsembleResult.where`)
     where = "; ".join(f"{label} on {', '.join(map(on, ran_on[key]))}" for key, label in (
         ("float", "float counts"), ("exact", "exact counts (certified arithmetic)"), ("N_e", "N_e")) if ran_on.get(key))
     if stream == "counter":
