@@ -18,6 +18,10 @@ order, each part skipped when the budget (``BENCH_BUDGET`` seconds, default 290)
   at its last collision);
 * ``replicas``: 16,384 replicas of 200x100 and 32,768 of 100x50 to frozen, one GPU thread each,
   two of them checked against the CPU;
+* ``certified``: certified arithmetic (384 then 256 bits) on a 500x250 half-plane from one moving ball to
+  frozen, on the GPU and on one CPU core: the same state bit for bit, and the seconds of each;
+* ``dask``: a GPU ensemble of 4,096 replicas of 200x100 through Dask (dask-cuda's ``LocalCUDACluster`` where
+  installed) against the same ensemble in this process: the same rows, and the seconds of each;
 * ``cpu``: the CPU beside it: ns a step of the sequential loop (counter and xoshiro streams), and the
   threaded chains (reservations on the counter stream, regions on xoshiro) on 1..all cores.
 
@@ -373,6 +377,55 @@ print(json.dumps(dict(size=f"{L}x{D}", stream=stream, threads=threads, ns_per_st
                 emit(part="cpu", **d, speedup=round(one[(length, stream)] / d["ns_per_step"], 2))
 
 
+def certified(length, depth, precision, late) -> None:
+    """Certified arithmetic from one moving ball to frozen on the GPU and on the CPU (one core): the same state,
+    bit for bit, and the seconds each took; the GPU's segments, rounds and segments run again."""
+    length, depth = (16, 8) if SMOKE else (length, depth)  # the simulator is slow
+    g = pb.HalfPlane.from_size(length, depth)
+    out, states = dict(part="certified", size=f"{length}x{depth}", balls=g.n_balls, bits=[precision, late]), {}
+    for device in ("cuda", "cpu"):
+        sim = pb.Simulation(g, single(g), scheduler=counter(), seed=1, arithmetic="certified", precision=precision,
+                            late_precision=late, device=device)
+        t = time.perf_counter()
+        sim.run_until_frozen(max_steps=10**11, progress=False)
+        seconds = time.perf_counter() - t
+        states[device] = sim.get_state()
+        out[device] = dict(seconds=round(seconds, 2), steps=sim.steps, collisions=sim.collisions,
+                           msteps_s=round(sim.steps / seconds / 1e6, 2))
+        if device == "cuda":
+            out["gpu_stats"] = dict(sim.engine.state.field_chain.picks.stats)
+    out["identical"] = states["cuda"].identical(states["cpu"])
+    emit(**out)
+
+
+def dask_gpus() -> None:
+    """A GPU ensemble through Dask (dask-cuda's `LocalCUDACluster` where installed, else one `LocalCluster` worker
+    seeing the GPU): its rows against the same ensemble in this process, and the seconds each took."""
+    from distributed import LocalCluster
+
+    from pinnedballs.specs.run import parse_spec
+
+    spec = parse_spec({"geometry": {"kind": "half_plane", "length": 20 if SMOKE else 200, "depth": 10 if SMOKE else 100},
+                       "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1],
+                                   "energy": 100},
+                       "scheduler": {"kind": "uniform_random_pair", "stream": "counter"},
+                       "stop": {"frozen": True, "max_steps": 10**9}, "seed": 3})
+    count = 8 if SMOKE else 4096
+    try:
+        from dask_cuda import LocalCUDACluster
+        cluster, kind = LocalCUDACluster(), "LocalCUDACluster"
+    except ImportError:
+        cluster, kind = LocalCluster(n_workers=1, threads_per_worker=1, processes=True), "LocalCluster"
+    with cluster:
+        t = time.perf_counter()
+        there = pb.run_ensemble(spec, count, device="cuda", cluster=cluster, progress=False)
+        dask_s = time.perf_counter() - t
+    t = time.perf_counter()
+    here = pb.run_ensemble(spec, count, device="cuda", progress=False)
+    emit(part="dask", cluster=kind, replicas=count, dask_s=round(dask_s, 2), here_s=round(time.perf_counter() - t, 2),
+         same_rows=json.dumps(there.rows, sort_keys=True) == json.dumps(here.rows, sort_keys=True), where=there.where)
+
+
 def bits_quick() -> None:
     g = half(200, 100)
     compare("200x100 single to frozen", g, single(g), lambda s: s.run_until_frozen(max_steps=10**8, progress=False))
@@ -415,8 +468,11 @@ PARTS = {
     "bits_large": lambda: part("bits", bits_large, need=40),
     "replicas_small": lambda: part("replicas", replicas, 100, 50, 8 if SMOKE else 32768, need=15),
     "cpu": lambda: part("cpu", cpu, need=40),
+    # the CPU takes 5-6 s at 500x250 (384/256 bits) on a 2-core VM: docs/collisions.md
+    "certified": lambda: part("certified", certified, 500, 250, 384, 256, need=40),
+    "dask": lambda: part("dask", dask_gpus, need=40),
 }
-DEFAULT = "env,compile,bits,speed,frozen2000,replicas,frozen4000,bits_large,replicas_small,cpu"
+DEFAULT = "env,compile,bits,certified,speed,frozen2000,replicas,frozen4000,bits_large,replicas_small,dask,cpu"
 
 if __name__ == "__main__":
     for name in os.environ.get("BENCH_PARTS", DEFAULT).split(","):
