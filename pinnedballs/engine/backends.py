@@ -28,6 +28,7 @@ from .sequential.loops import (FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKA
                               loops)
 from .threads.regions import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
 from .threads.tuning import most_threads
+from .streams.philox import CounterPicks
 
 __all__ = ["Backend", "LoopBackend", "FieldBackend", "DeviceBackend", "backend_for", "check_device", "DEVICES",
            "LOG_CAPACITY"]
@@ -239,18 +240,24 @@ class FieldBackend(Backend):
         ex, st, s, n = self.state.field_chain, self.state, self.model.selector, self.model.geometry.n_contacts
         used_all, made_all, last = 0, 0, -1
         first = st.steps + 1  # the step of the chunk's first pick
+        drawn = s.counter and getattr(ex, "picks", None) is not None and ex.picks.draws and not self.listeners
         while used_all < count and made_all < left and not (until_frozen and ex.live == 0) and ex.failure is None:
             block = int(min(ex.block, count - used_all))
-            rng, sched = st.rng.copy(), st.scheduler.copy()
-            picks = ex.picks_buffer(block)
-            self.loops.picks(st.scheduler, s.aux, st.rng, n, picks)
-            used, made, at = ex.run(picks, left - made_all, until_frozen, first + used_all)
+            if drawn:  # the counter stream's picks, drawn where they are tried (a GPU): the stream's words (k0, k1, s, 0)
+                picks = CounterPicks(st.rng[0], st.rng[1], int(st.rng[2]), block, n)
+                used, made, at = ex.run(picks, left - made_all, until_frozen, first + used_all)
+                st.rng[2] = np.uint64(int(st.rng[2]) + used)
+            else:
+                rng, sched = st.rng.copy(), st.scheduler.copy()
+                picks = ex.picks_buffer(block)
+                self.loops.picks(st.scheduler, s.aux, st.rng, n, picks)
+                used, made, at = ex.run(picks, left - made_all, until_frozen, first + used_all)
             if made:
                 at = np.asarray(at, dtype=np.int64)
                 last = used_all + int(at[-1])
                 if self.listeners:
                     self.tell(first + used_all + at, picks[at])
-            if used < block:
+            if used < block and not drawn:
                 st.rng[:], st.scheduler[:] = rng, sched
                 self.loops.picks(st.scheduler, s.aux, st.rng, n, picks[:used])
             used_all, made_all = used_all + used, made_all + made

@@ -197,9 +197,12 @@ class Results:
         rule = rule if rule is not None else _component(self.run.get("rule", {}), RuleSpec, "rule")
         scheduler = scheduler if scheduler is not None else \
             _component(self.run.get("scheduler", {}), SchedulerSpec, "scheduler")
+        certified = self.latest.certified  # a certified run's bits, as its state records them (0: not kept)
+        bits = {} if certified is None or not certified.precision else \
+            {"precision": certified.precision, "late_precision": certified.late_precision or None}
         return Simulation(self.geometry, self.initial_velocities, rule=rule, scheduler=scheduler,
                           masses=self.masses, seed=0, arithmetic=self.run.get("arithmetic", "float"),
-                          resolution=self.run.get("resolution"), device=device)
+                          resolution=self.run.get("resolution"), device=device, **bits)
 
     def _attempt(self) -> RunSpec:
         """The spec of this run at the bits it ran at: a spec whose ``precision`` is ``"auto"`` at those its

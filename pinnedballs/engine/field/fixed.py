@@ -63,6 +63,7 @@ from .fixed_kernels import (DONE, DUE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WID
 from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
 from .limbs import from_limbs, to_limbs
 from ..sequential.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT
+from ..streams.philox import CounterPicks
 
 __all__ = ["FixedChain", "NotFixed", "UncertifiedDecision", "Lines", "lines_of", "bound_batch", "HEADROOM",
            "PRECISION"]
@@ -197,11 +198,37 @@ def _coefficients(field: Field, lines: list, dim: int) -> np.ndarray:
 
 
 class CPUPicks:
-    """Where `FixedChain` tries its picks: the CPU's kernels (`fixed_kernels.run_picks`, `count_live`); a GPU's
-    stand in for them with the same arguments (`pinnedballs.engine.gpu.certified.DevicePicks`)."""
+    """Where `FixedChain` tries its picks and keeps its state: the CPU's kernels (`fixed_kernels.run_picks`,
+    `count_live`) on the chain's own arrays. A GPU's (`pinnedballs.engine.gpu.certified.DevicePicks`) keeps the
+    state on the GPU between calls and stands in with the same arguments; the chain reads its state through
+    `to_host`, `take_dirty` and `settled`."""
 
     run_picks = staticmethod(run_picks)
     count_live = staticmethod(count_live)
+    #: whether it draws the counter stream's picks itself (`engine.streams.philox.CounterPicks`)
+    draws = False
+
+    @staticmethod
+    def to_host(state: State, writes: bool) -> None:
+        """The chain's arrays made the newest state (here they always are)."""
+
+    @staticmethod
+    def take_dirty(state: State) -> tuple[np.ndarray, np.ndarray]:
+        """``(balls, X[balls])``: the balls changed since the last call, their flags cleared."""
+        balls = np.flatnonzero(state.dirty)
+        state.dirty[balls] = 0
+        return balls, state.X[balls]
+
+    @staticmethod
+    def settled(state: State, late_P: int) -> bool:
+        """`FixedChain.settled` of ``state``: no ball at rest, and at most a thousandth of the balls exact (bounds 0)
+        yet with a limb below the ``late_P`` top ones that is not 0."""
+        D, P = state.X.shape[1], state.X.shape[3]
+        if np.any(state.rows[:, D] == 0.0):
+            return False
+        exact = ~(np.any(state.B, axis=1) | np.any(state.Pp, axis=1))
+        long = np.any(state.X[exact, ..., :P - late_P] != 0, axis=(1, 2, 3))
+        return int(np.count_nonzero(long)) <= state.X.shape[0] // 1000
 
 
 class FixedChain(FieldChain):
@@ -286,6 +313,7 @@ class FixedChain(FieldChain):
     # ------------------------------------------------------------ exact policy: widening
     def widen(self) -> None:
         """One more limb at the bottom: ``P += 1``, ``S += 64``; every value unchanged."""
+        self._host(writes=True)
         X = np.zeros(self.X.shape[:-1] + (self.P + 1,), dtype=np.uint64)
         X[..., 1:] = self.X
         self.X, self.P, self.S = X, self.P + 1, self.S + 64
@@ -296,11 +324,11 @@ class FixedChain(FieldChain):
     def settled(self) -> bool:
         """Whether the first wave has passed, as `narrow` asks: no ball is exactly at rest, and at most
         a thousandth of the balls are exact (bounds 0) yet too long for ``late_P`` limbs."""
-        if np.any(self.rows[:, self.X.shape[1]] == 0.0):
-            return False
-        exact = ~(np.any(self.B, axis=1) | np.any(self.Pp, axis=1))
-        long = np.any(self.X[exact, ..., :self.P - self.late_P] != 0, axis=(1, 2, 3))
-        return int(np.count_nonzero(long)) <= self.X.shape[0] // 1000
+        return self.picks.settled(self._state(), self.late_P)
+
+    def _host(self, writes: bool = False) -> None:
+        """The state in this object's arrays (where a GPU holds it, copied back); ``writes``: about to change it."""
+        self.picks.to_host(self._state(), writes)
 
     def narrow(self, step: int | None = None) -> None:
         """Round the state to ``late_P`` limbs (``S`` down by 64 per limb dropped), to nearest, ties
@@ -309,6 +337,7 @@ class FixedChain(FieldChain):
         ball (balls whose dropped limbs are 0, at rest among them, keep theirs); ``G`` grows by the
         whole vector's, ``sqrt(balls rounded)`` times a ball's. ``step``: the first pick at the new
         width, for messages."""
+        self._host(writes=True)
         k = self.P - self.late_P
         X = self.X
         high = np.ascontiguousarray(X[..., k:])
@@ -355,7 +384,8 @@ class FixedChain(FieldChain):
         are counted every ``chunk`` picks; a frozen chunk ends at its last collision. A decision
         certified arithmetic cannot make leaves ``failure`` (`UncertifiedDecision`, naming the step:
         ``first_step`` is that of ``picks[0]``) set, the picks before it used."""
-        picks = np.ascontiguousarray(picks, dtype=np.int64)
+        if not isinstance(picks, CounterPicks):  # (those a GPU draws itself stay as they are)
+            picks = np.ascontiguousarray(picks, dtype=np.int64)
         if self._at is None or len(self._at) < len(picks):
             self._at = np.empty(len(picks), dtype=np.int64)
         at = self._at
@@ -424,11 +454,13 @@ class FixedChain(FieldChain):
     @property
     def v(self) -> list[list[tuple]]:
         """The velocities as rows of field elements (`fields`), exactly ``X / 2^S``."""
+        self._host()
         ints = from_limbs(self.X)
         den = 1 << self.S
         return [[tuple(mpq(int(c), den) for c in comp) for comp in row] for row in ints.tolist()]
 
     def _elements(self, rows: np.ndarray) -> list[list[tuple]]:
+        self._host()
         ints, den = from_limbs(self.X[rows]), 1 << self.S
         return [[tuple(mpq(int(c), den) for c in comp) for comp in row] for row in ints.tolist()]
 
@@ -436,19 +468,20 @@ class FixedChain(FieldChain):
         """The velocities of the balls changed since the last call rounded into ``shadow`` (which it
         returns): in the exact policy as `rational.RationalChain` rounds them (`Field.to_float`), in the
         certified policy to the nearest float (`fixed_state.nearest_floats`)."""
-        rows = np.flatnonzero(self.dirty)
+        rows, X = self.picks.take_dirty(self._state())
         if len(rows):
             if self.certify:
-                self.shadow[rows] = nearest_floats(from_limbs(self.X[rows]), self.S, self.field.basis[-1])
+                self.shadow[rows] = nearest_floats(from_limbs(X), self.S, self.field.basis[-1])
             else:
-                F = self.field
-                self.shadow[rows] = [[F.to_float(x) for x in row] for row in self._elements(rows)]
-            self.dirty[rows] = 0
+                F, den = self.field, 1 << self.S
+                self.shadow[rows] = [[F.to_float(tuple(mpq(int(c), den) for c in comp)) for comp in row]
+                                     for row in from_limbs(X).tolist()]
         return self.shadow
 
     def set_velocities(self, exact: list[list[tuple]]) -> None:
         """Replace the velocities by exact ones ``(n_balls, dim)`` of field elements with dyadic
         coefficients (a ValueError otherwise); the state widens as they need."""
+        self._host(writes=True)
         fraction = 0
         for row in exact:
             for x in row:
@@ -480,9 +513,11 @@ class FixedChain(FieldChain):
     @property
     def error_bound(self) -> tuple[float, float]:
         """``(G, largest)``: bounds on the whole error vector and on each ball's (`fixed_state.error_bound`)."""
+        self._host()
         return error_bound(np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S, self._unfolded())
 
     def certified_state(self) -> CertifiedState:
+        self._host()
         return CertifiedState(self.X.copy(), self.S, np.stack([self.B, self.Pp], axis=1), float(self.acc[0]), self.S,
                               *self.bits, self.margin.copy() if self.margin_kept else None, int(self.bound[0]),
                               int(self.bound[1]), tuple(int(x) for x in self.rho), self._unfolded())
@@ -509,6 +544,7 @@ class FixedChain(FieldChain):
         if state.bound_batch == 0 and not isinstance(self.picks, CPUPicks):
             raise FieldError("certified", "a certified state written under the bound rule in step order (files before "
                                           "the batched rule) resumes on the CPU only: device='cpu'")
+        self._host(writes=True)  # (the new arrays go to a GPU at its next run)
         self.X, self.S, self.P = state.limbs.copy(), int(state.scale), state.limbs.shape[-1]
         self.margin_kept = state.margin is not None
         self.margin = np.array([np.inf, -np.inf, 0.0]) if state.margin is None else \

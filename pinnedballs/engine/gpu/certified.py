@@ -35,8 +35,10 @@ import numpy as np
 from numba import cuda
 
 from ..field import fixed_kernels as fk
+from ..field.fixed import CPUPicks
+from ..streams.philox import CounterPicks
 from .compile import SIMULATED, device_function
-from .device import launching
+from .device import counter_pick, launching
 from .kernels import EMPTY, KEY_BITS, TOP
 
 __all__ = ["DevicePicks", "THREADS", "BLOCK"]
@@ -49,7 +51,7 @@ _PENDING, _ASIDE, _HIT, _UNDECIDED, _WIDEN = -9, 0, 1, -1, -2
 
 @functools.cache
 def _kernels():
-    """``(reserve, attempt, live)``: the kernels, built on first use (numba-cuda imported by then)."""
+    """``(reserve, attempt, live, draw, settled, gather)``: the kernels, built on first use."""
     decide, collide, closing = (device_function(f) for f in (fk._decide, fk._collide, fk._closing))
     Tables, State, Scratch = fk.Tables, fk.State, fk.Scratch
 
@@ -115,35 +117,117 @@ def _kernels():
         cuda.atomic.add(counts, 0, alive)
         cuda.atomic.add(counts, 1, lost)
 
-    return reserve, attempt, live
+    @cuda.jit
+    def draw(k0, k1, s0, size, n_contacts, out):
+        """``out[t]``: the counter stream's pick of step ``s0 + t`` (`engine.streams.philox.counter_pick`)."""
+        for t in range(cuda.grid(1), size, cuda.gridsize(1)):
+            out[t] = np.int64(counter_pick(k0, k1, s0 + np.uint64(t), n_contacts))
+
+    @cuda.jit
+    def settled(X, rows, B, Pp, dropped, counts):
+        """``counts[0]`` += the balls at rest, ``counts[1]`` += the exact ones (bounds 0) with a limb below
+        ``dropped`` that is not 0 (`fixed.FixedChain.settled`)."""
+        D = X.shape[1]
+        rest, long = 0, 0
+        for b in range(cuda.grid(1), X.shape[0], cuda.gridsize(1)):
+            if rows[b, D] == 0.0:
+                rest += 1
+            exact = True
+            for m in range(B.shape[1]):
+                if B[b, m] != 0.0 or Pp[b, m] != 0.0:
+                    exact = False
+            if exact:
+                found = False
+                for d in range(D):
+                    for c in range(X.shape[2]):
+                        for h in range(dropped):
+                            if X[b, d, c, h] != 0:
+                                found = True
+                if found:
+                    long += 1
+        cuda.atomic.add(counts, 0, rest)
+        cuda.atomic.add(counts, 1, long)
+
+    @cuda.jit
+    def gather(X, balls, out):
+        """``out[r] = X[balls[r]]``, limb by limb."""
+        per = X.shape[1] * X.shape[2] * X.shape[3]
+        for q in range(cuda.grid(1), balls.shape[0] * per, cuda.gridsize(1)):
+            r, e = q // per, q % per
+            d, rest = e // (X.shape[2] * X.shape[3]), e % (X.shape[2] * X.shape[3])
+            out[r, d, rest // X.shape[3], rest % X.shape[3]] = X[balls[r], d, rest // X.shape[3], rest % X.shape[3]]
+
+    return reserve, attempt, live, draw, settled, gather
 
 
 class DevicePicks:
     """`fixed_kernels.run_picks` and `count_live` with the picks tried on a GPU (module docstring); the same
-    arguments and results, so `FixedChain` calls it where it calls them."""
+    arguments and results, so `FixedChain` calls it where it calls them. The state stays on the GPU between calls;
+    `to_host`, `take_dirty` and `settled` are how the chain reads it."""
+
+    #: it draws the counter stream's picks itself (`engine.streams.philox.CounterPicks`)
+    draws = True
 
     def __init__(self):
         self.cuda = cuda
         self.kernels = _kernels()
-        #: totals over the calls: segments, rounds, segments made again to a pick
-        self.stats = {"segments": 0, "rounds": 0, "again": 0}
+        self._d = None  # the device copies: tables, state, scratch, info
+        #: which side holds the newest state: "host", "device", or "both" (the same)
+        self._newest = "host"
+        #: totals over the calls: segments, rounds, calls run again to a pick, states copied each way, segments whose
+        #: picks it drew
+        self.stats = {"segments": 0, "rounds": 0, "again": 0, "uploads": 0, "downloads": 0, "drawn": 0}
 
     # ------------------------------------------------------------ the state, there and back
-    def _upload(self, tables, state, scratch):
-        to = self.cuda.to_device
-        d = {"tables": tuple(to(a) if isinstance(a, np.ndarray) else a for a in tables),
-             "state": [to(np.ascontiguousarray(a)) for a in state], "threads": THREADS}
-        W, tmp, big = scratch
-        d["scratch"] = tuple(to(np.zeros((THREADS,) + a.shape, dtype=a.dtype)) for a in (W, tmp, big))
-        d["info"] = to(np.zeros((THREADS, 4)))
+    def _device(self, tables, state, scratch) -> dict:
+        """The device copies, uploaded when the host holds the newest state."""
+        d = self._d
+        if self._newest == "host" or d is None or d["shapes"] != [a.shape for a in state]:
+            to = self.cuda.to_device
+            d = self._d = {"tables": tuple(to(a) if isinstance(a, np.ndarray) else a for a in tables),
+                           "state": [to(np.ascontiguousarray(a)) for a in state], "shapes": [a.shape for a in state],
+                           "scratch": tuple(to(np.zeros((THREADS,) + a.shape, dtype=a.dtype)) for a in scratch),
+                           "info": to(np.zeros((THREADS, 4)))}
+            self._newest = "both"
+            self.stats["uploads"] += 1
         return d
 
-    @staticmethod
-    def _download(d, state) -> None:
-        """The arrays the picks change (``X, rows, dirty, B, Pp``) back to the host; the bound rule's scalars
-        (``acc, rho, bound``) are the host's throughout."""
-        for host, there in zip(state[:5], d["state"][:5]):
-            host[...] = there.copy_to_host()
+    def to_host(self, state, writes: bool) -> None:
+        """The host's arrays made the newest state (``X, rows, dirty, B, Pp`` copied back if the GPU's are newer);
+        ``writes``: the host is about to change them, so the next call uploads them."""
+        if self._newest == "device":
+            for host, there in zip(state[:5], self._d["state"][:5]):
+                host[...] = there.copy_to_host()
+            self._newest = "both"
+            self.stats["downloads"] += 1
+        if writes:
+            self._newest = "host"
+
+    def take_dirty(self, state) -> tuple[np.ndarray, np.ndarray]:
+        """``(balls, X[balls])``: the balls changed since the last call, their flags cleared (`FixedChain.sync`)."""
+        if self._newest == "host":
+            return CPUPicks.take_dirty(state)
+        there = self._d["state"]
+        dirty = there[2].copy_to_host()
+        balls = np.flatnonzero(dirty)
+        X = np.empty((len(balls),) + state.X.shape[1:], dtype=np.uint64)
+        if len(balls):
+            out = self.cuda.to_device(X)
+            self._launch(self.kernels[5], there[0], self.cuda.to_device(balls.astype(np.int64)), out)
+            X = out.copy_to_host()
+            there[2].copy_to_device(np.zeros_like(dirty))
+            state.dirty[balls] = 0
+        return balls, X
+
+    def settled(self, state, late_P: int) -> bool:
+        """`FixedChain.settled`, counted on the GPU where its state is newest."""
+        if self._newest == "host":
+            return CPUPicks.settled(state, late_P)
+        counts = self.cuda.to_device(np.zeros(2, dtype=np.int64))
+        X, rows, _, B, Pp = self._d["state"][:5]
+        self._launch(self.kernels[4], X, rows, B, Pp, state.X.shape[3] - late_P, counts)
+        rest, long = counts.copy_to_host().tolist()
+        return rest == 0 and long <= state.X.shape[0] // 1000
 
     def _launch(self, kernel, *args):
         with launching():
@@ -151,49 +235,84 @@ class DevicePicks:
 
     # ------------------------------------------------------------ the live contacts
     def count_live(self, tables, state, scale, certify, scratch, info):
-        d = self._upload(tables, state, scratch)
-        return self._count(d, tables, state, scale, certify, scratch, info)
-
-    def _count(self, d, tables, state, scale, certify, scratch, info):
+        d = self._device(tables, state, scratch)
         counts = self.cuda.to_device(np.zeros(2, dtype=np.int64))
-        rho = self.cuda.to_device(np.zeros(2, dtype=np.uint64))
         st = list(d["state"])
-        st[7] = rho  # read by no decision
+        st[7] = self.cuda.to_device(np.zeros(2, dtype=np.uint64))  # (read by no decision)
         self._launch(self.kernels[2], tables.pairs.shape[0], scale, certify, *d["tables"], *st, *d["scratch"], d["info"],
                      counts)
         alive, lost = counts.copy_to_host().tolist()
         if lost:  # the CPU's kernel finds the first that cannot be decided, and says why
+            self.to_host(state, writes=False)
             return fk.count_live(tables, state, scale, certify, scratch, info)
         return alive
 
     # ------------------------------------------------------------ a call of run_picks
     def run_picks(self, tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog,
                   scratch, info, margin, at_last, first, every):
-        """`fixed_kernels.run_picks`, its picks tried on the GPU (module docstring)."""
-        K = int(state.bound[0])
-        if K <= 0:
+        """`fixed_kernels.run_picks`, its picks tried on the GPU (module docstring): ``picks`` an array or the
+        counter stream's `CounterPicks`, drawn on the GPU. A call that must end at a pick inside a segment (the
+        collision target, a pick that cannot be decided) runs again from a copy of its start to that pick."""
+        if int(state.bound[0]) <= 0:
             raise ValueError("a certified state under the bound rule in step order runs on the CPU")
+        d = self._device(tables, state, scratch)
+        self._newest = "device"
+        if not isinstance(picks, CounterPicks):
+            d["picks"] = self.cuda.to_device(np.ascontiguousarray(picks, dtype=np.int64))
+        copies = d.get("start")
+        if copies is None or any(a.shape != b.shape for a, b in zip(copies, d["state"][:5])):
+            copies = d["start"] = [self.cuda.device_array_like(a) for a in d["state"][:5]]
+        for copy, there in zip(copies, d["state"][:5]):
+            copy.copy_to_device(there)
+        start = [a.copy() for a in (prog, margin, at_last, state.acc, state.rho, state.bound)]
+        args = (tables, state, scale, certify, picks, collisions_left, until_frozen, chunk, at, prog, scratch, info,
+                margin, at_last, first, every)
+        status, end, cut = self._picks(d, t, len(picks), *args)
+        if cut is not None:  # again from the call's start, to the pick it stops at
+            self.stats["again"] += 1
+            for copy, there in zip(copies, d["state"][:5]):
+                there.copy_to_device(copy)
+            for now, then in zip((prog, margin, at_last, state.acc, state.rho, state.bound), start):
+                now[...] = then
+            status, end, again = self._picks(d, t, cut[1], *args)
+            assert again is None, "a call made again to its pick ended elsewhere"
+            if cut[0] == "undecided":  # the CPU's kernel, from this pick: why it cannot go on
+                self.to_host(state, writes=True)
+                host = picks.host() if isinstance(picks, CounterPicks) else picks
+                return fk.run_picks(tables, state, scale, certify, host, end, collisions_left, until_frozen, chunk,
+                                    at, prog, scratch, info, margin, at_last, first, every)
+        return status, end
+
+    def _picks(self, d, t, limit, tables, state, scale, certify, picks, collisions_left, until_frozen, chunk, at, prog,
+               scratch, info, margin, at_last, first, every):
+        """`run_picks`' loop over picks ``t`` to ``limit`` in segments: ``(status, t, cut)``, ``cut`` None or
+        ``(why, pick)`` when a segment found a pick to end at (the state then runs past it: to be made again)."""
+        K = int(state.bound[0])
         made, last, fresh, countdown = int(prog[0]), int(prog[1]), int(prog[2]), int(prog[4])
         n = len(picks)
         status = fk.DONE
         due = int(fk._due(first, t, every, prog[5]))
-        d = self._upload(tables, state, scratch)
-        d["picks"] = self.cuda.to_device(np.ascontiguousarray(picks, dtype=np.int64))
-        changed = False
-        while t < n:
+        while t < limit:
             if t == due:
                 status = fk.DUE
                 break
-            end = min(n, ((first + t) // K + 1) * K - first)  # the bound rule's batch ends
+            end = min(limit, ((first + t) // K + 1) * K - first)  # the bound rule's batch ends
             if due > t:
                 end = min(end, due)
             if until_frozen:
                 end = min(end, t + countdown)
-            outcome, xs, inside = self._segment(d, tables, state, scale, certify, t, end, first, K,
-                                                collisions_left - made)
-            changed = True
-            used = len(outcome)
+            outcome, xs, inside = self._segment(d, tables, state, scale, certify, picks, t, end, first, K)
+            undecided = np.flatnonzero(outcome < 0)
             hits = np.flatnonzero(outcome == _HIT)
+            bad, left = int(undecided[0]) if len(undecided) else len(outcome), collisions_left - made
+            target = int(hits[left - 1]) + 1 if len(hits) >= left else None
+            if target is not None and target <= bad:  # it ends right after the target collision
+                if len(hits) > left:  # (a later collision changed the state)
+                    return status, t, ("target", t + target)
+                outcome, xs, inside = outcome[:target], xs[:target], inside[:target]
+            elif len(undecided):
+                return status, t, ("undecided", t + bad)
+            used = len(outcome)
             before = margin[1:].copy()
             self._margin(outcome, xs, margin)
             if len(hits):
@@ -206,18 +325,11 @@ class DevicePicks:
             prog[6] += int(inside.sum())
             t += used
             countdown -= used
-            if len(outcome) and outcome[-1] < 0:  # the CPU's kernel, from this pick: why it cannot go on
-                t -= 1
-                self._download(d, state)
-                changed = False
-                prog[0], prog[1], prog[2], prog[4] = made, last, fresh, countdown
-                return fk.run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk,
-                                    at, prog, scratch, info, margin, at_last, first, every)
             if made == collisions_left:
                 break
             if until_frozen and fresh and (countdown <= 0 or t == n):
-                self._download(d, state)  # (the host's rows and bounds, for the CPU's kernel if one is undecided)
-                live = self._count(d, tables, state, scale, certify, scratch, info)
+                prog[0], prog[1], prog[2], prog[4] = made, last, fresh, countdown
+                live = self.count_live(tables, state, scale, certify, scratch, info)
                 if live < 0:
                     status = fk.UNCOUNTED
                     break
@@ -228,10 +340,8 @@ class DevicePicks:
                     break
             if countdown <= 0:
                 countdown = chunk
-        if changed:
-            self._download(d, state)
         prog[0], prog[1], prog[2], prog[4] = made, last, fresh, countdown
-        return status, t
+        return status, t, None
 
     @staticmethod
     def _margin(outcome, xs, margin, into=None) -> None:
@@ -247,48 +357,40 @@ class DevicePicks:
         target = margin[1:] if into is None else into
         target[0], target[1] = largest, margin[2] + zeros
 
-    def _segment(self, d, tables, state, scale, certify, t, end, first, K, left):
-        """Picks ``t`` to ``end`` (one batch of the bound rule), stopping after the ``left``-th collision or before a
-        pick that cannot be decided: ``(outcome, closing speeds, inside)`` of the picks used (the last one
-        undecided, its outcome negative, when that is why it stopped)."""
-        saved = d.get("saved")  # a copy of the segment's start, on the GPU
-        if saved is None or any(a.shape != b.shape for a, b in zip(saved, d["state"][:5])):
-            saved = d["saved"] = [self.cuda.device_array_like(a) for a in d["state"][:5]]
-        for copy, there in zip(saved, d["state"][:5]):
-            copy.copy_to_device(there)
+    def _segment(self, d, tables, state, scale, certify, picks, t, end, first, K):
+        """Picks ``t`` to ``end`` (in one batch of the bound rule): ``(outcome, closing speeds, inside)``. The batch's
+        first collision folds the batches before (`fixed_kernels.fold`): folded here, taken back if none."""
         acc, rho, bound = state.acc.copy(), state.rho.copy(), state.bound.copy()
         batch = (first + t) // K
-        if batch != bound[1]:  # the batch's first collision folds the batches before (taken back if none)
+        if batch != bound[1]:
             fk.fold(state.acc, state.rho, state.bound, batch, tables.emax, tables.rmax, tables.root[2])
-        outcome, xs, inside, sums = self._rounds(d, state, scale, certify, t, end, first)
-        undecided = np.flatnonzero(outcome < 0)
-        hits = np.flatnonzero(outcome == _HIT)
-        stop = len(outcome)
-        if len(undecided):
-            stop = int(undecided[0])
-        if len(hits) >= left and int(hits[left - 1]) + 1 <= stop:
-            stop = int(hits[left - 1]) + 1
-        if stop < len(outcome) or len(undecided):  # again, to the pick it stops at
-            self.stats["again"] += 1
-            for there, copy in zip(d["state"][:5], saved):
-                there.copy_to_device(copy)
-            outcome, xs, inside, sums = self._rounds(d, state, scale, certify, t, t + stop, first)
-            if len(undecided) and stop == int(undecided[0]):  # the pick itself, for run_picks to hand on
-                outcome = np.append(outcome, np.int8(_UNDECIDED))
-                xs, inside = np.append(xs, np.nan), np.append(inside, np.uint8(0))
-        if not np.any(outcome == _HIT):  # no collision: the fold taken back
+        outcome, xs, inside, sums = self._rounds(d, state, scale, certify, picks, t, end, first)
+        if not np.any(outcome == _HIT):
             state.acc[:], state.rho[:], state.bound[:] = acc, rho, bound
         else:
             state.rho[0] += np.uint64(sums[0])
             state.rho[1] += np.uint64(sums[1])
         return outcome, xs, inside
 
-    def _rounds(self, d, state, scale, certify, t, end, first):
+    def _segment_picks(self, d, picks, t, end):
+        """Picks ``t`` to ``end`` on the GPU: a slice of those uploaded, or the counter stream's drawn there."""
+        if not isinstance(picks, CounterPicks):
+            return d["picks"][t:end]
+        size = end - t
+        self.stats["drawn"] += 1
+        buffer = d.get("drawn")
+        if buffer is None or len(buffer) < size:
+            buffer = d["drawn"] = self.cuda.device_array(max(size, 1024), dtype=np.int64)
+        self._launch(self.kernels[3], picks.key[0], picks.key[1], np.uint64(picks.s0 + t), size,
+                     np.uint64(picks.n_contacts), buffer)
+        return buffer[:size]
+
+    def _rounds(self, d, state, scale, certify, picks, t, end, first):
         """Picks ``t`` to ``end`` in rounds of reservations: their outcomes, closing speeds and whether each was
         decided in fixed point, and the batch's sums of ``|rho|``. A round's keys are ``g << KEY_BITS | t``, ``g``
         one less each round, in two owner arrays in turn (`kernels`' scheme), so no round clears them; when
         ``g`` runs out both are cleared and the pending picks reserve again."""
-        cuda, (reserve, attempt, _) = self.cuda, self.kernels
+        cuda, (reserve, attempt) = self.cuda, self.kernels[:2]
         size = end - t
         outcome = cuda.to_device(np.full(size, _PENDING, dtype=np.int8))
         xs, inside = cuda.to_device(np.zeros(size)), cuda.to_device(np.zeros(size, dtype=np.uint8))
@@ -296,7 +398,7 @@ class DevicePicks:
         d["state"][5].copy_to_device(state.acc)
         d["state"][8].copy_to_device(state.bound)
         st, pairs = d["state"], d["tables"][0]
-        picks = d["picks"][t:end]
+        picks = self._segment_picks(d, picks, t, end)
         order = cuda.to_device(np.arange(size, dtype=np.int32))
         later = cuda.device_array(size, dtype=np.int32)
         count = cuda.to_device(np.zeros(1, dtype=np.int32))

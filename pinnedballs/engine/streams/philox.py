@@ -34,7 +34,8 @@ from numba.extending import intrinsic
 from ..jit.cache import njit_cached
 
 __all__ = ["M0", "M1", "W0", "W1", "ROUNDS", "mulhilo", "block", "counter_word", "lemire", "counter_pick",
-           "pick_counter", "select_counter", "CACHE_WORDS", "counter_stream", "stream_words"]
+           "pick_counter", "select_counter", "CACHE_WORDS", "counter_stream", "stream_words", "counter_picks",
+           "CounterPicks"]
 
 #: the multipliers and the key increments (Weyl constants) of Philox4x64
 M0, M1 = 0xD2E7470EE14C6C93, 0xCA5A826395121157
@@ -173,3 +174,28 @@ def stream_words(key: tuple[int, int], start: int, count: int) -> np.ndarray:
     g = np.random.Philox(key=np.array([int(key[0]), int(key[1])], dtype=np.uint64), counter=(first - 1) % 2**256)
     words = g.random_raw(4 * ((start + count + 3) // 4 - first))
     return words[start - 4 * first:start - 4 * first + count]
+
+
+@njit_cached
+def counter_picks(k0, k1, s0, n_contacts, out):
+    """``out[t]``: the pick of step ``s0 + t`` among ``n_contacts`` (`counter_pick`; all uint64 but ``out``, int64)."""
+    n = np.uint64(n_contacts)
+    for t in range(out.shape[0]):
+        out[t] = counter_pick(k0, k1, s0 + np.uint64(t), n)
+
+
+class CounterPicks:
+    """The counter stream's picks of ``count`` steps from ``s0`` (key ``k0, k1``, among ``n_contacts``), drawn where
+    they are tried: a GPU draws them itself (`pinnedballs.engine.gpu.certified`); `host` draws them here."""
+
+    def __init__(self, k0, k1, s0: int, count: int, n_contacts: int):
+        self.key, self.s0, self.count, self.n_contacts = (np.uint64(k0), np.uint64(k1)), int(s0), int(count), n_contacts
+
+    def __len__(self) -> int:
+        return self.count
+
+    def host(self) -> np.ndarray:
+        """``(count,) int64``: the picks, drawn on the CPU."""
+        out = np.empty(self.count, dtype=np.int64)
+        counter_picks(self.key[0], self.key[1], np.uint64(self.s0), self.n_contacts, out)
+        return out

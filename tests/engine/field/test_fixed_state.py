@@ -66,6 +66,23 @@ def test_a_checkpoint_round_trips_through_its_results_file(tmp_path, arithmetic)
     assert resumed.get_state().identical(whole.get_state())
 
 
+def test_a_run_built_in_python_resumes_from_its_file_at_its_own_bits(tmp_path):
+    """A certified run built in Python (no spec) at 64 bits, resumed from its results file: at 64 bits (its state
+    records them), so it ends on the state of the run never stopped, the batched rule's pending sums included."""
+    g = pb.HalfPlane(8, 8)
+    rng = np.random.default_rng(3)
+    v = np.round(rng.normal(size=(g.n_balls, 2)) * 2**45) / 2**45
+    whole = pb.Simulation(g, v, seed=4, arithmetic="certified", precision=64)
+    whole.run_until_frozen(max_steps=10**5)
+    split = pb.Simulation(g, v, seed=4, arithmetic="certified", precision=64)
+    split.run(steps=400, writers=[pb.ResultsWriter(tmp_path / "run")])
+    assert any(split.get_state().certified.pending)
+    resumed = pb.load(tmp_path / "run").simulation()
+    assert resumed.get_state().certified.precision == 64
+    resumed.run_until_frozen(max_steps=10**5)
+    assert resumed.get_state().identical(whole.get_state())
+
+
 @pytest.mark.parametrize("direction", ["rational to fixed", "fixed to rational"])
 def test_exact_states_move_between_the_rational_and_the_fixed_point_chains(direction):
     """A checkpoint of today's engine resumes in the fixed-point chain and the other way round: the

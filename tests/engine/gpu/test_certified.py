@@ -58,10 +58,31 @@ def test_certified_on_a_gpu_is_the_cpus_run_bit_for_bit_and_exact_arithmetics_co
     assert c.rounding > 0 and any(c.pending) and c.bounds.any() and c.bound_batch > 0  # it rounded
     stats = gpu.engine.state.field_chain.picks.stats
     assert stats["rounds"] > 10 * stats["segments"] and stats["again"] >= 1  # in rounds; the target made again
+    assert stats["uploads"] == 1 and stats["drawn"] == stats["segments"]  # the state stays there; picks drawn there
     exact = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="exact", seed=4)
     exact.run_until_frozen(max_steps=10**5)
     assert (gpu.steps, gpu.collisions) == (exact.steps, exact.collisions) == (1781, 323)
     assert gpu.closing_margin().smallest_collision == cpu.closing_margin().smallest_collision
+
+
+def test_checkpoints_read_the_state_mid_run_and_a_results_file_resumes_on_either_device(tmp_path):
+    """A run written with snapshots and checkpoints on the GPU (the state read back between its chunks, its
+    velocities read from the changed balls alone) writes the CPU's file; resumed on the GPU it ends on the
+    CPU's state."""
+    g = pb.HalfPlane(8, 8)
+    v = grid_velocities(g, 3)
+    whole = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="certified", seed=4, precision=64)
+    whole.run_until_frozen(max_steps=10**5)
+    for device in ("cpu", "cuda"):
+        sim = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="certified", seed=4, precision=64, device=device)
+        sim.run(steps=400, writers=[pb.ResultsWriter(tmp_path / device, snapshots={"every_steps": 100})])
+        assert np.array_equal(sim.velocities, pb.load(tmp_path / device).velocities)
+    cpu, gpu = pb.load(tmp_path / "cpu"), pb.load(tmp_path / "cuda")
+    assert np.array_equal(cpu.velocities, gpu.velocities) and cpu.steps == gpu.steps == 400
+    assert [s.velocities.tobytes() for s in cpu.snapshots] == [s.velocities.tobytes() for s in gpu.snapshots]
+    resumed = gpu.simulation(device="cuda")
+    resumed.run_until_frozen(max_steps=10**5)
+    assert resumed.get_state().identical(whole.get_state())
 
 
 def test_a_pick_it_cannot_decide_stops_both_devices_at_the_same_step_with_the_same_line():
@@ -125,7 +146,7 @@ from numba.cuda import types as T
 import pinnedballs as pb
 from pinnedballs.engine.gpu import certified
 from pinnedballs.engine.gpu.compile import ptx
-_, attempt, live = certified._kernels()
+_, attempt, live = certified._kernels()[:3]
 for g in (pb.HalfPlane(3, 3), pb.FCC(2, 2, 2)):  # Q(sqrt 3) and Q(sqrt 2)
     f = pb.Simulation(g, np.ones((g.n_balls, g.dim)), arithmetic="certified").engine.state.field_chain
     A = lambda a, more=0: T.Array(typeof(a).dtype, a.ndim + more, "C")
