@@ -17,14 +17,18 @@ integers (a sum per thread, added by the host), so neither depends on the order 
 collision of a batch folds the batches before (`fixed_kernels.fold`): the host folds before the segment and
 takes the fold back when the segment made no collision.
 
-A segment that must end early (a pick certified arithmetic cannot decide, the collision target) is made again
-from a copy of its start, to that pick; the pick that cannot be decided is then tried by the CPU's kernel, which
-says why (``info``). The margin, the indices of the collisions and the counters are the CPU's, computed from
-each pick's decision and closing speed. States written under the bound rule in step order (files from before
-the batched rule) resume on the CPU only.
+**The state stays on the GPU** between calls; the chain reads it through `DevicePicks.to_host` (a checkpoint,
+a narrowing, the exact values), `take_dirty` (the velocities of the balls that changed, gathered there) and
+`settled` (the check for narrowing, counted there). The counter stream's picks are drawn on the GPU, a segment
+at a time (`engine.streams.philox.CounterPicks`). A call that must end at a pick inside a segment (a pick
+certified arithmetic cannot decide, the collision target with collisions after it) runs again from a copy of
+its start kept on the GPU, to that pick; the pick that cannot be decided is then tried by the CPU's kernel,
+which says why (``info``). The margin, the indices of the collisions and the counters are the CPU's, computed
+from each pick's decision and closing speed. States written under the bound rule in step order (files from
+before the batched rule) resume on the CPU only.
 
-The state crosses to the GPU and back on every call (`fixed.FixedChain.run`'s blocks): a first version whose
-bits are tested under the simulator; keeping it on the GPU between calls is the next step.
+Not yet measured on a GPU (2026-11-29): each round is one launch and a read of its count by the host, and
+each segment's outcomes are read back to the host.
 """
 
 from __future__ import annotations
