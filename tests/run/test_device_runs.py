@@ -46,3 +46,16 @@ def test_a_checkpoint_goes_on_on_the_other_device(tmp_path):
         sim.run_until_frozen(max_steps=10**6, progress=False)
         np.testing.assert_array_equal(sim.velocities, whole.velocities)
         assert (sim.steps, sim.collisions) == (whole.steps, whole.collisions)
+
+
+def test_a_certified_run_with_automatic_bits_writes_the_cpus_run_on_the_gpu(tmp_path):
+    """``"precision": "auto"``: the attempt's bits recorded, the same run directory from either device."""
+    spec = parse_spec({**SPEC, "geometry": {"kind": "half_plane", "length": 16, "depth": 8}, "arithmetic": "certified",
+                       "precision": "auto", "seed": 0, "snapshots": {"every_steps": 500}})
+    cpu = pb.run_spec(spec, tmp_path / "cpu", figures=False)
+    gpu = pb.run_spec(spec, tmp_path / "gpu", figures=False, device="cuda")
+    assert (gpu.steps, gpu.collisions, gpu.stop_reason) == (cpu.steps, cpu.collisions, cpu.stop_reason)
+    assert gpu.stop_reason == "frozen" and gpu.device == "cuda"
+    assert gpu.latest.certified.identical(cpu.latest.certified) and gpu.latest.certified.precision == 768
+    for a, b in zip(gpu.snapshots, cpu.snapshots, strict=True):
+        np.testing.assert_array_equal(a.velocities, b.velocities)
