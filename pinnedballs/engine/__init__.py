@@ -13,7 +13,7 @@ The map, a room per concern (package-wide helpers, errors and argument checks am
   `stop.Stop`, its writers fired on their `triggers`);
 * the engines, each a room: `sequential` (the compiled loops on one core), `threads` (the paper's chain on
   every core with the bits of one), `field` (exact and certified arithmetic in the number field of the
-  contact normals), `gpu` (the counter stream's chain on an NVIDIA GPU);
+  contact normals), `gpu` (the counter stream's chain on an NVIDIA GPU, in float or certified arithmetic);
 * below them: `streams` (the random streams: xoshiro256**, its jumps, the counter stream Philox) and `jit`
   (numba's disk cache for closures, LLVM hints).
 

@@ -10,7 +10,7 @@ device with the CPU's rounding (`compile`). Modules: `compile` (a rule's functio
 simulator twins, the one-line refusal of a rule that would not give the CPU's bits), `device` (the counter
 stream and the contact readers as device functions), `kernels` (a chain by deterministic reservations; the
 freeze scan), `chain` (`DeviceChain`: one simulation's chain on the GPU), `replicas` (many small systems,
-one GPU thread each).
+one GPU thread each), `certified` (certified arithmetic's picks on the GPU, by the same reservations).
 """
 
 from __future__ import annotations
