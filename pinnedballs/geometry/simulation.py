@@ -133,8 +133,9 @@ class Simulation:
     device: ``"cpu"`` (the default) or ``"cuda"``: the chain on an NVIDIA GPU (`pinnedballs.engine.gpu`;
     ``python3 -m pip install ".[cuda]"`` from the checkout), for float arithmetic, any rule (a user's too:
     the GPU compiles the rule's own functions) and ``UniformRandomPair(stream="counter")``, with the same
-    velocities, counters, stop step and margin as on the CPU. Its velocities stay on the GPU between runs;
-    reading `velocities` copies them back.
+    velocities, counters, stop step and margin as on the CPU; or certified arithmetic on that stream, with the
+    CPU's certified state bit for bit (`pinnedballs.engine.gpu.certified`). Its state stays on the GPU between
+    runs; reading `velocities` copies them back.
 
     The chain is plain data: its `engine.chain.Model` (what it is) and `engine.chain.ChainState` (what
     changes), which `engine` (the backend chosen here by the arithmetic and the device,
