@@ -393,7 +393,10 @@ def certified(length, depth, precision, late) -> None:
         out[device] = dict(seconds=round(seconds, 2), steps=sim.steps, collisions=sim.collisions,
                            msteps_s=round(sim.steps / seconds / 1e6, 2))
         if device == "cuda":
-            out["gpu_stats"] = dict(sim.engine.state.field_chain.picks.stats)
+            picks = sim.engine.state.field_chain.picks
+            out["gpu_stats"] = dict(picks.stats)
+            out["resources"] = kernel_resources(dict(zip(("reserve", "attempt", "live", "draw", "settled", "gather"),
+                                                         picks.kernels)))
     out["identical"] = states["cuda"].identical(states["cpu"])
     emit(**out)
 
