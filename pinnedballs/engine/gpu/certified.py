@@ -48,7 +48,7 @@ from .kernels import EMPTY, KEY_BITS, TOP
 __all__ = ["DevicePicks", "THREADS", "BLOCK"]
 
 #: the GPU threads that try picks (the simulator runs one block of a few)
-THREADS, BLOCK = (8, 8) if SIMULATED else (1 << 16, 128)
+THREADS, BLOCK = (2, 2) if SIMULATED else (1 << 16, 128)
 #: a pick's outcome (`_attempt`): not tried yet, set aside, collided, undecidable, needs a wider state
 _PENDING, _ASIDE, _HIT, _UNDECIDED, _WIDEN = -9, 0, 1, -1, -2
 
