@@ -54,6 +54,7 @@ import numpy as np
 from .engine.jit.cache import njit_cached
 from .util import checks
 from .util.errors import FieldError
+from .util.sums import kinetic_energy
 from .engine.closing import closing_speed, impulse_rule
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
@@ -72,7 +73,7 @@ def threshold(velocities: np.ndarray, masses: np.ndarray, resolution: float = DE
     closing speeds at or below it do not collide. The default resolution, ``4 * 2^-53``, sets aside
     exactly the rounding remnants on every case measured (the module docstring); another resolution
     ``e`` defines a model of its own, whose counts ``N_e`` are those of a criterion ``w > e V``."""
-    energy = 0.5 * float(masses @ np.einsum("ij,ij->i", velocities, velocities))
+    energy = kinetic_energy(masses, velocities)
     return resolution * float(np.sqrt(2.0 * energy / float(masses.mean())))
 
 

@@ -26,6 +26,7 @@ from scipy import stats
 from ..geometry.base import Geometry
 from ..geometry.rows import boundary_rows
 from ..engine.state import mass_array
+from ..util.sums import dot, momentum
 
 __all__ = [
     "energy_per_ball", "total_energy", "total_momentum",
@@ -92,8 +93,8 @@ def _pearson(a: np.ndarray, b: np.ndarray) -> float:
     if len(a) < 2:
         return float("nan")
     a, b = a - a.mean(), b - b.mean()
-    denominator = np.sqrt(np.dot(a, a) * np.dot(b, b))
-    return float(np.dot(a, b) / denominator) if denominator > 0 else float("nan")
+    denominator = np.sqrt(dot(a, a) * dot(b, b))
+    return float(dot(a, b) / denominator) if denominator > 0 else float("nan")
 
 
 # ---------------------------------------------------------------- energy and momentum
@@ -112,7 +113,7 @@ def total_energy(velocities, masses=None) -> float:
 def total_momentum(velocities, masses=None) -> np.ndarray:
     """``(dim,)`` momentum ``sum m v`` (meaningful in flat space only)."""
     v = _velocities(velocities)
-    return mass_array(masses, len(v)) @ v
+    return momentum(mass_array(masses, len(v)), v)
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary

@@ -14,6 +14,7 @@ from ..engine.backends import DEVICES, Backend, backend_for
 from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
 from ..engine.driver import check_writers, drive
 from ..util.sigint import deferred
+from ..util.sums import kinetic_energy, momentum
 from ..engine.stop import Stop
 from ..util.errors import FieldError, FieldTypeError, check_jitted, described
 from ..engine.field.arithmetic import ARITHMETICS, check_precisions, field_chain
@@ -361,11 +362,11 @@ class Simulation:
 
     def energy(self) -> float:
         """Kinetic energy ``sum m |v|^2 / 2``."""
-        return float(0.5 * np.dot(self._masses, np.einsum("ij,ij->i", self.velocities, self.velocities)))
+        return kinetic_energy(self._masses, self.velocities)
 
     def momentum(self) -> np.ndarray:
         """``(dim,)`` total momentum ``sum m v`` (meaningful in flat space)."""
-        return self._masses @ self.velocities
+        return momentum(self._masses, self.velocities)
 
     # ------------------------------------------------------------ state for checkpoints
     def get_state(self) -> RunState:

@@ -37,6 +37,7 @@ from ..analysis.observables import boundary_rows
 from ..util.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from ..util.atomic import written_atomically
+from ..util.sums import kinetic_energy
 from .tables import rows
 
 __all__ = ["TRAJECTORY_NAME", "TYPES", "ORIGIN_LOG", "Layout", "Trajectory", "export"]
@@ -144,7 +145,7 @@ def check_speeds_fit(velocities: np.ndarray, masses=None) -> None:
     (all its energy in the lightest ball) fits GSD's 32-bit floats."""
     v = np.asarray(velocities, dtype=np.float64)
     m = np.ones(len(v)) if masses is None else np.broadcast_to(np.asarray(masses, dtype=np.float64), (len(v),))
-    energy = 0.5 * float(np.dot(m, np.einsum("ij,ij->i", v, v))) if len(v) else 0.0
+    energy = kinetic_energy(m, v) if len(v) else 0.0
     fastest = float(np.sqrt(2.0 * energy / m.min())) if len(v) else 0.0
     if fastest > FLOAT32[1]:
         raise FieldError("trajectory", f"a GSD trajectory holds 32-bit floats, which cannot hold the speeds of this "

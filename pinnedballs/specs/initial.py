@@ -11,6 +11,7 @@ from ..util.errors import FieldError
 from .errors import SpecError
 from ..geometry.base import Geometry
 from ..util.limits import check_speeds
+from ..util.sums import kinetic_energy, momentum
 from .base import FilePath, _load_npy, _Spec
 from .python import PythonInitialSpec
 
@@ -105,8 +106,8 @@ class GaussianSpec(_Spec):
         stream = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, INIT_STREAM_KEY))
         v = np.random.default_rng(stream).standard_normal((geometry.n_balls, geometry.dim))
         if self.zero_momentum:
-            v -= (masses @ v) / masses.sum()
-        energy = 0.5 * float(masses @ np.einsum("ij,ij->i", v, v))
+            v -= momentum(masses, v) / masses.sum()
+        energy = kinetic_energy(masses, v)
         if energy == 0:
             raise SpecError("initial.zero_momentum", "leaves no velocity to scale (a single ball?)")
         with np.errstate(all="ignore"):

@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from .errors import FieldError
+from .sums import kinetic_energy
 
 __all__ = ["available_memory", "check_memory", "run_bytes", "format_bytes", "format_count",
            "check_speeds", "ENERGY_LIMIT", "SPEED_LIMIT"]
@@ -138,7 +139,7 @@ def check_speeds(v: np.ndarray, masses: np.ndarray, field: str = "velocities") -
     (`SPEED_LIMIT`, 4.2e152), far above any physical use.
     """
     with np.errstate(all="ignore"):
-        energy = 0.5 * float(masses @ np.einsum("ij,ij->i", v, v))
+        energy = kinetic_energy(masses, v)
         speed = math.sqrt(2.0 * energy / float(masses.min())) if np.isfinite(energy) else math.inf
     if not np.isfinite(energy):
         raise FieldError(field, "the total energy sum m |v|^2 / 2 overflows float64")

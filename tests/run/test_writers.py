@@ -294,4 +294,11 @@ def test_resume_of_a_format_1_run_converts_it_and_is_bit_identical(tmp_path):
     assert [s[:2] for s in a.snapshots] == [s[:2] for s in b.snapshots] and len(a.snapshots) == 3
     assert all(np.array_equal(x.velocities, y.velocities) for x, y in zip(a.snapshots, b.snapshots))
     assert np.array_equal(a.velocities, b.velocities) and np.array_equal(a.rng_state, b.rng_state)
-    assert all(np.array_equal(a.observables[k], b.observables[k]) for k in b.observables)
+    # the snapshots the format-1 code wrote keep its observables; those after the resume are today's, bit for
+    # bit; the old ones agree with today's to the last few bits (its energy and momentum summed by the BLAS, whose
+    # bits depend on the machine's threads: `util.sums`)
+    kept = len(old.snapshots)
+    for k in b.observables:
+        assert np.array_equal(a.observables[k][:kept], old.observables[k]), k
+        assert np.array_equal(a.observables[k][kept:], b.observables[k][kept:]), k
+        np.testing.assert_allclose(a.observables[k][:kept], b.observables[k][:kept], rtol=1e-13, atol=1e-13)
