@@ -37,7 +37,8 @@ Two policies:
   to the bounds) once the wave has passed (`settled`: no ball at rest, and at most a thousandth of
   the balls still exact, bounds 0, but too long for the narrower state), checked before each step
   that is a multiple of `LATE_EVERY_PER_CONTACT` picks per contact, so the step it narrows at
-  depends on the state alone, not on how the run is split. The paper's 1000x500 half-plane needs
+  depends on the state alone, not on how the run is split (a narrowing among the picks a freeze
+  takes back, after the last collision, is taken back with them). The paper's 1000x500 half-plane needs
   768 bits through its front and 256 behind it (docs/performance.md).
 
 Headroom: the conjugate map ``sqrt(d) -> -sqrt(d)`` sends normals to normals, so the conjugate
@@ -58,7 +59,7 @@ from gmpy2 import mpq
 from ...util.errors import FieldError
 from .chain import FieldChain
 from .numbers import Field, NotExact, recognise
-from .fixed_kernels import (DONE, DUE, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables, cap,
+from .fixed_kernels import (DONE, DUE, FROZEN, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables, cap,
                             count_live, fold, refresh_shadows, run_picks, unfolded)
 from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
 from .limbs import from_limbs, to_limbs
@@ -362,6 +363,22 @@ class FixedChain(FieldChain):
         self._reshadow()
         self.narrowed = step
 
+    def _before_narrowing(self) -> tuple:
+        """What `narrow` changes, copied (for `_take_back`)."""
+        self._host()
+        return (self.X.copy(), self.S, self.P, self.B.copy(), self.Pp.copy(), self.acc.copy(), self.rho.copy(),
+                self.bound.copy(), self.narrowed)
+
+    def _take_back(self, checked: int, saved: tuple) -> None:
+        """The state as before a narrowing (`_before_narrowing`) whose step a freeze took back with its picks: a
+        run split otherwise, whose freeze scans fall elsewhere, never reaches that step either."""
+        self._host(writes=True)
+        self.X, self.S, self.P, self.B, self.Pp, acc, rho, bound, self.narrowed = saved
+        self.acc[:], self.rho[:], self.bound[:] = acc, rho, bound
+        self._checked = checked
+        self._scratch()
+        self._reshadow()
+
     # ------------------------------------------------------------ the live set and a run
     def prepare(self, until_frozen: bool) -> None:
         """Make ready for `run`: the live set known when the run stops at the freeze."""
@@ -392,6 +409,7 @@ class FixedChain(FieldChain):
         prog = np.array([0, -1, 0, self.live, self.chunk, self._checked, 0], dtype=np.int64)
         at_last = self.margin[1:].copy()  # margin[1:] at this run's last collision (`run_picks`)
         t, left = 0, min(collisions_left, len(picks) + 1)  # int64 in the kernel
+        unnarrowed = None  # (pick, the last step checked before, the state) of a narrowing in this call
         while True:
             every = self.every if self.late_P is not None and self.P > self.late_P else 0
             status, t = self.picks.run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left, until_frozen,
@@ -400,11 +418,15 @@ class FixedChain(FieldChain):
             if status == WIDEN:
                 self.widen()
             elif status == DUE:
-                self._checked = prog[5] = first_step + t
+                checked, self._checked = self._checked, first_step + t
+                prog[5] = self._checked
                 if self.settled():
+                    unnarrowed = (t, checked, self._before_narrowing())
                     self.narrow(first_step + t)
             else:
                 break
+        if status == FROZEN and unnarrowed is not None and t <= unnarrowed[0]:
+            self._take_back(*unnarrowed[1:])  # the freeze ends the run before the step it narrowed at
         made, self.live = int(prog[0]), int(prog[3])
         self.inside += int(prog[6])
         self._after = first_step + t - 1

@@ -235,3 +235,24 @@ def test_a_certified_state_records_the_bits_its_chain_ran_at():
     assert (c.precision, c.late_precision, c.limbs.shape[-1]) == (256, 128, 4)
     assert precisions_problem(256, 128, 2) == precisions_problem(0, 0, 7) == ""
     assert precisions_problem(True, 0, 1).startswith("precision and late_precision must be whole multiples")
+
+
+def test_a_narrowing_among_the_picks_a_freeze_takes_back_is_taken_back_too():
+    """5x5 half-plane at 128 then 64 bits: its last collision is at step 426 and the check at step 896 would narrow.
+    A run to frozen tries picks past 896 before its freeze scan and rewinds them: it ends, as a run split at step
+    426, on the state not narrowed. A run of 1,000 steps narrows at 896."""
+    g = pb.HalfPlane(5, 5)
+    v = np.round(np.random.default_rng(0).normal(size=(g.n_balls, 2)) * 2**45) / 2**45
+
+    def sim():
+        return pb.Simulation(g, v, scheduler=pb.UniformRandomPair(stream="counter", threads=1), seed=0,
+                             arithmetic="certified", precision=128, late_precision=64)
+
+    whole, split, on = sim(), sim(), sim()
+    whole.run_until_frozen(max_steps=10**5)
+    split.run(steps=426)
+    split.run_until_frozen(max_steps=10**5)
+    on.run(steps=1000)
+    assert whole.steps == split.steps == 426 and whole.get_state().identical(split.get_state())
+    assert whole.engine.state.field_chain.narrowed is None and whole.get_state().certified.limbs.shape[-1] == 2
+    assert on.engine.state.field_chain.narrowed == 896 and on.get_state().certified.limbs.shape[-1] == 1

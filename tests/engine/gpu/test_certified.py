@@ -101,12 +101,13 @@ def test_a_pick_it_cannot_decide_stops_both_devices_at_the_same_step_with_the_sa
 
 
 def test_a_narrowed_run_and_a_run_to_frozen_from_one_ball():
-    """``late_precision``: the checks for narrowing cut the GPU's segments where the CPU checks; a single moving
-    ball's run to frozen at the default bits."""
+    """``late_precision``: the checks for narrowing cut the GPU's segments where the CPU checks, the state narrowed
+    on the GPU at the CPU's step (896), or taken back with the picks a freeze takes back; a single moving ball's
+    run to frozen at the default bits."""
     g = pb.HalfPlane(5, 5)
-    cpu, gpu = both(g, grid_velocities(g, 0), lambda s: s.run_until_frozen(max_steps=10**5), seed=0, precision=128,
-                    late_precision=64)
-    assert gpu.get_state().identical(cpu.get_state()) and gpu.engine.state.field_chain.narrowed == 896
+    for run, narrowed in ((lambda s: s.run(steps=1000), 896), (lambda s: s.run_until_frozen(max_steps=10**5), None)):
+        cpu, gpu = both(g, grid_velocities(g, 0), run, seed=0, precision=128, late_precision=64)
+        assert gpu.get_state().identical(cpu.get_state()) and gpu.engine.state.field_chain.narrowed == narrowed
     g = pb.HalfPlane.from_size(16, 8)
     cpu, gpu = both(g, single(g), lambda s: s.run_until_frozen(max_steps=10**5), seed=0)
     assert gpu.get_state().identical(cpu.get_state()) and gpu.steps == 1184 and gpu.is_frozen()
