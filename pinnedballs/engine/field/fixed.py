@@ -198,6 +198,12 @@ def _coefficients(field: Field, lines: list, dim: int) -> np.ndarray:
     return out
 
 
+def _elements(X: np.ndarray, S: int) -> list[list[tuple]]:
+    """Limb arrays ``X (rows, dim, m, P)`` over ``2^S`` as rows of field elements (tuples of `mpq`)."""
+    den = 1 << S
+    return [[tuple(mpq(int(c), den) for c in comp) for comp in row] for row in from_limbs(X).tolist()]
+
+
 class CPUPicks:
     """Where `FixedChain` tries its picks and keeps its state: the CPU's kernels (`fixed_kernels.run_picks`,
     `count_live`) on the chain's own arrays. A GPU's (`pinnedballs.engine.gpu.certified.DevicePicks`) keeps the
@@ -477,14 +483,11 @@ class FixedChain(FieldChain):
     def v(self) -> list[list[tuple]]:
         """The velocities as rows of field elements (`fields`), exactly ``X / 2^S``."""
         self._host()
-        ints = from_limbs(self.X)
-        den = 1 << self.S
-        return [[tuple(mpq(int(c), den) for c in comp) for comp in row] for row in ints.tolist()]
+        return _elements(self.X, self.S)
 
     def _elements(self, rows: np.ndarray) -> list[list[tuple]]:
         self._host()
-        ints, den = from_limbs(self.X[rows]), 1 << self.S
-        return [[tuple(mpq(int(c), den) for c in comp) for comp in row] for row in ints.tolist()]
+        return _elements(self.X[rows], self.S)
 
     def sync(self) -> np.ndarray:
         """The velocities of the balls changed since the last call rounded into ``shadow`` (which it
@@ -495,9 +498,8 @@ class FixedChain(FieldChain):
             if self.certify:
                 self.shadow[rows] = nearest_floats(from_limbs(X), self.S, self.field.basis[-1])
             else:
-                F, den = self.field, 1 << self.S
-                self.shadow[rows] = [[F.to_float(tuple(mpq(int(c), den) for c in comp)) for comp in row]
-                                     for row in from_limbs(X).tolist()]
+                F = self.field
+                self.shadow[rows] = [[F.to_float(x) for x in row] for row in _elements(X, self.S)]
         return self.shadow
 
     def set_velocities(self, exact: list[list[tuple]]) -> None:

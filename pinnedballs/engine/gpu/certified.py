@@ -154,12 +154,13 @@ def _kernels():
 
     @cuda.jit
     def gather(X, balls, out):
-        """``out[r] = X[balls[r]]``, limb by limb."""
-        per = X.shape[1] * X.shape[2] * X.shape[3]
-        for q in range(cuda.grid(1), balls.shape[0] * per, cuda.gridsize(1)):
-            r, e = q // per, q % per
-            d, rest = e // (X.shape[2] * X.shape[3]), e % (X.shape[2] * X.shape[3])
-            out[r, d, rest // X.shape[3], rest % X.shape[3]] = X[balls[r], d, rest // X.shape[3], rest % X.shape[3]]
+        """``out[r] = X[balls[r]]``."""
+        for r in range(cuda.grid(1), balls.shape[0], cuda.gridsize(1)):
+            b = balls[r]
+            for d in range(X.shape[1]):
+                for c in range(X.shape[2]):
+                    for h in range(X.shape[3]):
+                        out[r, d, c, h] = X[b, d, c, h]
 
     return reserve, attempt, live, draw, settled, gather
 
