@@ -270,9 +270,10 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
         raise Damage("state/certified", problem)
     if "bound_batch" in attrs:  # absent: the bound rule in step order (files written before the batched rule)
         pending = np.asarray(attrs.get("pending", np.zeros(0)))
-        problem = bound_rule_problem(attrs["bound_batch"], attrs.get("bound_at"),
+        plain = lambda x: x.item() if isinstance(x, np.generic) else x  # noqa: E731 (numpy's scalars, said plainly)
+        problem = bound_rule_problem(plain(attrs["bound_batch"]), plain(attrs.get("bound_at")),
                                      tuple(pending.tolist()) if pending.dtype.kind == "u" else (None,),
-                                     attrs.get("unfolded", np.nan))
+                                     plain(attrs.get("unfolded", np.nan)))
         if problem:
             raise Damage("state/certified", problem)
     if "margin" in attrs:  # absent: not kept (files written before), unknown

@@ -129,3 +129,17 @@ def test_a_freeze_leaves_the_margin_of_the_run_it_ends(monkeypatch, chunk):
     assert split.run_until_frozen(max_steps=10**6)
     assert (split.steps, split.collisions) == (whole.steps, whole.collisions) == (6199, 927)
     assert split.get_state().identical(whole.get_state())  # the margin too, bit for bit
+
+
+def test_a_files_bound_rule_is_checked_and_a_file_without_one_resumes_in_step_order(tmp_path):
+    """The batched bound rule's attributes (`CertifiedState`): damage is named; a file without them (written before
+    the batched rule) reads as the rule in step order."""
+    split_run(tmp_path / "r")
+    assert pb.load(tmp_path / "r").latest.certified.bound_batch > 0
+    rewritten(tmp_path / "r", lambda f: f["state/certified"].attrs.__setitem__("bound_batch", 1000))
+    with pytest.raises(pb.ResultsError, match=r"state/certified: bound_batch must be 0 or a power of two, got 1000"):
+        pb.load(tmp_path / "r")
+    for name in ("bound_batch", "bound_at", "pending", "unfolded"):
+        rewritten(tmp_path / "r", lambda f, name=name: f["state/certified"].attrs.__delitem__(name))
+    old = pb.load(tmp_path / "r").latest.certified
+    assert (old.bound_batch, old.bound_at, old.pending, old.unfolded) == (0, -1, (0, 0), 0.0)
