@@ -312,9 +312,9 @@ def replicas(length, depth, count, rows: bool = True) -> None:
     """``count`` replicas to frozen, one a thread, their picks decoded from the lattice's row pattern (``rows``,
     what `run_ensemble(device="cuda")` runs) or read from the contact tables."""
     from pinnedballs.engine.gpu.replicas import ReplicaChains
-    from pinnedballs.run.ensemble_gpu import replica_pattern
     from pinnedballs.engine.streams.philox import counter_stream
     from pinnedballs.engine.streams.xoshiro import seed_state
+    from pinnedballs.run.ensemble_gpu import replica_pattern
     g = half(length, depth)
     t = time.perf_counter()
     v0 = single(g)

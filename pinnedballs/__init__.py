@@ -18,27 +18,37 @@ from ._version import __version__  # noqa: E402 - after the finder: a moved path
 from .analysis.maxima import MaxCollisionsResult, search_max_collisions
 from .analysis.observables import register as register_observable
 from .analysis.orders import OrdersResult, explore_orders
+from .engine.driver import Writer
 from .engine.margin import MarginWarning
-from .util.errors import FieldError, FieldTypeError, InputError
-from .geometry import (FCC, HCP, Boundary, Contacts, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane,
-                       Sphere)
+from .engine.stop import Stop
+from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
+from .geometry import (
+    FCC,
+    HCP,
+    Boundary,
+    Contacts,
+    FlatTorus,
+    Geometry,
+    GraphGeometry,
+    HalfPlane,
+    HyperbolicPlane,
+    Sphere,
+)
+from .geometry.simulation import FreezeWarning, RunState, Simulation
+from .plot import display as _display  # noqa: F401 - how a geometry and a simulation show themselves
 from .results.format import ResultsError
 from .results.load import Results, load
 from .rules import CollisionRule, Elastic, Restitution
 from .run.collision_log import CollisionLog
-from .engine.stop import Stop
-from .engine.driver import Writer
 from .run.ensemble import EnsembleResult, run_ensemble
 from .run.ensemble_dir import load_ensemble
 from .run.execute import run_spec
 from .run.gsd_writer import GSDWriter
-from .engine.triggers import AtCollisions, AtSteps, EveryCollisions, EverySteps, Trigger
 from .run.writers import ResultsWriter
 from .schedulers import ColoredSweep, RandomSweep, RejectionFree, Replay, Scheduler, Sweep, UniformRandomPair
-from .geometry.simulation import FreezeWarning, RunState, Simulation
 from .specs.errors import SpecError
 from .specs.run import RunSpec, load_spec
-from .plot import display as _display  # noqa: F401 - how a geometry and a simulation show themselves
+from .util.errors import FieldError, FieldTypeError, InputError
 
 __all__ = [
     "Contacts", "Geometry", "Boundary", "FlatTorus", "HalfPlane", "GraphGeometry",

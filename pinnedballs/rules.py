@@ -47,15 +47,15 @@ a rule collides only when its closing speed exceeds it.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
+from .engine.closing import closing_speed, impulse_rule
 from .engine.jit.cache import njit_cached
 from .util import checks
 from .util.errors import FieldError
 from .util.sums import kinetic_energy
-from .engine.closing import closing_speed, impulse_rule
 
 __all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
            "DEFAULT_RESOLUTION", "check_resolution",

@@ -242,7 +242,7 @@ class ReferenceSimulation:
         self.collision_steps: list[int] = []  # the step number of every collision
 
     @classmethod
-    def from_geometry(cls, geom, velocities, **kwargs) -> "ReferenceSimulation":
+    def from_geometry(cls, geom, velocities, **kwargs) -> ReferenceSimulation:
         """The twin of a simulation on ``geom``; the colored sweeps take the engine's classes
         (the colouring itself is checked separately)."""
         c = geom.contacts
@@ -346,7 +346,7 @@ class OrderTree:
         self.v0 = [list(row) for row in self.sim.v]
 
     @classmethod
-    def from_geometry(cls, geom, velocities, **kwargs) -> "OrderTree":
+    def from_geometry(cls, geom, velocities, **kwargs) -> OrderTree:
         c = geom.contacts
         return cls(c.pairs, c.t_i, c.t_j, velocities, **kwargs)
 

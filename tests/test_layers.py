@@ -3,14 +3,14 @@ import neither ``cli`` nor the paper's reproduction; and its rooms stand in floo
 
 from __future__ import annotations
 
-import pytest
-
 import ast
 import json
 import pkgutil
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 import pinnedballs
 

@@ -17,12 +17,12 @@ import math
 
 import numpy as np
 import pytest
+from helpers import FAST, SCHEDULER_CLASSES, chain, rule_kind, schedulers_for, two_balls
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
+from reference import ReferenceSimulation, closing_speed
 
 import pinnedballs as pb
-from helpers import FAST, SCHEDULER_CLASSES, chain, rule_kind, schedulers_for, two_balls
-from reference import ReferenceSimulation, closing_speed
 
 REL = 1e-12
 

@@ -30,6 +30,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+
 import pinnedballs as pb
 
 scratch = tempfile.TemporaryDirectory(prefix="pinnedballs-ensembles-")  # removed when the kernel stops
@@ -104,7 +105,7 @@ ax.errorbar(scaling["balls"], scaling["collisions"], yerr=1.96 * scaling["collis
 n = np.geomspace(scaling["balls"].min(), scaling["balls"].max(), 50)
 ax.plot(n, np.exp(intercept) * n**slope, label=f"fit: N^{slope:.2f}")
 ax.set(xscale="log", yscale="log", xlabel="balls N", ylabel="collisions until frozen")
-ax.legend();
+ax.legend()
 
 # %% [markdown]
 # ## The same ensemble on a Dask cluster

@@ -34,6 +34,7 @@ import warnings
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+
 import pinnedballs as pb
 
 
@@ -179,7 +180,7 @@ ax.axhline(0, color="k", lw=0.8)
 ax.axvline(4 * ULP, color="tab:red", lw=1, ls="--", label="default resolution, 4 ULP")
 ax.set(xscale="log", yscale="symlog", xlabel="resolution e (a pick collides when its closing speed w > e V)",
        ylabel="N_e - exact count", title="Collisions until frozen, float with resolution e, against exact")
-ax.legend(loc="lower left");
+ax.legend(loc="lower left")
 
 # %%
 for name, n_e, exact in (("60 x 30", n_small, exact_run.collisions), ("200 x 100", n_big, EXACT_BIG)):
@@ -244,7 +245,7 @@ for n, name in ((orders.min_collisions, "fewest"), (orders.max_collisions, "most
     ax.annotate(f"{name} over every order: {n}", (n, 0.95), xycoords=("data", "axes fraction"), rotation=90,
                 ha="right", va="top")
 ax.set(xlabel="collisions until frozen", ylabel="runs",
-       title="2 x 5 half-plane, the paper's start: 2,000 random orders");
+       title="2 x 5 half-plane, the paper's start: 2,000 random orders")
 
 # %% [markdown]
 # ## The most over velocities and orders

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+
 import pinnedballs as pb
 
 scratch = tempfile.TemporaryDirectory(prefix="pinnedballs-tutorial-")  # removed when the kernel stops
@@ -72,7 +73,7 @@ sim
 # %%
 fig, (left, right) = plt.subplots(1, 2, figsize=(12, 3.8), layout="constrained")
 pb.Simulation(half, v, seed=0).plot(ax=left, title="the start")
-sim.plot(ax=right, title=f"frozen after {sim.collisions:,} collisions");
+sim.plot(ax=right, title=f"frozen after {sim.collisions:,} collisions")
 
 # %% [markdown]
 # ## The same run from a spec, as `pinnedballs run` does it

@@ -43,13 +43,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.base import Geometry
+from ..geometry.simulation import Simulation
+from ..schedulers.replay import Replay
 from ..util import checks
 from ..util.errors import FieldError, FieldTypeError
 from ..util.progress import Progress
 from ..util.sigint import deferred
-from ..geometry.base import Geometry
-from ..schedulers.replay import Replay
-from ..geometry.simulation import Simulation
 from .orders import OrdersResult, explore_orders
 
 __all__ = ["search_max_collisions", "MaxCollisionsResult", "random_velocities", "normalised", "moved", "perturbed"]

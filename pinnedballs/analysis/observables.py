@@ -18,14 +18,15 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from scipy import stats
 
+from ..engine.state import mass_array
 from ..geometry.base import Geometry
 from ..geometry.rows import boundary_rows
-from ..engine.state import mass_array
 from ..util.sums import dot, momentum
 
 __all__ = [

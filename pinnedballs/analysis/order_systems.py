@@ -31,7 +31,8 @@ import bisect
 import functools
 import hashlib
 import itertools
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from gmpy2 import to_binary

@@ -19,19 +19,19 @@ large counting as several (`Node.cost`). A system no order can freeze (a torus) 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
+from ..geometry.base import Geometry
+from ..geometry.simulation import Simulation
+from ..schedulers.simple import UniformRandomPair
 from ..util import checks
 from ..util.errors import FieldError
 from ..util.limits import check_memory
 from ..util.progress import Progress
 from ..util.sigint import Deferred, deferred
-from ..geometry.base import Geometry
-from ..schedulers.simple import UniformRandomPair
-from ..geometry.simulation import Simulation
 from .order_systems import NODE_BYTES, ExactSystem, FloatSystem, Node, order_kernels
 
 __all__ = ["explore_orders", "OrdersResult", "order_kernels", "orders_against_random"]

@@ -7,9 +7,9 @@ import argparse
 import contextlib
 import json
 import sys
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
 
@@ -164,8 +164,8 @@ def plot(args: argparse.Namespace) -> int:
 def animate(args: argparse.Namespace) -> int:
     import warnings
 
-    from ..util.errors import FieldError
     from ..results.load import load
+    from ..util.errors import FieldError
 
     res = load(args.dir)
     try:
@@ -189,7 +189,8 @@ def animate(args: argparse.Namespace) -> int:
 def export(args: argparse.Namespace) -> int:
     from ..results.load import load
     from ..results.tables import rows
-    from ..results.trajectory import check_output, export as write_gsd
+    from ..results.trajectory import check_output
+    from ..results.trajectory import export as write_gsd
 
     check_output(args.out, force=args.force, hint="use --force to replace it")  # before reading the run
     res = load(args.dir)
@@ -386,12 +387,20 @@ def ensemble_command(args) -> int:
 
 
 def _ensemble(args, status) -> int:
-    from ..util.errors import InputError
     from ..results.rundir import DirLock, check_out_dir
-    from ..run.ensemble import (ERROR_COLUMN, SPEC_NAME, check_count, _check_replicas_memory, _remove_old_outputs, replica_seed,
-                                run_ensemble, write_outputs)
+    from ..run.ensemble import (
+        ERROR_COLUMN,
+        SPEC_NAME,
+        _check_replicas_memory,
+        _remove_old_outputs,
+        check_count,
+        replica_seed,
+        run_ensemble,
+        write_outputs,
+    )
     from ..run.executors import dask_client
     from ..specs.run import load_spec
+    from ..util.errors import InputError
 
     replicas = check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
@@ -457,8 +466,8 @@ def reproduce_command(args) -> int:
 
     with Status(show=False if args.quiet else None) as status:
         status("loading the reproduction")
-        from ..run import reproduction
         from ..results.rundir import check_out_dir
+        from ..run import reproduction
         from ..run.ensemble import check_count
 
         if args.workers is not None:

@@ -22,8 +22,8 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 from ..util.startup import EXIT_INTERRUPTED, end_at_once
 

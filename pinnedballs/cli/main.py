@@ -20,13 +20,13 @@ import sys
 import threading
 import traceback
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 from .._version import __version__
-from ..util.errors import InputError
 from ..engine.margin import MarginWarning
 from ..run.execute import Interrupted
+from ..util.errors import InputError
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
 from .status import CLEAR, is_terminal
 

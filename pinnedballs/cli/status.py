@@ -38,7 +38,7 @@ class Status:
             self.stream.flush()
             self._on = False
 
-    def __enter__(self) -> "Status":
+    def __enter__(self) -> Status:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -21,14 +21,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from .chain import COLLISIONS, LAST, LIVE, NO_LIMIT, STEPS, ChainState, LiveSet, Model, incidence
 from ..util.errors import FieldError, described
+from .chain import COLLISIONS, LAST, LIVE, NO_LIMIT, STEPS, ChainState, LiveSet, Model, incidence
 from .harness import limits_loop
-from .sequential.loops import (FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, LOOKAHEAD_BYTES, NO_PATTERN, live_kernel,
-                              loops)
+from .sequential.loops import (
+    FREEZE_CHUNK_MIN,
+    FREEZE_CHUNK_PER_CONTACT,
+    LOOKAHEAD_BYTES,
+    NO_PATTERN,
+    live_kernel,
+    loops,
+)
+from .streams.philox import CounterPicks
 from .threads.regions import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
 from .threads.tuning import most_threads
-from .streams.philox import CounterPicks
 
 __all__ = ["Backend", "LoopBackend", "FieldBackend", "DeviceBackend", "backend_for", "check_device", "DEVICES",
            "LOG_CAPACITY"]

@@ -8,8 +8,9 @@ anything else of it (JAX-MD's state records, HOOMD-blue's ``Simulation.state``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -50,7 +51,7 @@ class Model:
         """The collision threshold: a pick collides only when its closing speed exceeds it."""
         return float(self.params[-1])
 
-    def chain(self, velocities: np.ndarray) -> "Chain":
+    def chain(self, velocities: np.ndarray) -> Chain:
         """The arrays a compiled loop reads, for ``velocities``."""
         c = self.geometry.contacts
         return Chain(velocities, c.pairs, c.ends, c.units, self.masses, self.params)

@@ -30,7 +30,7 @@ From either, the engine builds the forms its loops run, each compiled where it r
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numba import config, njit, types

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time
 import weakref
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from ..util.progress import Progress, shown
 from ..util.sigint import Deferred, deferred

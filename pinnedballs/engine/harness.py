@@ -31,7 +31,7 @@ device (`engine.gpu.replicas`).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 __all__ = ["limits_loop", "given", "taken"]
 

@@ -115,7 +115,7 @@ class ClosingMargin:
     resolution: float
 
     @classmethod
-    def of(cls, margin: np.ndarray, threshold: float, resolution: float) -> "ClosingMargin":
+    def of(cls, margin: np.ndarray, threshold: float, resolution: float) -> ClosingMargin:
         """From a loop's ``margin (4,)`` array and the run's threshold."""
         def ratio(w):
             return float(w / threshold) if threshold > 0 else math.inf

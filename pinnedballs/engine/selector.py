@@ -4,7 +4,8 @@ the selector of a scheduler that picks one contact a step (`pick_selector`)."""
 from __future__ import annotations
 
 import functools
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 

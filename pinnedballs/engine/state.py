@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..util.errors import FieldError, FieldTypeError
-from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
 from .field.fixed_state import CertifiedState
+from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
 
 __all__ = ["RunState", "as_state", "mass_array", "margin_problem"]
 
@@ -45,14 +45,14 @@ class RunState:
     #: the arrays among the fields (the rest are counts)
     ARRAYS = ("velocities", "rng_state", "scheduler_state")
 
-    def copy(self) -> "RunState":
+    def copy(self) -> RunState:
         """A copy whose arrays share no memory with this one's."""
         return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
                         self.scheduler_state.copy(), None if self.exact is None else self.exact.copy(),
                         None if self.margin is None else self.margin.copy(),
                         None if self.certified is None else self.certified.copy())
 
-    def replace(self, **changes) -> "RunState":
+    def replace(self, **changes) -> RunState:
         """This state with the fields named in ``changes`` replaced."""
         return dataclasses.replace(self, **changes)
 
@@ -98,7 +98,7 @@ class RunState:
         _mapping_deprecated("get()")
         return getattr(self, name) if isinstance(name, str) and name in self._keys() else default
 
-    def identical(self, other: "RunState") -> bool:
+    def identical(self, other: RunState) -> bool:
         """True when ``other`` is this state bit for bit (every array, dtype and count, the exact
         velocities, the margin and the certified state)."""
         return (self.steps, self.collisions) == (other.steps, other.collisions) \

@@ -13,7 +13,7 @@ not again while later steps leave it unchanged.
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 from ..util import checks
 
@@ -43,7 +43,7 @@ class Trigger:
         a spec cannot say it (an `AnyOf`)."""
         return None
 
-    def __or__(self, other: "Trigger") -> "AnyOf":
+    def __or__(self, other: Trigger) -> AnyOf:
         if not isinstance(other, Trigger):
             return NotImplemented
         return AnyOf(self, other)

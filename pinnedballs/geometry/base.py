@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
+from ..engine.rows import row_pattern
 from ..util import checks
 from ..util.errors import FieldError
-from ..engine.rows import row_pattern
 from .checks import LENGTH_RTOL, raw_tables
 from .pictures import display
 
@@ -78,7 +78,7 @@ class Contacts:
     units: np.ndarray
 
     @classmethod
-    def build(cls, pairs, ends, units) -> "Contacts":
+    def build(cls, pairs, ends, units) -> Contacts:
         """Contacts from integer arrays ``pairs (E, 2)``, ``ends (E, 2)`` and ``units (K, dim)``.
 
         The arrays are checked as given (`checks.raw_tables`: whole numbers, no negative index, ends
@@ -187,7 +187,7 @@ class Geometry(ABC):
         return None
 
     @property
-    def boundary(self) -> "Boundary | None":
+    def boundary(self) -> Boundary | None:
         """The boundary seen from each ball, or None when the geometry has none (torus, sphere)."""
         return None
 

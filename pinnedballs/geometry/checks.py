@@ -41,8 +41,8 @@ import weakref
 
 import numpy as np
 
-from ..util.errors import FieldError, FieldTypeError
 from ..engine.jit.cache import njit_cached
+from ..util.errors import FieldError, FieldTypeError
 
 __all__ = ["UNIT_TOLERANCE", "LENGTH_RTOL", "raw_tables", "check_contacts"]
 

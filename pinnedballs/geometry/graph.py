@@ -193,7 +193,7 @@ class GraphGeometry(Geometry):
         return self._contacts
 
     @classmethod
-    def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6) -> "GraphGeometry":
+    def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6) -> GraphGeometry:
         """Balls of ``radius`` at ``positions`` ``(n_balls, d)``; contacts are pairs at distance ``2*radius``.
 
         Distances within ``rtol * 2 * radius`` of contact count as touching (centres

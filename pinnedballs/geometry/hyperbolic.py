@@ -21,7 +21,6 @@ import numpy as np
 from ..util import checks
 from ..util.errors import FieldError
 from ..util.limits import check_memory, format_bytes, format_count, run_bytes
-
 from .base import Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["HyperbolicPlane", "contact_length", "MINKOWSKI"]

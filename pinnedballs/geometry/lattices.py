@@ -10,7 +10,6 @@ import numpy as np
 from ..util import checks
 from ..util.errors import FieldError
 from ..util.limits import check_memory, format_count, run_bytes
-
 from .base import _INT32_MAX, SQRT3, Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["FlatTorus", "HalfPlane"]
@@ -183,7 +182,7 @@ class HalfPlane(Geometry):
         self.positions = p if self.orientation == "along" else np.ascontiguousarray(p[:, ::-1])
 
     @classmethod
-    def from_size(cls, length: float, depth: float, radius: float = 1.0, orientation: str = "along") -> "HalfPlane":
+    def from_size(cls, length: float, depth: float, radius: float = 1.0, orientation: str = "along") -> HalfPlane:
         """The paper's ``length x depth`` rectangle (in radii), long side on the boundary.
 
         ``"along"``: ``cols = floor(length / 2)`` balls side by side and ``rows =

@@ -15,7 +15,6 @@ import numpy as np
 from ..util import checks
 from ..util.errors import FieldError, FieldTypeError
 from ..util.limits import check_memory, format_count, run_bytes
-
 from .base import _INT32_MAX, Boundary, Contacts, Geometry, checked_radius
 
 __all__ = ["FCC", "HCP"]

@@ -9,31 +9,31 @@ import warnings
 
 import numpy as np
 
-from ..util import checks
 from ..engine.backends import DEVICES, Backend, backend_for
 from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
 from ..engine.driver import check_writers, drive
-from ..util.sigint import deferred
-from ..util.sums import kinetic_energy, momentum
-from ..engine.stop import Stop
-from ..util.errors import FieldError, FieldTypeError, check_jitted, described
 from ..engine.field.arithmetic import ARITHMETICS, check_precisions, field_chain
 from ..engine.field.chain import FieldChain
-from ..engine.field.numbers import NotExact
 from ..engine.field.fixed import NotFixed
 from ..engine.field.fixed_state import CertifiedState, nearest_floats
 from ..engine.field.limbs import from_limbs
-from ..util.limits import check_speeds
+from ..engine.field.numbers import NotExact
 from ..engine.margin import ClosingMargin, MarginWarning, new_margin
 from ..engine.state import RunState, as_state, margin_problem, mass_array
-from ..engine.streams.xoshiro import seed_state
+from ..engine.stop import Stop
 from ..engine.streams.philox import counter_stream
-from .base import Geometry
-from .checks import check_contacts
-from .pictures import display
+from ..engine.streams.xoshiro import seed_state
 from ..rules import CollisionRule, Elastic, check_resolution, threshold
 from ..schedulers.base import Scheduler
 from ..schedulers.simple import UniformRandomPair
+from ..util import checks
+from ..util.errors import FieldError, FieldTypeError, check_jitted, described
+from ..util.limits import check_speeds
+from ..util.sigint import deferred
+from ..util.sums import kinetic_energy, momentum
+from .base import Geometry
+from .checks import check_contacts
+from .pictures import display
 
 __all__ = ["Simulation", "RunState", "mass_array", "check_velocities", "FreezeWarning"]
 

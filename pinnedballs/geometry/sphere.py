@@ -15,8 +15,7 @@ import numpy as np
 from ..util import checks
 from ..util.errors import FieldError, FieldTypeError
 from ..util.limits import check_memory, format_count, run_bytes
-
-from .base import Contacts, Geometry, tangent_contacts, checked_radius
+from .base import Contacts, Geometry, checked_radius, tangent_contacts
 
 __all__ = ["Sphere"]
 
@@ -53,7 +52,7 @@ class Sphere(Geometry):
         self.radius = checked_radius(radius)  # the balls' size: the centres lie on the unit surface
 
     @classmethod
-    def geodesic(cls, frequency: int, radius: float = 1.0) -> "Sphere":
+    def geodesic(cls, frequency: int, radius: float = 1.0) -> Sphere:
         """The icosahedral geodesic grid: each face cut into ``frequency^2`` triangles, projected.
 
         ``10 f^2 + 2`` balls (12 of degree 5, the rest 6) and ``30 f^2`` contacts. Points
@@ -87,7 +86,7 @@ class Sphere(Geometry):
         return sphere
 
     @classmethod
-    def from_points(cls, points, radius: float = 1.0) -> "Sphere":
+    def from_points(cls, points, radius: float = 1.0) -> Sphere:
         """Balls at ``points (n, 3)``, all at the same distance from the origin (n >= 4, not all on one
         plane); contacts are the edges of their spherical Delaunay triangulation: of the faces of
         their convex hull that face away from the origin. Positions are scaled onto the unit sphere."""

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Callable, Iterator
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from .base import length_label, length_unit, save
-from .names import FIGURE_PATTERNS, figure_files
 from .figures import component_histograms, energy_by_distance
+from .names import FIGURE_PATTERNS, figure_files
 from .sheet import contact_sheet
 from .states import state_picture
 

@@ -21,8 +21,19 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from matplotlib.ticker import MaxNLocator
 
-from .base import (ARROW_COLOUR, BALL_COLOUR, BALL_EDGE, COMPONENT_NAMES, _key, _new_axes, _shared_scale, _spacing,
-                   length_label, panels, save)
+from .base import (
+    ARROW_COLOUR,
+    BALL_COLOUR,
+    BALL_EDGE,
+    COMPONENT_NAMES,
+    _key,
+    _new_axes,
+    _shared_scale,
+    _spacing,
+    length_label,
+    panels,
+    save,
+)
 from .field import colour_bar, draws_field, speed_field, speed_norm
 from .layers import layers
 

@@ -24,13 +24,15 @@ import h5py
 import numpy as np
 from pydantic import ValidationError
 
-from ..util.errors import FieldError
-from ..engine.field.fixed_state import bound_rule_problem, margin_problem as certified_margin_problem, precisions_problem
+from ..engine.field.fixed_state import bound_rule_problem, precisions_problem
+from ..engine.field.fixed_state import margin_problem as certified_margin_problem
 from ..engine.state import margin_problem
-from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.errors import first_error
+from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.run import RunSpec, stored_spec
-from .format import STATIC_NAME, ResultsError, data_dir as data_dir_of
+from ..util.errors import FieldError
+from .format import STATIC_NAME, ResultsError
+from .format import data_dir as data_dir_of
 from .index import Damage, check_attributes, check_digests, check_format, check_initial, check_links, segment_list
 
 __all__ = ["check_results"]

@@ -79,8 +79,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..analysis import observables
-from ..util.errors import InputError
 from ..engine.state import RunState
+from ..util.errors import InputError
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",
            "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES", "failed_run"]
@@ -129,7 +129,7 @@ class Record:
     values: dict = field(default_factory=dict)
 
     @classmethod
-    def of(cls, sim, names=observables.DEFAULT) -> "Record":
+    def of(cls, sim, names=observables.DEFAULT) -> Record:
         """The current state of the `Simulation` ``sim`` and its observables ``names``."""
         values = observables.measure(sim, names)
         energy = float(values["energy"]) if "energy" in values else sim.energy()

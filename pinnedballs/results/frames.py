@@ -46,7 +46,7 @@ class FrameFile:
     signature: tuple[int, int, int, int]
 
     @classmethod
-    def at(cls, path: Path, dataset: str, first: int, count: int) -> "FrameFile":
+    def at(cls, path: Path, dataset: str, first: int, count: int) -> FrameFile:
         return cls(path, dataset, first, count, _signature(path))
 
 

@@ -12,19 +12,19 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..geometry.base import Boundary, Geometry
-from ..geometry.graph import StoredGeometry
+from ..engine.field.arithmetic import AUTO
+from ..engine.field.fixed_state import SMALLEST, CertifiedState
 from ..engine.margin import ClosingMargin
 from ..engine.state import RunState, mass_array
+from ..geometry.base import Boundary, Geometry
+from ..geometry.graph import StoredGeometry
 from ..geometry.simulation import Simulation
-from ..specs.geometry import geometry_from_stored, parse_geometry
-from ..engine.field.arithmetic import AUTO
-from ..util.errors import InputError
-from ..engine.field.fixed_state import SMALLEST, CertifiedState
 from ..rules import check_resolution, threshold
 from ..specs.errors import SpecError, UserCodeError
+from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
+from ..util.errors import InputError
 from .check import check_results
 from .digest import unseal
 from .format import FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, data_dir, results_path

@@ -16,8 +16,8 @@ import os
 import re
 from pathlib import Path
 
-from ..util.errors import InputError
 from ..util.atomic import remove, tmp_path, unwritable
+from ..util.errors import InputError
 from .format import DATA_DIR, RESULTS_NAME
 
 __all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",
@@ -54,7 +54,7 @@ class DirLock:
     def held(self) -> bool:
         return self._file is not None
 
-    def acquire(self) -> "DirLock":
+    def acquire(self) -> DirLock:
         """Take the lock; an `InputError` naming the directory and the holder's pid if another
         process (or another lock in this one) holds it, or if the directory cannot be written."""
         if self.held:
@@ -98,7 +98,7 @@ class DirLock:
         self._file.close()
         self._file = None
 
-    def __enter__(self) -> "DirLock":
+    def __enter__(self) -> DirLock:
         return self.acquire()
 
     def __exit__(self, *exc) -> None:

@@ -14,11 +14,11 @@ import h5py
 import numpy as np
 
 from ..analysis import observables
+from ..engine.state import RunState
 from ..geometry.base import Geometry
 from ..geometry.graph import StoredGeometry
-from ..engine.state import RunState
-from .digest import bytes_digest, file_digest, seal
 from ..util.atomic import remove, tmp_path, write_bytes_atomic
+from .digest import bytes_digest, file_digest, seal
 from .files import h5_image, virtual_rows
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, V1_OBSERVABLES, Record, data_dir, results_path
 from .load import open_checked, read, scalar
@@ -60,7 +60,7 @@ class ResultsStore:
     @classmethod
     def create(cls, path: str | os.PathLike, *, spec: str, run: str, geometry: Geometry, masses,
                initial: Record, version: str, criterion: tuple[float, float] | None = None,
-               device: str = "cpu", simulated: bool = False) -> "ResultsStore":
+               device: str = "cpu", simulated: bool = False) -> ResultsStore:
         """Write ``static.h5`` and an index with no snapshots. ``spec``: the run spec as JSON, or "";
         ``run``: JSON describing a run built in Python, or ""; ``criterion``: the simulation's
         ``(threshold, resolution)``, kept with the margin of each state that has one; ``device``: where the
@@ -83,7 +83,7 @@ class ResultsStore:
         return store
 
     @classmethod
-    def reopen(cls, path: str | os.PathLike) -> "ResultsStore":
+    def reopen(cls, path: str | os.PathLike) -> ResultsStore:
         """The store of an existing results file, ready to append; a format-1 file is converted, a
         format-2 file gets the digests of its files (`digest`) with its next index."""
         path = results_path(path)
@@ -243,7 +243,7 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
         s["margin"].attrs.update(threshold=float(criterion[0]), resolution=float(criterion[1]))
 
 
-def _convert_v1(path: Path, f: h5py.File) -> "ResultsStore":
+def _convert_v1(path: Path, f: h5py.File) -> ResultsStore:
     """A format-1 file rewritten as format 3 (static data, one segment of its frames, the index)."""
     res = read(path, f)
     n, d = res.velocities.shape

@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.observables import boundary_rows
-from ..util.errors import FieldError, InputError
 from ..geometry.base import Geometry
 from ..util.atomic import written_atomically
+from ..util.errors import FieldError, InputError
 from ..util.sums import kinetic_energy
 from .tables import rows
 
@@ -70,7 +70,7 @@ class Layout:
     k: int
 
     @classmethod
-    def of(cls, geometry: Geometry, masses=None) -> "Layout":
+    def of(cls, geometry: Geometry, masses=None) -> Layout:
         """The layout of a run on ``geometry`` with ``masses`` (None, a number or ``(n,)``)."""
         p = np.asarray(geometry.positions, dtype=np.float64)
         n, k = p.shape
@@ -245,7 +245,7 @@ class Trajectory:
 
     @classmethod
     def open(cls, path: str | os.PathLike, layout: Layout, *, force: bool = False, resume: bool = False,
-             hint: str = "pass force=True to replace it or resume=True to append to it") -> "Trajectory":
+             hint: str = "pass force=True to replace it or resume=True to append to it") -> Trajectory:
         """Start ``path`` afresh, or with ``resume`` continue it (its frames must be of the same
         balls); an existing file is refused unless ``force`` or ``resume``."""
         path = Path(path)

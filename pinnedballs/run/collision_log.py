@@ -25,10 +25,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..util.errors import FieldError, InputError
-from ..util.atomic import write_bytes_atomic
-from ..results.files import h5_image, virtual_rows
 from ..engine.driver import Writer
+from ..results.files import h5_image, virtual_rows
+from ..util.atomic import write_bytes_atomic
+from ..util.errors import FieldError, InputError
 
 __all__ = ["CollisionLog", "FORMAT"]
 

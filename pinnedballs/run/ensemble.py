@@ -27,24 +27,24 @@ import math
 import os
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from .._version import __version__
-from ..util import checks
-from ..engine.field.arithmetic import AUTO, until_proved
-from ..util.errors import InputError
 from ..engine.backends import DEVICES
-from ..util.limits import check_memory
+from ..engine.field.arithmetic import AUTO, until_proved
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
-from ..rules import DEFAULT_RESOLUTION
-from ..util.progress import Progress
 from ..geometry.base import Geometry
-from ..util.atomic import write_text_atomic
+from ..rules import DEFAULT_RESOLUTION
 from ..specs.run import BUILD_DEVICE, RunSpec
+from ..util import checks
+from ..util.atomic import write_text_atomic
+from ..util.errors import InputError
+from ..util.limits import check_memory
+from ..util.progress import Progress
 from . import executors
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row", "margin_columns",

@@ -17,10 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..util.errors import InputError
 from ..specs.run import stored_spec
-from .ensemble import (ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult,
-                       read_table)
+from ..util.errors import InputError
+from .ensemble import ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult, read_table
 
 __all__ = ["load_ensemble", "is_ensemble_dir", "describe"]
 

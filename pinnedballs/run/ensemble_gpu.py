@@ -13,7 +13,7 @@ Systems larger than `MAX_THREAD_CONTACTS` contacts run one replica after another
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -21,9 +21,9 @@ from ..engine.backends import check_device
 from ..engine.chain import NO_LIMIT
 from ..engine.driver import Drive, Writer, drive
 from ..engine.rows import row_pattern
+from ..engine.state import RunState, mass_array
 from ..engine.streams.philox import counter_stream
 from ..engine.streams.xoshiro import seed_state
-from ..engine.state import RunState, mass_array
 from ..geometry.simulation import check_velocities
 from ..rules import threshold
 

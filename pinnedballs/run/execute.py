@@ -16,22 +16,23 @@ import contextlib
 import os
 import signal
 import threading
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Callable, Iterator, Sequence
 
-from ..engine.field.arithmetic import AUTO, auto_failure, until_proved
 from ..engine.driver import Writer, drive
-from ..util.errors import InputError
+from ..engine.field.arithmetic import AUTO, auto_failure, until_proved
 from ..engine.field.fixed import UncertifiedDecision
-from ..util.atomic import remove, tmp_path, write_text_atomic
+from ..engine.stop import Stop
+from ..geometry.simulation import Simulation
 from ..results.format import DATA_DIR, RESULTS_NAME, Record, failed_run
 from ..results.load import Results, load
 from ..results.rundir import DirLock, check_resumable
 from ..results.trajectory import TRAJECTORY_NAME
-from ..geometry.simulation import Simulation
 from ..specs.run import RunSpec, load_spec
-from ..engine.stop import Stop
-from .gsd_writer import GSDWriter, layout as gsd_layout
+from ..util.atomic import remove, tmp_path, write_text_atomic
+from ..util.errors import InputError
+from .gsd_writer import GSDWriter
+from .gsd_writer import layout as gsd_layout
 from .writers import OnSnapshot, ResultsWriter
 
 __all__ = ["Interrupted", "run_to_stop", "execute", "run_spec", "write_figures", "SILENT"]

@@ -46,10 +46,10 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Callable
 
 from ..util.errors import InputError
 
@@ -339,7 +339,7 @@ def check_scheduler(address: str, timeout: float, option: str = "dask_address") 
         greeting = _decode(_read(sock, size, deadline))
         if not (isinstance(greeting, dict) and "pickle-protocol" in greeting):
             raise _NotDask("its greeting is not a Dask handshake")
-    except (socket.timeout, TimeoutError):
+    except TimeoutError:
         raise InputError(f"{option} {address}: not a Dask scheduler (no Dask handshake within {timeout:g} s; "
                          f"a dashboard or another server?)") from None
     except _NotDask as exc:

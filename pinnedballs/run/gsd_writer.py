@@ -20,9 +20,9 @@ import os
 from pathlib import Path
 
 from ..analysis import observables as named
-from ..results.trajectory import Layout, Trajectory, check_speeds_fit
 from ..engine.driver import Writer
 from ..engine.triggers import Counts
+from ..results.trajectory import Layout, Trajectory, check_speeds_fit
 from .writers import _trigger
 
 __all__ = ["GSDWriter"]

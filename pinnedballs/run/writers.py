@@ -33,19 +33,19 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..util import checks
 from ..analysis import observables as named
+from ..engine.driver import Writer
+from ..engine.field.arithmetic import AUTO, next_precisions
+from ..engine.field.fixed import UncertifiedDecision
+from ..engine.triggers import Counts, Trigger
 from ..results.files import held_signals
 from ..results.format import RESULTS_NAME, Record, failed_run
 from ..results.index import UNKNOWN
 from ..results.rundir import BIRTH, DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from ..rules import DEFAULT_RESOLUTION
+from ..util import checks
 from ..util.errors import InputError
-from ..engine.driver import Writer
-from ..engine.field.arithmetic import AUTO, next_precisions
-from ..engine.field.fixed import UncertifiedDecision
-from ..engine.triggers import Counts, Trigger
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run", "failure", "simulated"]
 

@@ -20,14 +20,13 @@ from __future__ import annotations
 import functools
 import re
 from abc import ABC
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
-
 from numba import njit
 
-from ..util.errors import FieldError, FieldTypeError, check_jitted
 from ..engine.sequential.loops import Selector, pick_selector
+from ..util.errors import FieldError, FieldTypeError, check_jitted
 
 __all__ = ["Scheduler", "check_pick", "PickOutOfRange"]
 

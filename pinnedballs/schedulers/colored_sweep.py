@@ -25,21 +25,29 @@ is replayed (a Fisher-Yates shuffle of ``0..C-1``, as `RandomSweep` does).
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit, prange
 
-from ..util import checks
 from ..engine.chain import COLLISIONS, LIVE, STEPS
 from ..engine.closing import closing_speed
-from ..util.errors import FieldError
 from ..engine.jit.cache import jit_cached_if_possible, njit_cached
+from ..engine.margin import (
+    LARGEST,
+    NEAR_COLLISIONS,
+    NEAR_REMNANTS,
+    SMALLEST,
+    collided_speed,
+    near_collision,
+    near_remnant,
+    remnant_speed,
+)
 from ..engine.sequential.loops import Selector, contact_kernels, copy_into, no_change
-from ..engine.margin import (LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, collided_speed, near_collision, near_remnant,
-                             remnant_speed)
 from ..engine.streams.xoshiro import bounded, load, store
 from ..engine.threads.tuning import TUNED_SEGMENT, ThreadTuner, check_threads, using
+from ..util import checks
+from ..util.errors import FieldError
 from .base import Scheduler
 
 __all__ = ["ColoredSweep", "colour_classes", "sweep_selector", "sweep_steps"]

@@ -42,9 +42,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..engine.jit.cache import njit_cached
-from ..util.errors import FieldError
 from ..engine.sequential.loops import Selector
 from ..engine.streams.xoshiro import bounded, random_float
+from ..util.errors import FieldError
 from .base import Scheduler
 
 __all__ = ["RejectionFree", "picks_until_live"]

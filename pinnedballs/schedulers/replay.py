@@ -3,7 +3,7 @@ finds, a collision log), then a refusal to go on."""
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

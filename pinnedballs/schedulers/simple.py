@@ -3,17 +3,17 @@ random pair, and every contact once per sweep in a fixed or a fresh random order
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
-from ..util import checks
 from ..engine.jit.cache import njit_cached
 from ..engine.sequential.loops import Selector, no_begin, no_change, pick_selector
-from ..engine.threads.tuning import check_threads
-from ..util.errors import FieldError
 from ..engine.streams.philox import CACHE_WORDS, pick_counter, select_counter
 from ..engine.streams.xoshiro import bounded
+from ..engine.threads.tuning import check_threads
+from ..util import checks
+from ..util.errors import FieldError
 from .base import Scheduler
 
 __all__ = ["UniformRandomPair", "Sweep", "RandomSweep", "pick_uniform", "pick_sweep", "pick_random_sweep"]

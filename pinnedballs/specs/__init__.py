@@ -18,16 +18,30 @@ reading specs) and `errors` (`SpecError` and the messages of pydantic's errors).
 """
 
 from ..util.errors import InputError
-from .errors import SpecError
 from .base import Count, FilePath, Positive, engine_errors
-from .geometry import (FCCSpec, FlatTorusSpec, GeometrySpec, GraphPositionsSpec, HalfPlaneSpec, HCPSpec,
-                       HyperbolicPlaneSpec, SphereSpec)
+from .errors import SpecError
+from .geometry import (
+                       FCCSpec,
+                       FlatTorusSpec,
+                       GeometrySpec,
+                       GraphPositionsSpec,
+                       HalfPlaneSpec,
+                       HCPSpec,
+                       HyperbolicPlaneSpec,
+                       SphereSpec,
+)
 from .initial import INIT_STREAM_KEY, FromFileSpec, GaussianSpec, InitialSpec, SingleBallSpec
 from .python import PythonGeometrySpec, PythonInitialSpec, PythonRuleSpec, PythonSchedulerSpec
 from .rule import ElasticSpec, RestitutionSpec, RuleSpec
 from .run import RunSpec, describe, load_spec, parse_spec
-from .scheduler import (ColoredSweepSpec, RandomSweepSpec, RejectionFreeSpec, SchedulerSpec, SweepSpec,
-                        UniformRandomPairSpec)
+from .scheduler import (
+                       ColoredSweepSpec,
+                       RandomSweepSpec,
+                       RejectionFreeSpec,
+                       SchedulerSpec,
+                       SweepSpec,
+                       UniformRandomPairSpec,
+)
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
 
 __all__ = [

@@ -6,14 +6,15 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-from typing import Annotated, Any, Iterator
+from collections.abc import Iterator
+from typing import Annotated, Any
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 from ..util.errors import FieldError
-from .errors import SpecError
 from ..util.limits import check_memory, format_bytes
+from .errors import SpecError
 
 
 class _Spec(BaseModel):

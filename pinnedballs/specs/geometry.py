@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from typing import Any
-
 from pydantic import Field, field_validator, model_validator
 
-from .errors import SpecError
 from ..geometry import FCC, HCP, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 from .base import FilePath, Positive, _fields, _in_file, _load_npy, _Spec, engine_errors
+from .errors import SpecError
 from .python import IMPORT_FACTORIES, PythonGeometrySpec
 
 __all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "SphereSpec", "HyperbolicPlaneSpec", "FCCSpec",
@@ -44,7 +42,7 @@ class HalfPlaneSpec(_Spec):
     orientation: Literal["along", "across"] = "along"
 
     @model_validator(mode="after")
-    def _one_size(self) -> "HalfPlaneSpec":
+    def _one_size(self) -> HalfPlaneSpec:
         counts = self.rows is not None and self.cols is not None
         lengths = self.length is not None and self.depth is not None
         given = [k for k in ("rows", "cols", "length", "depth") if getattr(self, k) is not None]
@@ -88,7 +86,7 @@ class SphereSpec(_Spec):
     radius: Positive = 1.0
 
     @model_validator(mode="after")
-    def _one_source(self) -> "SphereSpec":
+    def _one_source(self) -> SphereSpec:
         if (self.frequency is None) == (self.points is None):
             raise ValueError(": give exactly one of frequency or points")
         return self
@@ -158,8 +156,7 @@ class HCPSpec(_PackingSpec):
     _geometry = HCP
 
 
-GeometrySpec = Annotated[Union[FlatTorusSpec, HalfPlaneSpec, GraphPositionsSpec, SphereSpec, HyperbolicPlaneSpec,
-                               FCCSpec, HCPSpec, PythonGeometrySpec], Field(discriminator="kind")]
+GeometrySpec = Annotated[FlatTorusSpec | HalfPlaneSpec | GraphPositionsSpec | SphereSpec | HyperbolicPlaneSpec | FCCSpec | HCPSpec | PythonGeometrySpec, Field(discriminator="kind")]
 
 
 def geometry_from_stored(spec, positions: np.ndarray):

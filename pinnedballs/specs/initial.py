@@ -7,12 +7,12 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..util.errors import FieldError
-from .errors import SpecError
 from ..geometry.base import Geometry
+from ..util.errors import FieldError
 from ..util.limits import check_speeds
 from ..util.sums import kinetic_energy, momentum
 from .base import FilePath, _load_npy, _Spec
+from .errors import SpecError
 from .python import PythonInitialSpec
 
 __all__ = ["SingleBallSpec", "GaussianSpec", "FromFileSpec", "InitialSpec", "INIT_STREAM_KEY"]
@@ -46,7 +46,7 @@ class SingleBallSpec(_Spec):
         return value
 
     @model_validator(mode="after")
-    def _one_way(self) -> "SingleBallSpec":
+    def _one_way(self) -> SingleBallSpec:
         if self.velocity is not None:
             if self.direction is not None or self.energy is not None:
                 raise ValueError(": give velocity, or direction and energy, not both")
@@ -145,4 +145,4 @@ class FromFileSpec(_Spec):
         return v
 
 
-InitialSpec = Annotated[Union[SingleBallSpec, GaussianSpec, FromFileSpec, PythonInitialSpec], Field(discriminator="kind")]
+InitialSpec = Annotated[SingleBallSpec | GaussianSpec | FromFileSpec | PythonInitialSpec, Field(discriminator="kind")]

@@ -24,16 +24,17 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import traceback
-from typing import Any, Callable, Literal
+from collections.abc import Callable
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import ValidationInfo, field_validator
 
-from .errors import SpecError, UserCodeError, failure
 from ..geometry.base import Geometry
 from ..rules import CollisionRule
 from ..schedulers.base import Scheduler
 from .base import _Spec
+from .errors import SpecError, UserCodeError, failure
 
 __all__ = ["PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",
            "ENTRY_POINT_GROUPS", "IMPORT_FACTORIES", "import_factory", "expand_entry_points", "component_failed",

@@ -34,4 +34,4 @@ class RestitutionSpec(_Spec):
             return Restitution(self.r)
 
 
-RuleSpec = Annotated[Union[ElasticSpec, RestitutionSpec, PythonRuleSpec], Field(discriminator="kind")]
+RuleSpec = Annotated[ElasticSpec | RestitutionSpec | PythonRuleSpec, Field(discriminator="kind")]

@@ -14,16 +14,16 @@ from pydantic import AfterValidator, BaseModel, ValidationError, field_validator
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
 from ..engine.field.arithmetic import AUTO, MAX_PRECISION, auto_precisions
-from ..util.errors import FieldError, InputError
-from ..geometry.base import Geometry
-from ..rules import check_resolution
-from ..util.limits import check_memory
 from ..engine.state import mass_array
+from ..geometry.base import Geometry
 from ..geometry.simulation import Simulation
+from ..rules import check_resolution
+from ..util.errors import FieldError, InputError
+from ..util.limits import check_memory
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
+from .errors import SpecError, UserCodeError, _dot, _models_of, _short, first_error
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
-from .errors import SpecError, UserCodeError, _dot, _models_of, _short, first_error
 from .python import ENTRY_POINT_GROUPS, IMPORT_FACTORIES, component_failed, expand_entry_points, label
 from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
@@ -119,13 +119,13 @@ class RunSpec(_Spec):
             raise ValueError(exc.problem) from None
 
     @model_validator(mode="after")
-    def _replica_needs_a_seed(self) -> "RunSpec":
+    def _replica_needs_a_seed(self) -> RunSpec:
         if self.replica is not None and self.seed is None:
             raise ValueError("replica: is replica k of the ensemble the seed seeds; give the spec a seed")
         return self
 
     @model_validator(mode="after")
-    def _auto_is_certified(self) -> "RunSpec":
+    def _auto_is_certified(self) -> RunSpec:
         if self.precision == AUTO and self.arithmetic != "certified":
             raise ValueError(f"precision: \"auto\" lets certified arithmetic find its bits; this run's arithmetic "
                              f"is {self.arithmetic!r}")
@@ -134,7 +134,7 @@ class RunSpec(_Spec):
             raise ValueError(f"late_precision: must be whole bits in [64, {MAX_PRECISION}], got {late}")
         return self
 
-    def at_precisions(self, precision: int, late_precision: int | None) -> "RunSpec":
+    def at_precisions(self, precision: int, late_precision: int | None) -> RunSpec:
         """This spec at ``precision`` and ``late_precision`` bits (an ``"auto"`` one's attempt at them)."""
         return self.model_copy(update={"precision": int(precision), "late_precision": late_precision})
 
@@ -153,7 +153,7 @@ class RunSpec(_Spec):
         return np.random.SeedSequence(self.seed, spawn_key=(self.replica,))
 
     @model_validator(mode="after")
-    def _snapshots_before_stop(self) -> "RunSpec":
+    def _snapshots_before_stop(self) -> RunSpec:
         for field in ("snapshots", "trajectory"):
             s = getattr(self, field)
             if s is None:
@@ -165,7 +165,7 @@ class RunSpec(_Spec):
                     raise ValueError(f"{field}.{name}: {listed[-1]} is beyond the stop at {limit}")
         return self
 
-    def seeded(self) -> "RunSpec":
+    def seeded(self) -> RunSpec:
         """This spec, with a seed: its own, or one drawn from fresh entropy (63 bits, as a spec holds)."""
         if self.seed is not None:
             return self

@@ -22,7 +22,7 @@ class UniformRandomPairSpec(_Spec):
 
     kind: Literal["uniform_random_pair"] = "uniform_random_pair"
     #: numba threads a run may use (None: every core, tuned; 1: the sequential loop); the results do not depend on it
-    threads: Optional[Annotated[int, Field(ge=1)]] = None
+    threads: Annotated[int, Field(ge=1)] | None = None
     #: "xoshiro" (the default): xoshiro256** words in order; "counter": Philox4x64-10, the pick of step s a
     #: function of (seed, s) alone, which runs on every core and on a GPU with the same bits
     stream: Literal["xoshiro", "counter"] = "xoshiro"
@@ -64,11 +64,10 @@ class ColoredSweepSpec(_Spec):
     kind: Literal["colored_sweep"] = "colored_sweep"
     shuffle: bool = False
     #: numba threads a run uses (None: ``NUMBA_NUM_THREADS``, every core); the results do not depend on it
-    threads: Optional[Annotated[int, Field(ge=1)]] = None
+    threads: Annotated[int, Field(ge=1)] | None = None
 
     def build(self) -> Scheduler:
         return ColoredSweep(shuffle=self.shuffle, threads=self.threads)
 
 
-SchedulerSpec = Annotated[Union[UniformRandomPairSpec, SweepSpec, RandomSweepSpec, RejectionFreeSpec, ColoredSweepSpec,
-                                PythonSchedulerSpec], Field(discriminator="kind")]
+SchedulerSpec = Annotated[UniformRandomPairSpec | SweepSpec | RandomSweepSpec | RejectionFreeSpec | ColoredSweepSpec | PythonSchedulerSpec, Field(discriminator="kind")]

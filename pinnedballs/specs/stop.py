@@ -26,7 +26,7 @@ class StopSpec(_Spec):
     max_steps: Count | None = None
 
     @model_validator(mode="after")
-    def _one_stop(self) -> "StopSpec":
+    def _one_stop(self) -> StopSpec:
         _only_one(self, ("steps", "collisions", "frozen"), "steps, collisions or frozen")
         if self.frozen and self.max_steps is None:
             raise ValueError("max_steps: required with frozen (a flat torus never freezes)")
@@ -61,7 +61,7 @@ class SnapshotsSpec(_Spec):
     every_collisions: Annotated[int, Field(ge=1)] | None = None
 
     @model_validator(mode="after")
-    def _one_rule(self) -> "SnapshotsSpec":
+    def _one_rule(self) -> SnapshotsSpec:
         _only_one(self, ("at_steps", "at_collisions", "every_steps", "every_collisions"),
                   "at_steps, at_collisions, every_steps or every_collisions")
         return self

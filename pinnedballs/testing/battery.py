@@ -9,8 +9,7 @@ a spec it has none of) is left out of `checks_for`; called directly, it returns 
 from __future__ import annotations
 
 import re
-
-from typing import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 from ..geometry.base import Geometry
 from ..rules import CollisionRule

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..util.errors import FieldError
 from ..geometry.checks import UNIT_TOLERANCE, check_contacts
 from ..geometry.graph import GraphGeometry
+from ..util.errors import FieldError
 from .samples import fail, vector
 
 __all__ = ["check_contact_tables", "check_contacts_are_touching_pairs", "check_contact_graph_round_trip",

@@ -20,12 +20,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..engine.sequential.loops import selector_picks
+from ..engine.state import RunState
 from ..engine.streams.xoshiro import seed_state
 from ..geometry.graph import GraphGeometry
 from ..geometry.lattices import FlatTorus, HalfPlane
 from ..schedulers.base import PickOutOfRange
 from ..schedulers.simple import UniformRandomPair
-from ..engine.state import RunState
 from .samples import SEED, fail, simulation
 
 __all__ = ["check_scheduler_picks_in_range", "check_scheduler_same_seed_same_run", "check_scheduler_split_run",

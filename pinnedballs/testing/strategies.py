@@ -19,7 +19,6 @@ from hypothesis import assume
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ..util.errors import FieldError
 from ..geometry.base import Geometry
 from ..geometry.graph import GraphGeometry
 from ..geometry.hyperbolic import HyperbolicPlane
@@ -29,6 +28,7 @@ from ..geometry.sphere import Sphere
 from ..rules import CollisionRule, Elastic, Restitution
 from ..schedulers import ColoredSweep, RandomSweep, RejectionFree, Scheduler, Sweep, UniformRandomPair
 from ..specs.run import RunSpec, parse_spec
+from ..util.errors import FieldError
 
 __all__ = ["geometries", "lattices", "graphs", "velocities", "masses", "rules", "schedulers", "run_specs", "register"]
 

@@ -8,7 +8,7 @@ none. A compile compiles the jitted functions it calls inside it, so only the ou
 from __future__ import annotations
 
 import warnings
-from typing import Callable
+from collections.abc import Callable
 
 from numba.core import event
 

@@ -109,7 +109,7 @@ class Progress:
                 close_bar(self.bar, failed)
                 self.bar = None
 
-    def __enter__(self) -> "Progress":
+    def __enter__(self) -> Progress:
         return self
 
     def __exit__(self, kind, value, traceback) -> None:

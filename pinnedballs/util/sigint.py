@@ -31,10 +31,11 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 try:  # the C functions under `signal`'s: without its enum conversions, 20 times faster (a run pays it once)
-    from _signal import getsignal as _get, signal as _set
+    from _signal import getsignal as _get
+    from _signal import signal as _set
 except ImportError:  # another Python
     _get, _set = signal.getsignal, signal.signal
 

@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 import pytest
+from helpers import RHOMBUS_V, SQRT3, chain, chain_along, icosahedron_sphere, rhombus, triangle
 
 import pinnedballs as pb
-from helpers import RHOMBUS_V, SQRT3, chain, chain_along, icosahedron_sphere, rhombus, triangle
 from pinnedballs.analysis.maxima import moved, normalised, random_velocities
 
 

@@ -15,13 +15,24 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import (
+    RHOMBUS_V,
+    SQRT3,
+    TorusLessOne,
+    chain,
+    closing_speeds,
+    energy,
+    icosahedron_sphere,
+    momentum,
+    rhombus,
+    tangent_velocities,
+    triangle,
+)
+from reference import OrderTree, ReferenceSimulation, ReplayPicker, collide
 from scipy import stats
 
 import pinnedballs as pb
-from helpers import (RHOMBUS_V, SQRT3, TorusLessOne, chain, closing_speeds, energy, icosahedron_sphere, momentum,
-                     rhombus, tangent_velocities, triangle)
 from pinnedballs.analysis.orders import order_kernels, orders_against_random
-from reference import OrderTree, ReferenceSimulation, ReplayPicker, collide
 
 P_MIN = 1e-3  # fixed seeds, so the statistical tests are deterministic
 

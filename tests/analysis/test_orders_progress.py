@@ -5,9 +5,9 @@ which is kept for an error or an interruption."""
 from __future__ import annotations
 
 import pytest
+from helpers import RHOMBUS_V, rhombus
 
 import pinnedballs as pb
-from helpers import RHOMBUS_V, rhombus
 from pinnedballs.analysis import orders
 from pinnedballs.util import progress
 

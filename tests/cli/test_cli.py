@@ -12,9 +12,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, THIN, TORUS, assert_input_error, call, spec, thin_spec, write
 
 import pinnedballs as pb
-from helpers import HALF_PLANE, THIN, TORUS, assert_input_error, call, spec, thin_spec, write
 
 ROOT = Path(__file__).resolve().parents[2]
 

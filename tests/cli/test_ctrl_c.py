@@ -19,9 +19,9 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import TORUS, assert_identical, reference, resume, spec, write
 
 from pinnedballs.results.load import load
-from helpers import TORUS, assert_identical, reference, resume, spec, write
 
 pytestmark = pytest.mark.slow  # subprocesses, first compiles
 

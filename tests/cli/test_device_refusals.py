@@ -10,7 +10,6 @@ import subprocess
 import sys
 
 import pytest
-
 from helpers import ROOT, TORUS, assert_input_error, call, spec, write
 
 COUNTER = '{"kind": "uniform_random_pair", "stream": "counter"}'

@@ -16,13 +16,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import TORUS, assert_input_error, call, spec, write  # exit 2, one line, no traceback
 
 import pinnedballs as pb
+from pinnedballs.specs import SpecError, engine_errors, parse_spec
 from pinnedballs.util import limits
 from pinnedballs.util.errors import FieldError, FieldTypeError, InputError
-from pinnedballs.specs import SpecError, engine_errors, parse_spec
-from helpers import TORUS, spec, write
-from helpers import assert_input_error, call  # exit 2, one line, no traceback
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -390,8 +389,8 @@ def test_dask_address_of_a_server_that_is_not_dask_exits_2(tmp_path, server, wor
 @pytest.mark.slow
 def test_a_real_scheduler_passes_the_probe(tmp_path):
     distributed = pytest.importorskip("dask.distributed")
-    from pinnedballs.run import executors as daskprobe
     from pinnedballs.run import ensemble
+    from pinnedballs.run import executors as daskprobe
 
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as c:

@@ -11,11 +11,11 @@ import sys
 import h5py
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, ROOT, TORUS, call, chain, spec, thin_spec, write
 
 import pinnedballs as pb
 from pinnedballs.cli.commands import _duration
 from pinnedballs.results.rundir import LOCK_NAME, DirLock
-from helpers import HALF_PLANE, ROOT, TORUS, call, chain, spec, thin_spec, write
 
 
 @pytest.mark.parametrize("seconds,text", [(0.0052913, "5.29 ms"), (0.0208, "20.8 ms"), (0.9996, "1 s"),

@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, call, spec, write
 
 import pinnedballs as pb
 from pinnedballs.cli.commands import _duration
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, TORUS, call, spec, write
 
 CERTIFIED = spec(HALF_PLANE, geometry={"kind": "half_plane", "length": 30, "depth": 15}, arithmetic="certified",
                  precision=256, late_precision=128)

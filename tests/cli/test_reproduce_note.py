@@ -5,7 +5,6 @@ thresholds of the criterion."""
 from __future__ import annotations
 
 import pytest
-
 from helpers import call
 
 

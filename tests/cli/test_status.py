@@ -17,10 +17,10 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import TORUS, spec, write
 
 from pinnedballs.cli import main as cli
 from pinnedballs.cli import status
-from helpers import TORUS, spec, write
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 

@@ -14,10 +14,10 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import TORUS, call, spec, write
 
 import pinnedballs as pb
 from pinnedballs.specs import parse_spec
-from helpers import TORUS, call, spec, write
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import THIN, thin_spec
 
 import pinnedballs as pb
 from pinnedballs.specs import parse_spec
-from helpers import THIN, thin_spec
 
 ROOT = Path(__file__).resolve().parents[2]
 NAMES = ("MarginWarning", "FreezeWarning", "GPUUnavailable")

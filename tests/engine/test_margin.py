@@ -5,16 +5,22 @@ import math
 import warnings
 
 import numpy as np
-from numba import njit
 import pytest
+from helpers import thin_torus
+from numba import njit
 
 import pinnedballs as pb
-from pinnedballs.rules import collide_elastic
-from pinnedballs.engine.margin import (NEAR, MarginWarning, collided_speed, near_collision, near_remnant, remnant_speed,
-                                      track)
+from pinnedballs.engine.margin import (
+    NEAR,
+    MarginWarning,
+    collided_speed,
+    near_collision,
+    near_remnant,
+    remnant_speed,
+    track,
+)
 from pinnedballs.geometry.simulation import FreezeWarning
-from pinnedballs.rules import DEFAULT_RESOLUTION
-from helpers import thin_torus
+from pinnedballs.rules import DEFAULT_RESOLUTION, collide_elastic
 
 
 def _pair(v):

@@ -3,16 +3,16 @@ its tables, and the loop that reads it makes the same picks and the same bits.""
 
 import numpy as np
 import pytest
+from helpers import pick_loops
 
 import pinnedballs as pb
 from pinnedballs.engine.chain import NO_LIMIT
-from pinnedballs.engine.sequential.loops import NO_PATTERN
 from pinnedballs.engine.margin import new_margin
-from pinnedballs.engine.streams.xoshiro import seed_state
 from pinnedballs.engine.rows import decode, row_pattern
+from pinnedballs.engine.sequential.loops import NO_PATTERN
+from pinnedballs.engine.streams.xoshiro import seed_state
 from pinnedballs.rules import collide_elastic, collide_masses
 from pinnedballs.schedulers.simple import pick_uniform
-from helpers import pick_loops
 
 LATTICES = [pb.FlatTorus(4, 3), pb.FlatTorus(6, 5), pb.FlatTorus(10, 7), pb.HalfPlane(3, 1), pb.HalfPlane(3, 2),
             pb.HalfPlane(5, 4), pb.HalfPlane(6, 9), pb.HalfPlane(7, 8, orientation="across"), pb.HalfPlane(29, 50)]

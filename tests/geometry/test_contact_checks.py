@@ -18,11 +18,11 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 import pytest
+from helpers import FAST, ints
 from hypothesis import given
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from helpers import FAST, ints
 from pinnedballs.geometry import checks
 from pinnedballs.schedulers.base import PickOutOfRange
 

@@ -14,11 +14,11 @@ import math
 import networkx as nx
 import numpy as np
 import pytest
+from helpers import FAST, TorusLessOne, chain, cubic, fcc_cluster, icosahedron_sphere, ints
 from hypothesis import given
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from helpers import FAST, TorusLessOne, chain, cubic, fcc_cluster, icosahedron_sphere, ints
 
 SQRT3 = math.sqrt(3.0)
 

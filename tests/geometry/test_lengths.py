@@ -10,12 +10,12 @@ import re
 import networkx as nx
 import numpy as np
 import pytest
+from helpers import TORUS, call, spec, write
 
 import pinnedballs as pb
-from pinnedballs.util.errors import FieldError
 from pinnedballs.geometry.base import LENGTHS
 from pinnedballs.specs import parse_spec
-from helpers import TORUS, call, spec, write
+from pinnedballs.util.errors import FieldError
 
 LOW, HIGH = LENGTHS
 

@@ -14,15 +14,25 @@ import warnings
 import networkx as nx
 import numpy as np
 import pytest
+from helpers import (
+    SLOWER,
+    closing_speeds,
+    energy,
+    icosahedron_sphere,
+    momentum,
+    random_state,
+    rule_kind,
+    schedulers_for,
+    stated_units,
+    tangent_velocities,
+)
 from hypothesis import assume, given
 from hypothesis import strategies as st
+from reference import ReferenceSimulation
 from scipy import stats
 
 import pinnedballs as pb
 from pinnedballs.geometry.simulation import FreezeWarning
-from helpers import (SLOWER, closing_speeds, energy, icosahedron_sphere, momentum, random_state, rule_kind,
-                     schedulers_for, stated_units, tangent_velocities)
-from reference import ReferenceSimulation
 
 SCHEDULERS = [pb.UniformRandomPair, pb.Sweep, pb.RandomSweep]
 

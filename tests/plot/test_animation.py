@@ -7,14 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import read_only_dir
 from matplotlib.quiver import Quiver
 from PIL import Image
 
 import pinnedballs as pb
-from pinnedballs.plot import animation
 from pinnedballs.cli import main as cli
+from pinnedballs.plot import animation
 from pinnedballs.plot import run as plot_run
-from helpers import read_only_dir
 
 
 def record(tmp_path, geometry, every=300, steps=1_500, name="run"):

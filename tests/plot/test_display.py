@@ -14,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, call, spec, write
 from PIL import Image
 
 import pinnedballs as pb
 from pinnedballs.plot import display
 from pinnedballs.run import ensemble as ens
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, TORUS, call, spec, write
 
 ROOT = Path(__file__).resolve().parents[2]
 

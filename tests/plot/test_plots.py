@@ -14,7 +14,8 @@ from matplotlib.quiver import Quiver
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as obs
-from pinnedballs.plot import base as plot_base, figures, states
+from pinnedballs.plot import base as plot_base
+from pinnedballs.plot import figures, states
 from pinnedballs.plot import run as plot_run
 
 

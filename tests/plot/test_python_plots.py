@@ -11,6 +11,7 @@ import shutil
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, call, spec, write
 from matplotlib.figure import Figure
 from matplotlib.image import AxesImage
 from matplotlib.quiver import Quiver
@@ -22,7 +23,6 @@ from pinnedballs.plot import field
 from pinnedballs.plot.base import new_figure
 from pinnedballs.plot.names import figure_files
 from pinnedballs.run.execute import write_figures
-from helpers import HALF_PLANE, call, spec, write
 
 
 def quivers(ax) -> list[Quiver]:

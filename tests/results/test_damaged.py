@@ -19,11 +19,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers import ROOT, TORUS, assert_input_error, call, spec, write
 
 import pinnedballs as pb
 from pinnedballs import ResultsError
-from helpers import ROOT, TORUS, spec, write
-from helpers import assert_input_error, call
 
 #: 16 balls, 48 contacts, 2 components; a sweep in random order, so a scheduler state with a range
 #: (the spec of tests/data/format2)

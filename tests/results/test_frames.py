@@ -10,12 +10,12 @@ import shutil
 import h5py
 import numpy as np
 import pytest
+from helpers import TORUS, call, spec, write
 
 import pinnedballs as pb
 from pinnedballs import ResultsError
 from pinnedballs.results.digest import HEADER_SIZE, file_digest, seal
 from pinnedballs.results.format import Snapshot
-from helpers import TORUS, call, spec, write
 
 #: 9 snapshots (steps 0, 100, ..., 800) in several segments (a checkpoint after every chunk)
 RUN = spec(TORUS, initial={"kind": "gaussian", "energy": 100.0}, snapshots={"every_steps": 100},

@@ -16,12 +16,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers import TORUS, call, spec, write
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
 from pinnedballs import ResultsError
-from helpers import TORUS, call, spec, write
 
 RUN = spec(TORUS, initial={"kind": "gaussian", "energy": 100.0}, snapshots={"every_steps": 250},
            checkpoint={"every_seconds": 0})

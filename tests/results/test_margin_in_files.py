@@ -11,6 +11,7 @@ import warnings
 import h5py
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, ROOT, TORUS, spec
 
 import pinnedballs as pb
 from pinnedballs.engine.margin import ClosingMargin, MarginWarning
@@ -19,7 +20,6 @@ from pinnedballs.results.store import ResultsStore
 from pinnedballs.rules import DEFAULT_RESOLUTION
 from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, ROOT, TORUS, spec
 
 DATA = ROOT / "tests" / "data"
 

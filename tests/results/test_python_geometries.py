@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import call, frames_of
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as obs
 from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
-from helpers import call, frames_of
 
 
 class Rod(pb.GraphGeometry):

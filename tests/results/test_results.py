@@ -12,14 +12,14 @@ import json
 import h5py
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, spec
 
 import pinnedballs as pb
 from pinnedballs.engine import driver
-from pinnedballs.run import execute as runner
 from pinnedballs.results.format import ResultsError
 from pinnedballs.results.load import load
+from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, spec
 
 REL = 1e-12
 

@@ -9,10 +9,10 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from helpers import call, write
 
 import pinnedballs as pb
 from pinnedballs.geometry.graph import StoredGeometry
-from helpers import call, write
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -19,14 +19,12 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import TORUS, assert_identical, assert_input_error, call, read_only_dir, reference, resume, spec, write
 
 import pinnedballs as pb
-from pinnedballs.util.errors import InputError
 from pinnedballs.results.load import load
 from pinnedballs.results.rundir import LOCK_NAME, DirLock
-from helpers import TORUS, spec, write
-from helpers import assert_input_error, call
-from helpers import assert_identical, read_only_dir, reference, resume
+from pinnedballs.util.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 NOBODY = 65534

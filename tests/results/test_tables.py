@@ -7,10 +7,10 @@ import shutil
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, call, spec, write
 
 import pinnedballs as pb
 from pinnedballs import ResultsError
-from helpers import HALF_PLANE, TORUS, call, spec, write
 
 
 def run(tmp_path, data: dict, name: str = "run"):

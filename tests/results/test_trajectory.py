@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, assert_input_error, call, frames_of, spec
 
 import pinnedballs as pb
 from pinnedballs.analysis.observables import boundary_rows
@@ -13,7 +14,6 @@ from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
 from pinnedballs.run.execute import execute
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, TORUS, assert_input_error, call, frames_of, spec
 
 f32 = np.float32
 

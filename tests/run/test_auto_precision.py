@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 
 import pytest
+from helpers import assert_identical, assert_input_error, call, reference, resume, spec, write
 
 from pinnedballs.engine import driver
 from pinnedballs.engine.field import arithmetic
@@ -16,7 +17,6 @@ from pinnedballs.results.load import load
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
-from helpers import assert_identical, assert_input_error, call, reference, resume, spec, write
 
 HALF_PLANE_30 = {
     "geometry": {"kind": "half_plane", "length": 30, "depth": 15},

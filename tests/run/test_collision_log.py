@@ -8,10 +8,10 @@ import json
 import h5py
 import numpy as np
 import pytest
+from reference import ReferenceSimulation
 
 import pinnedballs as pb
 from pinnedballs.engine import backends
-from reference import ReferenceSimulation
 
 
 def half_plane(rows=5, cols=7):

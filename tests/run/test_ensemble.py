@@ -8,16 +8,16 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import pickled_by_value, thin_spec, write
 
 import pinnedballs as pb
-from pinnedballs.cli import main as cli
-from pinnedballs.run import ensemble as ens
 from pinnedballs.analysis import observables as obs
-from pinnedballs.run.reproduction import torus_row
-from pinnedballs.util.errors import InputError
-from pinnedballs.specs import parse_spec
-from helpers import pickled_by_value, thin_spec, write
+from pinnedballs.cli import main as cli
 from pinnedballs.engine.margin import MarginWarning
+from pinnedballs.run import ensemble as ens
+from pinnedballs.run.reproduction import torus_row
+from pinnedballs.specs import parse_spec
+from pinnedballs.util.errors import InputError
 
 TORUS = {"geometry": {"kind": "flat_torus", "rows": 8, "cols": 8},
          "initial": {"kind": "single_ball", "ball": 0, "direction": [1.0, 0.0], "energy": 100.0},

@@ -7,11 +7,11 @@ from __future__ import annotations
 import shutil
 
 import pytest
+from helpers import assert_input_error, call
 
 import pinnedballs as pb
 from pinnedballs.run import ensemble as ens
 from pinnedballs.specs import parse_spec
-from helpers import assert_input_error, call
 
 HALF_PLANE = {"geometry": {"kind": "half_plane", "rows": 6, "cols": 10},
               "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0.0, 1.0], "energy": 100.0},

@@ -12,10 +12,10 @@ pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU e
                                          "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
 
 import pinnedballs as pb
-from pinnedballs.util.errors import InputError
 from pinnedballs.run import ensemble_gpu
 from pinnedballs.run.ensemble import run_replica
 from pinnedballs.specs.run import parse_spec
+from pinnedballs.util.errors import InputError
 
 
 def spec(stop, snapshots=None, **more):

@@ -16,12 +16,12 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import pickled_by_value
 
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import executors
 from pinnedballs.specs import parse_spec
-from helpers import pickled_by_value
 
 pytestmark = pytest.mark.slow  # clusters, processes killed
 

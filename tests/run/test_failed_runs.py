@@ -9,13 +9,13 @@ from __future__ import annotations
 import json
 
 import pytest
+from helpers import assert_input_error, call, spec, write
 
 import pinnedballs as pb
 from pinnedballs.engine.field import arithmetic
 from pinnedballs.engine.field.fixed import UncertifiedDecision
 from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
-from helpers import assert_input_error, call, spec, write
 
 AT_64_BITS = {
     "geometry": {"kind": "half_plane", "length": 30, "depth": 15},

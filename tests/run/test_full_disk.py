@@ -8,8 +8,6 @@ the child's binary writes fail with ENOSPC once a byte budget is spent.
 
 from __future__ import annotations
 
-import pytest
-
 import contextlib
 import errno
 import os
@@ -18,10 +16,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+from helpers import TORUS, assert_identical, reference, resume, spec, write
+
 import pinnedballs as pb
 from pinnedballs.cli.main import main
-from helpers import TORUS, spec, write
-from helpers import assert_identical, reference, resume
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 

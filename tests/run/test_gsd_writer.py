@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import TORUS, call, frames_of, reference, resume, spec, write
 
 import pinnedballs as pb
-from pinnedballs.util.errors import InputError
 from pinnedballs.results import trajectory
 from pinnedballs.results.load import load
-from helpers import TORUS, call, frames_of, reference, resume, spec, write
+from pinnedballs.util.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 

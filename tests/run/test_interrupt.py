@@ -25,9 +25,9 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as observe
-from pinnedballs.util import atomic
-from pinnedballs.results.rundir import DirLock
 from pinnedballs.engine import driver
+from pinnedballs.results.rundir import DirLock
+from pinnedballs.util import atomic
 
 ROOT = Path(__file__).resolve().parents[2]
 STEPS = 6_000

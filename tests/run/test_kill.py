@@ -20,10 +20,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers import TORUS, assert_identical, reference, resume, spec, write
 
 from pinnedballs.results.load import load
-from helpers import TORUS, spec, write
-from helpers import assert_identical, reference, resume
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 

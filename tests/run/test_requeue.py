@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import TORUS, assert_identical, assert_input_error, call, reference, spec, write
 
 import pinnedballs as pb
-from pinnedballs.util.errors import InputError
 from pinnedballs.results.load import load
-from helpers import TORUS, assert_identical, assert_input_error, call, reference, spec, write
+from pinnedballs.util.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 

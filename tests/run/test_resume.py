@@ -12,15 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from pinnedballs.engine import driver
-from pinnedballs.run import execute as runner
-from pinnedballs.results.load import load
-from pinnedballs.specs import parse_spec
-import pinnedballs as pb
-from pinnedballs.util.errors import InputError
-from pinnedballs.results.rundir import LOCK_NAME
 from helpers import HALF_PLANE, TORUS, assert_identical, assert_input_error, call, reference, resume, spec, write
+
+import pinnedballs as pb
+from pinnedballs.engine import driver
+from pinnedballs.results.load import load
+from pinnedballs.results.rundir import LOCK_NAME
+from pinnedballs.run import execute as runner
+from pinnedballs.specs import parse_spec
+from pinnedballs.util.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, call, spec, write
 
 import pinnedballs as pb
-from helpers import HALF_PLANE, TORUS, call, spec, write
 
 
 def test_load_spec_says_the_command_lines_one_line_as_a_value_error(tmp_path):

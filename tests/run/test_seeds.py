@@ -7,13 +7,13 @@ from __future__ import annotations
 import json
 
 import pytest
+from helpers import TORUS, assert_identical, call, reference, resume, spec, write
 
-from pinnedballs.results.load import load
 from pinnedballs.engine import driver
+from pinnedballs.results.load import load
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
-from helpers import TORUS, assert_identical, call, reference, resume, spec, write
 
 UNSEEDED = spec(TORUS, seed=...)
 

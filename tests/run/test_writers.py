@@ -10,16 +10,16 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, spec, write
 
 import pinnedballs as pb
+from pinnedballs.analysis import observables as observe
 from pinnedballs.cli import main as cli
 from pinnedballs.engine import driver
-from pinnedballs.analysis import observables as observe
-from pinnedballs.run import execute as runner
-from pinnedballs.results.store import ResultsStore
 from pinnedballs.results.load import load
+from pinnedballs.results.store import ResultsStore
+from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, TORUS, spec, write
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -16,11 +16,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import TORUS, matching, spec
 
 import pinnedballs as pb
-from helpers import matching
 from pinnedballs.specs import parse_spec
-from helpers import TORUS, spec
 
 ROOT = Path(__file__).resolve().parents[2]
 

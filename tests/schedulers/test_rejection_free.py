@@ -9,15 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, spec
+from numba import njit
 from scipy import stats
 
 import pinnedballs as pb
-from numba import njit
-
 from pinnedballs.engine.streams.xoshiro import load, seed_state, store
 from pinnedballs.schedulers.rejection_free import picks_until_live
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, spec
 
 P_MIN = 1e-3  # fixed seeds, so deterministic; the threshold only says "not absurd"
 

@@ -14,11 +14,11 @@ import math
 
 import numpy as np
 import pytest
+from helpers import matching
+from reference import RandomSweepPicker, SweepPicker, UniformPicker, Xoshiro, seed_state
 from scipy import stats
 
 import pinnedballs as pb
-from helpers import matching
-from reference import RandomSweepPicker, SweepPicker, UniformPicker, Xoshiro, seed_state
 
 P_MIN = 1e-3  # fixed seeds, so these are deterministic; the threshold only says "not absurd"
 

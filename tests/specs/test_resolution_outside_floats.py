@@ -5,9 +5,9 @@ certified arithmetic, rather than accept it and ignore it."""
 from __future__ import annotations
 
 import pytest
+from helpers import HALF_PLANE, assert_input_error, call, spec, write
 
 from pinnedballs.specs import parse_spec
-from helpers import HALF_PLANE, assert_input_error, call, spec, write
 
 
 @pytest.mark.parametrize("arithmetic", ["exact", "certified"])

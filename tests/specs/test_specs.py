@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, TORUS, spec, write
 
 import pinnedballs as pb
 from pinnedballs.specs import SpecError, describe, load_spec, parse_spec
-from helpers import HALF_PLANE, TORUS, spec, write
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import write
 
 import pinnedballs as pb
 from pinnedballs.cli import main as cli
 from pinnedballs.specs import parse_spec
-from helpers import write
 
 CHAIN = {
     "geometry": {"kind": "python", "factory": "user_components:chain", "args": {"n": 6}},

@@ -13,11 +13,11 @@ import types
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 import pytest
+from helpers import TORUS, assert_input_error, call, write
 from pydantic import BaseModel
 
 from pinnedballs.specs import RunSpec, SpecError, parse_spec
 from pinnedballs.specs.errors import _models_of
-from helpers import TORUS, assert_input_error, call, write
 
 #: a value of each JSON type: array, object, string, float, integer, boolean, null
 VALUES = {"array": ["flat_torus"], "object": {"kind": "flat_torus"}, "string": "text", "float": 1.5,

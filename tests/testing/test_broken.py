@@ -13,13 +13,30 @@ from numba import njit
 import pinnedballs as pb
 from pinnedballs.engine.streams.xoshiro import bounded
 from pinnedballs.rules import CollisionRule, closing_speed, remnant_threshold
-from pinnedballs.testing import (check_contact_graph_round_trip, check_contact_tables, check_contacts_are_touching_pairs,
-                                 check_energy_conserved_if_elastic, check_energy_never_created, check_exact_agrees,
-                                 check_frames, check_geometry, check_geometry_pickles, check_geometry_spec_round_trip,
-                                 check_momentum_conserved, check_restitution_law, check_rule, check_scheduler,
-                                 check_scheduler_law, check_scheduler_picks_in_range, check_scheduler_same_seed_same_run,
-                                 check_scheduler_state_round_trip, check_separating_untouched, check_swap_symmetric,
-                                 checks_for, parametrize_with_checks)
+from pinnedballs.testing import (
+    check_contact_graph_round_trip,
+    check_contact_tables,
+    check_contacts_are_touching_pairs,
+    check_energy_conserved_if_elastic,
+    check_energy_never_created,
+    check_exact_agrees,
+    check_frames,
+    check_geometry,
+    check_geometry_pickles,
+    check_geometry_spec_round_trip,
+    check_momentum_conserved,
+    check_restitution_law,
+    check_rule,
+    check_scheduler,
+    check_scheduler_law,
+    check_scheduler_picks_in_range,
+    check_scheduler_same_seed_same_run,
+    check_scheduler_state_round_trip,
+    check_separating_untouched,
+    check_swap_symmetric,
+    checks_for,
+    parametrize_with_checks,
+)
 from pinnedballs.testing.samples import TableGeometry
 
 # ---------------------------------------------------------------- rules

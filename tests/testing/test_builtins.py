@@ -8,6 +8,7 @@ import numpy as np
 import pinnedballs as pb
 from pinnedballs.testing import checks_for, parametrize_with_checks
 
+
 def _on_sphere(n: int) -> np.ndarray:
     x = np.random.default_rng(0).normal(size=(n, 3))
     return x / np.linalg.norm(x, axis=1, keepdims=True)

@@ -7,10 +7,10 @@ import sys
 import warnings
 
 import pytest
+from helpers import ROOT
 
 import pinnedballs  # noqa: F401 - installs the finder
 from pinnedballs.util.moved import MOVED, new_name
-from helpers import ROOT
 
 _FRESH = r"""
 import warnings

@@ -7,8 +7,8 @@ import sys
 from fractions import Fraction
 
 import numpy as np
-
 from helpers import ROOT
+
 from pinnedballs.util.sums import dot, kinetic_energy, momentum
 
 _CHILD = r"""

@@ -12,15 +12,16 @@ decision cannot be proved, starts again from its first step with `AUTO_GROWTH` t
 
 from __future__ import annotations
 
-from typing import Callable, TypeVar
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
 from ...util import checks
 from ...util.errors import FieldError
 from .chain import FieldChain
-from .rational import RationalChain
 from .fixed import PRECISION, FixedChain, NotFixed, UncertifiedDecision, lines_of
+from .rational import RationalChain
 
 __all__ = ["field_chain", "check_precisions", "ARITHMETICS", "MAX_PRECISION", "AUTO", "AUTO_GROWTH",
            "AUTO_START", "auto_precisions", "next_precisions", "auto_failure", "until_proved"]

@@ -57,14 +57,31 @@ import numpy as np
 from gmpy2 import mpq
 
 from ...util.errors import FieldError
-from .chain import FieldChain
-from .numbers import Field, NotExact, recognise
-from .fixed_kernels import (DONE, DUE, FROZEN, SQRT2_UP, UNCERTIFIED, UNCOUNTED, UP, WIDEN, Scratch, State, Tables, cap,
-                            count_live, fold, refresh_shadows, run_picks, unfolded)
-from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
-from .limbs import from_limbs, to_limbs
 from ..sequential.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT
 from ..streams.philox import CounterPicks
+from .chain import FieldChain
+from .fixed_kernels import (
+    DONE,
+    DUE,
+    FROZEN,
+    SQRT2_UP,
+    UNCERTIFIED,
+    UNCOUNTED,
+    UP,
+    WIDEN,
+    Scratch,
+    State,
+    Tables,
+    cap,
+    count_live,
+    fold,
+    refresh_shadows,
+    run_picks,
+    unfolded,
+)
+from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
+from .limbs import from_limbs, to_limbs
+from .numbers import Field, NotExact, recognise
 
 __all__ = ["FixedChain", "NotFixed", "UncertifiedDecision", "Lines", "lines_of", "bound_batch", "HEADROOM",
            "PRECISION"]

@@ -32,8 +32,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..jit.intrinsics import prefetch
 from ..jit.cache import njit_cached
+from ..jit.intrinsics import prefetch
 from .limbs import diff_combination, exchange, field_sign, low_bits, scaled_float, shift_round, sign
 
 __all__ = ["Tables", "State", "Scratch", "run_picks", "cap", "fold", "unfolded", "count_live", "refresh_shadows", "FILTER", "TINY", "UP",

@@ -101,7 +101,7 @@ class CertifiedState:
     pending: tuple = (0, 0)
     unfolded: float = 0.0
 
-    def copy(self) -> "CertifiedState":
+    def copy(self) -> CertifiedState:
         return CertifiedState(self.limbs.copy(), self.scale, self.bounds.copy(), self.rounding, self.bound_scale,
                               self.precision, self.late_precision, None if self.margin is None else self.margin.copy(),
                               self.bound_batch, self.bound_at, tuple(self.pending), self.unfolded)
@@ -110,7 +110,7 @@ class CertifiedState:
         return (self.scale, self.rounding, self.bound_scale, self.precision, self.late_precision, self.bound_batch,
                 self.bound_at, tuple(int(x) for x in self.pending), self.unfolded)
 
-    def identical(self, other: "CertifiedState") -> bool:
+    def identical(self, other: CertifiedState) -> bool:
         """True when ``other`` is this state bit for bit: limbs, bounds, scalars, and the margins where both
         keep one (a state that kept none, None, says nothing of it)."""
         return self.scalars() == other.scalars() and all(

@@ -78,7 +78,7 @@ class Field:
         self.zero = (_ZERO,) * self.m
 
     @classmethod
-    def generated(cls, roots) -> "Field":
+    def generated(cls, roots) -> Field:
         """The smallest such field holding ``sqrt(d)`` for every ``d`` in ``roots``."""
         basis = {1}
         for d in roots:

@@ -28,9 +28,33 @@ from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..harness import limits_loop
 from . import load
 from .device import SIMULATED, launching
-from .kernels import (C_BATCH_C0, C_BATCH_S0, C_BATCHES, C_COLL, C_COUNT, C_DONE, C_E, C_GEN, C_HITS, C_K, C_LAST,
-                      C_MAXC, C_PICK_ROUNDS, C_RESETS, C_ROUNDS, C_STEP0, C_TOP, CTL_SIZE, EMPTY, MAX_BATCH, TOP,
-                      barrier_kind, chain_kernel, launch_shape, live_kernel)
+from .kernels import (
+    C_BATCH_C0,
+    C_BATCH_S0,
+    C_BATCHES,
+    C_COLL,
+    C_COUNT,
+    C_DONE,
+    C_E,
+    C_GEN,
+    C_HITS,
+    C_K,
+    C_LAST,
+    C_MAXC,
+    C_PICK_ROUNDS,
+    C_RESETS,
+    C_ROUNDS,
+    C_STEP0,
+    C_TOP,
+    CTL_SIZE,
+    EMPTY,
+    MAX_BATCH,
+    TOP,
+    barrier_kind,
+    chain_kernel,
+    launch_shape,
+    live_kernel,
+)
 
 __all__ = ["DeviceChain", "batch_size", "upload_contacts", "CHUNK_PER_CONTACT", "SCAN_BLOCK"]
 

@@ -28,16 +28,16 @@ import inspect
 import re
 import threading
 import types
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
+from ...util.errors import FieldError, described
 from ..closing import choose, choose_python, impulse_of, trial_form
 from ..field import limbs
 from ..jit.cache import code_names
-from ...util.errors import FieldError, described
 
 __all__ = ["SIMULATED", "contraction_off", "device_function", "device_trial", "python_twin", "check_rule", "ptx"]
 
@@ -140,8 +140,8 @@ _FMA = re.compile(r"\bfma\.[a-z.]*f64")
 def ptx(kernel: Callable, signature, cc: tuple[int, int] = (9, 0)) -> str:
     """The PTX of ``kernel`` (a Python function, compiled as a kernel) for ``signature`` and compute capability
     ``cc``, without contraction; no GPU needed (NVVM alone)."""
-    from numba import cuda
     import numba.cuda.dispatcher as dispatcher
+    from numba import cuda
 
     with contraction_off(), _device_of(cc, dispatcher):
         return cuda.compile_ptx(kernel, signature, cc=cc)[0]

@@ -18,7 +18,7 @@ import sys
 import numpy as np
 from numba import cuda
 
-from ..streams.philox import M0, M1, W0, W1, ROUNDS
+from ..streams.philox import M0, M1, ROUNDS, W0, W1
 from .compile import SIMULATED, contraction_off
 
 __all__ = ["SIMULATED", "device", "launching", "counter_pick", "philox_block", "lemire", "contact_reader", "INF"]

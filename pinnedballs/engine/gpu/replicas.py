@@ -19,12 +19,12 @@ import os
 import numpy as np
 from numba import cuda
 
-from . import load
+from ..harness import given, limits_loop, taken
 from ..margin import track as margin_track
+from . import load
 from .chain import upload_contacts
 from .compile import device_function, device_trial
-from ..harness import given, limits_loop, taken
-from .device import SIMULATED, contact_reader, device, launching, lemire, philox_block, counter_pick
+from .device import SIMULATED, contact_reader, counter_pick, device, launching, lemire, philox_block
 
 __all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
 

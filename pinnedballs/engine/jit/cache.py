@@ -15,13 +15,12 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
-import types
-from pathlib import Path
-from typing import Callable
-
 import itertools
 import secrets
 import sys
+import types
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from numba import njit

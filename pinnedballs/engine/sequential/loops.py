@@ -52,20 +52,21 @@ steps counted right after the call's last collision, unchanged by a call that ma
 from __future__ import annotations
 
 import functools
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from ..chain import COLLISIONS, LAST, LIVE, STEPS
-from ..harness import limits_loop
 from ..closing import WRITE, branch_free_form, choose, closing_speed, compiled_form
-from ..jit.intrinsics import prefetch
+from ..harness import limits_loop
 from ..jit.cache import jit_cached_if_possible, njit_cached
+from ..jit.intrinsics import prefetch
 from ..margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
-from ..streams.xoshiro import load, store
 from ..rows import decode
 from ..selector import NO_AUX, Selector, no_begin, no_change, pick_selector  # the selector protocol, re-exported
+from ..streams.xoshiro import load, store
 from .start import fixed_rows, limited_prepare  # re-exported
 
 __all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel",

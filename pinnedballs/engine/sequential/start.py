@@ -4,7 +4,7 @@ every loop reads (`fixed_rows`): the parts of `loops` that read no rule, compile
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit.cache import njit_cached
 from ...util import checks
+from ..jit.cache import njit_cached
 
 __all__ = ["seed_state", "load", "store", "next_uint64", "bounded", "random_float"]
 

@@ -37,7 +37,7 @@ collision), so the steps, collisions, velocities, random state and margin are th
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit, prange
@@ -45,13 +45,13 @@ from numba import njit, prange
 from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..closing import trial_form
 from ..harness import limits_loop
-from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from ..jit.cache import INLINED, jit_cached_if_possible, njit_cached
-from ..streams.jump import jump, jump_polynomial
+from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from ..margin import merge_margin, track
-from .tuning import TUNED_SEGMENT, ThreadTuner, using
-from ..streams.xoshiro import load, next_uint64, store
 from ..rows import decode
+from ..streams.jump import jump, jump_polynomial
+from ..streams.xoshiro import load, next_uint64, store
+from .tuning import TUNED_SEGMENT, ThreadTuner, using
 
 __all__ = ["ParallelChain", "counted_trial", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
            "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
@@ -466,7 +466,7 @@ class ParallelChain:
 
     @classmethod
     def build(cls, collide: Callable, dim: int, flat: bool, pairs: np.ndarray, n_balls: int, rows: bool,
-              threads: int, words: int = WORDS, tuned: bool = False) -> "ParallelChain | None":
+              threads: int, words: int = WORDS, tuned: bool = False) -> ParallelChain | None:
         cuts = region_cuts(pairs, n_balls, threads) if threads > 1 else None
         if cuts is None:
             return None

@@ -56,17 +56,17 @@ docs/performance.md.)
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numba import prange
 
 from ..chain import COLLISIONS, LAST, STEPS
-from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from ..jit.cache import jit_cached_if_possible, njit_cached
+from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from ..margin import merge_margin
-from .regions import counted_trial, run_in_chunks, tuned_blocks
 from ..streams.philox import block, counter_pick, lemire
+from .regions import counted_trial, run_in_chunks, tuned_blocks
 from .tuning import ThreadTuner
 
 __all__ = ["ReservationChain", "reservation_batches", "range_bounds", "batch_size", "row_contact", "MIN_BATCH", "MAX_BATCH",
@@ -427,7 +427,7 @@ class ReservationChain:
 
     @classmethod
     def build(cls, collide: Callable, dim: int, flat: bool, pairs: np.ndarray, n_balls: int, rows: bool,
-              threads: int, tuned: bool = False, batch: int | None = None) -> "ReservationChain | None":
+              threads: int, tuned: bool = False, batch: int | None = None) -> ReservationChain | None:
         bounds = range_bounds(pairs, n_balls, threads) if threads > 1 else None
         if bounds is None:
             return None

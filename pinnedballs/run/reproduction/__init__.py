@@ -20,10 +20,20 @@ and their report) and `fit`. The command ``pinnedballs reproduce`` lives in `pin
 """
 
 from .checks import Check
-from .plan import (FULL, PAPER_SIZES, QUICK, Plan, expected_figures, half_plane_spec, paper_lattice_spec,
-                   paper_lattice_row, torus_row, torus_spec)
 from .extended.plan import EXTENDED_FULL, EXTENDED_GPU, EXTENDED_QUICK, ExtendedPlan, expected_extended_figures
 from .fit import fit_exponent
+from .plan import (
+                   FULL,
+                   PAPER_SIZES,
+                   QUICK,
+                   Plan,
+                   expected_figures,
+                   half_plane_spec,
+                   paper_lattice_row,
+                   paper_lattice_spec,
+                   torus_row,
+                   torus_spec,
+)
 from .run import reproduce
 
 __all__ = ["Plan", "FULL", "QUICK", "PAPER_SIZES", "Check", "reproduce", "expected_figures",

@@ -3,14 +3,22 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from .. import ensemble as ens
-from .plan import (CORRELATION_TOLERANCE, PAPER_BOUNDARY_SHARE, PAPER_FROZEN_COLLISIONS, Plan, _label, _Run,
-                   paper_lattice_row)
+from .plan import (
+    CORRELATION_TOLERANCE,
+    PAPER_BOUNDARY_SHARE,
+    PAPER_FROZEN_COLLISIONS,
+    Plan,
+    _label,
+    _Run,
+    paper_lattice_row,
+)
+
 
 @dataclass(frozen=True)
 class Check:

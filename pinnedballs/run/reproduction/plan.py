@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import ensemble as ens
-from ...util.errors import InputError
 from ...specs.run import RunSpec, parse_spec
+from ...util.errors import InputError
+from .. import ensemble as ens
 
 PAPER_SIZES = ((10, 5), (60, 30), (100, 50), (200, 100), (300, 150), (400, 200), (500, 250))
 #: the paper's numbers

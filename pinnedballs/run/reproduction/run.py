@@ -6,26 +6,46 @@ import dataclasses
 import functools
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from .. import ensemble as ens
-from ...util.checks import choice
-from ...util.atomic import write_text_atomic
 from ...engine.backends import DEVICES, check_device
 from ...results.rundir import DirLock, check_out_dir
 from ...specs.run import RunSpec
+from ...util.atomic import write_text_atomic
+from ...util.checks import choice
+from .. import ensemble as ens
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
-from .figures import (_far_share_figure, _figure_paper_lattice, _figure_sizes, _figures_correlations,
-                      _figures_half_plane, _figures_torus, _frozen_collisions_figure)
-from .plan import (FULL, QUICK, REPORT_NAME, Plan, _Run, _check_plan, _label, _sizes, half_plane_spec,
-                   paper_lattice_row, paper_lattice_spec, torus_row, torus_spec)
 from .extended.plan import EXTENDED_FULL, EXTENDED_GPU, EXTENDED_QUICK, ExtendedPlan, check_extended_plan
-from .extended.scaling_study import scaling_spec
-from .extended.run import run_extended
 from .extended.report import extended_section
+from .extended.run import run_extended
+from .extended.scaling_study import scaling_spec
+from .figures import (
+    _far_share_figure,
+    _figure_paper_lattice,
+    _figure_sizes,
+    _figures_correlations,
+    _figures_half_plane,
+    _figures_torus,
+    _frozen_collisions_figure,
+)
+from .plan import (
+    FULL,
+    QUICK,
+    REPORT_NAME,
+    Plan,
+    _check_plan,
+    _label,
+    _Run,
+    _sizes,
+    half_plane_spec,
+    paper_lattice_row,
+    paper_lattice_spec,
+    torus_row,
+    torus_spec,
+)
 from .report import _report
 
 # ---------------------------------------------------------------- runs

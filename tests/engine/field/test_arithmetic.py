@@ -7,9 +7,8 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.engine.field.arithmetic import MAX_PRECISION, auto_failure, auto_precisions, next_precisions
-from pinnedballs.util.errors import FieldError
 from pinnedballs.engine.field.fixed import PRECISION, UncertifiedDecision
-
+from pinnedballs.util.errors import FieldError
 
 
 def inward(g) -> np.ndarray:

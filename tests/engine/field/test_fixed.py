@@ -10,16 +10,15 @@ import math
 
 import numpy as np
 import pytest
+from gmpy2 import mpq
+from helpers import SQRT3, chain, chain_along, cubic, fcc_cluster
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from helpers import SQRT3, chain, chain_along, cubic, fcc_cluster
-from pinnedballs.engine.field.rational import RationalChain
-from gmpy2 import mpq
-
 from pinnedballs.engine.field.fixed import FixedChain, UncertifiedDecision, lines_of
 from pinnedballs.engine.field.fixed_state import CertifiedState
+from pinnedballs.engine.field.rational import RationalChain
 
 FEW = settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 

@@ -11,15 +11,15 @@ import math
 import gmpy2
 import numpy as np
 import pytest
+from helpers import HALF_PLANE, call, spec, write
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from helpers import HALF_PLANE, call, spec, write
-from pinnedballs.engine.field.rational import RationalChain
+from pinnedballs.engine import driver
 from pinnedballs.engine.field.fixed import FixedChain
 from pinnedballs.engine.field.fixed_state import CertifiedState, nearest_floats, precisions_problem
-from pinnedballs.engine import driver
+from pinnedballs.engine.field.rational import RationalChain
 
 
 def inward(g) -> np.ndarray:

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from pinnedballs.engine.field.numbers import FieldNumber, Field, NotExact, recognise, squarefree
+from pinnedballs.engine.field.numbers import Field, FieldNumber, NotExact, recognise, squarefree
 
 
 def value(field: Field, x: tuple, bits: int = 2000) -> mpfr:

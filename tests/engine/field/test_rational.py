@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import chain
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from helpers import chain
 
 
 def exact_text(sim) -> list[list[str]]:

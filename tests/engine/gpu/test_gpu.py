@@ -11,15 +11,16 @@ import pytest
 pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
                                          "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
 
+import user_rules
+from helpers import ROOT, fcc_cluster
+
 import pinnedballs as pb
 from pinnedballs.engine.chain import COUNTERS, NO_LIMIT
-from pinnedballs.util.errors import FieldError
 from pinnedballs.engine.gpu.chain import DeviceChain
 from pinnedballs.engine.gpu.replicas import S_COLLISIONS, S_FROZEN, S_STEPS, ReplicaChains
 from pinnedballs.engine.margin import new_margin
 from pinnedballs.engine.rows import row_pattern
-from helpers import ROOT, fcc_cluster
-import user_rules
+from pinnedballs.util.errors import FieldError
 
 COUNTER = pb.UniformRandomPair(stream="counter", threads=1)
 

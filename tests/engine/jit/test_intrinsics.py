@@ -3,16 +3,16 @@ tables whose row lengths are not those they were built for."""
 
 import numpy as np
 import pytest
+from helpers import pick_loops
 from numba import njit
 
 import pinnedballs as pb
-from pinnedballs.engine.jit.intrinsics import fixed_width
 from pinnedballs.engine.chain import NO_LIMIT
-from pinnedballs.engine.sequential.loops import NO_AUX, NO_PATTERN
+from pinnedballs.engine.jit.intrinsics import fixed_width
 from pinnedballs.engine.margin import new_margin
+from pinnedballs.engine.sequential.loops import NO_AUX, NO_PATTERN
 from pinnedballs.rules import collide_elastic
 from pinnedballs.schedulers.simple import pick_uniform
-from helpers import pick_loops
 
 
 def _copy_and_bump(width):

@@ -7,12 +7,12 @@ import textwrap
 
 import numpy as np
 import pytest
+from helpers import pick_loops
 from numba import njit
 
 from pinnedballs.engine.jit.cache import _ClosureCache
 from pinnedballs.rules import collide_equal, collide_masses
 from pinnedballs.schedulers.simple import pick_random_sweep, pick_sweep, pick_uniform
-from helpers import pick_loops
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 

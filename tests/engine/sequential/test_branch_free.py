@@ -12,15 +12,15 @@ import warnings
 
 import numpy as np
 import pytest
+import user_rules
+from helpers import chain, icosahedron_sphere, tangent_velocities, thin_torus
 from numba import njit
 
 import pinnedballs as pb
 from pinnedballs.engine import backends
-from pinnedballs.engine.sequential import loops as engine_loops
 from pinnedballs.engine.closing import WRITE, branch_free_form, choose, compiled_form
+from pinnedballs.engine.sequential import loops as engine_loops
 from pinnedballs.rules import collide_elastic, collide_equal, collide_masses
-from helpers import chain, icosahedron_sphere, tangent_velocities, thin_torus
-import user_rules
 
 ALWAYS, NEVER = 0, 101
 

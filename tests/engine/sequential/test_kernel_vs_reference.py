@@ -15,11 +15,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import (
+    LIMITED,
+    LOOPS,
+    SCHEDULER_CLASSES,
+    chain,
+    cubic,
+    fcc_cluster,
+    icosahedron_sphere,
+    random_state,
+    rule_kind,
+    tangent_velocities,
+)
+from reference import ReferenceRejectionFree, ReferenceSimulation
 
 import pinnedballs as pb
-from helpers import (LIMITED, LOOPS, SCHEDULER_CLASSES, chain, cubic, fcc_cluster, icosahedron_sphere, random_state,
-                   rule_kind, tangent_velocities)
-from reference import ReferenceRejectionFree, ReferenceSimulation
 
 STEPS = 2000
 

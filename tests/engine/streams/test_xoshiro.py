@@ -2,11 +2,11 @@
 
 import numpy as np
 from numba import njit
+from reference import Xoshiro
+from reference import seed_state as twin_seed_state
 from scipy import stats
 
 from pinnedballs.engine.streams.xoshiro import bounded, load, random_float, seed_state, store
-from reference import Xoshiro
-from reference import seed_state as twin_seed_state
 
 
 @njit

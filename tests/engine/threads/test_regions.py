@@ -4,21 +4,29 @@ lattice cut into regions, and the run's bits those of one thread for every kind 
 import numba
 import numpy as np
 import pytest
+from helpers import pick_loops
 from numba import njit
 
 import pinnedballs as pb
 from pinnedballs.engine.chain import COUNTERS, NO_LIMIT
-from pinnedballs.engine.streams.jump import jump, jump_polynomial
-from pinnedballs.engine.sequential.loops import NO_PATTERN, live_kernel
 from pinnedballs.engine.margin import new_margin
-from pinnedballs.engine.threads.regions import (BAND_HOPS, MIN_PARALLEL_CONTACTS, ParallelChain, _by_index, _reach, bands_pay,
-                                         contact_windows, region_cuts)
-from pinnedballs.engine.streams.xoshiro import load, next_uint64, seed_state
 from pinnedballs.engine.rows import row_pattern
+from pinnedballs.engine.sequential.loops import NO_PATTERN, live_kernel
+from pinnedballs.engine.streams.jump import jump, jump_polynomial
+from pinnedballs.engine.streams.xoshiro import load, next_uint64, seed_state
+from pinnedballs.engine.threads.regions import (
+    BAND_HOPS,
+    MIN_PARALLEL_CONTACTS,
+    ParallelChain,
+    _by_index,
+    _reach,
+    bands_pay,
+    contact_windows,
+    region_cuts,
+)
 from pinnedballs.engine.threads.tuning import using
 from pinnedballs.rules import collide_elastic, collide_masses
 from pinnedballs.schedulers.simple import pick_uniform
-from helpers import pick_loops
 
 
 @njit

@@ -7,13 +7,21 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.engine.chain import COUNTERS, LIVE, NO_LIMIT, Chain
-from pinnedballs.engine.sequential.loops import NO_PATTERN, live_kernel, loops
 from pinnedballs.engine.margin import new_margin
+from pinnedballs.engine.rows import decode, row_pattern
+from pinnedballs.engine.sequential.loops import NO_PATTERN, live_kernel, loops
 from pinnedballs.engine.streams.philox import counter_stream
 from pinnedballs.engine.streams.xoshiro import seed_state
-from pinnedballs.engine.threads.reservations import (BALLS_PER_WORD, CROSSING, MAX_CROSSING_SHARE, MIN_BATCH,
-                                             ReservationChain, batch_size, range_bounds, row_contact)
-from pinnedballs.engine.rows import decode, row_pattern
+from pinnedballs.engine.threads.reservations import (
+    BALLS_PER_WORD,
+    CROSSING,
+    MAX_CROSSING_SHARE,
+    MIN_BATCH,
+    ReservationChain,
+    batch_size,
+    range_bounds,
+    row_contact,
+)
 from pinnedballs.engine.threads.tuning import using
 from pinnedballs.rules import threshold
 

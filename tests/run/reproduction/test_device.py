@@ -15,10 +15,10 @@ pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU e
 
 import pinnedballs as pb
 from pinnedballs.cli import main as cli
-from pinnedballs.run import reproduction as rp
-from pinnedballs.util.errors import InputError
-from pinnedballs.run.reproduction import extended as ext
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import reproduction as rp
+from pinnedballs.run.reproduction import extended as ext
+from pinnedballs.util.errors import InputError
 
 TINY = dict(sizes=((10, 5), (20, 10)), detail=(20, 10), torus=(8, 8), steps=(3_000, 6_000), long_steps=20_000,
             collisions=30, replicas=4, size_replicas=2)

@@ -329,8 +329,8 @@ def test_a_certified_replica_failing_once_narrowed_runs_again_without_narrowing(
     the 20x10 half-plane at 64 bits cannot decide a pick; the replica runs again at 256 bits throughout,
     with the counts of exact arithmetic, and says so. A failure before any narrowing is the replica's."""
     from pinnedballs.engine.field.fixed import FixedChain, UncertifiedDecision
-    from pinnedballs.run.reproduction.extended.scaling_study import RERUN, certified_replica, scaling_spec
     from pinnedballs.run import ensemble as ens
+    from pinnedballs.run.reproduction.extended.scaling_study import RERUN, certified_replica, scaling_spec
 
     plan = rp.ExtendedPlan(exact_late_precision=64)
     spec = scaling_spec(20, 10, plan, arithmetic="certified", precision=256, late_precision=64)

@@ -23,8 +23,15 @@ from .common import DECILES, decile_row, level_row
 from .fcc_study import fcc_half_space
 from .hyperbolic_study import hyperbolic
 from .orders_study import order_configurations, orders
-from .plan import (EXTENDED_FULL, EXTENDED_GPU, EXTENDED_QUICK, STUDIES, ExtendedPlan, check_extended_plan,
-                   expected_extended_figures)
+from .plan import (
+                   EXTENDED_FULL,
+                   EXTENDED_GPU,
+                   EXTENDED_QUICK,
+                   STUDIES,
+                   ExtendedPlan,
+                   check_extended_plan,
+                   expected_extended_figures,
+)
 from .run import run_extended
 from .scaling_study import count_name, exact_verdict, local_exponents, scaling, scaling_spec
 from .sphere_study import sphere

@@ -4,13 +4,13 @@ summaries over replicas, the spec of one boundary ball sent inward, and the figu
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from ... import ensemble as ens
 from ....specs.run import RunSpec, parse_spec
+from ... import ensemble as ens
 from .plan import ExtendedPlan
 
 DECILES = 10

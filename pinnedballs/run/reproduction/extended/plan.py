@@ -3,13 +3,13 @@ scales, the order of the studies and the figures they write."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Callable
 
-from ....util.errors import InputError
 from ....engine.field.fixed import PRECISION
-from ... import ensemble as ens
 from ....schedulers.simple import UniformRandomPair
+from ....util.errors import InputError
+from ... import ensemble as ens
 
 #: the streams the scaling study's `UniformRandomPair` may draw from (`ExtendedPlan.stream`)
 STREAMS = UniformRandomPair.STREAMS

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ....engine.field.fixed import UncertifiedDecision
-from ... import ensemble as ens
 from ....specs.run import RunSpec
+from ... import ensemble as ens
 from ..fit import fit_exponent
 from .common import DECILES, _frozen_row, _inward_spec, _margin_row, _observing, _profile, _stats, decile_row
 from .plan import Ensemble, ExtendedPlan

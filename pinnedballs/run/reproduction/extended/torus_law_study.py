@@ -10,12 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ... import ensemble as ens
 from ....specs.run import RunSpec, parse_spec
+from ... import ensemble as ens
 from ..plan import torus_row
 from .common import _observing, _stats
 from .plan import Ensemble, ExtendedPlan
-
 
 LAW = (("kurtosis", "excess kurtosis of a component"), ("approaching_fraction", "approaching fraction"),
        ("line_of_centres_correlation", "line-of-centres correlation"))
