@@ -97,7 +97,8 @@ def _figures(res, every_snapshot: bool = False) -> Iterator[tuple[str, Callable]
         for k in later:
             snap = snapshots[k]
             name, title = snapshot_name(snap, counter)
-            yield name, lambda ax, v=np.asarray(snap.velocities, dtype=np.float64), t=title: draw(v, t, ax=ax)
+            v = np.asarray(snap.velocities, dtype=np.float64)
+            yield name, lambda ax, v=v, t=title: draw(v, t, ax=ax)
     yield "state_final.png", lambda ax: draw(final, "final state", ax=ax)
     if geometry.boundary is not None:
         unit = "lengths on the surface" if geometry.curved else length_unit(geometry.radius)

@@ -198,7 +198,7 @@ class _Group:
         model = proto.engine.model
         g, masses = proto.geometry, model.masses
         v, params, keys, thresholds = [], [], [], []
-        for k, seed in members:
+        for _k, seed in members:
             velocities = check_velocities(g, masses, spec.initial.build(g, mass_array(spec.build_masses(g.n_balls),
                                                                                       g.n_balls), seed))
             tau = threshold(velocities, masses, proto.resolution)

@@ -34,7 +34,8 @@ __all__ = ["Scheduler", "check_pick", "PickOutOfRange"]
 PICK_RETURNS = "(k, rng): the contact's index (an integer) and the random stream (the 4-tuple of uint64 it was given)"
 
 
-class Scheduler(ABC):
+# an ABC like CollisionRule and Geometry, but with no abstract method: a scheduler defines kernel() or selector()
+class Scheduler(ABC):  # noqa: B024
     """Chooses which contact the engine tries next: a `kernel` pick, or a whole `selector`.
 
     ``law``: the law of its picks, which `pinnedballs.testing.check_scheduler_law` tests: ``"uniform"``
@@ -60,7 +61,8 @@ class Scheduler(ABC):
             pick = checked_pick(pick, name)  # a user's pick: its contact is checked at every step
         return pick_selector(pick)
 
-    def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:
+    # an optional hook, empty on purpose: nothing to check by default
+    def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:  # noqa: B027
         """Raise a `FieldError` unless ``state`` (already through `check_state`) fits the tables of
         ``selector`` and, for a selector that tracks live contacts, the live contacts ``flags (E,)``
         of the velocities it is restored with. Nothing to check for a ``pick`` scheduler."""

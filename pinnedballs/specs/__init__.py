@@ -53,4 +53,5 @@ __all__ = [
     "UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "RejectionFreeSpec", "ColoredSweepSpec", "SchedulerSpec",
     "StopSpec", "SnapshotsSpec", "CheckpointSpec",
     "PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",
+    "Count", "FilePath", "Positive", "engine_errors", "INIT_STREAM_KEY",
 ]

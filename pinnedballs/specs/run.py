@@ -6,7 +6,7 @@ import contextvars
 import json
 import os
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ValidationError, field_validator, model_validator
@@ -37,7 +37,7 @@ __all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe", "BUI
 BUILD_DEVICE: contextvars.ContextVar[str] = contextvars.ContextVar("BUILD_DEVICE", default="cpu")
 
 
-MassesField = Union[Positive, FilePath]
+MassesField = Positive | FilePath
 
 #: the scheduler a GPU runs, as the engine names it (Python) and as a spec states it (JSON)
 _COUNTER_PYTHON = "UniformRandomPair(stream='counter')"
@@ -302,7 +302,8 @@ def parse_spec(data: str | bytes | dict, base_dir: str | os.PathLike | None = No
     except ValidationError as exc:
         error = first_error(exc, RunSpec)
         if isinstance(error, UserCodeError):
-            raise error  # with the user's exception as its cause
+            # with the user's exception as its cause, set by first_error: ``from`` would replace it
+            raise error  # noqa: B904
         raise SpecError(_join(source, error.path) if source else error.path, error.problem) from None
 
 

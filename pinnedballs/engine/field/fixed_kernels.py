@@ -106,10 +106,10 @@ class Scratch(NamedTuple):
 
 
 @inlined
-def _closing(tables, X, i, j, l, W):
+def _closing(tables, X, i, j, line, W):
     """``W = (V_i - V_j) . u_l`` exactly, at scale ``S + e[l]``."""
     for c in range(W.shape[0]):
-        diff_combination(W[c], X[i], X[j], tables.wterms[l, c], tables.wcount[l, c])
+        diff_combination(W[c], X[i], X[j], tables.wterms[line, c], tables.wcount[line, c])
 
 
 @inlined
@@ -154,21 +154,21 @@ def _exact_sign(W, root, scratch):
 
 @inlined
 def _filter(tables, rows, k):
-    """The float filter on contact ``k``: ``(decision, l, s, x)``, decision 1 (live) or 0 (not) when
+    """The float filter on contact ``k``: ``(decision, line, s, x)``, decision 1 (live) or 0 (not) when
     certain whatever the error bounds ``bmax`` allow, 2 when not; ``s`` the sign of ``t_i`` on ``u_l``;
     ``x`` the closing speed in floats (NaN when both balls are at rest)."""
     i, j = tables.pairs[k, 0], tables.pairs[k, 1]
     code = tables.ls[k]
-    l, s = np.int64(code >> 1), 1.0 - 2.0 * (code & 1)
+    line, s = np.int64(code >> 1), 1.0 - 2.0 * (code & 1)
     D = rows.shape[1] - 2
     if rows[i, D] == 0.0 and rows[j, D] == 0.0:  # both at rest
-        return 0, l, s, np.nan
+        return 0, line, s, np.nan
     w = 0.0
     for d in range(D):
-        w += (rows[i, d] - rows[j, d]) * tables.uf[l, d]
-    band = FILTER * _U * tables.usum[l] * (rows[i, D] + rows[j, D]) + TINY + (rows[i, D + 1] + rows[j, D + 1]) * UP
+        w += (rows[i, d] - rows[j, d]) * tables.uf[line, d]
+    band = FILTER * _U * tables.usum[line] * (rows[i, D] + rows[j, D]) + TINY + (rows[i, D + 1] + rows[j, D + 1]) * UP
     x = s * w
-    return (0 if x < -band else 1 if x > band else 2), l, s, x
+    return (0 if x < -band else 1 if x > band else 2), line, s, x
 
 
 @inlined
@@ -177,20 +177,20 @@ def _decide(k, tables, state, scale, certify, scratch, info):
     positive), 0 when not, -1 when certified arithmetic cannot tell (``info``: ``w~`` and the bound);
     ``computed``: ``scratch.W`` holds ``(V_i - V_j) . u_l`` in fixed point; ``x``: the closing speed
     in floats (0 exactly when it is 0, NaN when both balls are at rest)."""
-    decision, l, s, x = _filter(tables, state.rows, k)
+    decision, line, s, x = _filter(tables, state.rows, k)
     if decision < 2:
         return decision, False, x
     i, j = tables.pairs[k, 0], tables.pairs[k, 1]
-    beta = (state.B[i, l] + state.B[j, l]) * UP if certify else 0.0  # units of 2^-S
+    beta = (state.B[i, line] + state.B[j, line]) * UP if certify else 0.0  # units of 2^-S
     W = scratch.W
-    _closing(tables, state.X, i, j, l, W)
+    _closing(tables, state.X, i, j, line, W)
     f, err, E = _normal(W, tables.root)
-    x = s * _absolute(f, E - scale - tables.e[l])
+    x = s * _absolute(f, E - scale - tables.e[line])
     if beta == 0.0:  # w~ is w: its exact sign
         return (1 if s * _exact_sign(W, tables.root, scratch) > 0 else 0), True, x
-    decision = _beyond(s * f, err, E, tables.e[l], beta)
+    decision = _beyond(s * f, err, E, tables.e[line], beta)
     if decision < 0:
-        info[0], info[1], info[2], info[3] = s * f, E - scale - tables.e[l], beta, k
+        info[0], info[1], info[2], info[3] = s * f, E - scale - tables.e[line], beta, k
     return decision, True, x
 
 
@@ -235,21 +235,21 @@ def refresh_shadows(X, T, root, rows, B, scale):
 
 
 @inlined
-def _carry_bounds(state, coef, i, j, l, r, scale):
-    """The error bounds of balls ``i, j`` after their collision along line ``l`` with rounding ``|rho| <= r``
+def _carry_bounds(state, coef, i, j, line, r, scale):
+    """The error bounds of balls ``i, j`` after their collision along ``line`` with rounding ``|rho| <= r``
     (units of ``2^-scale``): the parallel components are exchanged, the perpendicular ones kept; each
     capped by ``G``."""
     B, Pp, rows, G = state.B, state.Pp, state.rows, state.acc[1]
     uu, nu, nn, un = coef[0], coef[1], coef[2], coef[3]
-    pi, pj = Pp[i, l], Pp[j, l]
-    ai, aj = (B[j, l] + r) * UP, (B[i, l] + r) * UP
+    pi, pj = Pp[i, line], Pp[j, line]
+    ai, aj = (B[j, line] + r) * UP, (B[i, line] + r) * UP
     D = rows.shape[1] - 2
     bi, bj = 0.0, 0.0
     for m in range(B.shape[1]):  # x y + z w: three roundings, less than UP's 2^-50 with room
-        B[i, m] = min(G, (pi * nu[l, m] + ai * uu[l, m]) * UP)
-        Pp[i, m] = min(G, (pi * nn[l, m] + ai * un[l, m]) * UP)
-        B[j, m] = min(G, (pj * nu[l, m] + aj * uu[l, m]) * UP)
-        Pp[j, m] = min(G, (pj * nn[l, m] + aj * un[l, m]) * UP)
+        B[i, m] = min(G, (pi * nu[line, m] + ai * uu[line, m]) * UP)
+        Pp[i, m] = min(G, (pi * nn[line, m] + ai * un[line, m]) * UP)
+        B[j, m] = min(G, (pj * nu[line, m] + aj * uu[line, m]) * UP)
+        Pp[j, m] = min(G, (pj * nn[line, m] + aj * un[line, m]) * UP)
         bi, bj = max(bi, B[i, m]), max(bj, B[j, m])
     rows[i, D + 1], rows[j, D + 1] = _band(bi, scale), _band(bj, scale)
 
@@ -280,8 +280,8 @@ def fold(acc, rho, bound, batch, emax, rmax, root_up):
 
 
 @inlined
-def _round_off(state, tables, step, l, rho0, rho1, r):
-    """What a collision at ``step`` along line ``l`` rounded off (``rho0 + rho1 sqrt d`` in units of
+def _round_off(state, tables, step, line, rho0, rho1, r):
+    """What a collision at ``step`` along ``line`` rounded off (``rho0 + rho1 sqrt d`` in units of
     ``2^-(S + e)``, ``r`` its bound in units of ``2^-S``) added to the sum behind ``G``. In step order
     (``K = 0``, files written before the batched rule): ``acc[0] += r``, rounded up. Batched (``K > 0``): the
     first collision of a batch of ``K`` steps folds the sums of the batches before (`fold`); ``G`` is then
@@ -296,7 +296,7 @@ def _round_off(state, tables, step, l, rho0, rho1, r):
     batch = step // K
     if batch != state.bound[1]:
         fold(state.acc, state.rho, state.bound, batch, tables.emax, tables.rmax, tables.root[2])
-    shift = np.uint64(tables.emax - tables.e[l])
+    shift = np.uint64(tables.emax - tables.e[line])
     state.rho[0] += np.uint64(abs(rho0)) << shift
     state.rho[1] += np.uint64(abs(rho1)) << shift
 
@@ -306,8 +306,8 @@ def _collide(k, tables, state, scale, certify, scratch, step):
     """Collide contact ``k`` at ``step``, whose ``W`` is computed and closing speed positive. False (nothing
     changed) when the exact policy needs a wider state first."""
     X, W, root = state.X, scratch.W, tables.root
-    i, j, l = tables.pairs[k, 0], tables.pairs[k, 1], np.int64(tables.ls[k] >> 1)
-    m, bits = W.shape[0], 2 * tables.e[l]
+    i, j, line = tables.pairs[k, 0], tables.pairs[k, 1], np.int64(tables.ls[k] >> 1)
+    m, bits = W.shape[0], 2 * tables.e[line]
     r, rho0, rho1 = 0.0, np.int64(0), np.int64(0)
     if bits > 0:  # omega: W with its lowest 2 e bits cleared, so that omega u_l is exact at scale S
         if not certify:
@@ -317,16 +317,16 @@ def _collide(k, tables, state, scale, certify, scratch, step):
         rho0 = shift_round(W[0], W[0], bits)
         rho1 = shift_round(W[1], W[1], bits) if m == 2 else np.int64(0)
         if rho0 != 0 or rho1 != 0:
-            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[l]))  # units of 2^-S
+            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[line]))  # units of 2^-S
     for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
         for c in range(m):
-            exchange(X[i, d, c], X[j, d, c], W, tables.kterms[l, d, c], tables.kcount[l, d, c])
+            exchange(X[i, d, c], X[j, d, c], W, tables.kterms[line, d, c], tables.kcount[line, d, c])
     _shadow(X, i, state.T, root, state.rows)
     _shadow(X, j, state.T, root, state.rows)
     state.dirty[i], state.dirty[j] = 1, 1
     if certify:
-        _round_off(state, tables, step, l, rho0, rho1, r)
-        _carry_bounds(state, tables.coef, i, j, l, r, scale)
+        _round_off(state, tables, step, line, rho0, rho1, r)
+        _carry_bounds(state, tables.coef, i, j, line, r, scale)
     return True
 
 

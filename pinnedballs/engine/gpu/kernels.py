@@ -293,7 +293,7 @@ def live_kernel(collide, dim: int, flat: bool, rows: bool):
     """``count_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, out)``: adds to
     ``out[0]`` the number of live contacts (those whose pick would change a velocity), as
     `engine.sequential.loops.live_kernel`'s ``live_flags`` counts them."""
-    trial, track, contact = device_trial(collide, dim, flat), device_function(margin_track), contact_reader(rows)
+    trial, contact = device_trial(collide, dim, flat), contact_reader(rows)
 
     @cuda.jit
     def count_live(v, pairs, ends, table, meta, inverse, units, masses, params, n_contacts, out):

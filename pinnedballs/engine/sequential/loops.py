@@ -71,7 +71,8 @@ from .start import fixed_rows, limited_prepare  # re-exported
 
 __all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel",
            "free_trial_kernel", "fixed_rows", "limited_prepare", "LOOKAHEAD_BYTES", "FREEZE_CHUNK_MIN",
-           "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN", "NO_PATTERN", "BLOCK", "BRANCH_FREE_PERCENT"]
+           "FREEZE_CHUNK_PER_CONTACT", "UNKNOWN", "NO_PATTERN", "BLOCK", "BRANCH_FREE_PERCENT", "NO_AUX", "no_begin",
+           "no_change"]
 
 #: picks drawn ahead, and how far ahead the velocity rows are fetched, in the prefetching loops
 LOOKAHEAD, HALFWAY = 8, 4
@@ -299,7 +300,7 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     picks = selector_picks(select, begin)
     replay = selector_replay(select)
     shaped = fixed_rows(dim)
-    SKIPS, D, FLAT, PERCENT = skips, dim, flat, int(branch_free_percent)
+    SKIPS, PERCENT = skips, int(branch_free_percent)
     #: the table loop may run blocks without a branch: a rule given by its impulse, one step a pick, a rate that can pay
     FREE = tried_free is not None and not skips and PERCENT <= 100
 

@@ -40,7 +40,7 @@ import functools
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..closing import trial_form
@@ -51,7 +51,7 @@ from ..margin import merge_margin, track
 from ..rows import decode
 from ..streams.jump import jump, jump_polynomial
 from ..streams.xoshiro import load, next_uint64, store
-from .tuning import TUNED_SEGMENT, ThreadTuner, using
+from .tuning import TUNED_SEGMENT, ThreadTuner
 
 __all__ = ["ParallelChain", "counted_trial", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
            "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
