@@ -11,7 +11,6 @@ movie (``pinnedballs animate``).
 
 from __future__ import annotations
 
-import json
 import shutil
 import subprocess
 import sys

@@ -45,7 +45,7 @@ from pinnedballs.testing import check_geometry, check_rule, check_scheduler, par
 
 # %%
 graph = nx.hexagonal_lattice_graph(4, 5)
-for node, data in graph.nodes(data=True):
+for _node, data in graph.nodes(data=True):
     data["pos"] = 2.0 * np.asarray(data["pos"])
 honeycomb = pb.GraphGeometry(graph)
 honeycomb

@@ -20,7 +20,6 @@ from helpers import (
     SQRT3,
     TorusLessOne,
     chain,
-    closing_speeds,
     energy,
     icosahedron_sphere,
     momentum,

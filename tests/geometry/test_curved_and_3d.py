@@ -25,9 +25,10 @@ from pinnedballs.specs import SpecError, parse_spec
 
 Q7_LENGTH = 2 * math.acosh(math.cos(math.pi / 3) / math.sin(math.pi / 7))
 MINKOWSKI = np.array([-1.0, 1.0, 1.0])
+EUCLIDEAN = np.ones(3)
 
 
-def lifted_tangents(geom, metric=np.ones(3)):
+def lifted_tangents(geom, metric=EUCLIDEAN):
     """``T_i, T_j (E, k)``: the contacts' unit vectors lifted to embedding coordinates with ``frames()``."""
     f, c = geom.frames(), geom.contacts
     p = c.pairs.astype(np.int64)

@@ -49,7 +49,7 @@ def test_building_a_lattice_takes_a_chunk_of_temporaries_whatever_its_size(make)
 
     extras = []
     for size in (2 * _CHUNK // 300, 4 * _CHUNK // 300):
-        geom, peak = _traced(lambda: built(size))
+        geom, peak = _traced(lambda size=size: built(size))
         extras.append(peak - _tables(geom.contacts) - geom.positions.nbytes)
     assert max(extras) < 12 * MB and abs(extras[1] - extras[0]) < MB, [x / MB for x in extras]
     # (whole-lattice temporaries: 4 times the tables, 18 and 37 MB here)

@@ -62,12 +62,19 @@ def written(tmp_path_factory):
 
 def same(a, b) -> bool:
     """Two loaded runs are the same run, bit for bit, in every field ``Results`` has."""
-    arrays = lambda r: [r.velocities, r.rng_state, r.scheduler_state, r.momentum, r.positions, r.pairs, r.t_i, r.t_j,
-                        r.initial_velocities, *(s.velocities for s in r.snapshots), *r.observables.values()]
-    geometry = lambda r: (r.stored.view, r.stored.radius, r.stored.boundary, r.masses)
-    fields = lambda r: (r.spec, r.version, r.status, r.stop_reason, r.energy, r.approaching, r.frozen, r.initial_energy,
-                        [s[:2] for s in r.snapshots], list(r.observables), r.elapsed_seconds, r.checkpoints, r.created,
-                        r.updated, r.steps, r.collisions, r.run, r.format_version, geometry(r))
+
+    def arrays(r):
+        return [r.velocities, r.rng_state, r.scheduler_state, r.momentum, r.positions, r.pairs, r.t_i, r.t_j,
+                r.initial_velocities, *(s.velocities for s in r.snapshots), *r.observables.values()]
+
+    def geometry(r):
+        return r.stored.view, r.stored.radius, r.stored.boundary, r.masses
+
+    def fields(r):
+        return (r.spec, r.version, r.status, r.stop_reason, r.energy, r.approaching, r.frozen, r.initial_energy,
+                [s[:2] for s in r.snapshots], list(r.observables), r.elapsed_seconds, r.checkpoints, r.created,
+                r.updated, r.steps, r.collisions, r.run, r.format_version, geometry(r))
+
     return fields(a) == fields(b) and all(x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()
                                           for x, y in zip(arrays(a), arrays(b), strict=True))
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 import re
 import time
 
-import numpy as np
 import pytest
 from numba import njit
 

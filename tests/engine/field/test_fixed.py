@@ -75,7 +75,10 @@ def assert_same_exactly(a: pb.Simulation, b: pb.Simulation) -> None:
         assert np.array_equal(a.get_state().exact, b.get_state().exact)
 
 
-def inward(g, scale=np.sqrt(200.0)) -> np.ndarray:
+INWARD_SCALE = np.sqrt(200.0)
+
+
+def inward(g, scale=INWARD_SCALE) -> np.ndarray:
     v = np.zeros((g.n_balls, g.dim))
     b = g.boundary_center()
     v[b] = -scale * g.boundary.outward[b]

@@ -1,7 +1,6 @@
 """The paper's chain on several threads (`engine.threads.regions`): the stream jumped ahead word for word, the
 lattice cut into regions, and the run's bits those of one thread for every kind of limit."""
 
-import numba
 import numpy as np
 import pytest
 from helpers import pick_loops

@@ -5,7 +5,6 @@ CPU with the bits of ``device="cpu"``; the plans' new fields and their checks.""
 import csv
 import dataclasses
 import json
-from pathlib import Path
 
 import pytest
 
