@@ -23,13 +23,16 @@ def without_a_gpu(*argv) -> subprocess.CompletedProcess:
                           env=env, cwd=ROOT, timeout=300)
 
 
+pytestmark = pytest.mark.cuda  # the refusals of numba-cuda without a GPU: skipped without numba-cuda (conftest)
+
+
 @pytest.fixture(scope="module")
 def no_gpu():
     env = {"NUMBA_ENABLE_CUDASIM": "0", "PATH": "/usr/bin:/bin", "HOME": str(ROOT)}
     seen = subprocess.run([sys.executable, "-c", "from numba import cuda; print(cuda.is_available())"],
                           capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
     if seen.stdout.strip() != "False":
-        pytest.skip("a GPU is here (or numba-cuda is not): nothing to refuse")
+        pytest.skip("a GPU is here: nothing to refuse")
 
 
 @pytest.mark.slow

@@ -47,7 +47,8 @@ def test_info_says_what_the_error_bound_is_and_the_bits(tmp_path):
     pb.run_spec(parse_spec(CERTIFIED), tmp_path / "exact", figures=False)
     lines = info_lines(tmp_path / "exact")
     assert lines["arithmetic+"] == "G = 0: no rounding yet: the certified velocities are exact arithmetic's"
-    assert lines["arithmetic"].endswith(", 128 bits (256 through the first wave, 128 behind the first wave)")  # narrowed
+    # narrowed
+    assert lines["arithmetic"].endswith(", 128 bits (256 through the first wave, 128 behind the first wave)")
 
 
 def test_validate_says_the_arithmetic_and_its_bits(tmp_path):
@@ -61,6 +62,7 @@ def test_validate_says_the_arithmetic_and_its_bits(tmp_path):
         assert (code, err) == (0, "") and words in out, out
 
 
+@pytest.mark.cuda
 def test_info_names_the_random_stream_and_the_device(tmp_path):
     """xoshiro256** by default, Philox4x64-10 on the counter stream; the CPU, or the GPU as numba-cuda's
     simulator (on in the tests) stood in for it, whose results are the CPU's bit for bit."""

@@ -183,11 +183,10 @@ def test_spring_given_by_its_impulse_is_elastic_at_no_softening(doc):
     assert soft.energy() < 0.5 * b.energy()
 
 
+@pytest.mark.cuda
 def test_both_rules_run_on_the_gpu_with_the_cpus_bits(doc):
     """The page's claim: a user's rule, whole or by its impulse, runs on ``device="cuda"`` (here numba-cuda's
     simulator) with the CPU's bits."""
-    pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
-                                             "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
     half = pb.HalfPlane.from_size(16, 8)
     v = np.zeros((half.n_balls, 2))
     v[half.boundary_center()] = [0.0, 3.0]

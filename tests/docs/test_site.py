@@ -61,27 +61,51 @@ def test_the_notebook_extra_opens_the_tutorials_and_runs_them_headless():
     assert re.search(r"^jupytext --to notebook --execute docs/tutorials/\w+\.py", readme, flags=re.M)
 
 
-def test_the_test_extra_leaves_numba_cuda_to_the_cuda_extra_and_ci_installs_it():
-    """numba-cuda pulls about 520 MB of CUDA packages: `.[test]` leaves it out, the GPU tests skip without it, and
-    CI installs it before the suite so that they run there."""
+def readme_commands() -> list[str]:
+    """The README's command lines that install and then run something (``python3 -m pip install ... && ...``)."""
+    return re.findall(r"^python3 -m pip install \S+ && .+$", text(ROOT / "README.md"), flags=re.M)
+
+
+def test_ci_runs_each_readme_command_as_written_in_a_fresh_environment():
+    """The quick start's two lines and the documentation's, read out of the README by .ci/run (so they cannot
+    drift apart), each after a fresh virtual environment of its own: an install step an extra lacks fails CI."""
+    ci = text(ROOT / ".ci" / "run")
+    commands = readme_commands()
+    assert [c.split(" && ")[0] for c in commands] == [
+        "python3 -m pip install .", 'python3 -m pip install ".[test]"', 'python3 -m pip install ".[docs]"']
+    assert commands[1].endswith("python3 -m pytest -q") and commands[2].endswith("mkdocs build --strict")
+    at = []
+    for command in commands:
+        head = command.split(" && ")[0] + " && "
+        read = ci.index(f"line=$(readme_line '{head}')")
+        assert ci.rindex("\nfresh ", 0, read) > (at[-1] if at else -1), head    # its own fresh environment
+        later = ci.find("\nfresh ", read)
+        assert -1 < ci.index('bash -c "$line"', read) < (later if later > -1 else len(ci)), head   # run there
+        at.append(read)
+
+
+def test_the_test_extra_leaves_numba_cuda_to_the_cuda_extra_and_ci_runs_the_gpu_tests_with_it():
+    """numba-cuda pulls about 520 MB of CUDA packages: `.[test]` leaves it out and the GPU tests skip without it
+    (the ``cuda`` marker, tests/conftest.py); CI then adds `.[cuda]` and runs them (``-m cuda``), checking that
+    it imports, so that none is skipped there."""
     assert "numba-cuda" not in names(extras()["test"]) and "numba-cuda" in names(extras()["cuda"])
     ci = text(ROOT / ".ci" / "run")
-    suite = ci.index("python3 -m pytest -q\n")
-    assert -1 < ci.index('pip install --quiet --disable-pip-version-check ".[cuda]"') < suite
-    assert -1 < ci.index('python3 -c "import numba_cuda"') < suite          # so that no GPU test is skipped there
+    suite = ci.index("line=$(readme_line 'python3 -m pip install \".[test]\" && ')")
+    cuda = ci.index('pip install --quiet --disable-pip-version-check ".[cuda]"')
+    assert suite < cuda < ci.index('python3 -c "import numba_cuda"') < ci.index("python3 -m pytest -q -m cuda")
 
 
-#: the test modules of the GPU engine, under numba-cuda's simulator
-GPU_TESTS = ["tests/engine/gpu/test_gpu.py", "tests/run/reproduction/test_device.py", "tests/run/test_device_runs.py",
-             "tests/run/test_ensemble_gpu.py", "tests/docs/test_extending.py", "tests/docs/test_user_pages.py"]
+#: what a test module does that needs numba-cuda: the GPU engine, a run on device "cuda", its command line
+GPU_USE = re.compile(r"device=[\"']cuda[\"']|\"--device\", \"cuda\"|engine\.gpu|numba_cuda|from numba import cuda")
 
 
-def test_the_gpu_engines_tests_skip_without_numba_cuda():
-    """Each says ``pytest.importorskip("numba_cuda")`` (numba's own, older ``numba.cuda`` imports without
-    numba-cuda but cannot run the kernels), so `.[test]` alone runs the suite."""
-    for name in GPU_TESTS:
-        source = text(ROOT / name)
-        assert re.search(r"device=[\"']cuda[\"']|numba_cuda", source) and 'importorskip("numba_cuda"' in source, name
+def test_every_test_of_the_gpu_is_marked_cuda():
+    """A test module that uses the GPU engine marks its tests ``cuda`` (all, or those that use it), which skip,
+    saying so, without numba-cuda; `test_public_warnings` runs a GPU call without numba-cuda on purpose."""
+    using = [path for path in sorted((ROOT / "tests").rglob("test_*.py")) if GPU_USE.search(text(path))
+             and path.name not in ("test_public_warnings.py", "test_site.py")]
+    assert len(using) >= 10
+    assert [path.relative_to(ROOT).as_posix() for path in using if "pytest.mark.cuda" not in text(path)] == []
 
 
 # ---------------------------------------------------------------- 5.3: the first command, the home page

@@ -90,11 +90,10 @@ def test_the_gpu_example_runs_on_the_counter_stream_and_the_pages_show_it_under_
 
 
 @pytest.mark.slow
+@pytest.mark.cuda
 def test_the_commands_to_try_the_gpu_without_one_give_the_cpus_run(tmp_path):
     """docs/gpu.md's commands, as written but for the directories: the simulated GPU's run is the CPU's,
     bit for bit, with the steps and collisions its comment says."""
-    pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: trying the GPU without one needs it "
-                                             "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
     (commands,) = [b for b in blocks(ROOT / "docs" / "gpu.md", "bash")
                    if "NUMBA_ENABLE_CUDASIM=1" in b and " pinnedballs run " in b]
     runs = [line.split("#")[0].split() for line in commands.splitlines() if " pinnedballs run " in line]

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-pytest.importorskip("numba_cuda", reason="the GPU engine needs numba-cuda (its simulator runs the kernels here)")
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 from pinnedballs.run import ensemble as ens  # noqa: E402
 from pinnedballs.run.ensemble_gpu import groups  # noqa: E402

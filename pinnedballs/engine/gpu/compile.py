@@ -48,6 +48,10 @@ except ImportError:  # pragma: no cover - older numba-cuda reads numba's
 
 #: True under numba-cuda's simulator: kernels run as Python threads on the CPU
 SIMULATED = bool(getattr(_cuda_config, "ENABLE_CUDASIM", 0))
+if SIMULATED:  # its shared arrays allocated under a lock (`simulator`): else a thread may get one of its own
+    from .simulator import mend
+
+    mend()
 
 _OFF = threading.local()  # how deep the calling thread is inside `contraction_off`
 

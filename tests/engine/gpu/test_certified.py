@@ -7,8 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
-                                         "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 import pinnedballs as pb
 from pinnedballs.engine.field.fixed import UncertifiedDecision

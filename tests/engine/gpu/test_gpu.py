@@ -7,9 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-# the GPU engine needs numba-cuda (numba's own, older numba.cuda imports without it but cannot run the kernels)
-pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
-                                         "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 import user_rules
 from helpers import ROOT, fcc_cluster
@@ -77,8 +75,8 @@ def _chain_run(geometry, v, steps, masses=None, rule=None, pattern=None, **chain
     cpu = pb.Simulation(geometry, v, scheduler=COUNTER, seed=8, masses=masses, rule=rule)
     cpu.run(steps=steps, progress=False)
     sim = pb.Simulation(geometry, v, scheduler=COUNTER, seed=8, masses=masses, rule=rule)
-    dc = DeviceChain(sim.velocities, geometry.contacts, pattern, sim.engine.model.masses, sim.engine.model.params, sim.engine.model.collide,
-                     sim.engine.state.rng[:2], **chain)
+    dc = DeviceChain(sim.velocities, geometry.contacts, pattern, sim.engine.model.masses, sim.engine.model.params,
+                     sim.engine.model.collide, sim.engine.state.rng[:2], **chain)
     counters, rng, margin = np.zeros(COUNTERS, dtype=np.int64), sim.engine.state.rng.copy(), new_margin()
     assert dc.run(counters, rng, margin, steps, NO_LIMIT, False) == steps
     assert (counters[0], counters[1], counters[3]) == (cpu.steps, cpu.collisions, cpu.engine.state.counters[3])
@@ -269,7 +267,8 @@ def test_a_rule_that_would_not_give_the_cpus_bits_is_refused_in_one_line():
     assert len(lines) == 4, out.stdout
     assert lines[0].startswith("device: 'cuda' found no GPU") and lines[1].startswith("device: 'cuda' found no GPU")
     assert lines[2].startswith("rule: Exponential cannot run on a GPU: it calls a function (exp, log, sin, pow")
-    assert lines[3].startswith("rule: Allocating cannot run on a GPU: numba-cuda cannot compile it: No implementation of function Function(norm)")
+    assert lines[3].startswith("rule: Allocating cannot run on a GPU: numba-cuda cannot compile it: "
+                               "No implementation of function Function(norm)")
     assert "user_rules.py:" in lines[3] and lines[3].endswith("; device='cpu' runs it")
 
 

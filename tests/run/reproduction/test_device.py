@@ -8,9 +8,7 @@ import json
 
 import pytest
 
-# the GPU engine needs numba-cuda (numba's own, older numba.cuda imports without it but cannot run the kernels)
-pytest.importorskip("numba_cuda", reason="numba-cuda is not installed: the GPU engine's tests need it "
-                                         "(python3 -m pip install \".[cuda]\"; .ci/run installs it)")
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 import pinnedballs as pb
 from pinnedballs.cli import main as cli
