@@ -1,4 +1,5 @@
-"""Power laws: the exponent of ``mean ~ C balls^a``, by weighted least squares on logarithms."""
+"""Power laws: the exponent of ``mean ~ C balls^a``, by weighted least squares on logarithms, and the local
+exponents between consecutive sizes."""
 
 from __future__ import annotations
 
@@ -43,6 +44,22 @@ def fit_exponent(balls, means, standard_errors) -> dict[str, float]:
         scale = math.sqrt(chi2) if dof > 0 else math.nan
     return {"exponent": float(slope), "exponent_se": float(scale / math.sqrt(sxx)),
             "prefactor": float(math.exp(intercept)), "chi2_per_dof": chi2, "points": int(len(x))}
+
+
+def local_exponents(balls, means, standard_errors) -> dict[str, list[float]]:
+    """The slope of ``log mean`` against ``log balls`` between consecutive sizes (``(k,)`` each, in order of
+    size), each with its standard error (``se / mean`` is the error of a log; two sizes' errors add in quadrature).
+
+    Returns ``local_exponents`` and ``local_exponents_se`` (``(k - 1,)``) and ``local_at`` (the geometric mean
+    of the two sizes of each).
+    """
+    n = np.log(np.asarray(balls, dtype=np.float64))
+    y = np.log(np.asarray(means, dtype=np.float64))
+    e = np.asarray(standard_errors, dtype=np.float64) / np.asarray(means, dtype=np.float64)
+    slope = np.diff(y) / np.diff(n)
+    se = np.sqrt(e[1:] ** 2 + e[:-1] ** 2) / np.diff(n)
+    return {"local_exponents": slope.tolist(), "local_exponents_se": se.tolist(),
+            "local_at": np.sqrt(np.exp(n[1:] + n[:-1])).tolist()}
 
 
 def _positive(name: str, values) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 from ....engine.field.fixed import UncertifiedDecision
 from ....specs.run import RunSpec
 from ... import ensemble as ens
+from .. import fit
 from ..fit import fit_exponent
 from .common import DECILES, _frozen_row, _inward_spec, _margin_row, _observing, _profile, _stats, decile_row
 from .plan import Ensemble, ExtendedPlan
@@ -165,15 +166,13 @@ def local_exponents(rows: list[dict], what: str) -> dict[str, list[float]]:
     """The slope of ``log(mean of what)`` against ``log(balls)`` between consecutive sizes, each with its
     standard error from the replicas (``se/mean`` is the error of a log; the two sizes' errors add in
     quadrature), and ``local_z_2``: how many standard errors each lies below 2."""
-    n = np.log([r["balls"] for r in rows])
-    y = np.log([r[f"{what}_mean"] for r in rows])
-    e = np.array([r[f"{what}_se"] / r[f"{what}_mean"] for r in rows])
-    slope = np.diff(y) / np.diff(n)
-    se = np.sqrt(e[1:] ** 2 + e[:-1] ** 2) / np.diff(n)
+    local = fit.local_exponents([r["balls"] for r in rows], [r[f"{what}_mean"] for r in rows],
+                                [r[f"{what}_se"] for r in rows])
+    slope, se = np.array(local["local_exponents"]), np.array(local["local_exponents_se"])
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(se > 0, (2.0 - slope) / se, np.nan)
-    return {"local_exponents": slope.tolist(), "local_exponents_se": se.tolist(), "local_z_2": z.tolist(),
-            "local_at_balls": np.sqrt(np.exp(n[1:] + n[:-1])).tolist()}
+    return {"local_exponents": local["local_exponents"], "local_exponents_se": local["local_exponents_se"],
+            "local_z_2": z.tolist(), "local_at_balls": local["local_at"]}
 
 
 def _scaling_figure(rows: list[dict], fits: dict, counted: dict, path: Path) -> str:
@@ -194,7 +193,8 @@ def _scaling_figure(rows: list[dict], fits: dict, counted: dict, path: Path) -> 
         left.plot(n, f["prefactor"] * n ** f["exponent"], color=colour, linestyle="--",
                   label=f"one power law: {f['prefactor']:.3g} N^({f['exponent']:.3f} ± {f['exponent_se']:.3f})")
         right.errorbar(f["local_at_balls"], f["local_exponents"], yerr=np.nan_to_num(f["local_exponents_se"]),
-                       fmt="o-", color=colour, capsize=3, label=f"{what}" + (", float count" if what == "collisions" else ""))
+                       fmt="o-", color=colour, capsize=3,
+                       label=f"{what}" + (", float count" if what == "collisions" else ""))
     exact = [r for r in rows if f"{EXACT}_collisions_mean" in r]
     if exact:
         left.errorbar([r["balls"] for r in exact], [r[f"{EXACT}_collisions_mean"] for r in exact],
