@@ -124,8 +124,14 @@ def validate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-@subcommand("schema", "print the JSON Schema of run specs")
+@subcommand("schema", "print the JSON Schema of run specs (of study specs with --study)",
+            arg("--study", action="store_true", help="the schema of study specs (pinnedballs study) instead"))
 def schema(args: argparse.Namespace) -> int:
+    if args.study:
+        from ..specs.study import study_schema
+
+        print(json.dumps(study_schema(), indent=2))
+        return EXIT_OK
     from ..specs.run import RunSpec
 
     print(json.dumps(RunSpec.model_json_schema(), indent=2))
@@ -134,10 +140,20 @@ def schema(args: argparse.Namespace) -> int:
 
 @subcommand("plot", "draw the figures of a run again from its results file: the first and last states, a contact "
                     "sheet of the snapshots, the energy and the velocity histograms (of an ensemble: the "
-                    "correlation histograms)",
-            arg("dir", metavar="DIR", help="a run directory (or its results.h5), or an ensemble's directory"),
-            arg("--every-snapshot", action="store_true", help="also one picture per snapshot (state_step_N.png)"))
+                    "correlation histograms; of a study: an observable against a parameter, mean ± se by point)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5), an ensemble's or a study's directory"),
+            arg("--every-snapshot", action="store_true", help="also one picture per snapshot (state_step_N.png)"),
+            arg("--observable", default="collisions", help="a study's: the observable drawn (default collisions)"),
+            arg("--against", default="n_balls", help="a study's: against n_balls (the default; log-log, with the "
+                                                     "fit) or a path the study varies"))
 def plot(args: argparse.Namespace) -> int:
+    from ..run.study_dir import is_study_dir, load_study
+
+    if is_study_dir(args.dir):  # the observable against the parameter, mean ± se by point (StudyResult.plot)
+        path = Path(args.dir) / "figures" / f"{args.observable}_against_{args.against}.png"
+        load_study(args.dir).plot(args.observable, args.against, path=path)
+        print(path)
+        return EXIT_OK
     from ..results.load import load
     from ..run.ensemble_dir import is_ensemble_dir, load_ensemble
     from ..run.execute import write_figures
@@ -201,9 +217,14 @@ def export(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-@subcommand("info", "summarise a results file, or an ensemble directory",
-            arg("dir", metavar="DIR", help="a run directory (or its results.h5), or an ensemble's directory"))
+@subcommand("info", "summarise a results file, an ensemble directory or a study directory (its points done)",
+            arg("dir", metavar="DIR", help="a run directory (or its results.h5), an ensemble's or a study's directory"))
 def info(args: argparse.Namespace) -> int:
+    from ..run import study_dir
+
+    if study_dir.is_study_dir(args.dir):
+        print("\n".join(study_dir.describe(study_dir.load_study(args.dir), Path(args.dir))))
+        return EXIT_OK
     from ..results.load import load
     from ..results.remains import lost_index
     from ..run.ensemble_dir import describe, is_ensemble_dir, load_ensemble

@@ -29,6 +29,7 @@ from ..run.execute import Interrupted
 from ..util.errors import InputError
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
 from .status import CLEAR, is_terminal
+from .study import study_command as _study  # noqa: F401 - registers ``pinnedballs study``
 
 __all__ = ["main"]
 

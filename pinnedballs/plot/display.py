@@ -27,7 +27,7 @@ import numpy as np
 from ..geometry import pictures
 
 __all__ = ["state_picture", "geometry_html", "geometry_png", "simulation_html", "simulation_png", "spec_html",
-           "results_html", "ensemble_html", "mimebundle", "state_png", "DISPLAY_DPI"]
+           "results_html", "ensemble_html", "study_spec_html", "study_html", "mimebundle", "state_png", "DISPLAY_DPI"]
 
 #: the resolution of pictures in a notebook (an 8-inch state picture is 480 pixels wide)
 DISPLAY_DPI = 60
@@ -162,6 +162,41 @@ def ensemble_html(result) -> str:
     if len(frozen):
         rows.append(("frozen", f"{int(frozen.sum())} of {len(frozen)} final states"))
     return _table("EnsembleResult", rows)
+
+
+def study_spec_html(study) -> str:
+    """A `StudySpec`: its base, what it varies, its replicas and seeds."""
+    base = study.base
+    rows = [("base", f"{base.geometry.kind}, {base.rule.kind}, {base.scheduler.kind}, stop at {base.stop.kind}")]
+    for part in ("zip", "grid"):
+        for path, values in getattr(study, part).items():
+            rows.append((f"{part} {path}", ", ".join(map(str, values[:8])) + (", ..." if len(values) > 8 else "")))
+    if study.points:
+        rows.append(("points", f"{len(study.points)} given"))
+    rows += [("points in all", _count(len(study.overrides()))),
+             ("replicas", study.replicas if isinstance(study.replicas, int) else f"{len(study.replicas)} rules"),
+             ("seeds", f"by point, from seed {study.seed}" if study.seeds == "by_point" else "each point's spec's own")]
+    if study.description:
+        rows.append(("description", study.description))
+    return _table("StudySpec", rows)
+
+
+def study_html(result) -> str:
+    """A `StudyResult`: its directory, its points done, what they vary, and each done point's mean collisions."""
+    done = result.done()
+    rows = [("directory", str(result.path)), ("points", f"{sum(done)} of {len(done)} done"),
+            ("varied", ", ".join(result.varied) or "nothing")]
+    for k, point in enumerate(result.points[:12]):
+        values = ", ".join(f"{p}={v}" for p, v in point["overrides"].items()) or "the base"
+        if done[k]:
+            x = result.ensemble(k).column("collisions")
+            state = f"collisions {x.mean():.6g} over {len(x)} replicas" if len(x) else "no replica finished"
+        else:
+            state = "to do"
+        rows.append((f"point {k}", f"{values} ({_count(point['n_balls'])} balls): {state}"))
+    if len(result.points) > 12:
+        rows.append(("...", f"{len(result.points) - 12} more points"))
+    return _table("StudyResult", rows)
 
 
 # ---------------------------------------------------------------- pictures

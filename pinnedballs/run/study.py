@@ -1,0 +1,230 @@
+"""Parameter studies: every point of a study spec (`specs.study`) an ensemble, run into a signac project.
+
+`run_study` validates the whole study first: every point's run spec, built once (its geometry and start), so that
+a bad point is refused, naming it and its field, before anything is written. Then the study directory is a signac
+project (Adorf et al., Comput. Mater. Sci. 146, 220, 2018)::
+
+    DIR/
+      study.json           the study as run: its base inline, its seed (a file that repeats the study)
+      points.json          its points in order: job id, overrides, replicas, seed, balls (`study_dir` reads it)
+      .signac/             signac's configuration
+      workspace/<job id>/  one job a point, its id the hash of its state point (`StudyPoint.state_point`: the
+        signac_statepoint.json   point's overrides, nested by path, and the base spec's digest); its document
+        signac_job_document.json holds its replicas, seed and number of balls
+        ensemble/          the point's ensemble directory (`run.ensemble.write_outputs`: replicas.csv, ...)
+
+so that ``signac find geometry.length 20``, ``signac view`` and ``signac.get_project(DIR).to_dataframe()`` work on
+it, and signac-flow, row or signac-dashboard can take it on. The points run one after another, each one's replicas
+through `run.ensemble.run_ensemble` (local processes, a Dask cluster, the GPU), so a point's table is the one
+``pinnedballs ensemble`` gives its spec; a point's ensemble is written into ``ensemble.partial`` and renamed
+``ensemble`` when whole: a point is done exactly when its job holds ``ensemble``.
+
+Ctrl-C and kills: a point interrupted loses its replicas (as an ensemble does) and nothing else; the points done
+stay. ``resume=True`` runs what is missing: the points without an ensemble, so a killed study continues to the
+table it would have had, and a point added to the study file later runs alone (its seeds are its own,
+`specs.study.point_seed`). A done point whose recorded spec or replicas differ from the study's now is refused,
+naming it (its rows would not be the study's).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+from .._version import __version__
+from ..engine.backends import DEVICES
+from ..results.rundir import DirLock, check_out_dir
+from ..specs.base import engine_errors
+from ..specs.errors import SpecError
+from ..specs.study import PointError, StudyPoint, StudySpec, load_study_spec, parse_study
+from ..util import checks
+from ..util.atomic import write_text_atomic
+from ..util.errors import InputError
+from ..util.progress import Progress
+from . import ensemble as ens
+from .ensemble_dir import is_ensemble_dir, load_ensemble
+from .study_dir import ENSEMBLE_DIR, PARTIAL_DIR, POINTS_NAME, STUDY_NAME, StudyResult, is_study_dir, load_study
+
+__all__ = ["run_study", "read_study"]
+
+
+def read_study(study, option: str = "study") -> StudySpec:
+    """``study`` as a `StudySpec`: one already, a dict (paths relative to the working directory) or a file's path."""
+    if isinstance(study, StudySpec):
+        return study
+    if isinstance(study, dict):
+        return parse_study(study, base_dir=os.getcwd())
+    if isinstance(study, (str, os.PathLike)):
+        return load_study_spec(study)
+    raise InputError(f"{option}: must be a StudySpec, a dict or the path of a study file, got {type(study).__name__}")
+
+
+def run_study(study, out, *, workers: int | None = None, dask_address: str | None = None, cluster=None,
+              device: str | None = None, resume: bool = False, progress: bool | None = None,
+              task: ens.Task | None = None, status=None) -> StudyResult:
+    """Run every point of ``study`` (a `StudySpec`, a dict or a study file's path) into the directory ``out``, a
+    signac project with a job a point (the module's docstring); return the study read back (`load_study`).
+
+    Parameters
+    ----------
+    study : StudySpec, dict or path
+        The study spec (`pinnedballs.specs.study`). Without a seed it gets one drawn, recorded in ``out``.
+    out : path
+        The study directory: created, or empty; with ``resume``, one this function wrote before (or none yet).
+    workers, dask_address, cluster, device, task
+        Where each point's ensemble runs, as `run_ensemble`'s (``device`` None: ``"cpu"``). The points run one
+        after another, each on all the workers its replicas can use.
+    resume : bool
+        Continue the study in ``out``: run the points that have no ensemble yet (a study killed, or points added
+        to the study since), none of those done; a study without a seed keeps the one ``out`` records.
+    progress : bool or None
+        A bar over the points, and each point's bar over its replicas (`run_ensemble`'s ``progress``).
+    status : callable, optional
+        Told each stage before the bars: a command's status line (``status(message)``, ``status.clear()``; None:
+        `run.execute.SILENT`).
+
+    Returns
+    -------
+    StudyResult
+        The study directory read back (`StudyResult.to_pandas`, `StudyResult.summary`, `StudyResult.fit`, ...);
+        its ``ran``: the points this call ran, by place in the study.
+
+    Raises
+    ------
+    PointError
+        A point is not a valid run spec (or does not build), naming the point and the field; nothing is written.
+    InputError
+        Bad arguments, ``out`` not empty (without ``resume``), or a done point that no longer matches the study.
+    KeyboardInterrupt
+        Ctrl-C: the points done are kept; ``resume=True`` goes on from them.
+
+    Examples
+    --------
+    >>> res = run_study("study.json", "DIR", workers=2)            # doctest: +SKIP
+    >>> res.summary()[["geometry.length", "n_balls", "collisions_mean", "collisions_se"]]  # doctest: +SKIP
+    """
+    if status is None:
+        from .execute import SILENT as status
+    study = read_study(study)
+    device = checks.choice("device", "cpu" if device is None else device, DEVICES)
+    _check_where(workers, dask_address, cluster)
+    out = Path(out)
+    if resume and is_study_dir(out):
+        study = _with_recorded_seed(study, out)
+    elif resume:
+        check_out_dir(out, False, hint="it holds no study to resume")
+    else:
+        check_out_dir(out, False, hint="resume=True (--resume) continues a study there")
+    study = study.seeded()
+    points = study.expand()
+    status(f"building the {len(points)} points' systems")
+    balls = [_built(point, device, dask_address is not None or cluster is not None) for point in points]
+    digest = study.digest()
+    with DirLock(out, "--out"):  # one study at a time writes into a directory
+        done = _done_points(out, points, digest)  # read only: a conflict writes nothing
+        jobs = _jobs(out, study, points, balls, digest)
+        todo = [k for k in range(len(points)) if not done[k]]
+        status.clear()
+        with Progress(progress, len(todo), "points", "study points", scale=False) as bar:
+            for n, k in enumerate(todo):
+                bar.update(n, postfix=points[k].label)
+                _run_point(points[k], Path(jobs[k].path), workers=workers, dask_address=dask_address, cluster=cluster,
+                           device=device, progress=progress, task=task)
+                bar.update(n + 1)
+    result = load_study(out)
+    result.ran = todo
+    return result
+
+
+def _check_where(workers, dask_address, cluster) -> None:
+    if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
+        raise InputError("workers, dask_address, cluster: give at most one")
+    if workers is not None:
+        ens.check_count("workers", workers)
+
+
+def _with_recorded_seed(study: StudySpec, out: Path) -> StudySpec:
+    """``study``, seeded as the study recorded in ``out`` was when it states no seed itself."""
+    if study.seed is not None or study.seeds == "as_spec":
+        return study
+    try:
+        seed = json.loads((out / STUDY_NAME).read_text(encoding="utf-8")).get("seed")
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{out / STUDY_NAME}: not readable ({' '.join(str(exc).split())})") from None
+    if seed is None:
+        return study
+    return study.model_copy(update={"seed": seed})
+
+
+def _built(point: StudyPoint, device: str, on_cluster: bool) -> int:
+    """The number of balls of ``point``, built once as its replica 0 is (and checked for ``device``): a point that
+    does not build is a `PointError` before anything runs."""
+    try:
+        with engine_errors(""):
+            sim = point.spec.build(seed=ens.replica_seed(point.spec, 0))
+            if device == "cuda":
+                if on_cluster and point.spec.arithmetic == "certified":
+                    raise SpecError("device", "'cuda' runs a certified ensemble's replicas one at a time on this "
+                                              "process's GPU; on a Dask cluster, certified replicas run on its CPUs "
+                                              "(device='cpu')")
+                point.spec.check_device(sim, here=not on_cluster)
+    except PointError:
+        raise
+    except SpecError as exc:
+        raise PointError(point.overrides, exc.path, exc.problem) from None
+    return int(sim.geometry.n_balls)
+
+
+def _jobs(out: Path, study: StudySpec, points: list[StudyPoint], balls: list[int], digest: str) -> list:
+    """The signac project in ``out`` (made if new), a job initialised for each point (in order), and the study's
+    record: `STUDY_NAME` and `POINTS_NAME`."""
+    import signac
+
+    project = signac.init_project(out)
+    jobs, records = [], []
+    for point, n in zip(points, balls):
+        job = project.open_job(point.state_point(digest))
+        job.init(force=True)  # (again) its state point file, whole
+        document = {"replicas": point.replicas, "seed": point.spec.seed, "n_balls": n}  # no dotted keys in signac's
+        if dict(job.document) != document:
+            job.document.update(document)
+        jobs.append(job)
+        records.append({"job": job.id, "overrides": point.overrides, **document})
+    write_text_atomic(out / STUDY_NAME, study.to_json() + "\n")
+    write_text_atomic(out / POINTS_NAME, json.dumps({"version": __version__, "base": digest, "points": records},
+                                                     indent=1, ensure_ascii=False) + "\n")
+    return jobs
+
+
+def _done_points(out: Path, points: list[StudyPoint], digest: str) -> list[bool]:
+    """For each point, whether the project in ``out`` (if any) holds its whole ensemble; an `InputError` naming
+    the first that holds an ensemble of another run spec or number of replicas."""
+    if not is_study_dir(out):
+        return [False] * len(points)
+    import signac
+
+    project = signac.get_project(out, search=False)
+    done = []
+    for point in points:
+        ensemble = Path(project.open_job(point.state_point(digest)).path) / ENSEMBLE_DIR
+        done.append(is_ensemble_dir(ensemble))
+        if not done[-1]:
+            continue
+        held = load_ensemble(ensemble)
+        if held.replicas != point.replicas or json.loads(held.spec.to_json()) != json.loads(point.spec.to_json()):
+            raise InputError(f"point {point.label}: {ensemble} holds {held.replicas} replicas of another run spec "
+                             f"(seed {held.spec.seed}); the study gives it {point.replicas} replicas of seed "
+                             f"{point.spec.seed}: run the study into another directory")
+    return done
+
+
+def _run_point(point: StudyPoint, job_dir: Path, *, progress, **where) -> None:
+    """Run ``point``'s ensemble and write it into ``job_dir/ensemble``, whole or not at all."""
+    partial, final = job_dir / PARTIAL_DIR, job_dir / ENSEMBLE_DIR
+    if partial.exists():  # what a kill left as it wrote
+        shutil.rmtree(partial)
+    result = ens.run_ensemble(point.spec, point.replicas, progress=progress, **where)
+    ens.write_outputs(result, partial, figures=False)
+    os.replace(partial, final)
