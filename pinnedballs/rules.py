@@ -57,8 +57,8 @@ from .util import checks
 from .util.errors import FieldError
 from .util.sums import kinetic_energy
 
-__all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold", "THRESHOLD_ULPS",
-           "DEFAULT_RESOLUTION", "check_resolution",
+__all__ = ["CollisionRule", "Elastic", "Restitution", "closing_speed", "remnant_threshold", "threshold",
+           "THRESHOLD_ULPS", "DEFAULT_RESOLUTION", "check_resolution",
            "collide_elastic", "collide_equal", "collide_masses", "elastic_impulse", "equal_impulse", "masses_impulse",
            "impulse_rule"]
 

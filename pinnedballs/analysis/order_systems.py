@@ -45,7 +45,8 @@ from ..rules import closing_speed
 
 __all__ = ["Node", "FloatSystem", "ExactSystem", "OrderKernels", "order_kernels", "NODE_BYTES", "COST_BYTES"]
 
-#: bytes a known state holds in the search's memo (its key, its figures, the dict's slot): measured 292, an upper estimate
+#: bytes a known state holds in the search's memo (its key, its figures, the dict's slot): measured 292, an upper
+#: estimate
 NODE_BYTES = 320
 #: an exact state whose two collided balls' numbers take ``b`` bytes costs ``1 + b // COST_BYTES`` states:
 #: its time grows with them (measured on a 4x4 torus: 40 us, plus 25 us a kB), and restitution r < 1
@@ -157,7 +158,8 @@ class FloatSystem:
 
     def root(self) -> Node:
         v = self.start
-        return self._node(v, self._whole(v) if self.whole else sum(_term(b, row.tobytes()) for b, row in enumerate(v)) % _MOD)
+        return self._node(v, self._whole(v) if self.whole
+                          else sum(_term(b, row.tobytes()) for b, row in enumerate(v)) % _MOD)
 
     def child(self, node: Node, k: int, speeds: bool = False) -> Node:
         """The state after colliding contact ``k`` of ``node`` (its closing speeds always come along)."""

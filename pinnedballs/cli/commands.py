@@ -256,8 +256,8 @@ def info(args: argparse.Namespace) -> int:
         f"snapshots:   {len(res.snapshots)}" + (f" at steps {_few(res.snapshots.steps.tolist())}"
                                                 if len(res.snapshots) else ""),
         *_margin(res),
-        f"time:        {_duration(res.elapsed_seconds)} running the chain in {res.checkpoints} checkpoint(s) (building, "
-        f"compiling and figures not counted); written by pinnedballs {res.version}",
+        f"time:        {_duration(res.elapsed_seconds)} running the chain in {res.checkpoints} checkpoint(s) "
+        f"(building, compiling and figures not counted); written by pinnedballs {res.version}",
     ]
     print("\n".join(lines))
     return EXIT_OK
@@ -287,7 +287,8 @@ def _margin(res) -> list[str]:
 
     low = "no collision yet" if m.smallest_collision is None else \
         f"smallest collision {m.smallest_collision:.3g} thresholds"
-    high = "no remnant set aside" if m.largest_remnant is None else f"largest remnant {m.largest_remnant:.3g} thresholds"
+    high = "no remnant set aside" if m.largest_remnant is None else \
+        f"largest remnant {m.largest_remnant:.3g} thresholds"
     default = " (the default)" if m.resolution == DEFAULT_RESOLUTION else ""
     verdict = ": thin, so the count depends on the criterion" if m.thin else " (wide)"
     return [f"margin:      {low}, {high}; resolution {m.resolution:.3g}{default}",
@@ -311,7 +312,8 @@ def _stream(res) -> str:
     scheduler = scheduler if isinstance(scheduler, dict) else {}
     if scheduler.get("stream") == "counter":
         return "counter (Philox4x64-10: the pick of step s a function of the seed and s alone)"
-    fixed = scheduler.get("kind") == "sweep" or (scheduler.get("kind") == "colored_sweep" and not scheduler.get("shuffle"))
+    fixed = scheduler.get("kind") == "sweep" or (scheduler.get("kind") == "colored_sweep"
+                                                 and not scheduler.get("shuffle"))
     return "xoshiro256**" + (" (unused: this scheduler's order is fixed)" if fixed else "")
 
 
@@ -342,7 +344,8 @@ def _bits(spec, certified) -> str:
     if not (certified.late_precision or auto):
         return ""
     late = f", {certified.late_precision} behind the first wave" if certified.late_precision else ""
-    return f" ({certified.precision} through the first wave{late}{', found by the run: precision auto' if auto else ''})"
+    return (f" ({certified.precision} through the first wave{late}"
+            f"{', found by the run: precision auto' if auto else ''})")
 
 
 def _status(res) -> str:
@@ -426,8 +429,8 @@ def _ensemble(args, status) -> int:
     replicas = check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
     if args.device == "cuda" and args.workers is not None:
-        raise InputError("--device cuda runs the replicas on a GPU (this machine's, or each Dask worker's with --dask): "
-                         "give no --workers")
+        raise InputError("--device cuda runs the replicas on a GPU (this machine's, or each Dask worker's with "
+                         "--dask): give no --workers")
     if args.workers is not None:
         check_count("--workers", args.workers)
         if args.dask is not None:

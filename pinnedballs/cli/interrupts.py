@@ -6,11 +6,11 @@ it stopped in (or, if this command never touched it, as it was).
 At any moment (issue 42): the package's ``__init__`` calls `util.startup.from_the_first_instant` before
 anything else in the command line, so a Ctrl-C while the package is imported (the first second or so) is one
 line, ``pinnedballs: interrupted``, and status 130, not Python's traceback of the import it landed in; and
-``python -m pinnedballs`` calls `exit_while_compiling` once the package is imported, so a Ctrl-C while numba compiles (seconds on a first run; numba cannot be
-interrupted safely) ends ``pinnedballs run`` at once, with one line saying what the run directory holds:
-every file of a run is written whole (`util.atomic`), its last checkpoint (from step 0, written as the run
-starts) is complete, and ``--resume`` continues from it. (Other commands, whose workers a process ended at
-once could leave behind, wait for the compile as before.) This module imports no more than the standard
+``python -m pinnedballs`` calls `exit_while_compiling` once the package is imported, so a Ctrl-C while numba
+compiles (seconds on a first run; numba cannot be interrupted safely) ends ``pinnedballs run`` at once, with one line
+saying what the run directory holds: every file of a run is written whole (`util.atomic`), its last checkpoint (from
+step 0, written as the run starts) is complete, and ``--resume`` continues from it. (Other commands, whose workers a
+process ended at once could leave behind, wait for the compile as before.) This module imports no more than the standard
 library and `util.startup` when it is loaded.
 """
 

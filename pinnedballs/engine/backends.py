@@ -249,7 +249,8 @@ class FieldBackend(Backend):
         drawn = s.counter and getattr(ex, "picks", None) is not None and ex.picks.draws and not self.listeners
         while used_all < count and made_all < left and not (until_frozen and ex.live == 0) and ex.failure is None:
             block = int(min(ex.block, count - used_all))
-            if drawn:  # the counter stream's picks, drawn where they are tried (a GPU): the stream's words (k0, k1, s, 0)
+            # the counter stream's picks, drawn where they are tried (a GPU): the stream's words (k0, k1, s, 0)
+            if drawn:
                 picks = CounterPicks(st.rng[0], st.rng[1], int(st.rng[2]), block, n)
                 used, made, at = ex.run(picks, left - made_all, until_frozen, first + used_all)
                 st.rng[2] = np.uint64(int(st.rng[2]) + used)
@@ -340,10 +341,11 @@ class DeviceBackend(Backend):
 
 def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool = True, replicas: bool = False) -> None:
     """A `FieldError` unless a chain can run on a GPU: float or certified arithmetic (``replicas``, an ensemble's
-    replicas together: float) and the counter stream (other schedulers and arithmetics run on the CPU), numba-cuda installed, the rule's functions compiled for the GPU with the
-    CPU's rounding (`gpu.compile.check_rule`: any rule, a user's too), and a GPU. ``rule`` and ``scheduler``
-    name them in the message. ``here=False``: the chain runs elsewhere (a cluster's GPUs), so this process
-    needs neither a GPU nor numba-cuda (without it the rule is compiled where it runs)."""
+    replicas together: float) and the counter stream (other schedulers and arithmetics run on the CPU),
+    numba-cuda installed, the rule's functions compiled for the GPU with the CPU's rounding (`gpu.compile.check_rule`:
+    any rule, a user's too), and a GPU. ``rule`` and ``scheduler`` name them in the message. ``here=False``: the chain
+    runs elsewhere (a cluster's GPUs), so this process needs neither a GPU nor numba-cuda (without it the rule is
+    compiled where it runs)."""
     from .gpu import GPUUnavailable, importable, load
     from .gpu.compile import check_rule
 
@@ -351,14 +353,15 @@ def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool =
         raise FieldError("device", f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic "
                                    "runs on the CPU, or one replica a call (pinnedballs run SPEC --device cuda)"
                          if arithmetic == "certified" else
-                         f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic runs on the CPU")
+                         f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic runs on "
+                         "the CPU")
     if arithmetic not in ("float", "certified"):
         raise FieldError("device", f"'cuda' runs float and certified arithmetic; {arithmetic} arithmetic runs on the "
                                    "CPU (certified arithmetic proves its decisions: arithmetic='certified')")
     if not model.selector.counter:
         raise FieldError("device", "'cuda' runs UniformRandomPair(stream='counter') (in a spec {\"kind\": "
-                                   "\"uniform_random_pair\", \"stream\": \"counter\"}: the pick of step s a function of "
-                                   f"the seed and s); {described(scheduler)} runs on the CPU")
+                                   "\"uniform_random_pair\", \"stream\": \"counter\"}: the pick of step s a function "
+                                   f"of the seed and s); {described(scheduler)} runs on the CPU")
     try:
         importable()  # numba-cuda, or one line saying it is missing
     except GPUUnavailable:

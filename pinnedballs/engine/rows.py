@@ -57,7 +57,8 @@ def _matches(pattern, pairs, ends):
 
 def _pack(pairs: np.ndarray, ends: np.ndarray, first: int) -> np.ndarray:
     i, j = pairs[:, 0].astype(np.int64), pairs[:, 1].astype(np.int64)
-    return (i - first) | ((j - i + _SHIFT) << 24) | (ends[:, 0].astype(np.int64) << 48) | (ends[:, 1].astype(np.int64) << 56)
+    return ((i - first) | ((j - i + _SHIFT) << 24) | (ends[:, 0].astype(np.int64) << 48)
+            | (ends[:, 1].astype(np.int64) << 56))
 
 
 def row_pattern(pairs: np.ndarray, ends: np.ndarray, rows: int, cols: int, min_balls: int = MIN_BALLS) -> tuple | None:

@@ -271,9 +271,9 @@ class Geometry(ABC):
 
         Each edge carries ``"units" = {i: t_i, j: t_j}``, its index ``"contact"`` and its
         orientation ``"pair" = (i, j)``; on a curved surface each node also carries its
-        ``"frame"`` (``dim x k``) and the graph its ``"metric"``; the graph carries its ``"view"``. So ``GraphGeometry(geom.contact_graph())``
-        rebuilds exactly these contacts in the same order (the same seed then gives the same run),
-        periodic or curved ones included.
+        ``"frame"`` (``dim x k``) and the graph its ``"metric"``; the graph carries its ``"view"``. So
+        ``GraphGeometry(geom.contact_graph())`` rebuilds exactly these contacts in the same order (the same seed then
+        gives the same run), periodic or curved ones included.
         """
         g = nx.Graph(dim=self.dim, view=self.view)
         frames = self.frames() if self.curved else None

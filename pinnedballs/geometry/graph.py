@@ -109,7 +109,8 @@ class GraphGeometry(Geometry):
             if data.get("units") is not None:
                 t_i[e], t_j[e] = self._given_units(u, v, data["units"], dim)
             elif self.curved:
-                raise FieldError("graph", f"edge ({u!r}, {v!r}) needs 'units' on a curved surface (nodes carry 'frame')")
+                raise FieldError("graph",
+                                 f"edge ({u!r}, {v!r}) needs 'units' on a curved surface (nodes carry 'frame')")
         self._init(positions, pairs, t_i, t_j, radius, rtol)
         self.nodes = nodes
         self._view = graph.graph.get("view")
@@ -127,9 +128,11 @@ class GraphGeometry(Geometry):
         try:
             frames = np.array([graph.nodes[node]["frame"] for node in nodes], dtype=np.float64)
         except (TypeError, ValueError):
-            raise FieldError("graph", "node 'frame' attributes must be equal-shape (dim, k) arrays of numbers") from None
+            raise FieldError("graph",
+                             "node 'frame' attributes must be equal-shape (dim, k) arrays of numbers") from None
         if frames.ndim != 3 or frames.shape[2] != k or not np.isfinite(frames).all():
-            raise FieldError("graph", f"node 'frame' attributes must be finite (dim, {k}) arrays, got {frames.shape[1:]}")
+            raise FieldError("graph",
+                             f"node 'frame' attributes must be finite (dim, {k}) arrays, got {frames.shape[1:]}")
         return frames
 
     def frames(self) -> np.ndarray:

@@ -463,7 +463,8 @@ class Simulation:
         c = state.certified
         if not isinstance(c, CertifiedState):
             raise FieldError("certified", "a simulation in certified arithmetic resumes only from a certified state "
-                                          f"(this one holds {'exact' if state.exact is not None else 'float'} velocities)")
+                                          f"(this one holds {'exact' if state.exact is not None else 'float'} "
+                                          "velocities)")
         ex = self._field
         c.check((*velocities.shape, ex.field.m), ex.B.shape[1])
         if not np.array_equal(nearest_floats(from_limbs(c.limbs), int(c.scale), ex.field.basis[-1]), velocities):

@@ -87,7 +87,8 @@ def _states(res) -> list[tuple[int, int, object]]:
 
 
 def evenly(count: int, most: int | None) -> list[int]:
-    """At most ``most`` of the indices ``0 .. count - 1`` (None: all), evenly spaced, the first and the last among them."""
+    """At most ``most`` of the indices ``0 .. count - 1`` (None: all), evenly spaced, the first and the last among
+    them."""
     if most is None or count <= most:
         return list(range(count))
     if most == 1:
@@ -134,9 +135,10 @@ def _check(out, fps) -> tuple[Path, float]:
 
 
 def animate(res, out=None, fps: float = 4, max_frames: int | None = None) -> Path:
-    """Write a movie of the run ``res`` (its `Results`, from `pinnedballs.load`) to ``out`` (default ``<run dir>/movie.gif``; ``.gif`` or ``.mp4``) at ``fps`` frames per second;
-    returns its path (a `Movie`: a notebook shows it). Frames: see `movie_frames`; the state picture:
-    `states.state_picture`, with one arrow scale (`base.MOVIE_LONGEST`) and one size for all frames.
+    """Write a movie of the run ``res`` (its `Results`, from `pinnedballs.load`) to ``out`` (default
+    ``<run dir>/movie.gif``; ``.gif`` or ``.mp4``) at ``fps`` frames per second; returns its path (a `Movie`: a notebook
+    shows it). Frames: see `movie_frames`; the state picture: `states.state_picture`, with one arrow scale
+    (`base.MOVIE_LONGEST`) and one size for all frames.
 
     A movie has at most ``max_frames`` frames (None: `MAX_FRAMES`; fewer for a large system, whose
     frames' velocities would take more than `MOVIE_BYTES`): a run with more states gets that many,

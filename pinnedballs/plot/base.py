@@ -19,7 +19,8 @@ from matplotlib.figure import Figure
 
 from ..util.atomic import write_bytes_atomic
 
-__all__ = ["Picture", "new_figure", "panels", "root", "save", "render", "arrow_scale", "key_speed", "length_label", "length_unit", "DPI", "MOVIE_LONGEST"]
+__all__ = ["Picture", "new_figure", "panels", "root", "save", "render", "arrow_scale", "key_speed", "length_label",
+           "length_unit", "DPI", "MOVIE_LONGEST"]
 
 DPI = 100
 BALL_COLOUR = "0.8"

@@ -107,7 +107,8 @@ def _figures(res, every_snapshot: bool = False) -> Iterator[tuple[str, Callable]
             "final state", xlabel=f"distance from the boundary ({unit})")
     if geometry.dim == 3 and positions.shape[1] == 3 and not geometry.curved:
         yield "energy_by_height.png", lambda ax: energy_by_distance(
-            positions[:, 2] - positions[:, 2].min(), final, res.masses, ax=ax, title="energy by height (z), final state",
+            positions[:, 2] - positions[:, 2].min(), final, res.masses, ax=ax,
+            title="energy by height (z), final state",
             xlabel=length_label("height z above the lowest layer", geometry.radius), first="lowest layer")
     if final.ndim == 2 and 1 <= final.shape[1] <= 3:
         yield "velocity_histograms.png", lambda ax: component_histograms(

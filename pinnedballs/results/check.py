@@ -3,9 +3,9 @@
 with one message naming the file and the dataset, never read as a run.
 
 First what the index says of itself (`index`: format and version, attributes, the segment list
-and the links to the data files), then the data. What is checked (``n`` balls, ``d`` velocity components, ``E`` contacts, ``F`` snapshots):
-shapes and dtypes of the geometry, the initial and latest velocities, the snapshots and their
-observables; the contacts against the geometry the stored spec builds; finite numbers (the
+and the links to the data files), then the data. What is checked (``n`` balls, ``d`` velocity components, ``E``
+contacts, ``F`` snapshots): shapes and dtypes of the geometry, the initial and latest velocities, the snapshots and
+their observables; the contacts against the geometry the stored spec builds; finite numbers (the
 snapshots' of format 3 as each is read, `frames`: their digests are verified here); the
 counters (``0 <= collisions <= steps``, snapshots in order and not past the state); the random
 state (4 words, not all zero) and the scheduler state (as its scheduler would check it); the
@@ -247,9 +247,11 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
     integer bound_scale where there is one, and a margin a certified state can hold where there is one."""
     limbs, bounds = _dataset(f, "state/certified/limbs"), _dataset(f, "state/certified/bounds")
     if limbs.ndim != 4 or limbs.shape[:2] != (n, d) or limbs.dtype != np.uint64:
-        raise Damage("state/certified/limbs", f"must be uint64 of shape ({n}, {d}, m, P), got {limbs.dtype} {limbs.shape}")
+        raise Damage("state/certified/limbs",
+                     f"must be uint64 of shape ({n}, {d}, m, P), got {limbs.dtype} {limbs.shape}")
     if bounds.ndim != 3 or bounds.shape[:2] != (n, 2) or bounds.dtype.kind != "f":
-        raise Damage("state/certified/bounds", f"must be floats of shape ({n}, 2, L), got {bounds.dtype} {bounds.shape}")
+        raise Damage("state/certified/bounds",
+                     f"must be floats of shape ({n}, 2, L), got {bounds.dtype} {bounds.shape}")
     b = bounds[()]
     if not (np.isfinite(b).all() and (b >= 0).all()):
         raise Damage("state/certified/bounds", "must be finite and >= 0")

@@ -51,7 +51,8 @@ def held_signals() -> Iterator[None]:
             signal.raise_signal(s)
 
 
-def virtual_rows(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: tuple, segments: list, rel: str) -> None:
+def virtual_rows(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: tuple, segments: list,
+                 rel: str) -> None:
     """``where`` in ``f``: the rows ``source`` of every segment ``[file, first, count]`` (files named
     relative to ``rel``), one after another, as one virtual dataset of rows ``shape`` and ``dtype``."""
     total = sum(s[2] for s in segments)

@@ -21,8 +21,8 @@ import numpy as np
 from .digest import file_digest
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, ResultsError
 
-__all__ = ["Damage", "check_format", "check_attributes", "check_initial", "segment_list", "check_digests", "check_links",
-           "STATUSES", "UNKNOWN"]
+__all__ = ["Damage", "check_format", "check_attributes", "check_initial", "segment_list", "check_digests",
+           "check_links", "STATUSES", "UNKNOWN"]
 
 #: what ``status`` may say: "interrupted" and "failed" since format 3
 STATUSES = {1: ("running", "done"), 2: ("running", "done"), 3: ("running", "done", "interrupted", "failed")}

@@ -206,8 +206,8 @@ def _lost_index(option: str, out: Path, segments: list[Path]) -> InputError:
                               f"{out} says what the segments hold)")
 
 
-def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: frozenset[str] = frozenset(), hint: str = "use --force to overwrite or --resume to continue",
-                 option: str = "--out") -> Path:
+def take_run_dir(out: str | os.PathLike, *, force: bool = False, may_hold: frozenset[str] = frozenset(),
+                 hint: str = "use --force to overwrite or --resume to continue", option: str = "--out") -> Path:
     """The run directory ``out``, made ready for a new run (the one place a run directory is taken).
 
     Refuses (`InputError` naming ``option``) a file, or a directory holding anything beyond

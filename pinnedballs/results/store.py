@@ -233,7 +233,8 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
                        precision=state.certified.precision, late_precision=state.certified.late_precision)
         if state.certified.bound_batch:  # the batched bound rule (absent: the rule in step order, files before it)
             c.attrs.update(bound_batch=state.certified.bound_batch, bound_at=state.certified.bound_at,
-                           pending=np.array(state.certified.pending, dtype=np.uint64), unfolded=state.certified.unfolded)
+                           pending=np.array(state.certified.pending, dtype=np.uint64),
+                           unfolded=state.certified.unfolded)
         if state.certified.margin is not None:  # its decisions' margin (none: unknown, a run begun before it was kept)
             c.attrs["margin"] = np.asarray(state.certified.margin, dtype=np.float64)
     s["momentum"] = record.momentum

@@ -47,9 +47,9 @@ from ..util.limits import check_memory
 from ..util.progress import Progress
 from . import executors
 
-__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row", "margin_columns",
-           "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS", "ERROR_COLUMN", "FINAL",
-           "CORRELATIONS", "TABLE_NAME", "SUMMARY_NAME"]
+__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row",
+           "margin_columns", "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS",
+           "ERROR_COLUMN", "FINAL", "CORRELATIONS", "TABLE_NAME", "SUMMARY_NAME"]
 
 TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json", "spec.json", "figures"
 #: the first columns of every row; observables follow, then `ERROR_COLUMN`

@@ -125,7 +125,8 @@ def describe(result: EnsembleResult, path: Path) -> list[str]:
     for name in ("steps", "collisions"):
         x = np.array([r[name] for r in final], dtype=np.float64)
         if len(x):
-            lines.append(f"{name + ':':<12} mean {x.mean():,.6g}, min {x.min():,.0f}, max {x.max():,.0f} (final states)")
+            lines.append(f"{name + ':':<12} mean {x.mean():,.6g}, min {x.min():,.0f}, max {x.max():,.0f} "
+                         "(final states)")
     if final:
         frozen = sum(int(r["frozen"]) for r in final)
         lines.append(f"frozen:      {frozen} of {len(final)} final states")

@@ -43,8 +43,8 @@ WORKER_GROUP = 1 << 14
 def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Callable[[], None],
                first: int = 0) -> dict[int, list]:
     """The rows of replicas ``first .. first + len(seeds) - 1`` of ``spec`` (their ``seeds``), by replica.
-    ``row_of(sim, index, seed, at, state, frozen, reason, observe)`` builds one row (`ensemble.replica_row`) with ``observe``'s columns,
-    ``tick()`` is told of each replica done."""
+    ``row_of(sim, index, seed, at, state, frozen, reason, observe)`` builds one row (`ensemble.replica_row`) with
+    ``observe``'s columns, ``tick()`` is told of each replica done."""
     proto = spec.build(seed=seeds[0])
     # floats, the counter stream, a rule the GPU runs with the CPU's bits, numba-cuda and a GPU: or one line why
     check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler, replicas=True)

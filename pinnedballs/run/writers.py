@@ -79,7 +79,8 @@ class ResultsWriter(Writer):
     snapshots: a `Trigger`, a dict like a spec's ``"snapshots"`` (``{"at_steps": [...]}``,
     ``{"every_collisions": 100}``, ...), or None for no snapshots.
     checkpoint_seconds: wall time between checkpoints (0: after every chunk).
-    observables: names from `pinnedballs.analysis.observables.OBSERVABLES` recorded with each snapshot (default: all built-ins).
+    observables: names from `pinnedballs.analysis.observables.OBSERVABLES` recorded with each snapshot (default: all
+    built-ins).
     force: replace a run already in ``out_dir``; resume: append to it (the simulation must be at
     its latest state, as ``pb.load(out_dir).simulation()`` gives it).
     The writer holds an exclusive lock on ``out_dir`` (`pinnedballs.results.rundir.DirLock`) from the
@@ -119,7 +120,8 @@ class ResultsWriter(Writer):
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
         if self.resume and self.store is None and self._own_lock:  # else the caller checked
-            check_resumable(self.out_dir, "out_dir", start=False, hint="check the path, or pass resume=False to start one")
+            check_resumable(self.out_dir, "out_dir", start=False,
+                            hint="check the path, or pass resume=False to start one")
         with held_signals():  # a Ctrl-C lands once the store is open and the run is ours to save
             if self._own_lock and self._lock is None:
                 self._lock = DirLock(self.out_dir, "--out" if self.spec is not None else "out_dir").acquire()

@@ -144,7 +144,8 @@ def check_pick(pick: Callable, name: str, state: np.ndarray, n_contacts: int) ->
         try:
             out = pick(state.copy(), load(seed_state(0)), n_contacts)
         except Exception as error:
-            raise FieldTypeError("scheduler", f"{name} failed on a fresh state: {type(error).__name__}: {error}") from None
+            raise FieldTypeError("scheduler",
+                                 f"{name} failed on a fresh state: {type(error).__name__}: {error}") from None
         if (isinstance(out, tuple) and len(out) == 2 and isinstance(out[0], (int, np.integer))
                 and isinstance(out[1], tuple) and len(out[1]) == 4):
             return

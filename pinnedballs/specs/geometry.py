@@ -156,7 +156,8 @@ class HCPSpec(_PackingSpec):
     _geometry = HCP
 
 
-GeometrySpec = Annotated[FlatTorusSpec | HalfPlaneSpec | GraphPositionsSpec | SphereSpec | HyperbolicPlaneSpec | FCCSpec | HCPSpec | PythonGeometrySpec, Field(discriminator="kind")]
+GeometrySpec = Annotated[FlatTorusSpec | HalfPlaneSpec | GraphPositionsSpec | SphereSpec | HyperbolicPlaneSpec | FCCSpec
+                         | HCPSpec | PythonGeometrySpec, Field(discriminator="kind")]
 
 
 def geometry_from_stored(spec, positions: np.ndarray):

@@ -195,7 +195,8 @@ class RunSpec(_Spec):
             raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
                                     f"got {_short(seed)}")
         if seed is None and self.seed is None:
-            return self.seeded().build(device=device)  # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
+            # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
+            return self.seeded().build(device=device)
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
             self.seed_sequence() if seed is None else np.random.SeedSequence(seed)
         geometry = self.geometry.build()
@@ -218,8 +219,8 @@ class RunSpec(_Spec):
         precision, late_precision = self.precisions()
         try:
             with engine_errors("", {"velocities": initial, "masses": "masses", "geometry": "geometry",
-                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed", "arithmetic": "arithmetic",
-                                    "resolution": "resolution", "precision": "precision",
+                                    "rule": "rule", "scheduler": "scheduler", "seed": "seed",
+                                    "arithmetic": "arithmetic", "resolution": "resolution", "precision": "precision",
                                     "late_precision": "late_precision", "device": "device"}):
                 try:
                     return Simulation(geometry, velocities, rule=rule, scheduler=scheduler,
@@ -230,7 +231,8 @@ class RunSpec(_Spec):
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code
                     failed = component_failed(exc, {"geometry": geometry, "rule": rule, "scheduler": scheduler},
-                                              {"geometry": self.geometry, "rule": self.rule, "scheduler": self.scheduler})
+                                              {"geometry": self.geometry, "rule": self.rule,
+                                               "scheduler": self.scheduler})
                     if failed is None:
                         raise
                     raise failed from exc
@@ -400,8 +402,9 @@ def describe(spec: RunSpec, sim: Simulation) -> str:
     return (f"{g.kind} {shape}: {sim.geometry.n_balls} balls, {sim.geometry.n_contacts} contacts, dim "
             f"{sim.geometry.dim}; {label(spec.initial)}, energy {sim.energy():.6g}; {rule}, {label(spec.scheduler)}; "
             + (f"{arithmetic}; " if arithmetic else "")
-            + f"stop at {until}; {snapshots}; " + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"
-                                                 + ("" if spec.replica is None else f", replica {spec.replica}"))
+            + f"stop at {until}; {snapshots}; "
+            + ("seed drawn when it runs" if spec.seed is None else f"seed {spec.seed}"
+               + ("" if spec.replica is None else f", replica {spec.replica}"))
             + ("" if spec.resolution is None else f"; resolution {spec.resolution:.3g}"))
 
 

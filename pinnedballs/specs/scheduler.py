@@ -70,4 +70,5 @@ class ColoredSweepSpec(_Spec):
         return ColoredSweep(shuffle=self.shuffle, threads=self.threads)
 
 
-SchedulerSpec = Annotated[UniformRandomPairSpec | SweepSpec | RandomSweepSpec | RejectionFreeSpec | ColoredSweepSpec | PythonSchedulerSpec, Field(discriminator="kind")]
+SchedulerSpec = Annotated[UniformRandomPairSpec | SweepSpec | RandomSweepSpec | RejectionFreeSpec | ColoredSweepSpec
+                          | PythonSchedulerSpec, Field(discriminator="kind")]

@@ -56,8 +56,8 @@ from .scheduler_checks import (
 
 __all__ = ["check_geometry", "check_rule", "check_scheduler", "parametrize_with_checks", "checks_for",
            "GEOMETRY_CHECKS", "RULE_CHECKS", "SCHEDULER_CHECKS",
-           "check_contact_tables", "check_contacts_are_touching_pairs", "check_contact_graph_round_trip", "check_frames",
-           "check_boundary", "check_geometry_spec_round_trip", "check_geometry_pickles",
+           "check_contact_tables", "check_contacts_are_touching_pairs", "check_contact_graph_round_trip",
+           "check_frames", "check_boundary", "check_geometry_spec_round_trip", "check_geometry_pickles",
            "check_separating_untouched", "check_energy_never_created", "check_energy_conserved_if_elastic",
            "check_momentum_conserved", "check_swap_symmetric", "check_restitution_law", "check_exact_agrees",
            "check_rule_spec_round_trip", "check_rule_pickles",

@@ -97,7 +97,8 @@ def _label(component, position: int | None = None) -> str:
 
 
 def parametrize_with_checks(components: Iterable, *,
-                            expected_failed_checks: Callable[[object], Mapping[str, str]] | Mapping[str, str] | None = None):
+                            expected_failed_checks: Callable[[object], Mapping[str, str]] | Mapping[str, str]
+                            | None = None):
     """A pytest decorator: one test per (component, check) that applies to it. The test takes
     ``component, check`` and calls ``check(component)``; its id is ``<component>-<check name>``, the
     component's repr or, when that is ``object``'s (a memory address, different in every process), its

@@ -54,7 +54,8 @@ def _same_geometry(prop: str, a, b) -> None:
     for name in ("pairs", "ends", "units"):
         x, y = getattr(ca, name), getattr(cb, name)
         if x.dtype != y.dtype or not np.array_equal(x, y):
-            fail(prop, f"the contact table {name} came back different ({x.dtype} {x.shape} against {y.dtype} {y.shape})")
+            fail(prop, f"the contact table {name} came back different ({x.dtype} {x.shape} against {y.dtype} "
+                       f"{y.shape})")
     if a.to_spec() != b.to_spec():
         fail(prop, f"its spec {a.to_spec()!r} came back as {b.to_spec()!r}")
 
@@ -79,7 +80,8 @@ def _same_rule(prop: str, a, b) -> None:
         (fa, pa), (fb, pb) = a.kernel(equal), b.kernel(equal)
         if fa is not fb or not np.array_equal(np.asarray(pa), np.asarray(pb)):
             fail(prop, f"{a!r} came back as {b!r}: kernel({equal}) gives {getattr(fb, '__name__', fb)} with "
-                       f"params {np.asarray(pb).tolist()}, not {getattr(fa, '__name__', fa)} with {np.asarray(pa).tolist()}")
+                       f"params {np.asarray(pb).tolist()}, not {getattr(fa, '__name__', fa)} with "
+                       f"{np.asarray(pa).tolist()}")
 
 
 def check_rule_spec_round_trip(rule) -> None:

@@ -205,5 +205,5 @@ def check_exact_agrees(rule) -> None:
     if gap.max() > REL * float(np.linalg.norm(v)):
         b = int(np.argmax(gap))
         fail(prop, f"3 x 4 half-plane, ball {g.boundary_center()} sent with {vector(v[g.boundary_center()])}, seed "
-                   f"{SEED}, 3,000 steps: ball {b} has {vector(f.velocities[b])} in float and {vector(x.velocities[b])} "
-                   f"exactly ({f.collisions} and {x.collisions} collisions)")
+                   f"{SEED}, 3,000 steps: ball {b} has {vector(f.velocities[b])} in float and "
+                   f"{vector(x.velocities[b])} exactly ({f.collisions} and {x.collisions} collisions)")

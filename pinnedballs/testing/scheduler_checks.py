@@ -146,7 +146,8 @@ def check_scheduler_split_run(scheduler) -> None:
     cases = [(_torus, [("steps", _STEPS)], [("steps", 1000), ("steps", _STEPS - 1001), ("steps", 1)]),
              (_half_plane, [("frozen", 10**6)], [("steps", 7), ("frozen", 10**6)])]
     for make, whole, split in cases:
-        a, b = _run(prop, scheduler, make, SEED, *whole).get_state(), _run(prop, scheduler, make, SEED, *split).get_state()
+        a, b = (_run(prop, scheduler, make, SEED, *whole).get_state(),
+                _run(prop, scheduler, make, SEED, *split).get_state())
         if not a.identical(b):
             fail(prop, f"{make()[0]!r}, seed {SEED}: {whole} against {split}: {_differ(a, b)}")
 

@@ -83,7 +83,8 @@ def graphs(dim: int) -> st.SearchStrategy[Geometry]:
 def geometries() -> st.SearchStrategy[Geometry]:
     """Any small geometry: `lattices`, `graphs` in 1 to 3 dimensions, a geodesic sphere, a {3,7} disk."""
     return st.one_of(lattices(), graphs(1), graphs(2), graphs(3),
-                     st.builds(Sphere.geodesic, st.integers(1, 3)), st.builds(HyperbolicPlane, st.just(7), st.integers(1, 3)))
+                     st.builds(Sphere.geodesic, st.integers(1, 3)),
+                     st.builds(HyperbolicPlane, st.just(7), st.integers(1, 3)))
 
 
 def velocities(geometry: Geometry) -> st.SearchStrategy[np.ndarray]:
@@ -114,8 +115,8 @@ _GEOMETRY_SPECS = st.one_of(
                            "orientation": st.sampled_from(ORIENTATIONS)}),
     st.fixed_dictionaries({"kind": st.just("sphere"), "frequency": st.integers(1, 2)}),
     st.fixed_dictionaries({"kind": st.just("hyperbolic_plane"), "q": st.just(7), "layers": st.integers(1, 2)}),
-    st.fixed_dictionaries({"kind": st.just("fcc"), "nx": st.integers(2, 3), "ny": st.integers(2, 3), "nz": st.integers(1, 2),
-                           "periodic": st.just([False, False, False])}))
+    st.fixed_dictionaries({"kind": st.just("fcc"), "nx": st.integers(2, 3), "ny": st.integers(2, 3),
+                           "nz": st.integers(1, 2), "periodic": st.just([False, False, False])}))
 
 
 @st.composite

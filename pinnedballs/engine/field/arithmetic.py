@@ -103,11 +103,12 @@ def check_precisions(arithmetic: str, precision, late_precision) -> tuple[int | 
     one that is wrong: certified arithmetic's only, whole bits in [64, `MAX_PRECISION`], the late one at
     most the other (None: `fixed.PRECISION`)."""
     if precision == AUTO:
-        raise FieldError("precision", "\"auto\" is a spec's (pinnedballs run, run_spec, run_ensemble: a run that starts "
-                                      "again with more bits when a decision cannot be proved); a Simulation takes "
-                                      "whole bits")
+        raise FieldError("precision", "\"auto\" is a spec's (pinnedballs run, run_spec, run_ensemble: a run that "
+                                      "starts again with more bits when a decision cannot be proved); a Simulation "
+                                      "takes whole bits")
     for field, bits, what in (("precision", precision, "the precision of certified arithmetic"),
-                              ("late_precision", late_precision, "certified arithmetic's precision behind the first wave")):
+                              ("late_precision", late_precision,
+                               "certified arithmetic's precision behind the first wave")):
         if bits is not None and arithmetic != "certified":
             raise FieldError(field, f"is {what}; this run's is {arithmetic!r}")
     if precision is not None:

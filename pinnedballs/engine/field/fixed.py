@@ -435,9 +435,9 @@ class FixedChain(FieldChain):
         unnarrowed = None  # (pick, the last step checked before, the state) of a narrowing in this call
         while True:
             every = self.every if self.late_P is not None and self.P > self.late_P else 0
-            status, t = self.picks.run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left, until_frozen,
-                                  self.chunk, at, prog, self.scratch, self.info, self.margin, at_last, first_step,
-                                  every)
+            status, t = self.picks.run_picks(self.tables, self._state(), self.S, self.certify, picks, t, left,
+                                             until_frozen, self.chunk, at, prog, self.scratch, self.info, self.margin,
+                                             at_last, first_step, every)
             if status == WIDEN:
                 self.widen()
             elif status == DUE:
@@ -491,7 +491,8 @@ class FixedChain(FieldChain):
             now += ", the late_precision it narrowed to once the first wave had passed"
         decision = (f"certified arithmetic cannot decide contact {int(k)} (balls {i}, {j}) at {where}: its closing "
                     f"speed {power_text(x, int(E))} is within the error bound {power_text(bound, -self.S)}")
-        failure = UncertifiedDecision("arithmetic", f"{decision}; use arithmetic=\"exact\" or a larger precision ({now})")
+        failure = UncertifiedDecision("arithmetic",
+                                      f"{decision}; use arithmetic=\"exact\" or a larger precision ({now})")
         failure.decision, failure.narrowed, (failure.precision, failure.late_precision) = decision, narrowed, self.bits
         return failure
 

@@ -36,8 +36,8 @@ from ..jit.cache import njit_cached
 from ..jit.intrinsics import prefetch
 from .limbs import diff_combination, exchange, field_sign, low_bits, scaled_float, shift_round, sign
 
-__all__ = ["Tables", "State", "Scratch", "run_picks", "cap", "fold", "unfolded", "count_live", "refresh_shadows", "FILTER", "TINY", "UP",
-           "SQRT2_UP", "DONE", "FROZEN", "WIDEN", "UNCERTIFIED", "UNCOUNTED", "DUE"]
+__all__ = ["Tables", "State", "Scratch", "run_picks", "cap", "fold", "unfolded", "count_live", "refresh_shadows",
+           "FILTER", "TINY", "UP", "SQRT2_UP", "DONE", "FROZEN", "WIDEN", "UNCERTIFIED", "UNCOUNTED", "DUE"]
 
 #: the float filter's band, in units of 2^-53 times the sizes (its error bound is about 20)
 FILTER = 64.0
@@ -95,7 +95,8 @@ class State(NamedTuple):
     Pp: np.ndarray  #: (n, L): certified bounds across each line, in units of 2^-S
     acc: np.ndarray  #: (2,): sum |rho| and G, rounded up, in units of 2^-S (batched: the sum folded so far)
     T: np.ndarray  #: (P,): T[h] = 2^(64 (h + 1) - S), the scale of a float read from limb h down
-    rho: np.ndarray  #: (2,) uint64: the batched rule's sums of |rho_0|, |rho_1| not yet folded, in units of 2^-(S + emax)
+    #: (2,) uint64: the batched rule's sums of |rho_0|, |rho_1| not yet folded, in units of 2^-(S + emax)
+    rho: np.ndarray
     bound: np.ndarray  #: (2,) int64: the batched rule's steps a batch ``K`` (0: the rule in step order), the batch of G
 
 

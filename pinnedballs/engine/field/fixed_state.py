@@ -46,7 +46,8 @@ def power_text(x: float, exponent: int) -> str:
     return f"{2 * m:.6g} * 2^{e - 1 + exponent}"
 
 
-def error_bound(bounds: np.ndarray, rounding: float, bound_scale: int = 0, unfolded: float = 0.0) -> tuple[float, float]:
+def error_bound(bounds: np.ndarray, rounding: float, bound_scale: int = 0,
+                unfolded: float = 0.0) -> tuple[float, float]:
     """``(G, largest)`` from a certified state's ``bounds (n_balls, 2, L)`` and ``rounding`` (the sum
     of every ``|rho|``), both in units of ``2^-bound_scale``: ``G = sqrt(2) * rounding`` bounds the
     whole error vector (rounded up as the chain computes it; ``unfolded``: the batched rule's sums
@@ -182,7 +183,8 @@ def bound_rule_problem(bound_batch, bound_at, pending, unfolded) -> str:
         return f"bound_at must be a whole number >= -1, got {bound_at!r}"
     if not (len(pending) == 2 and all(whole(x) and 0 <= x < 1 << 63 for x in pending)):
         return f"pending must be two whole numbers in [0, 2^63), got {pending!r}"
-    if not (isinstance(unfolded, float) and math.isfinite(unfolded) and unfolded >= 0 and (unfolded > 0) == any(pending)):
+    if not (isinstance(unfolded, float) and math.isfinite(unfolded) and unfolded >= 0
+            and (unfolded > 0) == any(pending)):
         return f"unfolded must be a finite float >= 0, above 0 exactly when a sum is pending, got {unfolded!r}"
     if bound_batch == 0 and (any(pending) or bound_at != -1):
         return "a state under the bound rule in step order (bound_batch 0) has no pending sums or bound_at"
@@ -198,7 +200,8 @@ def precisions_problem(precision, late_precision, limbs: int) -> str:
     if not whole:
         return f"precision and late_precision must be whole multiples of 64 bits, got {precision!r}, {late_precision!r}"
     if precision == 0:
-        return "" if late_precision == 0 else f"late_precision must be 0 where precision is (not kept), got {late_precision}"
+        return "" if late_precision == 0 else \
+            f"late_precision must be 0 where precision is (not kept), got {late_precision}"
     if late_precision >= precision or 64 * limbs not in (precision, late_precision):
         return (f"a state of {64 * limbs} bits cannot be of a chain at precision {precision} and late_precision "
                 f"{late_precision} (0: none)")

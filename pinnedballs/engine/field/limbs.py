@@ -27,8 +27,9 @@ from numba.extending import intrinsic
 
 from ..jit.cache import njit_cached
 
-__all__ = ["mac", "mac_top", "next_limb", "diff_combination", "exchange", "add_to", "sub_into", "addmul", "negate_into", "shift_round", "low_bits", "is_zero", "sign",
-           "scaled_float", "to_float", "compare_squares", "field_sign", "to_limbs", "from_limbs"]
+__all__ = ["mac", "mac_top", "next_limb", "diff_combination", "exchange", "add_to", "sub_into", "addmul", "negate_into",
+           "shift_round", "low_bits", "is_zero", "sign", "scaled_float", "to_float", "compare_squares", "field_sign",
+           "to_limbs", "from_limbs"]
 
 _0, _1 = np.uint64(0), np.uint64(1)
 _LOW32, _32, _63, _64 = np.uint64(0xFFFFFFFF), np.uint64(32), np.uint64(63), np.uint64(64)
@@ -338,8 +339,8 @@ def compare_squares(a, b, c, big):
 @njit_cached(_nrt=False)
 def field_sign(w0, w1, root, d, tmp0, tmp1, big):
     """The exact sign of ``w0 + w1 sqrt(d)`` (limb arrays; ``root``: the float sqrt(d)); ``tmp0, tmp1``:
-    ``(P,)`` and ``big``: ``(3, 4P + 2)`` scratch. The coefficients' signs, then (only when they differ) floats, then (only when
-    the floats cannot tell) ``w0^2`` against ``d w1^2`` in full."""
+    ``(P,)`` and ``big``: ``(3, 4P + 2)`` scratch. The coefficients' signs, then (only when they differ) floats, then
+    (only when the floats cannot tell) ``w0^2`` against ``d w1^2`` in full."""
     s0, s1 = sign(w0), sign(w1)
     if s1 == 0 or s0 == s1:
         return s0

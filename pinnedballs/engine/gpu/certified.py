@@ -244,8 +244,8 @@ class DevicePicks:
         counts = self.cuda.to_device(np.zeros(2, dtype=np.int64))
         st = list(d["state"])
         st[7] = self.cuda.to_device(np.zeros(2, dtype=np.uint64))  # (read by no decision)
-        self._launch(self.kernels[2], tables.pairs.shape[0], scale, certify, *d["tables"], *st, *d["scratch"], d["info"],
-                     counts)
+        self._launch(self.kernels[2], tables.pairs.shape[0], scale, certify, *d["tables"], *st, *d["scratch"],
+                     d["info"], counts)
         alive, lost = counts.copy_to_host().tolist()
         if lost:  # the CPU's kernel finds the first that cannot be decided, and says why
             self.to_host(state, writes=False)

@@ -23,9 +23,9 @@ steps in as many batches as it takes, with no trip to the host. It stops early a
 brings the collisions to ``ctl[MAXC]``; with ``ctl[HITS]`` set, ``hits[t]`` says whether pick ``t``
 of the last batch collided, so the host can find the step of a given collision.
 
-``ctl`` (int64, `CTL_SIZE`): see the ``C_*`` names; ``bar (2,) int64`` the atomic barrier's words. Arrays: velocities ``v (N, dim)``, the tables
-``pairs, ends (E, 2)``, the row pattern ``table`` with ``meta = [per_row, rows, cols]`` and its
-``inverse`` (a lattice read by index), ``units (K, dim)``, ``masses (N,)``, ``params [factor,
+``ctl`` (int64, `CTL_SIZE`): see the ``C_*`` names; ``bar (2,) int64`` the atomic barrier's words. Arrays: velocities
+``v (N, dim)``, the tables ``pairs, ends (E, 2)``, the row pattern ``table`` with ``meta = [per_row, rows, cols]`` and
+its ``inverse`` (a lattice read by index), ``units (K, dim)``, ``masses (N,)``, ``params [factor,
 threshold]``, ``key (2,) uint64``, owners ``own0, own1 (N,) uint32``, picks ``rec (K, 4) int32``
 (``i, j, a, b``), round lists ``list0, list1 (K,) int32``, ``hits (K,) uint8``, ``margin (4,)
 float64`` (`engine.margin`, merged into).
@@ -43,9 +43,10 @@ from ..margin import track as margin_track
 from .compile import device_function, device_trial
 from .device import INF, contact_reader, counter_pick, lemire, philox_block
 
-__all__ = ["chain_kernel", "live_kernel", "BARRIERS", "barrier_kind", "BLOCK", "MAX_REGISTERS", "launch_shape", "KEY_BITS", "MAX_BATCH", "EMPTY", "TOP", "CTL_SIZE", "C_STEP0", "C_COUNT",
-           "C_DONE", "C_COLL", "C_MAXC", "C_LAST", "C_GEN", "C_K", "C_TOP", "C_HITS", "C_E", "C_BATCH_S0",
-           "C_BATCH_C0", "C_BATCHES", "C_ROUNDS", "C_PICK_ROUNDS", "C_RESETS", "C_RING"]
+__all__ = ["chain_kernel", "live_kernel", "BARRIERS", "barrier_kind", "BLOCK", "MAX_REGISTERS", "launch_shape",
+           "KEY_BITS", "MAX_BATCH", "EMPTY", "TOP", "CTL_SIZE", "C_STEP0", "C_COUNT", "C_DONE", "C_COLL", "C_MAXC",
+           "C_LAST", "C_GEN", "C_K", "C_TOP", "C_HITS", "C_E", "C_BATCH_S0", "C_BATCH_C0", "C_BATCHES", "C_ROUNDS",
+           "C_PICK_ROUNDS", "C_RESETS", "C_RING"]
 
 #: bits of a pick's place in its batch in an owner key: at most ``2^KEY_BITS`` picks a batch
 KEY_BITS = 22

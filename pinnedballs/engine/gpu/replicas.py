@@ -5,7 +5,8 @@ step) runs the engine's ``limited`` loop as the CPU runs it, within the limits o
 compiled for the device: chunks of steps, a scan for a live contact after a chunk with a collision, the
 chunk that froze ended at its last collision (the counter stream needs no rewind: its next pick is the one
 of that step), the margin's remnant side as of that collision. So each replica's velocities, counters and
-margin are those of a `Simulation` on the CPU with the same seed (`run.ensemble_gpu` builds the ensemble's rows from them).
+margin are those of a `Simulation` on the CPU with the same seed (`run.ensemble_gpu` builds the ensemble's rows from
+them).
 
 `ReplicaChains` holds the replicas of one geometry and rule: velocities ``(R, N, dim)``, keys, the
 per-replica thresholds, and runs them all, each to its own limits, in one launch.

@@ -164,7 +164,8 @@ def function_key(f: Callable) -> bytes | None:
         source = inspect.getsource(f)
     except (OSError, TypeError):
         return None
-    names = [(name, _global_key(f.__globals__[name])) for name in sorted(code_names(f.__code__)) if name in f.__globals__]
+    names = [(name, _global_key(f.__globals__[name])) for name in sorted(code_names(f.__code__))
+             if name in f.__globals__]
     if any(key is None for _, key in names):
         return None
     h = hashlib.sha256(_source_digest(_ENGINE_FILES[0]) + source.encode())  # the engine's files alone

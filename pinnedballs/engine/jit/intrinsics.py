@@ -160,7 +160,8 @@ def _atomic_cas_intrinsic(typingctx, arr, index, expected, new):
 def _pause_intrinsic(typingctx):
     def codegen(context, builder, signature, args):
         if platform.machine().lower() in ("x86_64", "amd64", "i386", "i686"):
-            fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []), "llvm.x86.sse2.pause")
+            fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []),
+                                                "llvm.x86.sse2.pause")
             builder.call(fn, [])
         return context.get_dummy_value()
 

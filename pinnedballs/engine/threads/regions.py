@@ -53,8 +53,8 @@ from ..streams.jump import jump, jump_polynomial
 from ..streams.xoshiro import load, next_uint64, store
 from .tuning import TUNED_SEGMENT, ThreadTuner
 
-__all__ = ["ParallelChain", "counted_trial", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay", "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE",
-           "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
+__all__ = ["ParallelChain", "counted_trial", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay",
+           "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE", "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
 
 #: words of the stream each thread turns into picks per block
 WORDS = 1 << 14
@@ -75,7 +75,8 @@ MAX_BAND_SHARE = 0.25
 
 # the shared counters (`sync`), each on its own cache line
 _LINE = 8
-NEXT_GEN, GEN_DONE, NEXT_CLOSURE, CLOSURE_DONE, ESCAPED, FINISHED, BLOCKS_DONE, NEXT_TASK = (k * _LINE for k in range(8))
+(NEXT_GEN, GEN_DONE, NEXT_CLOSURE, CLOSURE_DONE, ESCAPED, FINISHED, BLOCKS_DONE,
+ NEXT_TASK) = (k * _LINE for k in range(8))
 
 
 def sync_length(threads: int) -> int:
@@ -191,8 +192,8 @@ def parallel_blocks(collide: Callable, dim: int, flat: bool, rows: bool) -> Call
     runs ``len(history)`` blocks of ``p * W`` words (``p = len(cuts) + 1`` regions, ``poly`` the jump
     polynomial of ``W`` words) on numba's threads, advances ``rng_words`` past them, and returns the
     picks taken. ``band``: the balls within ``band`` of a cut are watched for crossings (see the module
-    docstring); ``windows``: `contact_windows`; ``scratch`` = `Scratch` arrays. ``out (p, 6) float64`` receives each thread's
-    collisions, the position of its last collision (-1: none; positions count the call's picks from
+    docstring); ``windows``: `contact_windows`; ``scratch`` = `Scratch` arrays. ``out (p, 6) float64`` receives each
+    thread's collisions, the position of its last collision (-1: none; positions count the call's picks from
     0) and its margin (4). ``history (blocks, 6) int64`` receives each block's picks, deferred picks
     and final stream state (4 words). ``sync``: zeros, `SYNC` int64.
     """

@@ -38,10 +38,10 @@ Philox block for four steps) into ``rec`` and files each position under the rang
 balls (``lists[t, r]``, in step order: segment after segment, each range's list is in step order),
 found from the contact's index alone (``contact_owner``, a byte a contact); only a crossing is decoded
 there. Then the rounds: a scan decodes each pick (the tables, or the lattice's row pattern without a
-branch: `row_contact`) a few picks before it runs it, and fetches its velocity rows then. Every piece of work (a segment, an owner's scan, an owner's crossings) is claimed with a
-compare-and-swap on a counter, so a thread that finds the others late does their work itself;
-whoever finishes a phase's last task decides the next phase (scan, crossings, next batch, end) and
-publishes it. Waiting threads spin with ``pause``, then yield their core. Nothing depends on how
+branch: `row_contact`) a few picks before it runs it, and fetches its velocity rows then. Every piece of work (a
+segment, an owner's scan, an owner's crossings) is claimed with a compare-and-swap on a counter, so a thread that finds
+the others late does their work itself; whoever finishes a phase's last task decides the next phase (scan, crossings,
+next batch, end) and publishes it. Waiting threads spin with ``pause``, then yield their core. Nothing depends on how
 many threads ran, or who claimed what.
 
 The caller (`ReservationChain`) runs whole batches only where they cannot pass a limit (steps left,
@@ -69,8 +69,8 @@ from ..streams.philox import block, counter_pick, lemire
 from .regions import counted_trial, run_in_chunks, tuned_blocks
 from .tuning import ThreadTuner
 
-__all__ = ["ReservationChain", "reservation_batches", "range_bounds", "batch_size", "row_contact", "MIN_BATCH", "MAX_BATCH",
-           "MAX_CROSSING_SHARE", "BALLS_PER_WORD", "BATCH_PER_THREAD", "CROSSING"]
+__all__ = ["ReservationChain", "reservation_batches", "range_bounds", "batch_size", "row_contact", "MIN_BATCH",
+           "MAX_BATCH", "MAX_CROSSING_SHARE", "BALLS_PER_WORD", "BATCH_PER_THREAD", "CROSSING"]
 
 #: balls per word of the blocked bitmap: range cuts fall on multiples of it, so no word has two owners
 BALLS_PER_WORD = 64

@@ -58,7 +58,8 @@ def _single(spec: RunSpec) -> _Run:
     initial = sim.velocities.copy()
     counter = spec.snapshots.counter if spec.snapshots else ""
     snaps: dict[int, object] = {}
-    reason = run_to_stop(spec, sim, on_snapshot=lambda record: snaps.__setitem__(getattr(record.state, counter), record))
+    reason = run_to_stop(spec, sim,
+                         on_snapshot=lambda record: snaps.__setitem__(getattr(record.state, counter), record))
     return _Run(sim, initial, snaps, reason)
 
 

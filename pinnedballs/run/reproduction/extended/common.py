@@ -83,7 +83,8 @@ def _margin_row(res: ens.EnsembleResult) -> dict:
 
     return {"thin": len(res.thin()), "smallest_collision_min": over("smallest_collision", np.min),
             "largest_remnant_max": over("largest_remnant", np.max),
-            "near_collisions_mean": over("near_collisions", np.mean), "near_remnants_mean": over("near_remnants", np.mean)}
+            "near_collisions_mean": over("near_collisions", np.mean),
+            "near_remnants_mean": over("near_remnants", np.mean)}
 
 
 def _inward_spec(geometry: dict, plan: ExtendedPlan, what: str, scheduler: str = "rejection_free") -> RunSpec:

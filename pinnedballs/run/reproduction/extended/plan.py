@@ -93,7 +93,8 @@ def check_extended_plan(plan: ExtendedPlan) -> None:
                          f"{' or '.join(map(repr, STREAMS))}, got {plan.stream!r}")
     late = plan.exact_late_precision
     if late is not None and (isinstance(late, bool) or not isinstance(late, int) or not 64 <= late <= PRECISION):
-        raise InputError(f"exact_late_precision: must be a whole number of bits in [64, {PRECISION}] or None, got {late!r}")
+        raise InputError(f"exact_late_precision: must be a whole number of bits in [64, {PRECISION}] or None, "
+                         f"got {late!r}")
     for e in plan.resolutions:
         if isinstance(e, bool) or not isinstance(e, (int, float)) or not 0.0 < e < 1.0:
             raise InputError(f"resolutions: each must be a criterion e in (0, 1), got {e!r}")
