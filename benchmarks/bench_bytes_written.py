@@ -5,8 +5,8 @@ and reads the child's ``wchar`` from ``/proc/self/io``: every byte it handed to 
 temporary files included. The final size is the sum of the run directory's files.
 Target (issue 9): written <= 3 x final. Format 1 copied the whole file at each checkpoint.
 
-    python benchmarks/bench_bytes_written.py              # checkpoints as the spec's default (60 s, and after snapshots)
-    python benchmarks/bench_bytes_written.py --every 0    # a checkpoint after every chunk (the worst case)
+    python benchmarks/bench_bytes_written.py             # checkpoints as the spec's default (60 s, and after snapshots)
+    python benchmarks/bench_bytes_written.py --every 0   # a checkpoint after every chunk (the worst case)
 """
 
 from __future__ import annotations

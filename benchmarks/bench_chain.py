@@ -94,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append((r, c, steps, start, ours, ref, ratio))
         print(f"{r}x{c} torus ({start}), {steps:,} steps: pinnedballs {ours['msteps']:.1f} Msteps/s "
               f"(first call {ours['first_call_s']:.2f} s from cache, geometry {ours['geometry_s']:.2f} s, "
-              f"peak RSS {ours['peak_rss_mb']:.0f} MB, {ours['collisions']:,} collisions, energy {ours['energy']:.12f}); "
+              f"peak RSS {ours['peak_rss_mb']:.0f} MB, {ours['collisions']:,} collisions, "
+              f"energy {ours['energy']:.12f}); "
               f"C reference {ref['msteps']:.1f} Msteps/s; ratio {ratio:.2f}", flush=True)
     if args.markdown:
         print("\n| lattice | start | steps | pinnedballs Msteps/s | C Msteps/s | ratio | peak RSS MB | geometry s |")

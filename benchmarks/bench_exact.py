@@ -36,7 +36,8 @@ import numpy as np
 import pinnedballs as pb
 from pinnedballs.rules import threshold
 
-length, depth, seed, spec, limit = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4], float(sys.argv[5])
+length, depth, seed, spec, limit = (float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4],
+                                    float(sys.argv[5]))
 spec, _, resolution = spec.partition("@")
 arithmetic, _, bits = spec.partition(":")
 bits, _, late = bits.partition("/")
@@ -94,7 +95,8 @@ def measure(size: str, seed: int, spec: str, limit: float) -> dict:
     done = subprocess.run([sys.executable, "-c", _CHILD, length, depth, str(seed), spec, str(limit)],
                           capture_output=True, text=True, cwd=ROOT)
     if done.returncode != 0:
-        return {"outcome": f"failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}"}
+        return {"outcome": "failed: "
+                           f"{done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}"}
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

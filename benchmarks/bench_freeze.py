@@ -72,9 +72,10 @@ def main() -> None:
         length, depth = (float(x) for x in size.split("x"))
         for chunk in args.chunks:
             r = measure(length, depth, chunk, args.seed)
-            print(f"{size} half-plane ({r['balls']:,} balls, {r['contacts']:,} contacts), chunk {r['chunk_per_contact']} "
-                  f"per contact: {r['steps']:,} steps, {r['collisions']:,} collisions to frozen; CPU until frozen "
-                  f"{r['cpu_frozen']:.2f} s, run(steps=S) {r['cpu_steps']:.2f} s, ratio {r['ratio']:.3f}", flush=True)
+            print(f"{size} half-plane ({r['balls']:,} balls, {r['contacts']:,} contacts), "
+                  f"chunk {r['chunk_per_contact']} per contact: {r['steps']:,} steps, {r['collisions']:,} collisions "
+                  f"to frozen; CPU until frozen {r['cpu_frozen']:.2f} s, run(steps=S) {r['cpu_steps']:.2f} s, "
+                  f"ratio {r['ratio']:.3f}", flush=True)
 
 
 if __name__ == "__main__":

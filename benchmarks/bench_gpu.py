@@ -102,8 +102,8 @@ def device_chain(sim, v, **options):
     from pinnedballs.engine.gpu.chain import DeviceChain
 
     g, model = sim.geometry, sim.engine.model
-    return DeviceChain(v, g.contacts, g.row_pattern, model.masses, model.params, model.collide, sim.engine.state.rng[:2],
-                       **options)
+    return DeviceChain(v, g.contacts, g.row_pattern, model.masses, model.params, model.collide,
+                       sim.engine.state.rng[:2], **options)
 
 
 def half(length, depth):
@@ -279,7 +279,8 @@ def tune(length=4000, depth=2000) -> None:
                 if rate > best[0]:
                     best = (rate, (barrier, block, registers, k))
             except Exception:  # noqa: BLE001
-                emit(part="tune", barrier=barrier, block=block, registers=registers, error=traceback.format_exc()[-1500:])
+                emit(part="tune", barrier=barrier, block=block, registers=registers,
+                     error=traceback.format_exc()[-1500:])
     if best[1] is not None:
         barrier, block, registers, k = best[1]
         os.environ.update(PINNEDBALLS_GPU_BARRIER=barrier, PINNEDBALLS_GPU_BLOCK=str(block),
@@ -336,7 +337,8 @@ def replicas(length, depth, count, rows: bool = True) -> None:
         sim.run_until_frozen(max_steps=10**9, progress=False)
         checks.append(bool(np.array_equal(sim.velocities, rc.velocities(r)) and sim.steps == st[r, 0]
                            and sim.collisions == st[r, 1] and np.array_equal(sim.engine.state.margin, rc.margin[r])))
-    emit(part="replicas", layout=rc.layout, contacts="rows" if pattern is not None else "tables", size=f"{length}x{depth}", replicas=count, frozen=int(st[:, 3].sum()), wall=round(wall, 3),
+    emit(part="replicas", layout=rc.layout, contacts="rows" if pattern is not None else "tables",
+         size=f"{length}x{depth}", replicas=count, frozen=int(st[:, 3].sum()), wall=round(wall, 3),
          setup_s=round(setup, 2), steps=int(st[:, 0].sum()), gsteps_per_s=round(st[:, 0].sum() / wall / 1e9, 2),
          mean_collisions=float(st[:, 1].mean()), sd_collisions=float(st[:, 1].std(ddof=1)),
          checked_against_cpu=checks)
@@ -408,7 +410,8 @@ def dask_gpus() -> None:
 
     from pinnedballs.specs.run import parse_spec
 
-    spec = parse_spec({"geometry": {"kind": "half_plane", "length": 20 if SMOKE else 200, "depth": 10 if SMOKE else 100},
+    spec = parse_spec({"geometry": {"kind": "half_plane", "length": 20 if SMOKE else 200,
+                                    "depth": 10 if SMOKE else 100},
                        "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1],
                                    "energy": 100},
                        "scheduler": {"kind": "uniform_random_pair", "stream": "counter"},

@@ -5,8 +5,8 @@ Writes the run once (``--dir``, default a folder under the system's temporary di
 the next call), then measures in a fresh child process: the wall time of ``pb.load(DIR)`` and its
 peak memory above what the process held before (``VmHWM`` reset through ``/proc/self/clear_refs``,
 Linux), then the time of reading snapshots 0, 60 and 119 and of ``res.to_xarray()`` and
-``res.to_pandas()`` (their libraries' imports timed apart). Target (issue 24): open in under 2 s with under 150 MB extra memory, any
-snapshot still readable.
+``res.to_pandas()`` (their libraries' imports timed apart). Target (issue 24): open in under 2 s with under 150 MB extra
+memory, any snapshot still readable.
 
     python benchmarks/bench_load.py                # write the run if needed, then measure (3 times)
     python benchmarks/bench_load.py --repeat 5 --dir /tmp/big_run

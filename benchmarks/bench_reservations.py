@@ -74,7 +74,8 @@ def _child(size: tuple[int, int], configs: list[tuple[str, int | None]], steps: 
         rows.append(dict(size=f"{size[0]}x{size[1]}", balls=geometry.n_balls, stream=stream,
                          threads="auto" if threads is None else threads, ns_per_step=ns, cores_used=cores,
                          others=others, most=numba.config.NUMBA_NUM_THREADS,
-                         checksum=hashlib.sha1(sim.velocities.tobytes() + sim.get_state().rng_state.tobytes()).hexdigest()))
+                         checksum=hashlib.sha1(sim.velocities.tobytes()
+                                               + sim.get_state().rng_state.tobytes()).hexdigest()))
     return rows
 
 
@@ -98,7 +99,8 @@ def measure(sizes: list[tuple[int, int]], threads: list[int], steps: int, busy: 
             env = {**os.environ, "NUMBA_NUM_THREADS": str(max([1, *threads]))}
             spinners = [subprocess.Popen([sys.executable, "-c", _BUSY]) for _ in range(busy)]
             try:
-                done = subprocess.run([sys.executable, __file__, "--child", json.dumps([size, threads, steps, warm, rounds])],
+                done = subprocess.run([sys.executable, __file__, "--child",
+                                       json.dumps([size, threads, steps, warm, rounds])],
                                       capture_output=True, text=True, cwd=ROOT, env=env)
             finally:
                 for p in spinners:
@@ -121,7 +123,8 @@ def measure(sizes: list[tuple[int, int]], threads: list[int], steps: int, busy: 
 
 def table(rows: list[dict]) -> str:
     """The rows as a markdown table."""
-    lines = ["| size | busy | stream | threads | ns/step (min-max) | x one thread | cores used | others' cores | same bits |",
+    lines = ["| size | busy | stream | threads | ns/step (min-max) | x one thread | cores used | others' cores "
+             "| same bits |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         chain = "sequential" if r["threads"] == 1 else ("reservations" if r["stream"] == "counter" else "regions")

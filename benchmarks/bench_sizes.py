@@ -185,8 +185,8 @@ def part_split(sizes: list[str], steps: int, repeats: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=["sizes", "torus", "threads", "torus-threads", "split", "both"], default="both",
-                        help="both: sizes and threads (half-planes)")
+    parser.add_argument("--part", choices=["sizes", "torus", "threads", "torus-threads", "split", "both"],
+                        default="both", help="both: sizes and threads (half-planes)")
     parser.add_argument("--sizes", nargs="+", default=None, help="half-planes LxD or tori RxC (default: 60x30 ... "
                                                                  "4000x2000; tori 24x21 ... 1520x1520; threads: "
                                                                  "2000x1000 4000x2000, tori 760x760 1520x1520)")

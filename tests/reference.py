@@ -353,7 +353,8 @@ class OrderTree:
     def live(self, v) -> list[int]:
         """Contacts whose collision would change some velocity component, in contact order."""
         s = self.sim
-        return [k for k in range(len(s.pairs)) if collide(v, *s.pairs[k], *s.units(k), s.r, s.masses, write=False, threshold=s.threshold)]
+        return [k for k in range(len(s.pairs))
+                if collide(v, *s.pairs[k], *s.units(k), s.r, s.masses, write=False, threshold=s.threshold)]
 
     def after(self, v, k: int):
         """A copy of ``v`` after colliding contact ``k``."""

@@ -28,14 +28,16 @@ def loaded_after(code: str) -> set[str]:
 @pytest.mark.slow
 def test_import_pinnedballs_loads_no_front_end():
     loaded = loaded_after("import pinnedballs")
-    assert not {m for m in loaded if m in FRONT_ENDS or m.startswith(("pinnedballs.run.reproduction.", "pinnedballs.cli."))}
+    assert not {m for m in loaded
+                if m in FRONT_ENDS or m.startswith(("pinnedballs.run.reproduction.", "pinnedballs.cli."))}
     assert {"pinnedballs.run.writers", "pinnedballs.engine.driver", "pinnedballs.engine.triggers"} <= loaded
 
 
 @pytest.mark.slow
 def test_no_library_module_imports_the_command_line():
     library = sorted(m.name for m in pkgutil.walk_packages(pinnedballs.__path__, "pinnedballs.")
-                     if m.name not in FRONT_ENDS and not m.name.startswith(("pinnedballs.run.reproduction", "pinnedballs.cli")))
+                     if m.name not in FRONT_ENDS
+                     and not m.name.startswith(("pinnedballs.run.reproduction", "pinnedballs.cli")))
     assert "pinnedballs.specs.run" in library and "pinnedballs.run.ensemble" in library
     loaded = loaded_after("\n".join(f"import {m}" for m in library))
     assert not {m for m in loaded if m.startswith("pinnedballs.cli")}
@@ -52,7 +54,8 @@ def _room_imports() -> dict[str, set[str]]:
         room, here = parts[0], ("pinnedballs", *parts[:-1])
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.ImportFrom):
-                base = ".".join([*here[:len(here) - node.level + 1], node.module or ""] if node.level else [node.module])
+                base = ".".join([*here[:len(here) - node.level + 1], node.module or ""] if node.level
+                                else [node.module])
                 targets = [f"{base.strip('.')}.{a.name}" for a in node.names]
             elif isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
@@ -80,4 +83,5 @@ def test_every_import_runs_down_the_house():
             if other not in seen:
                 seen.add(other)
                 todo.extend(rooms.get(other, ()))
-        assert room not in seen, f"{room} reaches itself through {sorted(seen & {r for r in rooms if room in rooms[r]})}"
+        assert room not in seen, \
+            f"{room} reaches itself through {sorted(seen & {r for r in rooms if room in rooms[r]})}"

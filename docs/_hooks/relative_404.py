@@ -14,7 +14,8 @@ _ABSOLUTE = re.compile(r'(href|src)="/(?!/)')
 
 
 def relative(html: str) -> str:
-    """``html`` with its root-absolute links (``href="/x"``, ``src="/x"``) and material's ``"base": "/"`` made relative."""
+    """``html`` with its root-absolute links (``href="/x"``, ``src="/x"``) and material's ``"base": "/"`` made
+    relative."""
     html = _ABSOLUTE.sub(r'\1="./', html)
     return html.replace('"base": "/"', '"base": "."')
 

@@ -60,8 +60,8 @@ def main(path: Path) -> None:
     print("|---|---:|---:|" + "---:|" * len(names))
     for s in sizes:
         first = next(table[n][s] for n in names if s in table[n])
-        cells = [f"{table[n][s]['collisions_mean']:,.0f} ± {table[n][s]['collisions_se']:,.0f}" if s in table[n] else "-"
-                 for n in names]
+        cells = [f"{table[n][s]['collisions_mean']:,.0f} ± {table[n][s]['collisions_se']:,.0f}"
+                 if s in table[n] else "-" for n in names]
         print(f"| {s} | {first['balls']:,} | {first['replicas']} | " + " | ".join(cells) + " |")
     print()
     print("| between | " + " | ".join(names) + " |")

@@ -32,7 +32,8 @@ def lockstep(geometry, v: np.ndarray, seed: int, steps: int) -> dict[str, list[t
     bit-changing float criterion collides, classified by the exact chain on the same picks."""
     sim = pb.Simulation(geometry, v, seed=seed)
     picks = np.empty(steps, dtype=np.int64)
-    sim.engine.loops.picks(sim.engine.state.scheduler, sim.engine.model.selector.aux, sim.engine.state.rng, geometry.n_contacts, picks)
+    sim.engine.loops.picks(sim.engine.state.scheduler, sim.engine.model.selector.aux, sim.engine.state.rng,
+                           geometry.n_contacts, picks)
     exact = ExactChain(geometry, v, np.ones(geometry.n_balls), 1.0)
     c = geometry.contacts
     pairs, t_i, t_j = c.pairs.astype(int).tolist(), c.t_i.tolist(), c.t_j.tolist()

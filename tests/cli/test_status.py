@@ -92,7 +92,8 @@ def test_a_bad_spec_on_a_terminal_ends_on_one_clean_error_line(tmp_path):
     bad = spec(geometry__rows=5)
     code, shown, _ = on_terminal("run", write(tmp_path / "s.json", bad), "--out", tmp_path / "out")
     assert code == 2
-    assert shown.split(status.CLEAR)[-1] == "pinnedballs: error: geometry.rows: must be even for a flat torus, got 5\r\n"
+    assert shown.split(status.CLEAR)[-1] == ("pinnedballs: error: geometry.rows: must be even for a flat torus, "
+                                             "got 5\r\n")
 
 
 def test_ensemble_on_a_terminal_shows_progress_over_replicas(tmp_path):

@@ -256,7 +256,8 @@ def start(argv: list, cwd: Path, env: dict | None = None) -> subprocess.Popen:
 
 HANGS = [("geometry", signal.SIGINT, "run"), ("initial", signal.SIGTERM, "run"), ("rule", signal.SIGTERM, "run"),
          ("scheduler", signal.SIGINT, "run"), ("geometry", signal.SIGTERM, "validate"),
-         ("entry point", signal.SIGTERM, "run"), ("import", signal.SIGINT, "run"), ("import", signal.SIGTERM, "validate")]
+         ("entry point", signal.SIGTERM, "run"), ("import", signal.SIGINT, "run"),
+         ("import", signal.SIGTERM, "validate")]
 
 
 @pytest.mark.slow

@@ -2,7 +2,8 @@
 item 3: a seed names its trajectory for good). Made once, with the loops of commit d0a8bbc (before
 the row pattern, the margin and the parallel chain), by
 
-    PYTHONPATH=/path/to/checkout-at-d0a8bbc python tests/data/make_seed_trajectories.py > tests/data/seed_trajectories.json
+    PYTHONPATH=/path/to/checkout-at-d0a8bbc python tests/data/make_seed_trajectories.py \\
+        > tests/data/seed_trajectories.json
 
 Each case is a small program over the public API (`run` below); the digest covers the final
 velocities, the random stream's state and the counters. tests/engine/test_seed_trajectories.py runs

@@ -155,7 +155,8 @@ def test_your_own_geometry_rule_and_scheduler(tmp_path):
     assert float(wandering.group(2)) == pytest.approx(100 * np.cos(np.pi / 12) ** 2, abs=0.1)  # arm 0: cos²15°
     assert re.fullmatch(r"frozen True after \d+ collisions: energy 44.981 -> \d+\.\d+\n",
                         printed(outputs(nb, "honeycomb.n_balls, 2))")))
-    broken = printed(outputs(nb, "check_rule(ByDirection(1.0, 1.2))"))     # the kit's message for a rule that makes energy
+    # the kit's message for a rule that makes energy
+    broken = printed(outputs(nb, "check_rule(ByDirection(1.0, 1.2))"))
     assert re.fullmatch(r"energy never created: 2-D flat, equal masses, pair \d+: t_i = .*: energy ([\d.]+) "
                         r"became ([\d.]+)\n", broken)
     before, after = map(float, re.search(r"energy ([\d.]+) became ([\d.]+)", broken).groups())
@@ -195,7 +196,8 @@ def test_exact_counts_and_every_order(tmp_path):
         "resolutions, from 3.2e-17 to 3.2e-16\n")
     assert printed(outputs(nb, "orders = pb.explore_orders(tiny, v_tiny)")).startswith(
         "Collisions until frozen over every order (1,652 distinct states): fewest 7, most 15.\n")
-    assert printed(outputs(nb, "scheduler=pb.Replay(orders.max_order)")) == "frozen True after 15 steps, 15 collisions\n"
+    assert printed(outputs(nb, "scheduler=pb.Replay(orders.max_order)")) == \
+        "frozen True after 15 steps, 15 collisions\n"
     random_order = re.fullmatch(r"random order: (\d+) to (\d+) collisions, mean ([\d.]+); every order: 7 to 15\n",
                                 printed(outputs(nb, "random_counts = []")))
     assert 7 <= int(random_order.group(1)) and int(random_order.group(2)) < 15  # the text: never the most

@@ -103,7 +103,8 @@ def test_the_margin_of_the_paper_run():
     (0, "resolution: must be a number in (0, 1): a pick collides when its closing speed exceeds resolution * V "
         "(V the system's speed scale), got 0"),
     (1.0, "got 1.0"), (-1e-9, "got -1e-09"),
-    (float("nan"), "resolution: must be a finite number, got nan"), ("1e-9", "resolution: must be a number, got '1e-9'"),
+    (float("nan"), "resolution: must be a finite number, got nan"),
+    ("1e-9", "resolution: must be a number, got '1e-9'"),
 ])
 def test_bad_resolutions_are_refused_naming_the_field(value, message):
     with pytest.raises(ValueError, match="^" + message.replace("(", r"\(").replace(")", r"\)").replace("*", r"\*")

@@ -59,8 +59,8 @@ def _limited(loop, geometry, v, pattern, masses, params, seed, steps, collisions
     return v, rng, counters, margin
 
 
-@pytest.mark.parametrize("geometry", [pb.FlatTorus(10, 7), pb.HalfPlane(6, 9), pb.HalfPlane(7, 8, orientation="across")],
-                         ids=repr)
+@pytest.mark.parametrize("geometry",
+                         [pb.FlatTorus(10, 7), pb.HalfPlane(6, 9), pb.HalfPlane(7, 8, orientation="across")], ids=repr)
 @pytest.mark.parametrize("unequal", [False, True])
 def test_the_row_loop_gives_the_bits_of_the_table_loops(geometry, unequal):
     loops = pick_loops(collide_masses if unequal else collide_elastic, pick_uniform, 2, True)

@@ -28,5 +28,6 @@ def test_a_recorded_run_comes_out_the_same(name, threads, monkeypatch):
     case = CASES[name]
     if threads is not None:
         original = pb.UniformRandomPair.__init__
-        monkeypatch.setattr(pb.UniformRandomPair, "__init__", lambda self, threads_=None: original(self, threads=threads))
+        monkeypatch.setattr(pb.UniformRandomPair, "__init__",
+                            lambda self, threads_=None: original(self, threads=threads))
     assert run(case) == RECORDED[name]

@@ -167,7 +167,8 @@ def test_a_geodesic_sphere_beyond_what_a_grid_is_built_with_is_refused(monkeypat
 
     monkeypatch.setattr(limits, "available_memory", lambda: None)  # a machine that does not say
     with pytest.raises(pb.FieldError, match=r"^frequency: a geodesic sphere of frequency 1,415 has 20,022,252 balls, "
-                                            r"more than the 20,000,000 a grid is built with \(frequency at most 1,414\)$"):
+                                            r"more than the 20,000,000 a grid is built with "
+                                            r"\(frequency at most 1,414\)$"):
         pb.Sphere.geodesic(1415)
 
 

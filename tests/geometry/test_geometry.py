@@ -377,7 +377,8 @@ def test_contact_between_coincident_centres_is_refused():
     [
         ({0: (1.0, 0.0)}, r"^graph: edge \(0, 1\) 'units' must map both ends"),
         ({0: (1.0, 0.0), 1: (2.0, 0.0)}, r"^graph: edge \(0, 1\) 'units' must be unit vectors"),
-        ({0: (1.0, 0.0, 0.0), 1: (-1.0, 0.0, 0.0)}, r"^graph: edge \(0, 1\) 'units' must be unit vectors of 2 components"),
+        ({0: (1.0, 0.0, 0.0), 1: (-1.0, 0.0, 0.0)},
+         r"^graph: edge \(0, 1\) 'units' must be unit vectors of 2 components"),
     ],
 )
 def test_bad_given_units_are_refused(units, match):

@@ -142,7 +142,8 @@ def test_an_out_that_cannot_be_written_exits_2_with_one_line_naming_out(tmp_path
         for out in (ro / "movie.gif", ro / "sub" / "movie.gif"):
             assert cli.main(["animate", str(run), "--out", str(out)]) == 2
             err = capsys.readouterr().err
-            assert err.startswith(f"pinnedballs: error: animate: --out: {out}: cannot be written, {ro} is not writable (")
+            assert err.startswith(f"pinnedballs: error: animate: --out: {out}: cannot be written, "
+                                  f"{ro} is not writable (")
             assert err.count("\n") == 1
         assert list(ro.iterdir()) == []
 
@@ -198,7 +199,8 @@ def test_a_long_run_makes_a_movie_of_at_most_max_frames_evenly_spaced_and_says_s
         frames = gif_frames(res.animate(tmp_path / "short.gif", max_frames=9))
     assert len(frames) == len(drawn) == 9
     titles = [fig.axes[0].get_title() for fig in drawn]
-    assert titles[0] == "step 0, 0 collisions" and titles[-1].startswith("step 1,000,") and titles[-1].endswith("(final)")
+    assert titles[0] == "step 0, 0 collisions"
+    assert titles[-1].startswith("step 1,000,") and titles[-1].endswith("(final)")
     assert [int(t.split()[1].rstrip(",").replace(",", "")) for t in titles] == list(range(0, 1_001, 125))
     assert cli.main(["animate", str(tmp_path / "run"), "--max-frames", "9"]) == 0
     assert capsys.readouterr().err == ("pinnedballs: animate: 9 of the run's 41 states drawn, evenly spaced (the first "

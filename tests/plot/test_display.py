@@ -73,7 +73,8 @@ def test_a_simulation_shows_its_counters_energy_and_freeze():
     assert after["steps"] == f"{sim.steps:,}" and after["collisions"] == f"{sim.collisions:,}"
     assert after["frozen"] == "yes" and float(after["energy"]) == pytest.approx(100.0, rel=1e-12)
     assert after["momentum"] == "(" + ", ".join(f"{x:.6g}" for x in sim.momentum()) + ")"
-    assert after["geometry"] == f"HalfPlane: 60 balls, {6 * 9 + 5 * 19} contacts, dimension 2"  # rows, then between rows
+    # rows, then between rows
+    assert after["geometry"] == f"HalfPlane: 60 balls, {6 * 9 + 5 * 19} contacts, dimension 2"
     assert embedded_png(sim._repr_html_()) is not None
 
 
@@ -98,7 +99,8 @@ def test_a_spec_shows_its_parts(tmp_path):
 
 
 def test_a_runs_results_show_file_status_and_snapshots(tmp_path):
-    assert call("run", write(tmp_path / "s.json", HALF_PLANE), "--out", tmp_path / "r", "--quiet", "--no-figures")[0] == 0
+    assert call("run", write(tmp_path / "s.json", HALF_PLANE), "--out", tmp_path / "r", "--quiet",
+                "--no-figures")[0] == 0
     res = pb.load(tmp_path / "r")
     table = rows(res._repr_html_())
     assert table["file"] == str(tmp_path / "r" / "results.h5") and table["status"] == "done (frozen)"

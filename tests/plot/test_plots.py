@@ -252,7 +252,8 @@ def test_snapshots_the_spec_placed_by_collisions_are_named_after_the_collisions(
     res.spec = types.SimpleNamespace(snapshots=types.SimpleNamespace(counter="collisions"))
     names = [p.name for p in plot_run.write_figures(res, tmp_path)]
     assert names[0] == "state_collisions_22579.png"
-    assert plot_run.snapshot_name(snapshot(89335, 22579, v), "collisions")[1] == "after 22,579 collisions (89,335 steps)"
+    assert plot_run.snapshot_name(snapshot(89335, 22579, v), "collisions")[1] == \
+        "after 22,579 collisions (89,335 steps)"
     assert plot_run.snapshot_name(snapshot(89335, 22579, v), "steps")[0] == "state_step_89335.png"
     assert set(plot_run.figure_files(tmp_path)) == set(tmp_path / n for n in names)
 

@@ -207,7 +207,8 @@ DAMAGE = {
     "segment listed out of order": (lambda r: _segments(r, lambda s: s[::-1]), _index,
                                     "/ (attribute segments): ['frames_000000001.h5', 1, 2] does not follow the 0"),
     "a segment mapped twice": (_map_first_segment_twice, _index,
-                               "snapshots/velocities: does not map the segments the index lists, each once and in order"),
+                               "snapshots/velocities: does not map the segments the index lists, each once and in "
+                               "order"),
     "a step listed twice": (lambda r: _set(_last_segment(r), "observables/steps", _repeat_a_step), _index,
                             "observables/steps: lists the same step twice (duplicated snapshots)"),
     # issue 27: the closing margin of the latest state, and its criterion
@@ -217,7 +218,8 @@ DAMAGE = {
     "margin text": (_margin(np.array([b"wide"] * 4)), _index, "state/margin: must be 4 floating-point numbers, "
                                                               "got |S4 (4,)"),
     "margin counts a fraction": (_margin([1.0, 0.0, 0.5, 0.0]), _index,
-                                 "state/margin: the counts near the threshold must be whole numbers >= 0, got [0.5, 0.0]"),
+                                 "state/margin: the counts near the threshold must be whole numbers >= 0, "
+                                 "got [0.5, 0.0]"),
     "margin threshold text": (_margin(np.full(4, 1.0), threshold="x"), _index,
                               "state/margin (attribute threshold): must be a number in [0, inf), got 'x'"),
     "margin resolution 2": (_margin(np.full(4, 1.0), resolution=2.0), _index,

@@ -187,8 +187,9 @@ def test_info_plot_and_resume_say_it_with_their_exit_status(written, tmp_path_fa
 
 def _why(message: str) -> str:
     """The class of a refusal, for hypothesis's statistics (``--hypothesis-show-statistics``)."""
-    for words, why in (("digest written with them", "the index's digest"), ("digest the index holds", "a file's digest"),
-                       ("is missing", "a file missing"), ("not a readable HDF5 file", "not readable")):
+    for words, why in (("digest written with them", "the index's digest"),
+                       ("digest the index holds", "a file's digest"), ("is missing", "a file missing"),
+                       ("not a readable HDF5 file", "not readable")):
         if words in message:
             return why
     return "other: " + message[message.index(": ") + 2:][:60]

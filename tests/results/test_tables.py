@@ -72,7 +72,8 @@ def test_to_xarray_labels_every_array_and_reads_velocities_lazily(frozen, tmp_pa
     ds = res.to_xarray()
     count, n = len(res.snapshots) + 1, res.positions.shape[0]
     assert dict(ds.sizes) == {"snapshot": count, "ball": n, "component": 2, "coordinate": 2}
-    assert ds["velocities"].dims == ("snapshot", "ball", "component") and ds["momentum"].dims == ("snapshot", "component")
+    assert ds["velocities"].dims == ("snapshot", "ball", "component")
+    assert ds["momentum"].dims == ("snapshot", "component")
     assert ds["energy"].dims == ("snapshot",) and ds["boundary_distance"].dims == ("ball",)
     assert ds["component"].values.tolist() == ["x", "y"]
     assert ds["steps"].values.tolist() == [*res.snapshots.steps.tolist(), res.steps]

@@ -74,7 +74,8 @@ def test_a_half_plane_marks_its_boundary_row_and_boxes_its_balls(tmp_path):
     path = trajectory.export(res, tmp_path / "h.gsd")
     frames = frames_of(path)
     assert res.frozen and len(frames) == len(res.snapshots) + 1        # frozen between two snapshots: then its state
-    assert_frames_are_the_snapshots(frames, res, res.positions, [*(s.velocities for s in res.snapshots), res.velocities])
+    assert_frames_are_the_snapshots(frames, res, res.positions,
+                                    [*(s.velocities for s in res.snapshots), res.velocities])
     half = pb.HalfPlane(6, 10)
     p = frames[0].particles
     assert np.array_equal(p.typeid, (half.boundary_distance() == 0).astype(np.uint32))

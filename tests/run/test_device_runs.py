@@ -5,10 +5,10 @@ import h5py
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
-
 import pinnedballs as pb
 from pinnedballs.specs.run import parse_spec
+
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 SPEC = {"geometry": {"kind": "half_plane", "length": 20, "depth": 10},
         "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 100},

@@ -99,7 +99,8 @@ def test_each_row_carries_the_closing_margin_of_its_state():
     for k in range(3):
         sim = spec.build(seed=ens.replica_seed(spec, k))
         rows = [r for r in result.rows if r["replica"] == k]
-        for row, run in zip(rows, (lambda sim=sim: sim.run(collisions=50), lambda sim=sim: sim.run_until_frozen(10**8))):
+        for row, run in zip(rows, (lambda sim=sim: sim.run(collisions=50),
+                                   lambda sim=sim: sim.run_until_frozen(10**8))):
             run()
             m = sim.closing_margin()
             expected = {"smallest_collision": m.smallest_collision, "near_collisions": m.near_collisions,

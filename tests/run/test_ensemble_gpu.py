@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
-
 import pinnedballs as pb
 from pinnedballs.run import ensemble_gpu
 from pinnedballs.run.ensemble import run_replica
 from pinnedballs.specs.run import parse_spec
 from pinnedballs.util.errors import InputError
+
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 
 def spec(stop, snapshots=None, **more):

@@ -134,7 +134,8 @@ def test_ctrl_c_stops_an_ensemble_on_local_processes_and_kills_them(start, group
     child = start("2", start_new_session=True)
     workers = workers_of(child, 2)
     time.sleep(1.0)  # into their replicas
-    interrupted_within(child, lambda: os.killpg(child.pid, signal.SIGINT) if group else child.send_signal(signal.SIGINT))
+    interrupted_within(child,
+                       lambda: os.killpg(child.pid, signal.SIGINT) if group else child.send_signal(signal.SIGINT))
     assert gone(workers, within=10)
 
 

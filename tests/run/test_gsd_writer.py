@@ -127,7 +127,8 @@ def test_a_spec_with_a_trajectory_writes_it_beside_the_results(tmp_path):
     res = load(tmp_path / "r")
     frames = frames_of(tmp_path / "r" / "trajectory.gsd")
     collisions = [int(f.log["collisions"][0]) for f in frames]
-    assert res.collisions % 50 and collisions == [*range(50, res.collisions + 1, 50), res.collisions]  # then the final state
+    # then the final state
+    assert res.collisions % 50 and collisions == [*range(50, res.collisions + 1, 50), res.collisions]
     assert np.array_equal(frames[-1].particles.velocity[:, :2], res.velocities.astype(np.float32))
     assert len(res.snapshots) == 3                                         # the snapshots are their own
     # run again without one: --force leaves no trajectory of the replaced run

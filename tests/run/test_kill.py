@@ -81,7 +81,8 @@ def check_killed_then_resume(spec_path: Path, out: Path, ref) -> None:
 
 
 # commits: 1 static data, 2 first index, 3 spec.json, then per chunk: a segment, the index
-KILLS = [(1, "before"), (2, "before"), (3, "before"), (4, "before"), (4, "after"), (5, "before"), (5, "after"), (12, "after")]
+KILLS = [(1, "before"), (2, "before"), (3, "before"), (4, "before"), (4, "after"), (5, "before"), (5, "after"),
+         (12, "after")]
 
 
 @pytest.mark.parametrize("at,when", KILLS, ids=[f"{w} commit {a}" for a, w in KILLS])

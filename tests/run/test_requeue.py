@@ -200,8 +200,8 @@ def test_a_job_killed_at_random_moments_and_requeued_ends_as_an_undisturbed_run(
     if before:
         assert err == ""
     else:  # every earlier life was killed before its first checkpoint
-        assert re.fullmatch(rf"pinnedballs: --resume: {re.escape(str(out))} holds no run yet \([a-z ]+\): starting it\n",
-                            err), err
+        assert re.fullmatch(rf"pinnedballs: --resume: {re.escape(str(out))} holds no run yet \([a-z ]+\): "
+                            rf"starting it\n", err), err
     assert any(steps for steps in resumed_from if steps), f"no life continued a checkpoint: {resumed_from}"
     assert_identical(load(out), reference(tmp_path, LONG))
     assert sorted(p.name for p in out.iterdir()) == ["results.data", "results.h5", "spec.json"]

@@ -273,5 +273,6 @@ def test_a_pick_of_the_wrong_type_is_named_before_the_loop_compiles(which, said)
     what it must return, when the Simulation is built."""
     pick = _user_picks()[which]
     geom = pb.FlatTorus(4, 4)
-    with pytest.raises(pb.FieldTypeError, match=rf"^scheduler: _UserScheduler.kernel\(\)'s pick '{pick.__name__}' {said}"):
+    with pytest.raises(pb.FieldTypeError,
+                       match=rf"^scheduler: _UserScheduler.kernel\(\)'s pick '{pick.__name__}' {said}"):
         pb.Simulation(geom, np.ones((geom.n_balls, 2)), scheduler=_UserScheduler(pick))

@@ -22,6 +22,7 @@ def test_a_resolution_outside_float_arithmetic_is_refused_naming_it(tmp_path, ar
         code, stdout, err = call(*argv)
         assert_input_error(code, err, words)
         assert stdout == "" and not (tmp_path / "r").exists()
-    with pytest.raises(ValueError, match=r"^precision: is the precision of certified arithmetic; this run's is 'float'"):
+    with pytest.raises(ValueError,
+                       match=r"^precision: is the precision of certified arithmetic; this run's is 'float'"):
         parse_spec(spec(HALF_PLANE, precision=256)).build()  # the refusal it follows
     assert parse_spec(spec(HALF_PLANE, resolution=1e-9)).build().resolution == 1e-9  # floats keep theirs

@@ -214,7 +214,8 @@ def test_late_precision_is_the_simulations_and_round_trips():
     late = parse_spec(spec(HALF_PLANE, arithmetic="certified", precision=256, late_precision=128))
     assert parse_spec(late.to_json()) == late and json.loads(late.to_json())["late_precision"] == 128
     sim, whole = late.build(), parse_spec(spec(HALF_PLANE, arithmetic="certified", precision=256)).build()
-    assert (sim.engine.state.field_chain.P, sim.engine.state.field_chain.late_P) == (4, 2) and whole.engine.state.field_chain.late_P is None
+    assert (sim.engine.state.field_chain.P, sim.engine.state.field_chain.late_P) == (4, 2)
+    assert whole.engine.state.field_chain.late_P is None
     for s in (sim, whole):
         s.run_until_frozen(max_steps=10**6)
     assert (sim.steps, sim.collisions) == (whole.steps, whole.collisions) and sim.collisions > 10
@@ -259,7 +260,8 @@ BAD = [
      "give rows and cols, or length and depth (got rows)"),
     (spec(HALF_PLANE, geometry={"kind": "half_plane", "length": 1, "depth": 9}), "geometry.length", "must be >= 2"),
     (spec(scheduler__kind="swep"), "scheduler.kind", "unknown kind 'swep'; did you mean 'sweep'?"),
-    (spec(rule={"kind": "restitution", "r": 1.5}), "rule.r", "coefficient of restitution must be a number in [0, 1], got 1.5"),
+    (spec(rule={"kind": "restitution", "r": 1.5}), "rule.r",
+     "coefficient of restitution must be a number in [0, 1], got 1.5"),
     (spec(rule={"kind": "restitution"}), "rule.r", "missing (required)"),
     (spec(rule={"kind": "elastic", "r": 1}), "rule.r", "unknown key (valid keys: kind)"),
     (spec(stop__steps=-1), "stop.steps", "input should be greater than or equal to 0, got -1"),
@@ -376,4 +378,5 @@ def test_engine_errors_carry_their_field():
     with pytest.raises(SpecError) as spec_error:
         parse_spec({"geometry": {"kind": "flat_torus", "rows": 5, "cols": 4},
                     "initial": {"kind": "single_ball", "velocity": [1, 0]}, "stop": {"steps": 1}}).build()
-    assert (spec_error.value.path, spec_error.value.problem) == ("geometry.rows", "must be even for a flat torus, got 5")
+    assert (spec_error.value.path, spec_error.value.problem) == ("geometry.rows",
+                                                                 "must be even for a flat torus, got 5")

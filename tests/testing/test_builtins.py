@@ -18,7 +18,8 @@ GEOMETRIES = [pb.FlatTorus(4, 3), pb.HalfPlane(3, 4), pb.HalfPlane(3, 4, orienta
               pb.FCC(2, 2, 2, periodic=(True, True, False)), pb.HCP(3, 3, 2, periodic=(True, True, False)),
               pb.Sphere.geodesic(2), pb.Sphere.from_points(_on_sphere(30)),
               pb.HyperbolicPlane(7, 2), pb.GraphGeometry.from_positions(pb.HalfPlane(3, 3).positions),
-              pb.GraphGeometry(pb.Sphere.geodesic(1).contact_graph()), pb.GraphGeometry(pb.FlatTorus(4, 3).contact_graph())]
+              pb.GraphGeometry(pb.Sphere.geodesic(1).contact_graph()),
+              pb.GraphGeometry(pb.FlatTorus(4, 3).contact_graph())]
 RULES = [pb.Elastic(), pb.Restitution(0.5), pb.Restitution(0.0)]
 #: a Replay order long enough for every check: 40,000 picks among the 23 contacts of the 3 x 4 half-plane
 SCHEDULERS = [pb.UniformRandomPair(), pb.Sweep(), pb.RandomSweep(), pb.RejectionFree(), pb.ColoredSweep(),

@@ -69,7 +69,8 @@ def test_a_failing_chain_reports_the_bits_it_ran_at(monkeypatch):
     with pytest.raises(UncertifiedDecision) as info:
         sim.run_until_frozen(max_steps=10**6)
     assert (info.value.precision, info.value.late_precision, info.value.narrowed) == (64, 0, False)
-    assert str(info.value) == f"arithmetic: {info.value.decision}; use arithmetic=\"exact\" or a larger precision (now 64 bits)"
+    assert str(info.value) == (f"arithmetic: {info.value.decision}; use arithmetic=\"exact\" or a larger precision "
+                               "(now 64 bits)")
     assert next_precisions(info.value) == (128, None)
 
 

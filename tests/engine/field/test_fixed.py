@@ -33,7 +33,8 @@ def rational(g, v, **kwargs) -> pb.Simulation:
 
 def with_chain(sim: pb.Simulation, **chain_kwargs) -> pb.Simulation:
     """``sim`` with its fixed-point chain built again with ``chain_kwargs`` (a starting width)."""
-    sim.engine.state.field_chain = FixedChain(sim.geometry, sim.velocities.copy(), lines_of(sim.geometry), sim.arithmetic, **chain_kwargs)
+    sim.engine.state.field_chain = FixedChain(sim.geometry, sim.velocities.copy(), lines_of(sim.geometry),
+                                              sim.arithmetic, **chain_kwargs)
     sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 
@@ -121,7 +122,8 @@ def test_tori_at_equilibrium_collision_for_collision(seed, n, chunk):
 
 
 @pytest.mark.parametrize("make", [lambda: chain(9), lambda: cubic(3), lambda: fcc_cluster(2),
-                                  lambda: pb.FCC(2, 2, 2), lambda: pb.FlatTorus(4, 6)], ids=["chain", "cubic", "fcc cluster", "fcc", "torus"])
+                                  lambda: pb.FCC(2, 2, 2), lambda: pb.FlatTorus(4, 6)],
+                         ids=["chain", "cubic", "fcc cluster", "fcc", "torus"])
 def test_every_field_the_chain_takes_agrees_with_the_rational_chain(make):
     """Q (chains, cubic packings), Q(sqrt 2) (FCC, 3-D), Q(sqrt 3) (the triangular lattice)."""
     g = make()
@@ -208,7 +210,8 @@ def test_a_precision_too_small_to_decide_stops_the_run_in_one_line():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("length, depth, collisions, steps", [(100, 50, 48_022, 243_682), (200, 100, 492_708, 3_085_842)])
+@pytest.mark.parametrize("length, depth, collisions, steps",
+                         [(100, 50, 48_022, 243_682), (200, 100, 492_708, 3_085_842)])
 def test_certified_counts_are_the_exact_counts_of_the_paper_half_plane(length, depth, collisions, steps):
     """docs/collisions.md's half-plane (seed 1): the counts of the rational chain, and every collision
     at its step (against the exact policy), in certified arithmetic at 256 bits, where kicks are
@@ -317,7 +320,8 @@ def test_no_narrowing_while_a_ball_rests():
     v[5] = [0.7390851332151607, 0.1]
     sim = late(g, v, 2, 256, 64, 1)
     assert sim.run_until_frozen(max_steps=10**5)
-    assert _at_rest(sim) == 10 and sim.collisions == 6 and sim.engine.state.field_chain.P == 4 and sim.engine.state.field_chain.narrowed is None
+    assert _at_rest(sim) == 10 and sim.collisions == 6 and sim.engine.state.field_chain.P == 4
+    assert sim.engine.state.field_chain.narrowed is None
 
 
 # ---------------------------------------------------------------- choosing the arithmetic
@@ -332,7 +336,8 @@ def test_certified_arithmetic_refuses_what_only_the_rational_chain_runs(kwargs, 
     v = inward(g)
     with pytest.raises(ValueError) as info:
         pb.Simulation(g, v, arithmetic="certified", **kwargs)
-    assert str(info.value).startswith("arithmetic: certified arithmetic needs equal masses") and words in str(info.value)
+    assert str(info.value).startswith("arithmetic: certified arithmetic needs equal masses")
+    assert words in str(info.value)
     assert 'arithmetic="exact" runs it' in str(info.value)
     assert isinstance(pb.Simulation(g, v, arithmetic="exact", **kwargs).engine.state.field_chain, RationalChain)
 
@@ -401,7 +406,8 @@ for name, arithmetic, options in (("exact", "exact", {}), ("certified", "certifi
         sim.engine.state.field_chain.every = 8
     sim.run_until_frozen(10**5)
     state = sim.get_state()
-    out[name] = [sim.steps, sim.collisions, sim.velocities.tolist(), getattr(sim.engine.state.field_chain, "narrowed", None),
+    out[name] = [sim.steps, sim.collisions, sim.velocities.tolist(),
+                 getattr(sim.engine.state.field_chain, "narrowed", None),
                  state.exact.tolist() if state.exact is not None else state.certified.limbs.tolist()]
 print(json.dumps(out))
 """

@@ -48,7 +48,8 @@ def test_a_run_split_into_calls_ends_on_the_same_state(arithmetic):
     assert split.collisions == whole.collisions - 5
     split.run_until_frozen(max_steps=10**6)
     assert split.get_state().identical(whole.get_state())
-    assert isinstance(whole.engine.state.field_chain, FixedChain) and (whole.get_state().certified is None) == (arithmetic == "exact")
+    assert isinstance(whole.engine.state.field_chain, FixedChain)
+    assert (whole.get_state().certified is None) == (arithmetic == "exact")
 
 
 @pytest.mark.parametrize("arithmetic", ["exact", "certified"])
@@ -89,7 +90,8 @@ def test_exact_states_move_between_the_rational_and_the_fixed_point_chains(direc
     same exact numbers, and the run goes on to the same state."""
     g = pb.HalfPlane(7, 9)
     v = inward(g)
-    make = {"rational": lambda: rational(g, v, seed=3), "fixed": lambda: pb.Simulation(g, v, seed=3, arithmetic="exact")}
+    make = {"rational": lambda: rational(g, v, seed=3),
+            "fixed": lambda: pb.Simulation(g, v, seed=3, arithmetic="exact")}
     source_kind, target_kind = direction.split(" to ")
     source, target, whole = make[source_kind](), make[target_kind](), make[target_kind]()
     source.run(steps=400)

@@ -37,7 +37,8 @@ def test_the_field_of_two_roots_holds_their_product():
     assert field.mul(r6, r6) == field.of(6)
 
 
-rationals = st.fractions(min_value=-50, max_value=50, max_denominator=1000).map(lambda f: mpq(f.numerator, f.denominator))
+rationals = st.fractions(min_value=-50, max_value=50, max_denominator=1000).map(
+    lambda f: mpq(f.numerator, f.denominator))
 
 
 @settings(max_examples=300, deadline=None, derandomize=True)

@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
-
 import pinnedballs as pb
 from pinnedballs.engine.field.fixed import UncertifiedDecision
 from pinnedballs.engine.gpu.certified import DevicePicks
 from pinnedballs.util.errors import FieldError
+
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 COUNTER = pb.UniformRandomPair(stream="counter", threads=1)
 

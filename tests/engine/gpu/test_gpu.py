@@ -6,9 +6,6 @@ import sys
 
 import numpy as np
 import pytest
-
-pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
-
 import user_rules
 from helpers import ROOT, fcc_cluster
 
@@ -19,6 +16,8 @@ from pinnedballs.engine.gpu.replicas import S_COLLISIONS, S_FROZEN, S_STEPS, Rep
 from pinnedballs.engine.margin import new_margin
 from pinnedballs.engine.rows import row_pattern
 from pinnedballs.util.errors import FieldError
+
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 COUNTER = pb.UniformRandomPair(stream="counter", threads=1)
 

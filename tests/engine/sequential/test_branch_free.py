@@ -1,6 +1,7 @@
 """The table loop without a branch on each collision (`engine.sequential.loops` ``chunk_blocks``, the branch-free form
-`engine.closing.branch_free_form` of a rule given by its impulse: the built-in rules and a user's) gives the bits of the loop with one: velocities (to the sign of a zero),
-counters, the random stream, the scheduler's state and the closing margin, however a run stops.
+`engine.closing.branch_free_form` of a rule given by its impulse: the built-in rules and a user's) gives the bits of the
+loop with one: velocities (to the sign of a zero), counters, the random stream, the scheduler's state and the closing
+margin, however a run stops.
 
 ``branch_free_percent=0`` runs every block but the first without a branch, ``101`` none (the loop as it was).
 """
@@ -35,8 +36,8 @@ def _run(monkeypatch, percent: int, make, calls) -> tuple:
         m.setattr(backends, "loops", functools.partial(engine_loops.loops, branch_free_percent=percent))
         sim = make()
     results = calls(sim)
-    return (_bits(sim.velocities), sim.steps, sim.collisions, sim.engine.state.counters.copy(), sim.engine.state.rng.copy(),
-            sim.engine.state.scheduler.copy(), _bits(sim.engine.state.margin), results)
+    return (_bits(sim.velocities), sim.steps, sim.collisions, sim.engine.state.counters.copy(),
+            sim.engine.state.rng.copy(), sim.engine.state.scheduler.copy(), _bits(sim.engine.state.margin), results)
 
 
 def _same(monkeypatch, make, calls) -> tuple:

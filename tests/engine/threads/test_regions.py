@@ -80,7 +80,8 @@ def _sequential(geometry, v, masses, params, pattern, loops, kwargs, seed):
     c = geometry.contacts
     rng, counters, margin = seed_state(seed), np.zeros(COUNTERS, np.int64), new_margin()
     limited = loops.limited_rows if pattern is not NO_PATTERN else loops.limited
-    steps, collisions, frozen = kwargs.get("steps", NO_LIMIT), kwargs.get("collisions", NO_LIMIT), kwargs.get("frozen", False)
+    steps, collisions, frozen = (kwargs.get("steps", NO_LIMIT), kwargs.get("collisions", NO_LIMIT),
+                                 kwargs.get("frozen", False))
     plain = collisions == NO_LIMIT and not frozen
     chunk = steps if plain else max(4096, 4 * len(c))
     taken = limited(v, c.pairs, c.ends, c.units, masses, params, pattern, np.zeros(1, np.int64), np.zeros(0, np.int64),
@@ -98,7 +99,8 @@ def _parallel(geometry, v, masses, params, pattern, loops, collide, kwargs, seed
     assert parallel is not None
     rng, counters, margin = seed_state(seed), np.zeros(COUNTERS, np.int64), new_margin()
     limited = loops.limited_rows if pattern is not NO_PATTERN else loops.limited
-    steps, collisions, frozen = kwargs.get("steps", NO_LIMIT), kwargs.get("collisions", NO_LIMIT), kwargs.get("frozen", False)
+    steps, collisions, frozen = (kwargs.get("steps", NO_LIMIT), kwargs.get("collisions", NO_LIMIT),
+                                 kwargs.get("frozen", False))
     plain = collisions == NO_LIMIT and not frozen
     _, any_live = live_kernel(collide, 2, True)
     taken = parallel.run(chain, pattern, limited, any_live, np.zeros(1, np.int64), np.zeros(0, np.int64),
@@ -175,7 +177,8 @@ def test_a_simulation_on_two_threads_is_the_simulation_on_one():
         sim.run(steps=2_000_000)
         sim.run(collisions=sim.collisions + 54_321)
         assert bool(sim.engine.parallel_chain()) == (threads == 2)
-        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state, sim.engine.state.margin.copy()))
+        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state,
+                     sim.engine.state.margin.copy()))
     assert runs[0][:2] == runs[1][:2]
     for a, b in zip(runs[0][2:], runs[1][2:]):
         np.testing.assert_array_equal(a, b)

@@ -209,7 +209,8 @@ def test_a_contact_read_without_a_branch_is_the_row_patterns(geometry):
 
 
 def test_the_default_batch_grows_with_the_threads_within_its_bounds():
-    assert batch_size(577_000, 2) == 1 << 17 and batch_size(2_310_000, 16) == 1 << 19 and batch_size(10**9, 64) == 1 << 20
+    assert batch_size(577_000, 2) == 1 << 17 and batch_size(2_310_000, 16) == 1 << 19
+    assert batch_size(10**9, 64) == 1 << 20
     assert batch_size(100, 2) == MIN_BATCH
     for balls in (10, 10**4, 10**6, 10**8):
         for threads in (2, 3, 16, 64):
@@ -229,7 +230,8 @@ def test_a_simulation_on_two_threads_is_the_simulation_on_one():
         sim = pb.Simulation(half, v, seed=3, scheduler=pb.UniformRandomPair(threads=threads, stream="counter"))
         sim.run(steps=2_000_000)
         sim.run(collisions=sim.collisions + 54_321)
-        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state, sim.engine.state.margin.copy()))
+        runs.append((sim.steps, sim.collisions, sim.velocities.copy(), sim.get_state().rng_state,
+                     sim.engine.state.margin.copy()))
     assert runs[0][:2] == runs[1][:2]
     for a, b in zip(runs[0][2:], runs[1][2:]):
         np.testing.assert_array_equal(a.view(np.uint64) if a.dtype == np.float64 else a,

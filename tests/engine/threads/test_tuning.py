@@ -38,7 +38,8 @@ def test_using_sets_the_count_and_restores_it():
 def test_more_threads_than_numba_has_is_refused():
     most = threads.most_threads()
     with pytest.raises(pb.FieldError, match=rf"^threads: must be at most NUMBA_NUM_THREADS = {most}; set that "
-                                            rf"environment variable before starting Python to use more, got {most + 1}"):
+                                            rf"environment variable before starting Python to use more, "
+                                            rf"got {most + 1}"):
         pb.Simulation(pb.FlatTorus(4, 4), np.ones((16, 2)), scheduler=pb.ColoredSweep(threads=most + 1))
     with pytest.raises(pb.FieldError, match="^threads: must be an integer >= 1, got 0"):
         pb.ColoredSweep(threads=0)

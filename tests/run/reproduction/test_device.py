@@ -8,14 +8,14 @@ import json
 
 import pytest
 
-pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
-
 import pinnedballs as pb
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import reproduction as rp
 from pinnedballs.run.reproduction import extended as ext
 from pinnedballs.util.errors import InputError
+
+pytestmark = pytest.mark.cuda  # numba-cuda's simulator runs the kernels: skipped without it (conftest)
 
 TINY = dict(sizes=((10, 5), (20, 10)), detail=(20, 10), torus=(8, 8), steps=(3_000, 6_000), long_steps=20_000,
             collisions=30, replicas=4, size_replicas=2)
