@@ -95,6 +95,11 @@ class Backend:
         for listener in self.listeners:
             listener(steps, contacts)
 
+    def resources(self) -> dict:
+        """What this chain's runs have used so far, as a run's provenance records it (`util.provenance`):
+        ``{"kind": "cpu", "threads": 1}`` here (one thread); a backend that runs elsewhere says so."""
+        return {"kind": "cpu", "threads": 1}
+
 
 class LoopBackend(Backend):
     """Floats on the CPU: the engine's compiled loops for one rule and one scheduler (module docstring)."""
@@ -106,6 +111,7 @@ class LoopBackend(Backend):
         self.own_steps = None if s.steps is None else s.steps(model.collide, g.dim, g.contacts.flat)
         self._live = None  # the LiveSet, built when a tracked run first needs it
         self._parallel = None  # the threaded chain, built when a run first asks (False: none)
+        self._own_ran = False  # whether the scheduler's own loop (`own_steps`) has run
 
     def tables(self) -> tuple:
         """``(scheduler state, aux, rng, counters, margin)``: what every loop takes after the chain's arrays."""
@@ -132,6 +138,7 @@ class LoopBackend(Backend):
                                       _NO_LOG)
         plain = not until_frozen and max_collisions == NO_LIMIT
         if plain and self.own_steps is not None:
+            self._own_ran = True
             return self.own_steps(*chain, *tables, max_steps)
         limited, pattern = self.limited(logged=False)
         parallel = self.parallel_chain()
@@ -144,6 +151,21 @@ class LoopBackend(Backend):
     def approaching(self) -> int:
         flags = np.empty(self.model.geometry.n_contacts, dtype=np.uint8)
         return int(self._live_flags(*self.chain(), flags))
+
+    def resources(self) -> dict:
+        """``{"kind": "cpu", "threads": k}``: the threads of the threaded chain or of the scheduler's own loop
+        where one has run (else 1); where a `ThreadTuner` chose the count, the count it ran most on, and
+        ``"tuned"``: ``{count: share of the work}`` (`ThreadTuner.shares`)."""
+        threads, tuner = 1, None
+        if self._parallel:  # built by a run, and run by it: on its threads, or as its tuner chose
+            threads, tuner = self._parallel.threads, self._parallel.tuner
+        elif self._own_ran:
+            threads, tuner = self.model.threads or most_threads(), getattr(self.own_steps, "tuner", None)
+        shares = tuner.shares() if tuner is not None else {}
+        if not shares:
+            return {"kind": "cpu", "threads": threads}
+        return {"kind": "cpu", "threads": max(shares, key=shares.get),
+                "tuned": {str(count): share for count, share in shares.items()}}
 
     # ------------------------------------------------------------ the loops
     def parallel_chain(self):
@@ -224,9 +246,10 @@ class FieldBackend(Backend):
     are those of the float loop after the same steps. A decision certified arithmetic cannot make raises
     once the picks before it are counted."""
 
-    def __init__(self, model: Model, state: ChainState, listeners: list | None = None):
+    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, on_gpu: bool = False):
         super().__init__(model, state, listeners)
         s, g = model.selector, model.geometry
+        self.on_gpu = on_gpu  #: its picks are tried on a GPU (`engine.gpu.certified.DevicePicks`)
         self.loops = loops(model.collide, s.select, s.begin, s.changed, s.skips, g.dim, g.contacts.flat)
         self._to_limits = limits_loop(_no_mark, self._advance, self._live, _no_settle)
 
@@ -280,6 +303,14 @@ class FieldBackend(Backend):
 
     def velocities(self) -> np.ndarray:
         return self.state.field_chain.sync()
+
+    def resources(self) -> dict:
+        """One thread of the CPU, or the GPU its picks are tried on (`engine.gpu.describe`: certified arithmetic)."""
+        if not self.on_gpu:
+            return super().resources()
+        from .gpu import describe
+
+        return {"kind": "cuda", **describe()}
 
     def approaching(self) -> int:
         return self.state.field_chain.count_live()
@@ -338,6 +369,12 @@ class DeviceBackend(Backend):
     def is_frozen(self) -> bool:
         return self.approaching() == 0
 
+    def resources(self) -> dict:
+        """``{"kind": "cuda", "gpu": its name, "compute_capability": ...}`` (`engine.gpu.describe`)."""
+        from .gpu import describe
+
+        return {"kind": "cuda", **describe()}
+
 
 def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool = True, replicas: bool = False) -> None:
     """A `FieldError` unless a chain can run on a GPU: float or certified arithmetic (``replicas``, an ensemble's
@@ -384,7 +421,7 @@ def backend_for(model: Model, state: ChainState, arithmetic: str, device: str, l
             from .gpu.certified import DevicePicks
 
             state.field_chain.picks = DevicePicks()
-            return FieldBackend(model, state, listeners)
+            return FieldBackend(model, state, listeners, on_gpu=True)
         return DeviceBackend(model, state, listeners)
     if state.field_chain is not None:
         return FieldBackend(model, state, listeners)

@@ -286,4 +286,5 @@ def _threaded_steps(collide: Callable, dim: int, flat: bool, shuffle: bool, thre
         return max_steps
 
     steps.loop = loop  # the compiled loop (its cache statistics, its signatures)
+    steps.tuner = tuner  # what it chose (a run's provenance: `engine.backends.LoopBackend.resources`)
     return steps

@@ -22,7 +22,7 @@ from ...util.errors import FieldError
 if not hasattr(_np, "row_stack"):  # numba-cuda 0.30 overloads np.row_stack, which numpy 2.5 removed:
     _np.row_stack = _np.vstack     # without it, its first compile fails (AttributeError: row_stack)
 
-__all__ = ["load", "importable", "GPUUnavailable", "INSTALL"]
+__all__ = ["load", "importable", "describe", "GPUUnavailable", "INSTALL"]
 
 #: how to install what a GPU run needs
 INSTALL = 'python3 -m pip install ".[cuda]" (from the checkout)'
@@ -57,3 +57,19 @@ def load():
         raise GPUUnavailable("'cuda' found no GPU: numba-cuda sees no CUDA driver or device here (nvidia-smi "
                              "should list one); device 'cpu' gives the same bits on the counter stream")
     return cuda
+
+
+def describe() -> dict:
+    """The GPU this process's kernels run on, as a run's provenance records it (`util.provenance`): ``{"gpu": its
+    name, "compute_capability": "9.0"}``, or ``{"gpu": "simulated"}`` under numba-cuda's simulator (`compile.SIMULATED`:
+    the kernels as Python threads on the CPU). Asked once a GPU run has loaded numba-cuda (`load`)."""
+    from .compile import SIMULATED
+
+    if SIMULATED:
+        return {"gpu": "simulated"}
+    from numba import cuda
+
+    gpu = cuda.get_current_device()
+    name = gpu.name.decode() if isinstance(gpu.name, bytes) else str(gpu.name)
+    major, minor = gpu.compute_capability
+    return {"gpu": name, "compute_capability": f"{major}.{minor}"}

@@ -107,6 +107,7 @@ class ThreadTuner:
         self.period = self.PERIOD
         self.winner: int | None = None  # the best count at the latest trial
         self.warm: set[int] = set()  # the counts that ran a first, untimed segment
+        self.ran: dict[int, int] = {}  # the units run on each count so far (`shares`)
 
     def choose(self) -> int:
         """The thread count for the next segment: an untimed candidate, else the fastest."""
@@ -115,12 +116,19 @@ class ThreadTuner:
                 return count
         return max(self.rates, key=self.rates.get)
 
+    def shares(self) -> dict[int, float]:
+        """``{count: share}``: the share of the units run so far that each count ran (what the tuner chose,
+        recorded with a run's provenance, `util.provenance`); empty before the first segment."""
+        total = sum(self.ran.values())
+        return {count: self.ran[count] / total for count in sorted(self.ran, reverse=True)} if total else {}
+
     def run(self, segment, units: int) -> int:
         """``segment(n)`` on the chosen count, timed, for ``n = units`` (``units >= 1``: steps, blocks,
         whatever ``segment`` counts, the same for every call) or, on a trial, ``max(1, units //
         TRIAL_SHARE)``; returns ``n``: the caller offers the rest again."""
         count = self.choose()
         n = units if count in self.rates else max(1, units // self.TRIAL_SHARE)
+        self.ran[count] = self.ran.get(count, 0) + n
         if count not in self.warm:  # its first segment: run, not timed (class docstring)
             with using(count):
                 segment(n)

@@ -170,3 +170,17 @@ def _pretend_using(clock):
 def test_one_candidate_means_no_timing():
     tuner = ThreadTuner(candidates=(1,))
     assert [tuner.choose() for _ in range(3)] == [1, 1, 1]
+
+
+def test_shares_are_the_work_each_count_ran(monkeypatch):
+    """What a run's provenance records of the tuner's choice (`ThreadTuner.shares`): of the units it was handed,
+    the share each count ran, the untimed first segments and the short trials included."""
+    clock = _Clock({2: 1.0, 1: 3.0})
+    monkeypatch.setattr(threads.time, "perf_counter", clock)
+    monkeypatch.setattr(threads, "using", _pretend_using(clock))
+    tuner = ThreadTuner(candidates=(2, 1))
+    assert tuner.shares() == {}
+    used = _tune(tuner, clock, 3 * ThreadTuner.PERIOD)
+    on = {count: sum(u for u, c in zip(clock.units, used) if c == count) for count in (2, 1)}
+    assert tuner.shares() == {2: on[2] / sum(clock.units), 1: on[1] / sum(clock.units)}
+    assert list(tuner.shares()) == [2, 1] and tuner.shares()[2] > 0.9  # 2 threads won: nearly all the work
