@@ -228,6 +228,7 @@ def info(args: argparse.Namespace) -> int:
     from ..results.load import load
     from ..results.remains import lost_index
     from ..run.ensemble_dir import describe, is_ensemble_dir, load_ensemble
+    from ..util.provenance import lines as provenance_lines
 
     if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
         print("\n".join(describe(load_ensemble(args.dir), Path(args.dir))))
@@ -258,6 +259,7 @@ def info(args: argparse.Namespace) -> int:
         *_margin(res),
         f"time:        {_duration(res.elapsed_seconds)} running the chain in {res.checkpoints} checkpoint(s) "
         f"(building, compiling and figures not counted); written by pinnedballs {res.version}",
+        *provenance_lines(res.provenance),
     ]
     print("\n".join(lines))
     return EXIT_OK

@@ -26,6 +26,7 @@ from pathlib import Path
 from .._version import __version__
 from ..engine.margin import MarginWarning
 from ..run.execute import Interrupted
+from ..util import provenance
 from ..util.errors import InputError
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
 from .status import CLEAR, is_terminal
@@ -69,7 +70,8 @@ def _main(argv: list[str] | None) -> int:
     try:
         args = _parser().parse_args(argv)
         show_traceback = getattr(args, "traceback", False)
-        with _user_modules(getattr(args, "spec", None)), _notes():
+        line = sys.argv[1:] if argv is None else argv  # what the outputs' provenance records (`util.provenance`)
+        with _user_modules(getattr(args, "spec", None)), _notes(), provenance.command_line(line):
             return COMMANDS[args.command].run(args)
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else EXIT_OK

@@ -33,7 +33,16 @@ from ..specs.run import RunSpec, stored_spec
 from ..util.errors import FieldError
 from .format import STATIC_NAME, ResultsError
 from .format import data_dir as data_dir_of
-from .index import Damage, check_attributes, check_digests, check_format, check_initial, check_links, segment_list
+from .index import (
+    Damage,
+    check_attributes,
+    check_digests,
+    check_format,
+    check_initial,
+    check_links,
+    check_provenance,
+    segment_list,
+)
 
 __all__ = ["check_results"]
 
@@ -48,6 +57,7 @@ def check_results(p: Path, f: h5py.File, sealed: bool) -> int:
             raise Damage("/ (attribute format_version)", f"is {version}, but the index {'has' if sealed else 'lacks'} "
                                                          f"the digest of format 3")
         check_attributes(f, version)
+        check_provenance(f)
         if version >= 2:
             data, segments = data_dir_of(p), segment_list(f)
             missing = [name for name in [STATIC_NAME, *(s[0] for s in segments)] if not (data / name).is_file()]

@@ -49,6 +49,10 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                       from runs continued from them (unknown); bound_batch, bound_at, pending (2,)
                       uint64, unfolded: the batched bound rule's state (`CertifiedState`), absent from
                       files written before it (their runs resume under the rule in step order)
+    /provenance       (L,) text, absent from files written before runs kept it: one JSON object a life of the run
+                      (the first, then each resumed one), how it was made (`pinnedballs.util.provenance`: versions,
+                      command, host, CPU, the device and threads used, steps, started and ended); a resumed life
+                      is appended, the earlier ones kept as they were written
 
 ``/geometry`` and ``/initial`` are external links, ``/snapshots`` and ``/observables``
 virtual datasets over the segments, so ``h5py`` reads the index like one file.

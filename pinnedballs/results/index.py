@@ -18,11 +18,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..util import provenance
 from .digest import file_digest
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, ResultsError
 
-__all__ = ["Damage", "check_format", "check_attributes", "check_initial", "segment_list", "check_digests",
-           "check_links", "STATUSES", "UNKNOWN"]
+__all__ = ["Damage", "check_format", "check_attributes", "check_initial", "check_provenance", "segment_list",
+           "check_digests", "check_links", "STATUSES", "UNKNOWN"]
 
 #: what ``status`` may say: "interrupted" and "failed" since format 3
 STATUSES = {1: ("running", "done"), 2: ("running", "done"), 3: ("running", "done", "interrupted", "failed")}
@@ -95,6 +96,23 @@ def check_attributes(f: h5py.File, version: int) -> None:
                 or len(set(names)) != len(names):
             raise Damage("/ (attribute observables)", f"must list distinct names with steps and collisions, got "
                                                       f"{_short(names)}")
+
+
+def check_provenance(f: h5py.File) -> None:
+    """``/provenance``, where there is one (files written before runs kept it have none): a JSON text for each
+    life of the run, each an entry `util.provenance.problem` finds sound."""
+    if "provenance" not in f:
+        return
+    ds = f["provenance"]
+    if not isinstance(ds, h5py.Dataset) or ds.ndim != 1 or h5py.check_string_dtype(ds.dtype) is None:
+        raise Damage("provenance", f"must be a list of texts (one JSON object a life), got {_short(ds)}")
+    for i, text in enumerate(ds.asstr()[()]):
+        try:
+            said = provenance.problem(json.loads(text))
+        except (ValueError, UnicodeDecodeError):
+            said = f"must be a JSON object (text), got {_short(text)}"
+        if said is not None:
+            raise Damage(f"provenance[{i}]", said)
 
 
 def check_initial(f: h5py.File) -> None:

@@ -56,6 +56,17 @@ class Results:
     failure: why a failed run (``status`` "failed") cannot go on, as the file keeps it (`format`:
     ``message``, ``steps``, ``precision``, ``late_precision``, ``narrowed``, ``remedy``); None otherwise.
     approaching: -1 where a failed run's live contacts could not be counted.
+
+    Attributes
+    ----------
+    provenance : list of dict
+        How the run was made, one entry per life (the first run, then each resumed one, in order;
+        `pinnedballs.util.provenance`): ``versions`` (pinnedballs, Python, numpy, numba, ...), ``command`` (the
+        command line or the Python call), ``argv``, ``host``, ``platform``, ``cpu`` (model, cores, L2 cache,
+        vector flags), ``device`` (``kind`` "cpu" with the ``threads`` used, or "cuda" with the ``gpu``'s name
+        and compute capability, ``"simulated"`` under numba-cuda's simulator), ``steps`` (``[first, last]`` of
+        the life), ``started`` and ``ended`` (UTC, ISO 8601; ``ended`` at its last checkpoint). Empty for a file
+        written before runs kept their provenance.
     """
 
     path: Path
@@ -84,6 +95,7 @@ class Results:
     device: str = "cpu"
     simulated: bool = False
     failure: dict | None = None
+    provenance: list[dict] = field(default_factory=list, repr=False)
 
     @property
     def velocities(self) -> np.ndarray:
@@ -353,6 +365,7 @@ def read(p: Path, f: h5py.File) -> Results:
             margin, float(s["margin"].attrs["threshold"]), float(s["margin"].attrs["resolution"])),
         device=str(f.attrs.get("device", "cpu")), simulated=bool(f.attrs.get("simulated", False)),
         failure=json.loads(f.attrs["failure"]) if f.attrs["status"] == "failed" else None,  # checked
+        provenance=[json.loads(x) for x in f["provenance"].asstr()[()]] if "provenance" in f else [],  # checked
     )
 
 

@@ -52,6 +52,10 @@ class ResultsStore:
     #: (threshold, resolution) of the run, whose margin the index keeps; None: it keeps none (a run
     #: begun before runs kept their margin: its margin is unknown)
     criterion: tuple[float, float] | None = None
+    #: the provenance of the run's earlier lives (`util.provenance`), as the index holds them, kept as they are
+    lives: list = field(default_factory=list)
+    #: the provenance of this life, written after them with each index (None: none yet)
+    life: dict | None = None
 
     @property
     def data_dir(self) -> Path:
@@ -60,12 +64,12 @@ class ResultsStore:
     @classmethod
     def create(cls, path: str | os.PathLike, *, spec: str, run: str, geometry: Geometry, masses,
                initial: Record, version: str, criterion: tuple[float, float] | None = None,
-               device: str = "cpu", simulated: bool = False) -> ResultsStore:
+               device: str = "cpu", simulated: bool = False, life: dict | None = None) -> ResultsStore:
         """Write ``static.h5`` and an index with no snapshots. ``spec``: the run spec as JSON, or "";
         ``run``: JSON describing a run built in Python, or ""; ``criterion``: the simulation's
         ``(threshold, resolution)``, kept with the margin of each state that has one; ``device``: where the
         run goes, and ``simulated``: whether numba-cuda's simulator stood in for the GPU (information, in
-        the attributes ``device`` and ``simulated``)."""
+        the attributes ``device`` and ``simulated``); ``life``: the provenance of this life (``/provenance``)."""
         path = Path(path)
         data = data_dir(path)
         data.mkdir(parents=True, exist_ok=True)
@@ -77,7 +81,7 @@ class ResultsStore:
                      checkpoints=0, checked=False, observables=json.dumps(list(initial.values)), device=device,
                      simulated=bool(simulated))
         columns = {k: (v.dtype.str, v.shape) for k, v in initial.values.items()}
-        store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static}, criterion=criterion)
+        store = cls(path, attrs, (n, d), columns, digests={STATIC_NAME: static}, criterion=criterion, life=life)
         store.write_index(initial, attrs, store.segments, store.digests)
         store.state = initial
         return store
@@ -97,6 +101,7 @@ class ResultsStore:
             columns = {name: (f["observables"][name].dtype.str, f["observables"][name].shape[1:])
                        for name in json.loads(f.attrs["observables"])}
             margin = res.closing_margin
+            lives = res.provenance
         data = data_dir(path)
         digests = json.loads(attrs.pop("digests")) if version >= 3 else \
             {name: file_digest(data / name) for name in [STATIC_NAME, *(s[0] for s in segments)]}
@@ -104,17 +109,18 @@ class ResultsStore:
         state = Record(res.state(), res.energy, res.momentum, res.approaching)
         store = cls(path, attrs, res.velocities.shape, columns, segments, sum(s[2] for s in segments), digests,
                     int(res.snapshots.steps[-1]) if len(res.snapshots) else -1, state,
-                    None if margin is None else (margin.threshold, margin.resolution))
+                    None if margin is None else (margin.threshold, margin.resolution), lives)
         store.remove_strays()
         return store
 
     def checkpoint(self, frames: list[Record], state: Record, *, status: str = "running", stop_reason: str = "",
-                   elapsed_seconds: float | None = None, checked: bool = True, failure: dict | None = None) -> None:
+                   elapsed_seconds: float | None = None, checked: bool = True, failure: dict | None = None,
+                   life: dict | None = None) -> None:
         """Append ``frames`` (as one new segment; those already stored are skipped) and replace the
         state: the new index is renamed over the old one only once the segment is on disk.
         ``status``: "running", "done", "interrupted" or "failed" (a run that cannot go on: ``failure``
         says why, in the attribute ``failure`` as JSON, see `format`); ``checked``: the snapshot trigger
-        was checked at the state's counts."""
+        was checked at the state's counts; ``life``: this life's provenance now (None: as it was)."""
         if (status == "failed") != (failure is not None):
             raise ValueError("failure: a failed run's checkpoint says why, and only a failed run's")
         frames = [r for r in frames if r.state.steps > self.last_step]
@@ -131,13 +137,19 @@ class ResultsStore:
             attrs["failure"] = json.dumps(failure)
         if elapsed_seconds is not None:
             attrs["elapsed_seconds"] = float(elapsed_seconds)
-        self.write_index(state, attrs, segments, digests)
+        life = self.life if life is None else life
+        self.write_index(state, attrs, segments, digests, life)
         self.attrs, self.segments, self.digests, self.frames, self.state = attrs, segments, digests, count, state
+        self.life = life
         if frames:
             self.last_step = frames[-1].state.steps
 
-    def write_index(self, state: Record, attrs: dict, segments: list, digests: dict) -> None:
+    def write_index(self, state: Record, attrs: dict, segments: list, digests: dict, life: dict | None = None) -> None:
+        """Replace the index: ``attrs``, ``segments``, ``digests``, ``state``, and the provenance of the earlier
+        lives with ``life`` (default: `life`) after them."""
         n, d = self.shape
+        life = self.life if life is None else life
+        lives = [*self.lives, *([] if life is None else [life])]
         rel = f"{self.data_dir.name}/"
 
         def fill(f: h5py.File) -> None:
@@ -153,6 +165,9 @@ class ResultsStore:
             for name in observables.ALWAYS:
                 f["snapshots"][name] = h5py.SoftLink(f"/observables/{name}")
             _write_state(f, state, self.criterion)
+            if lives:  # one JSON text a life (`util.provenance`); files written before have none
+                f.create_dataset("provenance", data=[json.dumps(x, sort_keys=True) for x in lives],
+                                 dtype=h5py.string_dtype())
 
         write_bytes_atomic(self.path, seal(h5_image(fill)))
 

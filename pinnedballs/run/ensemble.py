@@ -28,7 +28,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +45,7 @@ from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
 from ..util.limits import check_memory
 from ..util.progress import Progress
-from . import executors
+from . import executors, lineage
 
 __all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row",
            "margin_columns", "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS",
@@ -174,6 +174,15 @@ class EnsembleResult:
 
     ``rows``: dicts with `KEY_COLUMNS`, observables and, for a failed replica, only
     ``replica``, ``seed_entropy``, ``spawn_key`` and `ERROR_COLUMN`.
+
+    Attributes
+    ----------
+    provenance : dict or None
+        How the ensemble was made (`pinnedballs.util.provenance`, as a run's `Results.provenance` entry):
+        ``versions``, ``command`` (the command line or the Python call), ``argv``, ``host``, ``platform``, ``cpu``,
+        ``device`` (``kind`` "cpu" or "cuda" and ``where``: ``workers``, or ``dask``, ``workers`` and ``hosts`` on a
+        cluster, or the ``gpu``), ``started`` and ``ended`` (UTC, ISO 8601). None for a directory written before
+        ensembles kept their provenance.
     """
 
     spec: RunSpec
@@ -181,6 +190,7 @@ class EnsembleResult:
     rows: list[dict]
     where: str
     wall_seconds: float
+    provenance: dict | None = field(default=None, compare=False)
 
     @property
     def columns(self) -> list[str]:
@@ -330,6 +340,7 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     def lost(k: int, exc: BaseException) -> list[dict]:  # its worker died or was lost
         return [_error_row(k, seeds[k], exc)]
 
+    made = lineage.ensemble("pinnedballs.run_ensemble", {"kind": device})  # begun now
     start = time.perf_counter()
     with Progress(progress, replicas, "replicas", "replicas", scale=False) as bar:
         done = []
@@ -341,17 +352,19 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
         if one_by_one:
             where = "GPU, one replica at a time"
             results = _on_this_gpu(spec, jobs, tick)
+            used = _this_gpu()
         elif device == "cuda" and (dask_address is not None or cluster is not None):
-            where, results = _on_cluster_gpus(spec, seeds, observe, dask_address, cluster, bar)
+            where, results, used = _on_cluster_gpus(spec, seeds, observe, dask_address, cluster, bar)
         elif device == "cuda":
             from .ensemble_gpu import run_on_gpu
 
             where = "GPU"
             results = run_on_gpu(spec, seeds, observe, replica_row, tick)
+            used = _this_gpu()
         elif dask_address is not None or cluster is not None:
             client, own = executors.dask_client(dask_address, cluster)
             try:
-                where = f"dask {client.scheduler.address}"
+                where, used = f"dask {client.scheduler.address}", lineage.dask_facts(client)
                 results = executors.on_dask(client, jobs, tick, lost)
             finally:
                 if own:
@@ -359,22 +372,31 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
         else:
             workers = (os.cpu_count() or 1) if workers is None else check_count("workers", workers)
             workers = min(workers, replicas)
-            where = "in-process" if workers == 1 else f"{workers} local processes"
+            where, used = "in-process" if workers == 1 else f"{workers} local processes", {"workers": workers}
             results = executors.in_process(jobs, tick) if workers == 1 else \
                 executors.on_processes(jobs, workers, tick, lost)
     rows = [row for k in range(replicas) for row in results[k]]
-    result = EnsembleResult(spec, replicas, rows, where, time.perf_counter() - start)
+    result = EnsembleResult(spec, replicas, rows, where, time.perf_counter() - start,
+                            lineage.ended(made, device={"where": where, **used}))
     if spec.stop.frozen and spec.arithmetic == "float" and spec.resolution is None and result.thin():
         warnings.warn(_thin_note(result), MarginWarning, stacklevel=2)
     return result
 
 
-def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address, cluster, bar) -> tuple[str, dict]:
-    """``(where, rows by replica)`` of the replicas run on the GPUs of a Dask cluster (`run_ensemble`'s ``device=
-    "cuda"`` with ``dask_address`` or ``cluster``): the spec checked here (this process needs no GPU), every
-    worker asked whether it sees one, then the replicas in groups (`ensemble_gpu.groups`), a group a job on a
-    worker's GPU; a group whose worker is lost runs again elsewhere (`executors.on_dask`), and the rows are the
-    same however the replicas were grouped."""
+def _this_gpu() -> dict:
+    """The GPU of this process that an ensemble ran on (`engine.gpu.describe`), for its provenance."""
+    from ..engine.gpu import describe
+
+    return describe()
+
+
+def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address, cluster,
+                     bar) -> tuple[str, dict, dict]:
+    """``(where, rows by replica, what provenance records of the cluster)`` of the replicas run on the GPUs of a
+    Dask cluster (`run_ensemble`'s ``device="cuda"`` with ``dask_address`` or ``cluster``): the spec checked here
+    (this process needs no GPU), every worker asked whether it sees one, then the replicas in groups
+    (`ensemble_gpu.groups`), a group a job on a worker's GPU; a group whose worker is lost runs again elsewhere
+    (`executors.on_dask`), and the rows are the same however the replicas were grouped."""
     from ..engine.backends import check_device
     from .ensemble_gpu import gpu_workers, groups, on_worker_gpu
 
@@ -395,11 +417,11 @@ def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address,
             return {k: [_error_row(k, seeds[k], exc)] for k in parts[g]}
 
         out = executors.on_dask(client, jobs, tick, lost)
-        where = f"dask {client.scheduler.address} (a GPU a worker)"
+        where, used = f"dask {client.scheduler.address} (a GPU a worker)", lineage.dask_facts(client)
     finally:
         if own:
             client.close()
-    return where, {k: rows for part in out.values() for k, rows in part.items()}
+    return where, {k: rows for part in out.values() for k, rows in part.items()}, used
 
 
 def _on_this_gpu(spec: RunSpec, jobs: dict, tick: Callable[[], None]) -> dict:
@@ -503,6 +525,7 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
         "where": result.where,
         "wall_seconds": result.wall_seconds,
         "version": __version__,
+        **({} if result.provenance is None else {"provenance": result.provenance}),  # how it was made
         "statistics": result.statistics(),
         "spec": json.loads(result.spec.model_dump_json()),
     }

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..specs.run import stored_spec
+from ..util import provenance
 from ..util.errors import InputError
 from .ensemble import ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult, read_table
 
@@ -96,7 +97,19 @@ def load_ensemble(path: str | os.PathLike) -> EnsembleResult:
     _check_every_replica(table, rows, replicas)
     wall = summary.get("wall_seconds")
     return EnsembleResult(spec, replicas, rows, str(summary.get("where", "")),
-                          float(wall) if isinstance(wall, (int, float)) and not isinstance(wall, bool) else math.nan)
+                          float(wall) if isinstance(wall, (int, float)) and not isinstance(wall, bool) else math.nan,
+                          _provenance(out / SUMMARY_NAME, summary))
+
+
+def _provenance(path: Path, summary: dict) -> dict | None:
+    """The ``provenance`` ``summary.json`` (at ``path``) holds, checked (`util.provenance.problem`); None where it
+    holds none (written before ensembles kept it)."""
+    if "provenance" not in summary:
+        return None
+    said = provenance.problem(summary["provenance"])
+    if said is not None:
+        raise InputError(f"{path}: provenance: {said}")
+    return summary["provenance"]
 
 
 def _check_every_replica(table: Path, rows: list[dict], replicas: int) -> None:
@@ -133,7 +146,7 @@ def describe(result: EnsembleResult, path: Path) -> list[str]:
     kept = [r for r in final if "near_collisions" in r]
     if kept:
         lines.append(_margins(kept, len(result.thin())))
-    return lines
+    return lines + provenance.lines([] if result.provenance is None else [result.provenance])
 
 
 def _margins(final: list[dict], thin: int) -> str:

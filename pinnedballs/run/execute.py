@@ -31,6 +31,7 @@ from ..results.trajectory import TRAJECTORY_NAME
 from ..specs.run import RunSpec, load_spec
 from ..util.atomic import remove, tmp_path, write_text_atomic
 from ..util.errors import InputError
+from ..util.provenance import python_call
 from .gsd_writer import GSDWriter
 from .gsd_writer import layout as gsd_layout
 from .writers import OnSnapshot, ResultsWriter
@@ -258,7 +259,9 @@ def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resum
         spec = load_spec(spec)
     if force and resume:
         raise InputError("force, resume: give one of them, not both")
-    return load(execute(spec, out, force=force, resume=resume, progress=progress, figures=figures, device=device))
+    with python_call("pinnedballs.run_spec"):  # what its results' provenance records (`run.lineage`)
+        path = execute(spec, out, force=force, resume=resume, progress=progress, figures=figures, device=device)
+    return load(path)
 
 
 def _resumed(spec: RunSpec, path: Path, device: str = "cpu") -> Simulation | None:

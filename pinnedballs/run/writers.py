@@ -28,6 +28,7 @@ import json
 import os
 import sys
 import time
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -46,9 +47,12 @@ from ..results.store import ResultsStore
 from ..rules import DEFAULT_RESOLUTION
 from ..util import checks
 from ..util.errors import InputError
+from . import lineage
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run", "failure", "simulated"]
 
+#: the Python call a run recorded by a writer is, where no command line or other call is recorded (`lineage`)
+CALL = "pinnedballs.ResultsWriter"
 #: a snapshot's checkpoint is skipped (kept for the next one) if the last write was
 #: more recent than this many times its own duration: checkpoints stay under ~10 % of the time
 WRITE_COST_RATIO = 10.0
@@ -106,6 +110,7 @@ class ResultsWriter(Writer):
         self._checked: Counts | None = None
         self._saved: Counts | None = None  #: the counts of the state last checkpointed
         self._elapsed0, self._start, self._last, self._cost = 0.0, time.monotonic(), time.monotonic(), 0.0
+        self._sim = lambda: None  # the simulation attached (a weak reference), whose resources a checkpoint records
 
     @property
     def path(self) -> Path:
@@ -133,6 +138,7 @@ class ResultsWriter(Writer):
                     raise
             elif (sim.steps, sim.collisions) != self._checked:
                 self._checked = None  # the simulation moved on without us: check its state afresh
+            self._sim = weakref.ref(sim)  # what it runs on, for this life's provenance at each checkpoint
             self._start = self._last = time.monotonic()
             self._running = True
         return self._checked
@@ -236,9 +242,11 @@ class ResultsWriter(Writer):
                     failure: dict | None = None) -> None:
         t = time.monotonic()
         with held_signals():  # a Ctrl-C lands after the checkpoint, never inside it
+            life = None if self.store.life is None else \
+                lineage.checkpointed(self.store.life, self._sim(), state.state.steps)
             self.store.checkpoint([r for r in self.pending if r.state.steps <= state.state.steps], state,
                                   status=status, stop_reason=reason, elapsed_seconds=self.elapsed(), checked=checked,
-                                  failure=failure)
+                                  failure=failure, life=life)
             self.pending = [r for r in self.pending if r.state.steps > state.state.steps]
             self._saved = (state.state.steps, state.state.collisions)
             self._running = status == "running"  # a run saved as done, interrupted or failed is never saved again
@@ -261,6 +269,7 @@ class ResultsWriter(Writer):
                 raise ValueError(f"observables: {list(self.names)} differ from the {list(stored)} recorded in "
                                  f"{self.path}")
             self._checked = (sim.steps, sim.collisions) if store.attrs.get("checked") else None
+            store.life = lineage.life(sim, CALL)  # a new life, after those the file holds
             return store
         # what a run killed at birth leaves may be resumed over
         cli = self.spec is not None
@@ -274,7 +283,7 @@ class ResultsWriter(Writer):
         device = getattr(sim, "device", "cpu")
         return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
                                    initial=initial, version=__version__, criterion=(sim.threshold, sim.resolution),
-                                   device=device, simulated=simulated(device))
+                                   device=device, simulated=simulated(device), life=lineage.life(sim, CALL))
 
 
 def simulated(device: str) -> bool:

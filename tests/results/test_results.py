@@ -145,7 +145,7 @@ def test_file_layout_and_physics(tmp_path):
         listed = [s[0] for s in json.loads(f.attrs["segments"])]
         assert f.userblock_size == 512 and sorted(json.loads(f.attrs["digests"])) == sorted([*listed, "static.h5"])
         assert f["state/rng_state"].dtype == np.uint64 and f["state/scheduler_state"].dtype == np.int64
-        assert set(f) == {"geometry", "initial", "snapshots", "observables", "state"}
+        assert set(f) == {"geometry", "initial", "snapshots", "observables", "state", "provenance"}
     assert sorted(p.name for p in res.path.parent.iterdir()) == ["results.data", "results.h5", "spec.json"]
     assert parse_spec((res.path.parent / "spec.json").read_text()) == s
 

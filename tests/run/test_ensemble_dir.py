@@ -13,6 +13,7 @@ from helpers import assert_input_error, call
 import pinnedballs as pb
 from pinnedballs.run import ensemble as ens
 from pinnedballs.specs import parse_spec
+from pinnedballs.util import provenance
 
 HALF_PLANE = {"geometry": {"kind": "half_plane", "rows": 6, "cols": 10},
               "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0.0, 1.0], "energy": 100.0},
@@ -107,9 +108,10 @@ def test_info_and_plot_describe_an_ensemble_directory(written, tmp_path):
     assert lines[0] == f"ensemble:    {out}"
     assert lines[1] == "replicas:    5 (4 done, 1 failed), seeds spawned from 11"
     assert lines[4] == "stages:      2: collisions=50, final"
-    assert lines[-2] == "frozen:      4 of 4 final states"
+    assert lines[-6] == "frozen:      4 of 4 final states"
     final = [r for r in pb.load_ensemble(out).rows if r.get("at") == "final"]
-    assert lines[-1] == (f"margin:      thin in 0 of 4 final states; smallest collision "
+    assert lines[-4:] == provenance.lines([pb.load_ensemble(out).provenance])  # how it was made (test_lineage.py)
+    assert lines[-5] == (f"margin:      thin in 0 of 4 final states; smallest collision "
                          f"{min(r['smallest_collision'] for r in final):.3g} thresholds, largest remnant "
                          f"{max(r['largest_remnant'] for r in final):.3g} thresholds (over all replicas)")
     code, text, err = call("plot", out)
