@@ -1,10 +1,17 @@
-"""``python -m pinnedballs``: the command line (`cli.main`). A Ctrl-C at any moment is one line on stderr
-and exit status 130: while the package is imported (its ``__init__`` sees the command line starting,
-`util.startup`), and while numba compiles (`cli.interrupts.exit_while_compiling`)."""
+"""``python -m pinnedballs`` and the ``pinnedballs`` program: the command line (`cli.main`).
+
+A Ctrl-C at any moment is one line on stderr and exit status 130: set up here, first, before the command
+line's imports (numpy, numba, h5py: the first second or so; `util.startup`), and while numba compiles
+(`cli.interrupts.exit_while_compiling`). Importing the library sets up nothing: only its program does.
+"""
 
 import sys
 
-from .cli import interrupts
+from .util.startup import from_the_first_instant
+
+from_the_first_instant()  # before anything heavy is imported
+
+from .cli import interrupts  # noqa: E402 - after the Ctrl-C handler
 
 
 def command_line() -> int:

@@ -26,8 +26,9 @@ def loaded_after(code: str) -> set[str]:
 
 
 @pytest.mark.slow
-def test_import_pinnedballs_loads_no_front_end():
-    loaded = loaded_after("import pinnedballs")
+def test_import_pinnedballs_loads_its_face_alone_and_a_name_loads_no_front_end():
+    assert loaded_after("import pinnedballs") == {"pinnedballs"}
+    loaded = loaded_after("import pinnedballs as pb\npb.ResultsWriter, pb.Simulation, pb.run_spec")
     assert not {m for m in loaded
                 if m in FRONT_ENDS or m.startswith(("pinnedballs.run.reproduction.", "pinnedballs.cli."))}
     assert {"pinnedballs.run.writers", "pinnedballs.engine.driver", "pinnedballs.engine.triggers"} <= loaded

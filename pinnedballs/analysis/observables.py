@@ -11,7 +11,7 @@ By name (`OBSERVABLES`): writers and specs select observables by name; each is m
 snapshot and stored as one column (``(F,)`` for a number, ``(F, *shape)`` for an array). The
 built-ins: ``steps``, ``collisions`` (the counters, always recorded); ``energy``; ``momentum``
 ``(dim,)`` (meaningful in flat space); ``approaching`` (the number of live contacts, 0: frozen).
-Add your own with `register` (``fn(sim) -> number or array``, which must not change ``sim``).
+Add your own with `register_observable` (``fn(sim) -> number or array``, which must not change ``sim``).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ __all__ = [
     "Histogram", "component_histogram", "normality_tests", "ad_critical_5pct",
     "line_of_centres_components", "line_of_centres_correlation", "xy_correlation",
     "closing_speeds", "approaching_fraction", "summary",
-    "OBSERVABLES", "DEFAULT", "ALWAYS", "register", "check_names", "measure",
+    "OBSERVABLES", "DEFAULT", "ALWAYS", "register_observable", "check_names", "measure",
 ]
 
 #: outward normal of `HalfPlane`'s boundary (its balls sit at y >= 0)
@@ -355,7 +355,7 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
 
 # ---------------------------------------------------------------- observables by name
 
-#: ``name -> fn(sim)``; use `register` to add to it
+#: ``name -> fn(sim)``; use `register_observable` to add to it
 OBSERVABLES: dict[str, Callable] = {
     "steps": lambda sim: sim.steps,
     "collisions": lambda sim: sim.collisions,
@@ -370,7 +370,7 @@ DEFAULT = ("steps", "collisions", "energy", "momentum", "approaching")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
-def register(name: str, fn: Callable, *, replace: bool = False) -> Callable:
+def register_observable(name: str, fn: Callable, *, replace: bool = False) -> Callable:
     """Register ``fn(sim) -> number or array`` as the observable ``name``; returns ``fn``."""
     if not isinstance(name, str) or not _NAME.fullmatch(name):
         raise ValueError(f"name: must be an identifier (letters, digits, _), got {name!r}")

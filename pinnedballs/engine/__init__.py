@@ -16,7 +16,4 @@ The map, a room per concern (package-wide helpers, errors and argument checks am
   contact normals), `gpu` (the counter stream's chain on an NVIDIA GPU, in float or certified arithmetic);
 * below them: `streams` (the random streams: xoshiro256**, its jumps, the counter stream Philox) and `jit`
   (numba's disk cache for closures, LLVM hints).
-
-Module paths from before this map (``pinnedballs.engine.loops``, ``.random``, ``.errors``, ...) still import,
-with a DeprecationWarning naming the new one (`pinnedballs.util.moved`).
 """

@@ -1,12 +1,18 @@
 """How a geometry and a simulation show themselves (``plot()``, a notebook's table and picture).
 
-`pinnedballs.plot` draws them from above: its `display` module installs itself here as it is
-imported (``import pinnedballs`` imports it), so these rooms reach their pictures without importing
-the plots, which stand on what they draw (analysis, geometry)."""
+`pinnedballs.plot.display` draws them from above, and these rooms stand below the plots (which stand on
+what they draw: analysis, geometry). So they do not import it: `display` loads it by name when a picture
+is first asked for, and it installs itself here (`install`); a test may install another.
+"""
 
 from __future__ import annotations
 
+import importlib
+
 __all__ = ["install", "display"]
+
+#: the module that draws, as `pinnedballs.plot.display`, loaded by `display` when first asked
+DRAWN_BY = __name__.rpartition(".geometry.")[0] + ".plot.display"
 
 _installed = None
 
@@ -20,7 +26,7 @@ def install(shown) -> None:
 
 
 def display():
-    """The display installed by `install`."""
+    """The display installed by `install`; `pinnedballs.plot.display`, loaded now, when none is yet."""
     if _installed is None:
-        raise ImportError("no pictures: pinnedballs.plot.display draws them (import pinnedballs imports it)")
+        importlib.import_module(DRAWN_BY)  # installs itself
     return _installed

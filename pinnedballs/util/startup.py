@@ -1,6 +1,6 @@
 """A Ctrl-C before the command line's `main` runs (``python -m pinnedballs`` and the ``pinnedballs``
 program): one line, ``pinnedballs: interrupted``, and exit status 130, not Python's traceback of the
-import it landed in. The package's ``__init__`` calls `from_the_first_instant` before its heavy imports
+import it landed in. The program's ``__main__`` calls `from_the_first_instant` before its heavy imports
 (numpy, numba, h5py: the first second or so), so only the standard library may be imported here.
 
 A Ctrl-C inside the command line's ``main._main`` raises KeyboardInterrupt as Python's handler does,
@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-__all__ = ["from_the_first_instant", "starts_the_command_line", "end_at_once", "EXIT_INTERRUPTED"]
+__all__ = ["from_the_first_instant", "end_at_once", "EXIT_INTERRUPTED"]
 
 EXIT_INTERRUPTED = 130
 #: the command line's ``main._main``, found on the stack of a Ctrl-C that came while it runs (its file, not
@@ -21,34 +21,14 @@ EXIT_INTERRUPTED = 130
 _MAIN = os.path.join(os.path.dirname(os.path.dirname(os.path.realpath(__file__))), "cli", "main.py")
 
 
-def from_the_first_instant(only_if_starting: bool = False) -> None:
-    """The program's Ctrl-C outside ``main._main`` (before it, while the package is imported, and after it):
+def from_the_first_instant() -> None:
+    """The program's Ctrl-C outside ``main._main`` (before it, while the command line imports, and after it):
     ``pinnedballs: interrupted`` on stderr and exit status 130 at once. Inside ``main._main``
     KeyboardInterrupt, as Python's handler raises it. Main thread only; a SIGINT the caller ignores, or
-    handles its own way, is left so.
-
-    ``only_if_starting``: only in a process that `starts_the_command_line` (for the package's ``__init__``,
-    which ``python -m pinnedballs`` runs before ``__main__``, as every program importing the package does)."""
-    if only_if_starting and not starts_the_command_line():
-        return
+    handles its own way, is left so. Called by the program's ``__main__``, never by the library's import."""
     if threading.current_thread() is threading.main_thread() and \
             signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _at_once_outside_main)
-
-
-def starts_the_command_line() -> bool:
-    """Whether this process is the command line, starting: ``python -m pinnedballs`` still looking for its
-    ``__main__`` (``sys.argv[0]`` is ``"-m"`` until it is found), or the ``pinnedballs`` program."""
-    argv = sys.argv or [""]
-    if argv[0] == "-m":
-        options = list(getattr(sys, "orig_argv", []))
-        for k, option in enumerate(options):
-            module = options[k + 1] if option == "-m" and k + 1 < len(options) else \
-                option[2:] if option.startswith("-m") and option != "-m" else None
-            if module is not None:
-                return module in ("pinnedballs", "pinnedballs.__main__")  # not another module's program
-        return False
-    return os.path.basename(argv[0]) == "pinnedballs"
 
 
 def end_at_once(message: str, prefix: str = "") -> None:

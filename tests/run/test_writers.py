@@ -228,9 +228,9 @@ def test_observables_in_a_spec(tmp_path):
 
 def test_register_observable():
     with pytest.raises(ValueError, match=r"^name: 'energy' is already registered"):
-        observe.register("energy", lambda sim: 0)
+        observe.register_observable("energy", lambda sim: 0)
     with pytest.raises(ValueError, match=r"^name: must be an identifier"):
-        observe.register("two words", lambda sim: 0)
+        observe.register_observable("two words", lambda sim: 0)
 
 
 # ---------------------------------------------------------------- format 1 still loads

@@ -86,7 +86,8 @@ def test_run_specs_build_run_and_round_trip(spec):
 
 
 def test_the_entry_point_names_a_module_outside_the_package():
-    """hypothesis loads ``_pinnedballs_hypothesis:setup``, which imports nothing of pinnedballs by itself."""
+    """hypothesis loads ``_pinnedballs_hypothesis:setup``, a module outside the package (as hypothesis' own
+    pytest plugin is), which imports the strategies when hypothesis calls it."""
     found = [ep for ep in importlib.metadata.entry_points(group="hypothesis") if ep.name == "pinnedballs"]
     assert [ep.value for ep in found] == ["_pinnedballs_hypothesis:setup"]
 
@@ -97,17 +98,21 @@ def _python(code: str, **env) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-def test_importing_hypothesis_does_not_import_pinnedballs_and_either_order_registers():
+def test_the_entry_point_registers_the_strategies_whichever_is_imported_first():
+    """hypothesis calls the entry point as it is imported: the strategies are registered then, and only then
+    (``import pinnedballs`` alone registers nothing and loads no hypothesis)."""
     out = _python("import sys, hypothesis\n"
-                  "print('pinnedballs' in sys.modules)\n"
+                  "print('pinnedballs.testing.strategies' in sys.modules)\n"
                   "import pinnedballs as pb\n"
                   "from hypothesis import strategies as st\n"
                   "print(isinstance(st.from_type(pb.Geometry).example(), pb.Geometry))")
-    assert out.stdout.split() == ["False", "True"], out.stderr[-2000:]
-    out = _python("import pinnedballs as pb, hypothesis\n"
+    assert out.stdout.split() == ["True", "True"], out.stderr[-2000:]
+    out = _python("import sys, pinnedballs as pb\n"
+                  "print('hypothesis' in sys.modules, 'pinnedballs.testing.strategies' in sys.modules)\n"
+                  "import hypothesis\n"
                   "from hypothesis import strategies as st\n"
                   "print(isinstance(st.from_type(pb.Scheduler).example(), pb.Scheduler))")
-    assert out.stdout.split() == ["True"], out.stderr[-2000:]
+    assert out.stdout.split() == ["False", "False", "True"], out.stderr[-2000:]
 
 
 @pytest.mark.slow

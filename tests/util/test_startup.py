@@ -1,46 +1,37 @@
-"""Which process is the command line starting (`pinnedballs.util.startup`): only ``python -m pinnedballs``
-and the ``pinnedballs`` program get its Ctrl-C handler while the package imports; a program that imports the
-package, or runs another of its modules, keeps Python's (tests/cli/test_ctrl_c.py sends the Ctrl-Cs)."""
+"""The command line's Ctrl-C handler (`pinnedballs.util.startup`) is the program's: ``python -m pinnedballs``
+and the ``pinnedballs`` script set it up in ``__main__``; importing the library leaves Python's handler
+(tests/cli/test_ctrl_c.py sends the Ctrl-Cs)."""
 
 from __future__ import annotations
 
 import signal
+import subprocess
 import sys
-
-import pytest
 
 from pinnedballs.util import startup
 
 
-@pytest.mark.parametrize("argv, orig_argv, starting", [
-    (["-m"], ["python3", "-m", "pinnedballs", "run"], True),
-    (["-m"], ["python3", "-u", "-mpinnedballs", "run"], True),
-    (["-m"], ["python3", "-m", "pinnedballs.__main__"], True),
-    (["-m"], ["python3", "-m", "pinnedballs.run.ensemble"], False),   # another module's program
-    (["-m"], ["python3", "-m", "pytest"], False),
-    (["/usr/local/bin/pinnedballs", "run"], ["python3", "/usr/local/bin/pinnedballs", "run"], True),
-    (["analysis.py"], ["python3", "analysis.py"], False),
-    (["-c"], ["python3", "-c", "import pinnedballs"], False),
-])
-def test_only_the_command_line_is_starting(monkeypatch, argv, orig_argv, starting):
-    monkeypatch.setattr(sys, "argv", argv)
-    monkeypatch.setattr(sys, "orig_argv", orig_argv)
-    assert startup.starts_the_command_line() is starting
+def handler_after(code: str) -> str:
+    """The SIGINT handler's name in a fresh process after ``code``."""
+    probe = f"{code}\nimport signal; print(getattr(signal.getsignal(signal.SIGINT), '__name__', '?'))"
+    return subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                          check=True).stdout.strip()
 
 
-def test_a_program_importing_the_package_keeps_its_handler(monkeypatch):
-    monkeypatch.setattr(sys, "argv", ["analysis.py"])
-    before = signal.getsignal(signal.SIGINT)
-    startup.from_the_first_instant(only_if_starting=True)
-    assert signal.getsignal(signal.SIGINT) is before
+def test_importing_the_library_keeps_pythons_handler():
+    assert handler_after("import pinnedballs as pb; pb.HalfPlane") == "default_int_handler"
 
 
-def test_a_handler_of_its_own_stands(monkeypatch):
+def test_the_programs_main_sets_its_handler_before_the_command_line_imports():
+    assert handler_after("import pinnedballs.__main__; import sys; assert 'numpy' not in sys.modules") == \
+        "_at_once_outside_main"
+
+
+def test_a_handler_of_its_own_stands():
     """The command line's handler replaces Python's default only, never one the caller chose."""
-    monkeypatch.setattr(sys, "argv", ["/usr/bin/pinnedballs"])
     old = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        startup.from_the_first_instant(only_if_starting=True)
+        startup.from_the_first_instant()
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, old)
