@@ -231,3 +231,15 @@ def test_a_gpu_run_under_the_simulator_records_simulated_and_numba_cuda(tmp_path
     assert entry["versions"]["numba-cuda"] == importlib.metadata.version("numba-cuda")
     assert np.array_equal(res.velocities, cpu.velocities)  # the CPU's bits
     assert lines([entry])[1].startswith("ran on:      GPU: simulated (numba-cuda's simulator on the CPU: ")
+
+
+@pytest.mark.slow  # starts a Dask cluster
+def test_an_ensemble_on_dask_records_the_scheduler_its_workers_and_their_hosts():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as c, \
+            distributed.Client(c) as client:
+        result = ens.run_ensemble(parse_spec(HALF_PLANE), 2, cluster=client)
+        hosts = sorted({w["host"] for w in client.scheduler_info()["workers"].values()})
+    device = result.provenance["device"]
+    assert device == {"kind": "cpu", "where": result.where, "dask": c.scheduler_address, "workers": 2, "hosts": hosts}
+    assert result.where == f"dask {c.scheduler_address}"
