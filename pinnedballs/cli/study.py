@@ -79,6 +79,6 @@ def _interrupted(out: Path) -> str:
 
     if not is_study_dir(out):
         return f"interrupted before the study wrote anything in {out}"
-    done = sum(load_study(out).done())
-    return f"interrupted; the {done} points done are kept in {out}: continue with --resume"
+    done = load_study(out).done()
+    return f"interrupted; {sum(done)} of {len(done)} points done, kept in {out}: continue with --resume"
 

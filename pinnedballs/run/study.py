@@ -47,7 +47,10 @@ from . import ensemble as ens
 from .ensemble_dir import is_ensemble_dir, load_ensemble
 from .study_dir import ENSEMBLE_DIR, PARTIAL_DIR, POINTS_NAME, STUDY_NAME, StudyResult, is_study_dir, load_study
 
-__all__ = ["run_study", "read_study"]
+__all__ = ["run_study", "read_study", "STARTED"]
+
+#: what a study directory holds before its first point runs (the signac project, the study's record)
+STARTED = frozenset({".signac", "workspace", STUDY_NAME, POINTS_NAME})
 
 
 def read_study(study, option: str = "study") -> StudySpec:
@@ -113,8 +116,8 @@ def run_study(study, out, *, workers: int | None = None, dask_address: str | Non
     out = Path(out)
     if resume and is_study_dir(out):
         study = _with_recorded_seed(study, out)
-    elif resume:
-        check_out_dir(out, False, hint="it holds no study to resume")
+    elif resume:  # nothing, or what a study killed as it started left
+        check_out_dir(out, False, may_hold=STARTED, hint="it holds no study to resume")
     else:
         check_out_dir(out, False, hint="resume=True (--resume) continues a study there")
     study = study.seeded()
@@ -178,23 +181,21 @@ def _built(point: StudyPoint, device: str, on_cluster: bool) -> int:
 
 
 def _jobs(out: Path, study: StudySpec, points: list[StudyPoint], balls: list[int], digest: str) -> list:
-    """The signac project in ``out`` (made if new), a job initialised for each point (in order), and the study's
-    record: `STUDY_NAME` and `POINTS_NAME`."""
+    """The signac project in ``out`` (made if new), the study's record (`STUDY_NAME`, `POINTS_NAME`), then a job
+    initialised for each point (in order): a study killed on its way here resumes (`STARTED`)."""
     import signac
 
     project = signac.init_project(out)
-    jobs, records = [], []
-    for point, n in zip(points, balls):
-        job = project.open_job(point.state_point(digest))
-        job.init(force=True)  # (again) its state point file, whole
-        document = {"replicas": point.replicas, "seed": point.spec.seed, "n_balls": n}  # no dotted keys in signac's
-        if dict(job.document) != document:
-            job.document.update(document)
-        jobs.append(job)
-        records.append({"job": job.id, "overrides": point.overrides, **document})
+    jobs = [project.open_job(point.state_point(digest)) for point in points]
+    documents = [{"replicas": p.replicas, "seed": p.spec.seed, "n_balls": n} for p, n in zip(points, balls)]
+    records = [{"job": job.id, "overrides": p.overrides, **d} for job, p, d in zip(jobs, points, documents)]
     write_text_atomic(out / STUDY_NAME, study.to_json() + "\n")
     write_text_atomic(out / POINTS_NAME, json.dumps({"version": __version__, "base": digest, "points": records},
                                                      indent=1, ensure_ascii=False) + "\n")
+    for job, document in zip(jobs, documents):
+        job.init(force=True)  # (again) its state point file, whole
+        if dict(job.document) != document:  # its replicas, seed and balls (signac's documents take no dotted keys)
+            job.document.update(document)
     return jobs
 
 

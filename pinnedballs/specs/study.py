@@ -287,8 +287,20 @@ class StudySpec(_Spec):
         self._every_rule_holds(out)
         return out
 
+    def point_spec(self, overrides: dict[str, Any]) -> RunSpec:
+        """The run spec of the point with ``overrides`` (a point of the study or not), validated and seeded as the
+        study seeds its points; a `PointError` if it is not a valid run spec."""
+        for path, value in overrides.items():
+            try:
+                _check_override(path, value, "")
+            except ValueError as exc:
+                raise PointError(overrides, *str(exc).split(": ", 1)) from None
+        if self.seed is None and self.seeds == "by_point":
+            raise SpecError("seed", "missing: give the study a seed, or use study.seeded()")
+        return self._point_spec(stated(self.base), overrides)
+
     def _point_spec(self, base: dict, overrides: dict) -> RunSpec:
-        """The run spec of the point with ``overrides``, seeded as the study seeds it."""
+        """The run spec of the point with ``overrides`` on ``base`` (`stated`), seeded as the study seeds it."""
         try:
             spec = parse_spec(_overridden(base, overrides), base_dir=self._base_dir)
         except UserCodeError as exc:

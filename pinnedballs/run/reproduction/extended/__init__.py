@@ -4,6 +4,10 @@ Each study takes the `ExtendedPlan`, the output directory and an ``ensemble(name
 replicas, task=...)`` callable (`reproduce`'s, which records the replicas' tables and
 failures), and returns plain numbers: ``{"rows": [...], ..., "figures": [PNG names]}``.
 
+The scaling and torus-law studies are study specs (`scaling_study_spec`, `torus_law_study_spec`; the full plan's
+in ``examples/studies/``), their points expanded by `pinnedballs.specs.study` as ``pinnedballs study`` expands a
+user's, each point's ensemble run through `reproduce`'s ``ensemble``.
+
 * `scaling_study`: collisions and steps until frozen against the number of balls, half-plane,
   one boundary ball moving inward, `UniformRandomPair` on `ExtendedPlan.stream` (the counter stream on a
   GPU: `EXTENDED_GPU`); fitted exponents (`fit.fit_exponent`); up to `ExtendedPlan.exact_max_balls` the exact
@@ -33,13 +37,14 @@ from .plan import (
                    expected_extended_figures,
 )
 from .run import run_extended
-from .scaling_study import count_name, exact_verdict, local_exponents, scaling, scaling_spec
+from .scaling_study import count_name, exact_verdict, local_exponents, scaling, scaling_spec, scaling_study_spec
 from .sphere_study import sphere
-from .torus_law_study import LAW, law_verdicts, torus_law
+from .torus_law_study import LAW, law_verdicts, torus_law, torus_law_study_spec
 
 __all__ = ["STUDIES", "DECILES", "LAW", "ExtendedPlan", "EXTENDED_FULL", "EXTENDED_QUICK", "EXTENDED_GPU",
            "check_extended_plan",
            "expected_extended_figures", "run_extended", "decile_row", "level_row", "scaling", "scaling_spec",
+           "scaling_study_spec", "torus_law_study_spec",
            "count_name", "exact_verdict",
            "local_exponents", "torus_law", "law_verdicts", "sphere", "hyperbolic", "fcc_half_space", "orders",
            "order_configurations"]

@@ -11,6 +11,7 @@ draws its picks from `ExtendedPlan.stream` (the counter stream: what a GPU runs)
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 from pathlib import Path
@@ -19,10 +20,11 @@ import numpy as np
 
 from ....engine.field.fixed import UncertifiedDecision
 from ....specs.run import RunSpec
+from ....specs.study import StudySpec, parse_study
 from ... import ensemble as ens
 from .. import fit
 from ..fit import fit_exponent
-from .common import DECILES, _frozen_row, _inward_spec, _margin_row, _observing, _profile, _stats, decile_row
+from .common import DECILES, _frozen_row, _margin_row, _observing, _profile, _stats, decile_row
 from .plan import Ensemble, ExtendedPlan
 
 #: the exact count's name in rows and fits (``exact_collisions_mean``, ...)
@@ -39,11 +41,31 @@ def scaling_spec(length: float, depth: float, plan: ExtendedPlan, **counting) ->
     (`UniformRandomPair` on one thread, since the ensemble runs replicas side by side; until frozen it runs
     untracked, 4-5x faster than `RejectionFree` on these half-planes, docs/performance.md), until frozen.
     The picks come from ``plan.stream``. ``counting``: ``arithmetic=``, ``late_precision=`` and
-    ``resolution=`` of the spec (default: float, the paper's criterion)."""
-    spec = _inward_spec({"kind": "half_plane", "length": float(length), "depth": float(depth)}, plan,
-                        f"scaling: half-plane {length:g}x{depth:g}", "uniform_random_pair")
-    scheduler = spec.scheduler.model_copy(update={"threads": 1, "stream": plan.stream})
-    return spec.model_copy(update={"scheduler": scheduler, **counting})
+    ``resolution=`` of the spec (default: float, the paper's criterion). Without them: the point of
+    `scaling_study_spec` at that size."""
+    spec = scaling_study_spec(plan).point_spec({"geometry.length": float(length), "geometry.depth": float(depth)})
+    return spec.model_copy(update=counting)
+
+
+def scaling_study_spec(plan: ExtendedPlan) -> StudySpec:
+    """The scaling study's float count as a study (`specs.study`; the full plan's is
+    ``examples/studies/extended_scaling.json``): the half-planes of ``plan.scaling`` zipped, each size's replicas
+    by rule, every size on the plan's seed (seeds "as_spec": replica k of each size seeded alike)."""
+    (length, depth, _), sizes = plan.scaling[0], plan.scaling
+    base = {"description": "scaling: a half-plane, the boundary-centre ball moving inward, until frozen",
+            "geometry": {"kind": "half_plane", "length": float(length), "depth": float(depth)},
+            "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": "inward",
+                        "energy": float(plan.energy)},
+            "scheduler": {"kind": "uniform_random_pair", "threads": 1, "stream": plan.stream},
+            "stop": {"frozen": True, "max_steps": plan.max_steps}, "seed": plan.seed}
+    most = collections.Counter(r for *_, r in sizes).most_common(1)[0][0]  # the others by rule, this one for the rest
+    replicas = [{"where": {"geometry.length": float(a), "geometry.depth": float(b)}, "replicas": r}
+                for a, b, r in sizes if r != most] + [{"replicas": most}]
+    return parse_study({"description": "the extended reproduction's scaling study: collisions and steps until "
+                                       "frozen against the number of balls",
+                        "base": base, "zip": {"geometry.length": [float(s[0]) for s in sizes],
+                                              "geometry.depth": [float(s[1]) for s in sizes]},
+                        "replicas": replicas if len(replicas) > 1 else most, "seeds": "as_spec"})
 
 
 def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
@@ -51,8 +73,8 @@ def scaling(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
     the exact count and N_e beside the float count up to `ExtendedPlan.exact_max_balls` (N_e up to
     `ExtendedPlan.resolution_limit`); the stream and where each count ran (``ran_on``: `EnsembleResult.where`)."""
     rows, profiles, ran_on = [], {}, {"float": [], EXACT: [], "N_e": []}
-    for length, depth, replicas in plan.scaling:
-        spec = scaling_spec(length, depth, plan)
+    for (length, depth, _), point in zip(plan.scaling, scaling_study_spec(plan).expand()):
+        spec, replicas = point.spec, point.replicas
         g = spec.build().geometry
         t0 = time.perf_counter()
         name = f"scaling_{length:g}x{depth:g}"

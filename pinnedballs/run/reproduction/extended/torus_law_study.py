@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ....specs.run import RunSpec, parse_spec
+from ....specs.study import StudySpec, parse_study
 from ... import ensemble as ens
 from ..plan import torus_row
 from .common import _observing, _stats
@@ -22,13 +23,35 @@ LAW = (("kurtosis", "excess kurtosis of a component"), ("approaching_fraction", 
 
 def _law_spec(geometry: dict, balls: int, plan: ExtendedPlan, what: str) -> RunSpec:
     """Ball 0 moving with ``plan.energy``, `UniformRandomPair`, snapshots at ``plan.torus_times`` steps per ball."""
-    steps = [t * balls for t in plan.torus_times]
-    return parse_spec({
-        "description": f"{what}: ball 0 moving, all others at rest",
-        "geometry": geometry,
-        "initial": {"kind": "single_ball", "ball": 0, "direction": [1.0, 0.0], "energy": float(plan.energy)},
-        "stop": {"steps": steps[-1]}, "snapshots": {"at_steps": steps[:-1]} if len(steps) > 1 else None,
-        "seed": plan.seed})
+    return parse_spec(_law_dict(geometry, balls, plan, what))
+
+
+def _law_dict(geometry: dict, balls: int, plan: ExtendedPlan, what: str) -> dict:
+    """`_law_spec`, as JSON."""
+    steps = _law_steps(balls, plan)
+    return {"description": f"{what}: ball 0 moving, all others at rest", "geometry": geometry,
+            "initial": {"kind": "single_ball", "ball": 0, "direction": [1.0, 0.0], "energy": float(plan.energy)},
+            "stop": {"steps": steps[-1]}, "snapshots": {"at_steps": steps[:-1]} if len(steps) > 1 else None,
+            "seed": plan.seed}
+
+
+def _law_steps(balls: int, plan: ExtendedPlan) -> list[int]:
+    """The steps of ``plan.torus_times`` (steps per ball) on ``balls`` balls."""
+    return [t * balls for t in plan.torus_times]
+
+
+def torus_law_study_spec(plan: ExtendedPlan) -> StudySpec:
+    """The torus-law study as a study (`specs.study`; the full plan's is ``examples/studies/extended_torus_law.json``):
+    the square tori of ``plan.torus_sides`` zipped with their stops and snapshots at ``plan.torus_times`` steps per
+    ball, every torus on the plan's seed (seeds "as_spec")."""
+    sides = plan.torus_sides
+    base = _law_dict({"kind": "flat_torus", "rows": sides[0], "cols": sides[0]}, sides[0] ** 2, plan, "torus law")
+    zipped = {"geometry.rows": list(sides), "geometry.cols": list(sides),
+              "stop.steps": [_law_steps(s * s, plan)[-1] for s in sides]}
+    if len(plan.torus_times) > 1:
+        zipped["snapshots.at_steps"] = [_law_steps(s * s, plan)[:-1] for s in sides]
+    return parse_study({"description": "the extended reproduction's torus law: its observables against time and size",
+                        "base": base, "zip": zipped, "replicas": plan.torus_replicas, "seeds": "as_spec"})
 
 
 def _law_rows(res: ens.EnsembleResult, balls: int, plan: ExtendedPlan, head: dict) -> list[dict]:
@@ -49,9 +72,8 @@ def _law_rows(res: ens.EnsembleResult, balls: int, plan: ExtendedPlan, head: dic
 def torus_law(plan: ExtendedPlan, out: Path, ensemble: Ensemble) -> dict:
     """The three observables against steps per ball, for each torus ``side x side``."""
     rows = []
-    for side in plan.torus_sides:
-        spec = _law_spec({"kind": "flat_torus", "rows": side, "cols": side}, side * side, plan, f"torus {side}x{side}")
-        res = ensemble(f"torus_law_{side}x{side}", spec, plan.torus_replicas, task=_observing(torus_row))
+    for side, point in zip(plan.torus_sides, torus_law_study_spec(plan).expand()):
+        res = ensemble(f"torus_law_{side}x{side}", point.spec, point.replicas, task=_observing(torus_row))
         rows += _law_rows(res, side * side, plan, {"side": side})
     series = {f"torus {s}x{s}": [r for r in rows if r["side"] == s] for s in plan.torus_sides}
     return {"rows": rows, "verdicts": law_verdicts(rows, plan),
