@@ -18,10 +18,12 @@ from pinnedballs.engine.threads.tuning import ThreadTuner
 
 @pytest.mark.parametrize("given,expected", [(None, "passive"), ("active", "active")])
 def test_import_asks_for_passive_waiting_unless_the_environment_chose(given, expected):
+    """The threads' module (which every threaded loop imports, before numba's threading layer starts) asks
+    OpenMP's waiting threads to sleep, unless the environment chose."""
     env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
     if given:
         env["OMP_WAIT_POLICY"] = given
-    out = subprocess.run([sys.executable, "-c", "import os, pinnedballs; print(os.environ['OMP_WAIT_POLICY'])"],
+    out = subprocess.run([sys.executable, "-c", "import os, pinnedballs.engine.threads.tuning; print(os.environ['OMP_WAIT_POLICY'])"],
                          env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == expected
 
