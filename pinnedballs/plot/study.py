@@ -31,19 +31,25 @@ def study_figure(series: list[dict], *, xlabel: str, ylabel: str, title: str, lo
         Draw into it (its figure is returned) instead of a new figure.
     """
     fig, ax = base._new_axes(ax, (7.0, 4.8), title)
+    handles = []  # each series' points, then its fit
     for k, s in enumerate(series):
         colour = f"C{k % 10}"
         name = s["label"] or "mean ± se over replicas"
-        ax.errorbar(s["x"], s["mean"], yerr=np.nan_to_num(s["se"]), fmt="o", color=colour, capsize=3, label=name)
+        handles.append(ax.errorbar(s["x"], s["mean"], yerr=np.nan_to_num(s["se"]), fmt="o", color=colour,
+                                   capsize=3, label=name))
         f = s.get("fit")
         if f is not None:
             x = np.geomspace(min(s["x"]), max(s["x"]), 50)
-            ax.plot(x, f["prefactor"] * x ** f["exponent"], color=colour, linestyle="--",
-                    label=f"fit: {f['prefactor']:.3g} {symbol}^({f['exponent']:.3f} ± {f['exponent_se']:.3f})")
+            handles += ax.plot(x, f["prefactor"] * x ** f["exponent"], color=colour, linestyle="--",
+                               label=f"fit: {f['prefactor']:.3g} {symbol}^({f['exponent']:.3f} ± "
+                                     f"{f['exponent_se']:.3f})")
     if log:
+        from matplotlib.ticker import NullFormatter
+
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # minor ticks' labels crowd a decade or two
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.legend(fontsize="small")
+    ax.legend(handles=handles, fontsize="small")
     return base.save(fig, path)

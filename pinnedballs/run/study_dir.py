@@ -198,16 +198,18 @@ class StudyResult:
                 table[f"{observable}_se"].fillna(0.0).to_numpy(dtype=np.float64))
 
     # ------------------------------------------------------------ figures
-    def plot(self, observable: str = "collisions", against: str = "n_balls", *, fit: bool | None = None,
-             log: bool | None = None, ax=None, path=None):
+    def plot(self, observable: str = "collisions", against: str = "n_balls", *, by: list[str] | None = None,
+             fit: bool | None = None, log: bool | None = None, ax=None, path=None):
         """``observable`` (mean ± standard error over each point's replicas, final state) against ``against``
-        (``"n_balls"`` or a varied path), a series for each value of the other paths varied; ``fit``: each
-        series' power law (`fit`) drawn with its exponent (None: against ``n_balls``, where it can be fitted);
-        ``log``: log-log axes (None: where fitted). A matplotlib Figure (saved as a PNG at ``path`` if given)."""
+        (``"n_balls"`` or a varied path), a series for each value of the paths ``by`` (default: those varied that
+        do not move with ``against``: its zip partners; for ``n_balls`` the zip's paths when it varies the
+        geometry, else the geometry's); ``fit``: each series' power law (`fit`) drawn with its exponent (None:
+        against ``n_balls``, where it can be fitted); ``log``: log-log axes (None: where fitted). A matplotlib
+        Figure (saved as a PNG at ``path`` if given)."""
         from ..plot.study import study_figure
 
         series = []
-        for name, where in self._groups(against):
+        for name, where in self._groups(against, by):
             x, mean, se = self._series(observable, against, where)
             if not len(x):
                 continue
@@ -228,14 +230,18 @@ class StudyResult:
                             log=fitted if log is None else log, symbol="N" if against == "n_balls" else "x", ax=ax,
                             path=path)
 
-    def _groups(self, against: str) -> list[tuple[str, dict]]:
-        """``(label, where)`` of each series: the points sharing the values of the varied paths that do not move
-        with ``against`` (its zip partners, or the geometry's paths for ``n_balls``)."""
+    def _groups(self, against: str, by: list[str] | None) -> list[tuple[str, dict]]:
+        """``(label, where)`` of each series: the points sharing their values of the paths ``by`` (`plot`)."""
         zipped = list(self.study.get("zip", {}))
-        moving = {against} | (set(zipped) if against in zipped else set())
+        geometry = {p for p in self.varied if p == "geometry" or p.startswith("geometry.")}
         if against == "n_balls":
-            moving |= {p for p in self.varied if p == "geometry" or p.startswith("geometry.")}
-        others = [p for p in self.varied if p not in moving]
+            moving = set(zipped) if geometry & set(zipped) else geometry
+        else:
+            moving = {against} | (set(zipped) if against in zipped else set())
+        others = [p for p in self.varied if p not in moving] if by is None else list(by)
+        unknown = [p for p in others if p not in self.varied]
+        if unknown:
+            raise InputError(f"by: {unknown[0]!r} is not a path the study varies ({', '.join(self.varied)})")
         groups: dict[str, dict] = {}
         for k, done in enumerate(self.done()):
             if done:

@@ -103,7 +103,7 @@ def kinds(nb) -> list[str]:
 
 def test_every_tutorial_is_a_percent_script_and_a_page_of_the_site():
     assert [p.name for p in TUTORIALS] == ["ensembles_scaling.py", "exact_counts.py", "first_run.py",
-                                           "own_components.py"]
+                                           "own_components.py", "studies.py"]
     nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
     for path in TUTORIALS:
         source = path.read_text(encoding="utf-8")
@@ -133,6 +133,20 @@ def test_ensembles_and_the_scaling_law(tmp_path):
     assert text(outputs(nb, "pb.load_ensemble(")).startswith("True\nEnsembleResult(8 replicas of half_plane")
     scaling = text(outputs(nb, "scaling = pd.DataFrame"))
     assert all(f"{size} " in scaling for size in ("10x5", "20x10", "30x15", "60x30", "100x50"))
+
+
+@pytest.mark.slow
+def test_parameter_studies(tmp_path):
+    nb = executed(ROOT / "docs" / "tutorials" / "studies.py", tmp_path)
+    assert_small(nb)
+    fits = re.findall(r"(along|across): collisions ~ [\d.]+ N\^([\d.]+) ± ([\d.]+)\n",
+                      printed(outputs(nb, 'res.fit("collisions"')))
+    assert [name for name, *_ in fits] == ["along", "across"]
+    assert all(1.5 < float(a) < 1.9 and 0 < float(se) < 0.2 for _, a, se in fits)  # docs/extended.md: about 1.7
+    assert "image/png" in kinds(nb) and "StudyResult" in text(outputs(nb, "res = pb.run_study("))
+    assert printed(outputs(nb, "more = pb.run_study(")) == ("ran now: [6, 7]\n"
+                                                             "the six points done keep their rows: True\n")
+    assert "points:      8 of 8 done" in printed(outputs(nb, '"info"'))
 
 
 @pytest.mark.slow
