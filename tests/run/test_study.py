@@ -20,7 +20,7 @@ from pinnedballs.run import ensemble as ens
 from pinnedballs.run.reproduction.fit import fit_exponent
 from pinnedballs.run.study import run_study
 from pinnedballs.run.study_dir import ENSEMBLE_DIR, PARTIAL_DIR, load_study
-from pinnedballs.specs.study import load_study_spec
+from pinnedballs.specs.study import PointError, load_study_spec
 from pinnedballs.util.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -95,7 +95,8 @@ def test_summary_fit_and_figure_read_the_table(three):
     assert (ax.get_xscale(), ax.get_yscale()) == ("log", "log") and ax.get_xlabel() == "balls N"
     assert ax.get_ylabel().startswith("collisions (count), mean ± se over replicas")
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert legend[0].startswith(f"fit: {fit['prefactor']:.3g} N^({fit['exponent']:.3f} ± ")
+    assert legend[0] == "mean ± se over replicas"
+    assert legend[1].startswith(f"fit: {fit['prefactor']:.3g} N^({fit['exponent']:.3f} ± ")
     linear = res.plot("energy", against="geometry.length")
     assert linear.axes[0].get_xscale() == "linear" and linear.axes[0].get_xlabel() == "geometry.length (ball radii)"
     assert "3 of 3 done" in res._repr_html_()
@@ -127,6 +128,18 @@ def test_a_point_added_later_runs_alone(tmp_path, three):
     assert res.ran == [1] and {p: p.stat().st_mtime_ns for p in files} == before
     pd.testing.assert_frame_equal(res.to_pandas(), load_study(reference).to_pandas())
     assert run_study(THREE, out, workers=1, progress=False, resume=True).ran == []  # nothing left to run
+
+
+def test_a_study_without_a_seed_keeps_the_one_its_directory_records(tmp_path):
+    out = tmp_path / "out"
+    first = run_study({**THREE, "seed": None, "zip": {"geometry.length": [10], "geometry.depth": [5]}}, out,
+                      workers=1, progress=False)
+    drawn = json.loads((out / "study.json").read_text())["seed"]
+    again = run_study({**THREE, "seed": None}, out, workers=1, progress=False, resume=True)
+    assert again.ran == [1, 2] and json.loads((out / "study.json").read_text())["seed"] == drawn
+    pd.testing.assert_frame_equal(again.to_pandas()[again.to_pandas()["point"] == 0], first.to_pandas())
+    seeds = [p.spec.seed for p in load_study_spec(write(tmp_path / "s.json", {**THREE, "seed": drawn})).expand()]
+    assert [p["seed"] for p in again.points] == seeds
 
 
 def test_a_study_is_refused_where_it_would_not_be_the_same_study(tmp_path, three):
@@ -245,3 +258,20 @@ def test_signac_find_and_view_work_on_a_study(three, tmp_path):
     subprocess.run(["signac", "view", "--prefix", str(tmp_path / "view")], cwd=out, capture_output=True, check=True)
     link = tmp_path / "view" / "geometry.depth" / "10" / "geometry.length" / "20" / "job"
     assert link.resolve() == Path(job.path).resolve() and (link / ENSEMBLE_DIR / "replicas.csv").is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.cuda
+def test_a_study_on_the_gpu_has_the_cpus_table(tmp_path):
+    """The counter stream's chain on device "cuda" (numba-cuda's simulator here: tests/conftest.py), a GPU thread a
+    replica: every point's rows are the CPU's, bit for bit."""
+    counter = {**THREE, "base": {**BASE, "scheduler": {"kind": "uniform_random_pair", "stream": "counter"}},
+               "zip": {"geometry.length": [6, 10], "geometry.depth": [4, 5]}, "replicas": 2}
+    on_gpu = run_study(counter, tmp_path / "gpu", device="cuda", progress=False)
+    on_cpu = run_study(counter, tmp_path / "cpu", workers=1, progress=False)
+    assert on_gpu.ensemble(0).where == "GPU" and on_cpu.ensemble(0).where == "in-process"
+    pd.testing.assert_frame_equal(on_gpu.to_pandas(), on_cpu.to_pandas())
+    with pytest.raises(PointError, match=r'point \{"geometry.length": 10, "geometry.depth": 5\}: device: '):
+        run_study(THREE, tmp_path / "xoshiro", device="cuda", progress=False)  # the xoshiro stream: the CPU's
+    assert not (tmp_path / "xoshiro").exists()
+
