@@ -23,7 +23,8 @@ def test_import_asks_for_passive_waiting_unless_the_environment_chose(given, exp
     env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
     if given:
         env["OMP_WAIT_POLICY"] = given
-    out = subprocess.run([sys.executable, "-c", "import os, pinnedballs.engine.threads.tuning; print(os.environ['OMP_WAIT_POLICY'])"],
+    out = subprocess.run([sys.executable, "-c", "import os, pinnedballs.engine.threads.tuning; "
+                                                "print(os.environ['OMP_WAIT_POLICY'])"],
                          env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == expected
 
