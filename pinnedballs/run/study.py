@@ -44,6 +44,7 @@ from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
 from ..util.progress import Progress
 from . import ensemble as ens
+from . import executors
 from .ensemble_dir import is_ensemble_dir, load_ensemble
 from .study_dir import ENSEMBLE_DIR, PARTIAL_DIR, POINTS_NAME, STUDY_NAME, StudyResult, is_study_dir, load_study
 
@@ -125,17 +126,23 @@ def run_study(study, out, *, workers: int | None = None, dask_address: str | Non
     status(f"building the {len(points)} points' systems")
     balls = [_built(point, device, dask_address is not None or cluster is not None) for point in points]
     digest = study.digest()
-    with DirLock(out, "--out"):  # one study at a time writes into a directory
-        done = _done_points(out, points, digest)  # read only: a conflict writes nothing
-        jobs = _jobs(out, study, points, balls, digest)
-        todo = [k for k in range(len(points)) if not done[k]]
-        status.clear()
-        with Progress(progress, len(todo), "points", "study points", scale=False) as bar:
-            for n, k in enumerate(todo):
-                bar.update(n, postfix=points[k].label)
-                _run_point(points[k], Path(jobs[k].path), workers=workers, dask_address=dask_address, cluster=cluster,
-                           device=device, progress=progress, task=task)
-                bar.update(n + 1)
+    client, own = (None, False) if dask_address is None and cluster is None else \
+        executors.dask_client(dask_address, cluster)  # one client for every point (an address refused here)
+    try:
+        with DirLock(out, "--out"):  # one study at a time writes into a directory
+            done = _done_points(out, points, digest)  # read only: a conflict writes nothing
+            jobs = _jobs(out, study, points, balls, digest)
+            todo = [k for k in range(len(points)) if not done[k]]
+            status.clear()
+            with Progress(progress, len(todo), "points", "study points", scale=False) as bar:
+                for n, k in enumerate(todo):
+                    bar.update(n, postfix=points[k].label)
+                    _run_point(points[k], Path(jobs[k].path), workers=workers, cluster=client, device=device,
+                               progress=progress, task=task)
+                    bar.update(n + 1)
+    finally:
+        if own:
+            client.close()
     result = load_study(out)
     result.ran = todo
     return result

@@ -33,6 +33,8 @@ STUDY_NAME, POINTS_NAME, ENSEMBLE_DIR, PARTIAL_DIR = "study.json", "points.json"
 
 #: paths measured in ball radii (an axis label's unit)
 LENGTHS = ("geometry.length", "geometry.depth", "geometry.radius")
+#: the points `describe` lists, at most
+SHOWN = 40
 #: columns of an ensemble's table that are not observables (left out of `StudyResult.summary`)
 _KEYS = ("replica", "seed_entropy", "spawn_key", "at", "stop_reason", ens.ERROR_COLUMN)
 
@@ -193,9 +195,15 @@ class StudyResult:
             if path not in table:
                 raise InputError(f"where: {path!r} is not a path the study varies ({', '.join(self.varied)})")
             table = table[table[path].map(lambda v, value=value: v == value)]
-        table = table.sort_values(against, kind="stable")
-        return (table[against].to_numpy(dtype=np.float64), table[f"{observable}_mean"].to_numpy(dtype=np.float64),
-                table[f"{observable}_se"].fillna(0.0).to_numpy(dtype=np.float64))
+        try:
+            x = table[against].to_numpy(dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"against: {against} takes values that are not numbers "
+                             f"({', '.join(map(json.dumps, table[against].drop_duplicates()[:3]))}); draw or fit "
+                             f"against n_balls or a number, the series by={[against]!r}") from None
+        order = np.argsort(x, kind="stable")
+        return (x[order], table[f"{observable}_mean"].to_numpy(dtype=np.float64)[order],
+                table[f"{observable}_se"].fillna(0.0).to_numpy(dtype=np.float64)[order])
 
     # ------------------------------------------------------------ figures
     def plot(self, observable: str = "collisions", against: str = "n_balls", *, by: list[str] | None = None,
@@ -295,7 +303,7 @@ def describe(result: StudyResult, path: Path) -> list[str]:
              f"points:      {sum(done)} of {len(done)} done, varying {', '.join(result.varied) or 'nothing'}",
              "seeds:       " + (f"by point, from the study's seed {result.study.get('seed')}" if seeds == "by_point"
                                 else "each point's run spec's own")]
-    for k, point in enumerate(result.points):
+    for k, point in enumerate(result.points[:SHOWN]):
         what = f"{json.dumps(point['overrides'])}: {point['n_balls']:,} balls, {point['replicas']} replicas"
         if done[k]:
             res = result.ensemble(k)
@@ -304,6 +312,8 @@ def describe(result: StudyResult, path: Path) -> list[str]:
             lines.append(f"  done  {what}{failed}; {counts}")
         else:
             lines.append(f"  to do {what}")
+    if len(result.points) > SHOWN:
+        lines.append(f"  ... and {len(result.points) - SHOWN:,} more points ({sum(done[SHOWN:]):,} done)")
     return lines
 
 
