@@ -12,7 +12,12 @@ from ..util.errors import FieldError, FieldTypeError
 from .base import _INT32_MAX, LENGTHS, VIEWS, Boundary, Contacts, Geometry, checked_radius
 from .checks import LENGTH_RTOL, UNIT_TOLERANCE
 
-__all__ = ["GraphGeometry", "StoredGeometry"]
+__all__ = ["GraphGeometry", "StoredGeometry", "SNAP_ULPS"]
+
+#: ``snap=True`` moves a unit vector's components by at most ``SNAP_ULPS * eps * (1 + far / (2 radius))``
+#: (``far``: the largest coordinate of a centre): a normal computed from centres rounded to float64 is off
+#: by about ``0.2 eps (1 + far / (2 radius))`` (networkx's hexagonal lattices, up to 200 x 200)
+SNAP_ULPS = 64
 
 
 def _as_positions(positions) -> np.ndarray:
@@ -44,6 +49,59 @@ def _flat_units(positions: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return delta / norm[:, None]
 
 
+def _snap_tolerance(snap, positions: np.ndarray, radius: float) -> float | None:
+    """The absolute tolerance ``snap`` asks for on each component of a unit vector (None: no snapping)."""
+    if snap is False or snap is None:
+        return None
+    if snap is True:
+        far = float(np.abs(positions).max()) if positions.size else 0.0
+        return SNAP_ULPS * float(np.finfo(np.float64).eps) * (1.0 + far / (2.0 * radius))
+    if isinstance(snap, bool) or not isinstance(snap, (int, float, np.floating, np.integer)) \
+            or not 0 < float(snap) < 0.5:
+        raise FieldError("snap", f"must be True, False or a tolerance in (0, 0.5) on each component of a unit "
+                                 f"vector, got {snap!r}")
+    return float(snap)
+
+
+def _snapped(units: np.ndarray, tolerance: float | None) -> np.ndarray:
+    """``units (K, dim)`` moved to the floats of a number field's unit vectors within ``tolerance``
+    (`engine.field.numbers.snap`), or a `FieldError` on ``snap`` naming the first that has none."""
+    if tolerance is None or not len(units):
+        return units
+    from ..engine.field.numbers import NotExact, snap
+
+    try:
+        return snap(units, tolerance)
+    except NotExact as exc:
+        raise FieldError("snap", f"{exc} (within {tolerance:.3g}: give snap a larger tolerance if the centres "
+                                 f"are rounded more)") from None
+
+
+def _check_lengths(edges: list, positions: np.ndarray, pairs: np.ndarray, stated: np.ndarray, radius: float,
+                   rtol: float) -> None:
+    """A `FieldError` on ``graph`` naming the first edge without ``"units"`` whose balls are not
+    ``2 * radius`` apart within ``rtol``, with the radius that fits (every such edge of one length)
+    or `GraphGeometry.from_positions`, which finds the pairs that touch."""
+    free = np.flatnonzero(~stated)
+    if not len(free):
+        return
+    length = np.linalg.norm(positions[pairs[free, 1]] - positions[pairs[free, 0]], axis=1)
+    contact = 2.0 * radius
+    bad = np.flatnonzero(~(np.abs(length - contact) <= rtol * contact))
+    if not len(bad):
+        return
+    u, v, _ = edges[free[bad[0]]]
+    lo, hi = float(length.min()), float(length.max())
+    if hi - lo <= rtol * hi:
+        hint = f"every edge is {hi:.6g} long: GraphGeometry(graph, radius={hi / 2:.6g})"
+    else:
+        hint = (f"its edges have lengths from {lo:.6g} to {hi:.6g}: GraphGeometry.from_positions(positions, "
+                f"radius=...) takes as contacts the pairs that touch")
+    raise FieldError("graph", f"edge ({u!r}, {v!r}) joins balls {float(length[bad[0]]):.6g} apart, but touching "
+                              f"balls of radius {radius:g} are {contact:g} apart (relative tolerance {rtol:g}); "
+                              f"{hint}")
+
+
 def _graph_metric(graph: nx.Graph, k: int) -> np.ndarray | None:
     metric = graph.graph.get("metric")
     if metric is None:
@@ -67,16 +125,49 @@ class GraphGeometry(Geometry):
     Nodes may carry ``"frame"`` ``(dim, d)``, their tangent basis on a curved surface
     (as `Geometry.contact_graph` writes it); then every edge needs ``"units"`` of length ``dim``.
 
-    The contacts are checked when a `Simulation` is built (`pinnedballs.geometry.checks`): an edge
-    without ``"units"`` joins balls ``2 * radius`` apart within ``rtol`` (relative). An edge with
+    An edge without ``"units"`` must join balls ``2 * radius`` apart within ``rtol`` (relative), or
+    the graph is refused here, with the radius that fits. The rest of the contacts is checked when a
+    `Simulation` is built (`pinnedballs.geometry.checks`). An edge with
     ``"units"`` states its own contact: its length is not checked, and its direction only where its
     straight segment is ``2 * radius`` long (elsewhere it may run through a periodic boundary the
     graph does not know). On a curved surface directions are checked under the graph's ``"metric"``
     attribute (the diagonal of the embedding's inner product, which `contact_graph` writes), and not
     at all without one: the frames alone do not say whether the surface is a sphere or a hyperboloid.
+
+    Parameters
+    ----------
+    graph : networkx.Graph
+        Nodes with ``"pos"``, edges the contacts.
+    radius : float
+        The balls' radius: an edge without ``"units"`` is ``2 * radius`` long.
+    rtol : float
+        Relative tolerance on that length.
+    snap : bool or float
+        Move each unit vector (contact normal) to the float nearest a unit vector of a number field
+        within rounding of it (True: within ``SNAP_ULPS * eps * (1 + far / (2 radius))`` on each
+        component, ``far`` the largest coordinate of a centre; a float: within that tolerance), so that
+        ``arithmetic="exact"`` and ``"certified"`` run centres computed in floats (networkx's
+        ``hexagonal_lattice_graph(m, n, with_positions=True)``: Q(sqrt 3)). The centres and the
+        contacts stay as given. False (the default): the normals as computed.
+
+    Raises
+    ------
+    FieldError
+        On ``graph`` (no nodes, a node without ``"pos"``, a self-loop, an edge of the wrong length:
+        its message gives the radius that fits), or on ``snap`` (a normal with no field within the
+        tolerance, or a bad tolerance).
+    FieldTypeError
+        If ``graph`` is not an undirected networkx graph.
+
+    Examples
+    --------
+    >>> import networkx as nx
+    >>> g = GraphGeometry(nx.hexagonal_lattice_graph(2, 2, with_positions=True), radius=0.5, snap=True)
+    >>> sorted({round(abs(float(x)), 3) for x in g.contacts.units.ravel()})
+    [0.0, 0.5, 0.866, 1.0]
     """
 
-    def __init__(self, graph: nx.Graph, radius: float = 1.0, rtol: float = LENGTH_RTOL):
+    def __init__(self, graph: nx.Graph, radius: float = 1.0, rtol: float = LENGTH_RTOL, snap: bool | float = False):
         if not isinstance(graph, nx.Graph) or graph.is_directed() or graph.is_multigraph():
             raise FieldTypeError("graph", f"must be an undirected networkx.Graph, got {type(graph).__name__}")
         if graph.number_of_nodes() == 0:
@@ -111,7 +202,10 @@ class GraphGeometry(Geometry):
             elif self.curved:
                 raise FieldError("graph",
                                  f"edge ({u!r}, {v!r}) needs 'units' on a curved surface (nodes carry 'frame')")
-        self._init(positions, pairs, t_i, t_j, radius, rtol)
+        if not self.curved and len(pairs):
+            _check_lengths(edges, positions, pairs, self._stated, checked_radius(radius),
+                           checks.number("rtol", rtol, 0.0))
+        self._init(positions, pairs, t_i, t_j, radius, rtol, snap)
         self.nodes = nodes
         self._view = graph.graph.get("view")
         if self._view is not None:
@@ -179,7 +273,7 @@ class GraphGeometry(Geometry):
                                           f"1 within {UNIT_TOLERANCE:g}), got {t.tolist()}")
         return tu, tv
 
-    def _init(self, positions, pairs, t_i, t_j, radius, rtol) -> None:
+    def _init(self, positions, pairs, t_i, t_j, radius, rtol, snap=False) -> None:
         n = len(positions)
         if n > _INT32_MAX or 2 * len(pairs) > _INT32_MAX:
             raise FieldError("graph", "too large for 32-bit contact tables")
@@ -189,6 +283,7 @@ class GraphGeometry(Geometry):
         e = len(pairs)
         units = np.empty((2 * e, t_i.shape[1]))
         units[0::2], units[1::2] = t_i, t_j
+        units = _snapped(units, _snap_tolerance(snap, positions, self.radius))
         ends = np.arange(2 * e).reshape(e, 2)
         self._contacts = Contacts.build(pairs, ends, units)
 
@@ -196,12 +291,35 @@ class GraphGeometry(Geometry):
         return self._contacts
 
     @classmethod
-    def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6) -> GraphGeometry:
+    def from_positions(cls, positions, radius: float = 1.0, rtol: float = 1e-6,
+                       snap: bool | float = False) -> GraphGeometry:
         """Balls of ``radius`` at ``positions`` ``(n_balls, d)``; contacts are pairs at distance ``2*radius``.
 
         Distances within ``rtol * 2 * radius`` of contact count as touching (centres
         computed by repeated addition still touch); closer pairs are overlapping
         balls and an error. Uses a scipy KD-tree: ``O(n log n)``.
+
+        Parameters
+        ----------
+        positions : array_like
+            ``(n_balls, d)`` centres (``(n_balls,)`` for a chain).
+        radius : float
+            The balls' radius.
+        rtol : float
+            Relative tolerance on the contact distance, in ``[0, 0.5)``.
+        snap : bool or float
+            As for `GraphGeometry`: the contact normals moved to a number field's within rounding
+            (True) or within a tolerance (a float), for exact and certified arithmetic.
+
+        Returns
+        -------
+        GraphGeometry
+            Contacts in the order of their lower ball, then the higher.
+
+        Raises
+        ------
+        FieldError
+            On ``positions`` (a bad shape, NaN, overlapping balls), ``radius``, ``rtol`` or ``snap``.
         """
         from scipy.spatial import cKDTree
 
@@ -229,7 +347,7 @@ class GraphGeometry(Geometry):
         self._frames, self._view, self.metric = None, None, None
         self._stated = np.zeros(len(pairs), dtype=bool)
         t_i = _flat_units(p, pairs) if len(pairs) else np.zeros((0, p.shape[1]))
-        self._init(p, pairs, t_i, -t_i, radius, rtol)
+        self._init(p, pairs, t_i, -t_i, radius, rtol, snap)
         self.nodes = list(range(len(p)))
         return self
 

@@ -202,9 +202,10 @@ def test_a_graph_edge_of_the_wrong_length():
     g.add_node(0, pos=(0.0, 0.0))
     g.add_node(1, pos=(3.0, 0.0))
     g.add_edge(0, 1)
-    with pytest.raises(pb.FieldError, match=r"^pairs: contact 0 joins balls \(0, 1\) 3 apart, but touching balls of "
-                                            r"radius 1 are 2 apart \(relative tolerance 1e-06\)$"):
-        simulate(pb.GraphGeometry(g))
+    with pytest.raises(pb.FieldError, match=r"^graph: edge \(0, 1\) joins balls 3 apart, but touching balls of "
+                                            r"radius 1 are 2 apart \(relative tolerance 1e-06\); every edge is 3 "
+                                            r"long: GraphGeometry\(graph, radius=1\.5\)$"):
+        pb.GraphGeometry(g)  # refused where it is given (tests/geometry/test_graph.py), before any simulation
     simulate(pb.GraphGeometry(g, radius=1.5))  # touching at radius 1.5
     simulate(pb.GraphGeometry(g, rtol=0.6))     # or within a tolerance the user states
 

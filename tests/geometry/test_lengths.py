@@ -40,9 +40,13 @@ def _chain(r: float) -> np.ndarray:
 
 
 def _path_graph() -> nx.Graph:
+    """3 balls on a line whose edges state their contacts ("units"): any radius sizes them (an edge without
+    "units" must be 2 radii long, and is refused where the graph is given otherwise)."""
     g = nx.path_graph(3)
     for n in g:
         g.nodes[n]["pos"] = (2.0 * n, 0.0)
+    for u, v in g.edges:
+        g.edges[u, v]["units"] = {u: (1.0, 0.0), v: (-1.0, 0.0)}
     return g
 
 

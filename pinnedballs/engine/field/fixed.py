@@ -81,7 +81,7 @@ from .fixed_kernels import (
 )
 from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
 from .limbs import from_limbs, to_limbs
-from .numbers import Field, NotExact, recognise
+from .numbers import Field, recognise
 
 __all__ = ["FixedChain", "NotFixed", "UncertifiedDecision", "Lines", "lines_of", "bound_batch", "HEADROOM",
            "PRECISION"]
@@ -123,14 +123,12 @@ class Lines(NamedTuple):
 
 
 def lines_of(geometry) -> Lines:
-    """The lines of ``geometry``'s contacts, or `NotFixed` saying why it has none the chain can use."""
+    """The lines of ``geometry``'s contacts, or `NotFixed` saying why it has none the chain can use
+    (`NotExact` when its normals lie in no known number field: exact arithmetic cannot run it either)."""
     c = geometry.contacts
     if not c.flat:
         raise NotFixed("its contacts are not flat (t_j = -t_i)")
-    try:
-        field, units = recognise(c.units)
-    except NotExact as exc:
-        raise NotFixed(str(exc)) from None
+    field, units = recognise(c.units)
     if field.m > 2:
         raise NotFixed(f"its normals lie in {field}, not in Q or one Q(sqrt d)")
     keys, line_of_unit, sign_of_unit = {}, [], []

@@ -26,7 +26,7 @@ import gmpy2
 import numpy as np
 from gmpy2 import mpfr, mpq
 
-__all__ = ["Field", "FieldNumber", "recognise", "NotExact", "squarefree"]
+__all__ = ["Field", "FieldNumber", "recognise", "snap", "NotExact", "squarefree"]
 
 #: the largest denominator, and the largest squarefree root, `recognise` looks for
 MAX_DENOMINATOR = 1 << 12
@@ -239,16 +239,40 @@ def _component(x: float) -> tuple[Fraction, int]:
     return q, d
 
 
-def recognise(units: np.ndarray) -> tuple[Field, list[tuple]]:
+def _simplest(lo: Fraction, hi: Fraction) -> Fraction:
+    """The rational of least denominator in ``[lo, hi]`` (``0 <= lo <= hi``), by continued fractions."""
+    n = math.floor(lo)
+    if n == lo or n + 1 <= hi:
+        return Fraction(n if n == lo else n + 1)
+    return n + 1 / _simplest(1 / (hi - n), 1 / (lo - n))
+
+
+def _near(x: float, tolerance: float) -> tuple[Fraction, int]:
+    """``(q, d)``: the ``q sqrt(d)`` within ``tolerance`` of ``x`` whose square has the least denominator
+    (``d`` squarefree), or `NotExact` if it has no small ``q`` and ``d``."""
+    lo, hi = Fraction(max(abs(x) - tolerance, 0.0)), Fraction(abs(x)) + Fraction(tolerance)
+    square = _simplest(lo * lo, hi * hi)
+    if square == 0:
+        return Fraction(0), 1
+    s, d = squarefree(square.numerator * square.denominator)
+    q = Fraction(s, square.denominator) * (1 if x > 0 else -1)
+    if q.denominator > MAX_DENOMINATOR or d > MAX_ROOT:
+        raise NotExact(f"{x!r} is not within {tolerance:.3g} of q*sqrt(d) for a small rational q and squarefree d")
+    return q, d
+
+
+def recognise(units: np.ndarray, tolerance: float | None = None) -> tuple[Field, list[tuple]]:
     """The field of the unit vectors ``units (K, dim)`` and each as exact elements ``[(t_0, ..., t_dim-1)]``.
 
-    Each component must be within `ULPS` of ``q sqrt(d)``, and each vector exactly of length 1 in
+    Each component must be within `ULPS` of ``q sqrt(d)`` (within ``tolerance``, absolute, when one is
+    given: the ``q sqrt(d)`` there whose square is simplest), and each vector exactly of length 1 in
     the field; otherwise `NotExact` naming the vector.
     """
+    component = _component if tolerance is None else (lambda x: _near(x, tolerance))
     found = []
     for k, row in enumerate(np.asarray(units, dtype=np.float64)):
         try:
-            found.append([_component(float(x)) for x in row])
+            found.append([component(float(x)) for x in row])
         except NotExact as exc:
             raise NotExact(f"unit vector {k} {tuple(row.tolist())}: {exc}") from None
     field = Field.generated(reduce(set.union, ({d for _, d in row} for row in found), set()))
@@ -266,6 +290,16 @@ def recognise(units: np.ndarray) -> tuple[Field, list[tuple]]:
                            f"(its exact length squared is {field.text(length)})")
         exact.append(tuple(vector))
     return field, exact
+
+
+def snap(units: np.ndarray, tolerance: float) -> np.ndarray:
+    """``units (K, dim)`` moved to the floats nearest the unit vectors of a number field within
+    ``tolerance`` (absolute, on each component; `recognise`), the sign of a zero kept: floats that
+    `recognise` then finds exact. `NotExact` naming the first vector with no such field."""
+    units = np.asarray(units, dtype=np.float64)
+    field, exact = recognise(units, tolerance)
+    out = np.array([[field.to_float(t) for t in vector] for vector in exact], dtype=np.float64).reshape(units.shape)
+    return np.copysign(out, units)
 
 
 def __getattr__(name: str):

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import pinnedballs as pb
-from pinnedballs.engine.field.numbers import Field, FieldNumber, NotExact, recognise, squarefree
+from pinnedballs.engine.field.numbers import Field, FieldNumber, NotExact, recognise, snap, squarefree
 
 
 def value(field: Field, x: tuple, bits: int = 2000) -> mpfr:
@@ -114,3 +114,21 @@ def test_a_rational_normal_is_exact():
     """(3/5, 4/5): a 3-4-5 triangle's line of centres is rational."""
     field, exact = recognise(pb.GraphGeometry.from_positions([[0.0, 0.0], [1.2, 1.6]]).contacts.units)
     assert field.basis == (1,) and [str(c) for x in exact[0] for c in x] == ["3/5", "4/5"]
+
+
+def test_snapping_finds_the_field_within_a_tolerance_and_keeps_signs():
+    """(-0.5000000000000006, 0.8660254037844384), networkx's honeycomb, is 5 ulps from -1/2: beyond
+    `recognise`'s 4, within a tolerance; it snaps to the floats of (-1/2, sqrt(3)/2), a zero keeps its sign,
+    (0.6, 0.8000001) is (3/5, 4/5) within 1e-6 and a vector of no field is named."""
+    units = np.array([[-0.5000000000000006, 0.8660254037844384], [-1e-17, -1.0], [0.7071067811865, 0.7071067811866]])
+    with pytest.raises(NotExact, match=r"^unit vector 0 \(-0\.5000000000000006, "):
+        recognise(units)
+    out = snap(units, 1e-12)
+    assert out.tolist() == [[-0.5, math.sqrt(3) / 2], [-0.0, -1.0], [math.sqrt(0.5), math.sqrt(0.5)]]
+    assert np.signbit(out[1, 0]) and recognise(out)[0].basis == (1, 2, 3, 6)
+    assert snap(np.array([[0.6, 0.8000001]]), 1e-6).tolist() == [[0.6, 0.8]]
+    with pytest.raises(NotExact, match=r"^unit vector 0 \(0\.6, 0\.8000001\): 0\.8000001 is not within 1e-12 of "
+                                       r"q\*sqrt\(d\) for a small rational q and squarefree d$"):
+        snap(np.array([[0.6, 0.8000001]]), 1e-12)
+    with pytest.raises(NotExact, match=r"is not of length 1 in Q"):  # (1/2, 1/2): each a field's, not a unit
+        snap(np.array([[0.5000000001, 0.5]]), 1e-6)
