@@ -97,12 +97,14 @@ def _run(args: argparse.Namespace) -> int:
     with Status(show=False if args.quiet else None) as status:
         status("reading the spec")
         from ..specs.run import load_spec
+        from ..util.compiling import CompileClock
 
         spec = load_spec(args.spec)
-        path = execute(spec, args.out, force=args.force, resume=args.resume, progress=_progress(args),
-                       figures=not args.no_figures and _plots_available(), status=status,
-                       log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True),
-                       device=args.device)
+        with CompileClock() as clock:  # the geometry's checks, the loop: what numba compiled, and kept
+            path = execute(spec, args.out, force=args.force, resume=args.resume, progress=_progress(args),
+                           figures=not args.no_figures and _plots_available(), status=status,
+                           log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True),
+                           device=args.device)
     if not args.quiet:
         from ..results.load import load
 
@@ -111,7 +113,16 @@ def _run(args: argparse.Namespace) -> int:
         frozen = "" if reason == "frozen" else f", {'frozen' if res.frozen else 'not frozen'}"  # said once
         print(f"{reason}: {res.steps:,} steps, {res.collisions:,} collisions, energy {res.energy:.12g}{frozen}; "
               f"wrote {path.parent}")
+    _say_compiled(clock, status)
     return EXIT_OK
+
+
+def _say_compiled(clock, status) -> None:
+    """Once, on a terminal (where the bar said what compiled), after a command that compiled a second or more:
+    how long, and that numba's disk cache spares the next run (`util.compiling.CompileClock.note`)."""
+    note = clock.note()
+    if note is not None and status.shown:
+        print(f"{PROG}: {note}", file=sys.stderr, flush=True)
 
 
 @subcommand("validate", "check a spec, and that it builds; print a one-line summary",

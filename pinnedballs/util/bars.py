@@ -1,7 +1,7 @@
 """The bars `util.progress` shows: tqdm's text bar, or its widget inside a Jupyter kernel with ipywidgets.
 
 Each bar tells its rate from a moment `Progress` sets (the call's start, or the end of its last
-compile: the time a compile takes is no speed), and '?' while it has none. The widget is displayed
+compile: the time a compile takes is no speed), and none while it has none (tqdm would say '?'). The widget is displayed
 under an id, and closing it puts its final state in the output's text, which a saved notebook keeps
 beside the widget (tqdm's own leaves the state it was first displayed in: "0/6", "0.00 steps"). Closed
 with ``failed=`` (`Progress` says how the call ended), the widget is red only for an error or an
@@ -16,8 +16,12 @@ import sys
 __all__ = ["open_bar", "close_bar", "widgets_available"]
 
 
+#: a bar's format while it has no rate (tqdm's own, less its rate): with a total, and without one
+NO_RATE = ("{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}{postfix}]", "{desc}: {n_fmt}{unit} [{elapsed}{postfix}]")
+
+
 class _Rate:
-    """A tqdm bar whose rate counts from ``since``, ``(time, count)``; None: unknown, shown '?'."""
+    """A tqdm bar whose rate counts from ``since``, ``(time, count)``; None: unknown, and not shown."""
 
     since = None
 
@@ -25,6 +29,8 @@ class _Rate:
     def format_dict(self):
         d = super().format_dict
         d["rate"] = self._rate()
+        if not d["rate"] and not d.get("bar_format"):  # nothing has run since: no rate, rather than '?'
+            d["bar_format"] = NO_RATE[d.get("total") is None]
         return d
 
     def _rate(self) -> float:

@@ -6,8 +6,9 @@ ipywidgets, a line of text on stderr elsewhere, a log file included), ``False`` 
 `DELAY` seconds. A call that ends sooner builds no bar at all (no tqdm object, no widget): a loop of
 many short calls costs nothing and leaves a notebook small. The display is `util.bars`'.
 
-While numba compiles (`util.compiling`) the bar says "compiling", drawn by a thread since the
-compiling call holds the caller's; its rate counts from the end of the last compile.
+While numba compiles (`util.compiling`) the bar says what it compiles and how far it is ("compiling the
+chain's loop (compile 2; 14 functions inside)"), drawn by a thread since the compiling call holds the
+caller's, and no rate; its rate counts from the end of the last compile.
 
 `Progress` is updated with absolute counts (`Progress.update`) and closed when its block ends, showing
 its final state: in a notebook, red only when the block ended by an exception (an error, a Ctrl-C), not
@@ -28,7 +29,7 @@ __all__ = ["Progress", "shown", "DELAY", "COMPILING"]
 
 #: seconds a call runs before ``progress=None`` shows it
 DELAY = 2.0
-#: the bar's description while numba compiles
+#: how the bar's description begins while numba compiles (`CompileWatch.doing`)
 COMPILING = "compiling"
 #: seconds between two redraws of a bar while numba compiles
 _TICK = 0.5
@@ -125,10 +126,10 @@ class Progress:
         return self.bar
 
     def _compiling(self) -> None:
-        """Say "compiling", once the bar's delay has passed."""
+        """Say what is compiling (`CompileWatch.doing`), once the bar's delay has passed."""
         if self.visible and time.time() >= self._due:
             bar = self._opened()
-            bar.set_description(COMPILING, refresh=False)
+            bar.set_description_str(self._watch.doing, refresh=False)  # as it is: set_description adds a colon
             bar.refresh()
 
     # ------------------------------------------------------------ compiles (from the compiling thread)
@@ -156,7 +157,7 @@ class Progress:
             self._since = (time.time(), self._done)
             if self.visible and self.bar is not None:
                 self.bar.since = self._since
-                self.bar.set_description(self._args["desc"], refresh=False)
+                self.bar.set_description_str(self._args["desc"], refresh=False)
                 self.bar.refresh()
 
     def _stop_ticker(self) -> None:

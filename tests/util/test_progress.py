@@ -40,7 +40,7 @@ def test_a_call_past_its_delay_shows_its_final_count(monkeypatch, capfd):
     assert err.endswith("\n") and "running: 100%" in err.rsplit("\r", 1)[-1] and "collisions=7" in err
 
 
-def test_the_bar_says_compiling_while_numba_compiles(capfd):
+def test_the_bar_says_what_compiles_while_numba_compiles(capfd):
     with Progress(True, 100, "steps", "running") as bar:
         before = time.time()
         compile_something()
@@ -48,9 +48,23 @@ def test_the_bar_says_compiling_while_numba_compiles(capfd):
         assert before <= bar.bar.since[0] <= after  # the rate counts from the end of the compile
         bar.update(100)
     draws = capfd.readouterr().err.split("\r")
-    compiling = [d for d in draws if d.startswith(f"{COMPILING}:")]
-    assert compiling and all(", ? steps/s]" in d for d in compiling)  # no rate while it compiles
+    compiling = [d for d in draws if d.startswith(COMPILING)]
+    assert compiling and all(d.startswith("compiling <lambda> (compile 1):   0%|") for d in compiling)
+    assert not [d for d in draws if "steps/s" in d and "100%" not in d]  # no rate while nothing has run
+    assert not [d for d in draws if "?" in d or ": :" in d]  # tqdm's '?' rate, a doubled colon (issue 49)
     assert draws[-1].startswith("running: 100%")
+
+
+def test_a_bar_without_an_end_while_nothing_has_run_shows_no_rate(capfd):
+    """The issue's bar: "until frozen: compiling: : 0.00 steps [01:07, ? steps/s]"."""
+    with Progress(True, None, "steps", "until frozen") as bar:
+        compile_something()
+        assert re.fullmatch(r"until frozen: 0\.00 steps \[\d\d:\d\d\]", str(bar.bar))
+        bar.update(5000, "collisions=7")
+        assert re.fullmatch(r"until frozen: 5\.00k steps \[\d\d:\d\d, [0-9.]+[kMG]? steps/s, collisions=7\]",
+                            str(bar.bar))
+    draws = capfd.readouterr().err.split("\r")
+    assert [d for d in draws if re.match(r"compiling <lambda> \(compile 1\): 0\.00 steps \[\d\d:\d\d\] *$", d)]
 
 
 def test_a_compile_within_the_delay_builds_no_bar(monkeypatch):
