@@ -6,6 +6,8 @@ from .analysis.maxima import search_max_collisions as search_max_collisions
 from .analysis.observables import register_observable as register_observable
 from .analysis.orders import OrdersResult as OrdersResult
 from .analysis.orders import explore_orders as explore_orders
+from .engine.devices import CPU as CPU
+from .engine.devices import CUDA as CUDA
 from .engine.driver import Writer as Writer
 from .engine.gpu import GPUUnavailable as GPUUnavailable
 from .engine.margin import MarginWarning as MarginWarning

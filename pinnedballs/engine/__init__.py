@@ -8,12 +8,25 @@ The map, a room per concern (package-wide helpers, errors and argument checks am
 * what components give the engine: `closing` (a rule's arithmetic, written once and compiled for every
   engine: the closing speed, the kick, the forms each engine runs), `selector` (a scheduler's
   `selector.Selector`);
+* the door: `door` (engines as registered objects: `engines()`, `register()`, `Engine.supports` answering
+  with a `door.Refusal`, and `door.choose`, the one place an engine is chosen), `engines` (the built-in
+  engines, one per room), `devices` (`devices.CPU`, `devices.CUDA`: where a chain runs, as objects);
 * running: `harness` (the limits of a run, written once: chunks, the collision target, the freeze),
-  `backends` (one backend per arithmetic and device, the chunk protocol), `driver` (a run in chunks to its
+  `backends` (what the engines build: the chunk protocol), `driver` (a run in chunks to its
   `stop.Stop`, its writers fired on their `triggers`);
 * the engines, each a room: `sequential` (the compiled loops on one core), `threads` (the paper's chain on
   every core with the bits of one), `field` (exact and certified arithmetic in the number field of the
   contact normals), `gpu` (the counter stream's chain on an NVIDIA GPU, in float or certified arithmetic);
 * below them: `streams` (the random streams: xoshiro256**, its jumps, the counter stream Philox) and `jit`
   (numba's disk cache for closures, LLVM hints).
+
+The door's names are this package's (``from pinnedballs.engine import engines, register``), each imported
+when first used.
 """
+
+import lazy_loader as _lazy
+
+__getattr__, __dir__, __all__ = _lazy.attach(__name__, submod_attrs={
+    "door": ["Engine", "Refusal", "Refused", "engines", "register", "unregister", "find", "choose", "check"],
+    "devices": ["Device", "CPU", "CUDA", "as_device"],
+})

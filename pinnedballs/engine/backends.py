@@ -1,4 +1,4 @@
-"""How a simulation's chain runs: one backend per arithmetic and device, chosen when it is built (`backend_for`).
+"""How a simulation's chain runs: the backends the engines build (`engine.engines`; the door chooses, `engine.door`).
 
 A backend takes the chain's plain data, its `Model` (what it is) and its `ChainState` (what changes,
 written in place), and never the simulation itself. Every backend speaks the engine's chunk protocol, which
@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..util.errors import FieldError, described
+from ..util.errors import FieldError
 from .chain import COLLISIONS, LAST, LIVE, NO_LIMIT, STEPS, ChainState, LiveSet, Model, incidence
+from .devices import as_device
 from .harness import limits_loop
 from .sequential.loops import (
     FREEZE_CHUNK_MIN,
@@ -36,11 +37,8 @@ from .streams.philox import CounterPicks
 from .threads.regions import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
 from .threads.tuning import most_threads
 
-__all__ = ["Backend", "LoopBackend", "FieldBackend", "DeviceBackend", "backend_for", "check_device", "DEVICES",
-           "LOG_CAPACITY"]
+__all__ = ["Backend", "LoopBackend", "FieldBackend", "DeviceBackend", "LOG_CAPACITY"]
 
-#: the devices a simulation runs on
-DEVICES = ("cpu", "cuda")
 #: collisions a logging loop records before handing them to the listeners
 LOG_CAPACITY = 1 << 16
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
@@ -48,13 +46,13 @@ _NO_LOG = np.empty((0, 2), dtype=np.int64)
 
 class Backend:
     """What every backend shares: the chain's ``model`` and ``state``, the listeners told of each collision
-    (``listeners(steps (C,) int64, contacts (C,) int64)``, in order), and the protocol (module docstring)."""
+    (``listeners(steps (C,) int64, contacts (C,) int64)``, in order), the `Device` it runs on, and the protocol
+    (module docstring)."""
 
-    name = "cpu"
-
-    def __init__(self, model: Model, state: ChainState, listeners: list | None = None):
+    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, device=None):
         self.model, self.state = model, state
         self.listeners = [] if listeners is None else listeners
+        self.device = as_device(device)
         g = model.geometry
         self._live_flags, self._any_live = live_kernel(model.collide, g.dim, g.contacts.flat)
 
@@ -102,15 +100,18 @@ class Backend:
 
 
 class LoopBackend(Backend):
-    """Floats on the CPU: the engine's compiled loops for one rule and one scheduler (module docstring)."""
+    """Floats on the CPU: the engine's compiled loops for one rule and one scheduler (module docstring); with
+    ``parallel`` the paper's picks on several threads where they pay (the ``threads`` engine), with ``own_loop``
+    the scheduler's own loop for plain steps (``colored_sweep``); neither: one core (``sequential``)."""
 
-    def __init__(self, model: Model, state: ChainState, listeners: list | None = None):
-        super().__init__(model, state, listeners)
+    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, device=None, *,
+                 parallel: bool = False, own_loop: bool = False):
+        super().__init__(model, state, listeners, device)
         s, g = model.selector, model.geometry
         self.loops = loops(model.collide, s.select, s.begin, s.changed, s.skips, g.dim, g.contacts.flat)
-        self.own_steps = None if s.steps is None else s.steps(model.collide, g.dim, g.contacts.flat)
+        self.own_steps = None if s.steps is None or not own_loop else s.steps(model.collide, g.dim, g.contacts.flat)
         self._live = None  # the LiveSet, built when a tracked run first needs it
-        self._parallel = None  # the threaded chain, built when a run first asks (False: none)
+        self._parallel = None if parallel else False  # the threaded chain, built when a run first asks (False: none)
         self._own_ran = False  # whether the scheduler's own loop (`own_steps`) has run
 
     def tables(self) -> tuple:
@@ -246,10 +247,9 @@ class FieldBackend(Backend):
     are those of the float loop after the same steps. A decision certified arithmetic cannot make raises
     once the picks before it are counted."""
 
-    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, on_gpu: bool = False):
-        super().__init__(model, state, listeners)
+    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, device=None):
+        super().__init__(model, state, listeners, device)
         s, g = model.selector, model.geometry
-        self.on_gpu = on_gpu  #: its picks are tried on a GPU (`engine.gpu.certified.DevicePicks`)
         self.loops = loops(model.collide, s.select, s.begin, s.changed, s.skips, g.dim, g.contacts.flat)
         self._to_limits = limits_loop(_no_mark, self._advance, self._live, _no_settle)
 
@@ -306,7 +306,7 @@ class FieldBackend(Backend):
 
     def resources(self) -> dict:
         """One thread of the CPU, or the GPU its picks are tried on (`engine.gpu.describe`: certified arithmetic)."""
-        if not self.on_gpu:
+        if not self.device.gpu:
             return super().resources()
         from .gpu import describe
 
@@ -332,10 +332,8 @@ class DeviceBackend(Backend):
     reservations, with the CPU loop's bits. The velocities live on the GPU; reading them copies them
     back once after each run (then they are kept until the next run or `set_velocities`)."""
 
-    name = "cuda"
-
-    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, **options):
-        super().__init__(model, state, listeners)
+    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, device=None, **options):
+        super().__init__(model, state, listeners, device)
         from .gpu.chain import DeviceChain
 
         g = model.geometry
@@ -374,56 +372,3 @@ class DeviceBackend(Backend):
         from .gpu import describe
 
         return {"kind": "cuda", **describe()}
-
-
-def check_device(model: Model, arithmetic: str, rule, scheduler, *, here: bool = True, replicas: bool = False) -> None:
-    """A `FieldError` unless a chain can run on a GPU: float or certified arithmetic (``replicas``, an ensemble's
-    replicas together: float) and the counter stream (other schedulers and arithmetics run on the CPU),
-    numba-cuda installed, the rule's functions compiled for the GPU with the CPU's rounding (`gpu.compile.check_rule`:
-    any rule, a user's too), and a GPU. ``rule`` and ``scheduler`` name them in the message. ``here=False``: the chain
-    runs elsewhere (a cluster's GPUs), so this process needs neither a GPU nor numba-cuda (without it the rule is
-    compiled where it runs)."""
-    from .gpu import GPUUnavailable, importable, load
-    from .gpu.compile import check_rule
-
-    if replicas and arithmetic != "float":
-        raise FieldError("device", f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic "
-                                   "runs on the CPU, or one replica a call (pinnedballs run SPEC --device cuda)"
-                         if arithmetic == "certified" else
-                         f"'cuda' runs an ensemble's replicas in float arithmetic; {arithmetic} arithmetic runs on "
-                         "the CPU")
-    if arithmetic not in ("float", "certified"):
-        raise FieldError("device", f"'cuda' runs float and certified arithmetic; {arithmetic} arithmetic runs on the "
-                                   "CPU (certified arithmetic proves its decisions: arithmetic='certified')")
-    if not model.selector.counter:
-        raise FieldError("device", "'cuda' runs UniformRandomPair(stream='counter') (in a spec {\"kind\": "
-                                   "\"uniform_random_pair\", \"stream\": \"counter\"}: the pick of step s a function "
-                                   f"of the seed and s); {described(scheduler)} runs on the CPU")
-    try:
-        importable()  # numba-cuda, or one line saying it is missing
-    except GPUUnavailable:
-        if here:
-            raise
-        return
-    g = model.geometry
-    if arithmetic == "float":  # certified arithmetic runs its own kernels (`gpu.certified`), for elastic rules alone
-        check_rule(rule, model.collide, g.dim, bool(g.contacts.flat))
-    if here:
-        load()  # a GPU, or one line saying there is none
-
-
-def backend_for(model: Model, state: ChainState, arithmetic: str, device: str, listeners: list,
-                rule=None, scheduler=None) -> Backend:
-    """The backend running a chain in ``arithmetic`` on ``device`` (checked first: `check_device`)."""
-    if device == "cuda":
-        check_device(model, arithmetic, rule, scheduler)
-        if state.field_chain is not None:  # certified: the CPU's chain, its picks tried on the GPU
-            from .gpu.certified import DevicePicks
-
-            state.field_chain.picks = DevicePicks()
-            return FieldBackend(model, state, listeners, on_gpu=True)
-        return DeviceBackend(model, state, listeners)
-    if state.field_chain is not None:
-        return FieldBackend(model, state, listeners)
-    return LoopBackend(model, state, listeners)
-

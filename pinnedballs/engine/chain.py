@@ -35,7 +35,8 @@ class Model:
     collide: the rule's jitted ``collide`` (`pinnedballs.rules`); params: the rule's params with the collision
     threshold last (``params[-1]``); selector: the scheduler's `Selector`; threads: the threads the scheduler
     asks for (None: as many as pay); restitution: the rule's ``r`` where it is the paper's (exact arithmetic
-    runs it), else None.
+    runs it), else None; rule and scheduler: the components themselves, which an engine names in a refusal and
+    compiles for itself (a GPU compiles the rule's functions).
     """
 
     geometry: object
@@ -45,6 +46,8 @@ class Model:
     selector: object
     threads: int | None = None
     restitution: float | None = None
+    rule: object = None
+    scheduler: object = None
 
     @property
     def threshold(self) -> float:

@@ -256,7 +256,7 @@ def _compile(engine, held: Deferred, collisions: int, until_frozen: bool) -> Non
     more than the call)."""
     kind = _compiling_kind(engine, collisions, until_frozen)
     made = _compiled.setdefault(engine, set())
-    if kind in made or engine.name != "cpu":  # a GPU's context belongs to the thread that made it
+    if kind in made or engine.device.gpu:  # a GPU's context belongs to the thread that made it
         engine.run(0, collisions, until_frozen)
         return
     held.aside(engine.run, 0, collisions, until_frozen)

@@ -28,5 +28,5 @@ def install(shown) -> None:
 def display():
     """The display installed by `install`; `pinnedballs.plot.display`, loaded now, when none is yet."""
     if _installed is None:
-        importlib.import_module(DRAWN_BY)  # installs itself
+        install(importlib.import_module(DRAWN_BY))  # as it installs itself when first imported
     return _installed

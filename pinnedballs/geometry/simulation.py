@@ -9,15 +9,15 @@ import warnings
 
 import numpy as np
 
-from ..engine.backends import DEVICES, Backend, backend_for
+from ..engine.backends import Backend
 from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
+from ..engine.devices import Device, as_device
+from ..engine.door import choose
 from ..engine.driver import check_writers, drive
-from ..engine.field.arithmetic import ARITHMETICS, check_precisions, field_chain
+from ..engine.field.arithmetic import ARITHMETICS, check_precisions
 from ..engine.field.chain import FieldChain
-from ..engine.field.fixed import NotFixed
 from ..engine.field.fixed_state import CertifiedState, nearest_floats
 from ..engine.field.limbs import from_limbs
-from ..engine.field.numbers import NotExact
 from ..engine.margin import ClosingMargin, MarginWarning, new_margin
 from ..engine.state import RunState, as_state, margin_problem, mass_array
 from ..engine.stop import Stop
@@ -27,7 +27,7 @@ from ..rules import CollisionRule, Elastic, check_resolution, threshold
 from ..schedulers.base import Scheduler
 from ..schedulers.simple import UniformRandomPair
 from ..util import checks
-from ..util.errors import FieldError, FieldTypeError, check_jitted, described
+from ..util.errors import FieldError, FieldTypeError, check_jitted
 from ..util.limits import check_speeds
 from ..util.sigint import deferred
 from ..util.sums import kinetic_energy, momentum
@@ -147,7 +147,7 @@ class Simulation:
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
                  scheduler: Scheduler | None = None, masses=None, seed=None, arithmetic: str = "float",
                  resolution: float | None = None, precision: int | None = None, late_precision: int | None = None,
-                 device: str = "cpu"):
+                 device: str | Device = "cpu", engine: str | None = None):
         if not isinstance(geometry, Geometry):
             raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")
         rule = Elastic() if rule is None else rule
@@ -187,18 +187,23 @@ class Simulation:
         #: record them run a little slower
         self.collision_listeners: list = []
         self.arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
+        precision, late_precision = check_precisions(self.arithmetic, precision, late_precision)
+        #: where the chain runs: a `pinnedballs.CPU` or `pinnedballs.CUDA` (given as one, or as "cpu" or "cuda");
+        #: information about a run, not part of its model (the same bits on either)
+        self.device = as_device(device)
+        threads = getattr(scheduler, "threads", None)
         model = Model(geometry, self._masses, collide,
                       np.append(np.asarray(params, dtype=np.float64), self.threshold),  # params[-1]: the threshold
-                      selector, getattr(scheduler, "threads", None), rule.exact_restitution())
-        field = _field_chain(self, model, v, precision, late_precision)  # None in float arithmetic
-        state = ChainState(v if field is None else field.shadow,  # exact: its values rounded, kept by its chain
-                           np.zeros(COUNTERS, dtype=np.int64), rng, scheduler.initial_state(geometry.n_contacts),
-                           new_margin(), field)  # the margin: every pick's closing speed against the threshold
-        #: where the chain runs: ``"cpu"`` or ``"cuda"`` (an NVIDIA GPU: `engine.gpu`, floats on the counter
-        #: stream, the CPU's bits); information about a run, not part of its model
-        self.device = checks.choice("device", device, DEVICES)
-        self._engine = backend_for(model, state, self.arithmetic, self.device, self.collision_listeners, rule,
-                                   scheduler)
+                      selector, getattr(self.device, "threads", None) if threads is None else threads,
+                      rule.exact_restitution(), rule, scheduler)
+        state = ChainState(v, np.zeros(COUNTERS, dtype=np.int64), rng, scheduler.initial_state(geometry.n_contacts),
+                           new_margin())  # the margin: every pick's closing speed against the threshold
+        chosen = choose(model, self.arithmetic, self.device, engine=engine)
+        self._engine = chosen.build(model, state, self.collision_listeners, self.device,
+                                    {"arithmetic": self.arithmetic, "precision": precision,
+                                     "late_precision": late_precision})
+        #: the registered engine running the chain (`pinnedballs.engine.engines()`), by name
+        self.engine_name = chosen.name
 
     # ------------------------------------------------------------ the engine
     @property
@@ -497,31 +502,3 @@ def _selector(scheduler: Scheduler, geometry: Geometry):
                                           f"no longer calls: give it kernel() (a pick) or selector() instead "
                                           f"(docs/extending.md)")
     return scheduler.selector(geometry)
-
-
-def _field_chain(sim: Simulation, model: Model, velocities: np.ndarray, precision, late_precision) -> FieldChain | None:
-    """The chain of ``sim``'s exact or certified arithmetic (None for floats), or a `FieldError` on
-    ``arithmetic`` (or ``precision``, ``late_precision``) saying why it cannot have one."""
-    name = sim.arithmetic
-    precision, late_precision = check_precisions(name, precision, late_precision)
-    if name == "float":
-        return None
-    r = model.restitution
-    if r is None:
-        raise FieldError("arithmetic", f"{name} arithmetic runs the built-in rules (Elastic, Restitution); "
-                                       f"{described(sim.rule)} has no exact form")
-    if model.selector.tracks:
-        raise FieldError("arithmetic", f"{name} arithmetic follows the picks of a scheduler that needs no live set; "
-                                       f"{described(sim.scheduler)} picks among live contacts in float arithmetic "
-                                       f"(UniformRandomPair has the same law)")
-    try:
-        return field_chain(sim.geometry, velocities, model.masses, r, name, precision, late_precision)
-    except NotFixed as exc:
-        raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "
-                                       f"whose normals have dyadic components in Q or one Q(sqrt d) (triangular "
-                                       f"lattices, FCC, square and cubic packings, chains), and {exc}; "
-                                       f"arithmetic=\"exact\" runs it") from None
-    except NotExact as exc:
-        raise FieldError("arithmetic", f"exact arithmetic needs every contact normal in a known number field "
-                                       f"(q*sqrt(d) components), and {type(sim.geometry).__name__}'s are not: "
-                                       f"{exc}") from None

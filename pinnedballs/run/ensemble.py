@@ -34,12 +34,13 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..engine.backends import DEVICES
+from ..engine import door
+from ..engine.devices import Device, as_device
 from ..engine.field.arithmetic import AUTO, until_proved
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
 from ..geometry.base import Geometry
 from ..rules import DEFAULT_RESOLUTION
-from ..specs.run import BUILD_DEVICE, RunSpec
+from ..specs.run import RunSpec
 from ..util import checks
 from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
@@ -47,7 +48,7 @@ from ..util.limits import check_memory
 from ..util.progress import Progress
 from . import executors, lineage
 
-__all__ = ["EnsembleResult", "run_ensemble", "run_replica", "replica_row", "replica_seed", "state_row",
+__all__ = ["EnsembleResult", "run_ensemble", "ensemble_plan", "run_replica", "replica_row", "replica_seed", "state_row",
            "margin_columns", "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS",
            "ERROR_COLUMN", "FINAL", "CORRELATIONS", "TABLE_NAME", "SUMMARY_NAME"]
 
@@ -324,23 +325,23 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
     _check_replicas_memory(replicas, "replicas")
     if (dask_address is not None) + (cluster is not None) + (workers is not None) > 1:
         raise InputError("workers, dask_address, cluster: give at most one")
-    device = checks.choice("device", device, DEVICES)
-    one_by_one = device == "cuda" and spec.arithmetic == "certified"  # any task, one replica at a time on the GPU
-    if one_by_one and (dask_address is not None or cluster is not None):
-        raise InputError("device: 'cuda' runs a certified ensemble's replicas one at a time on this process's GPU; "
-                         "on a Dask cluster, certified replicas run on its CPUs (device='cpu')")
-    observe = _gpu_observe(task) if device == "cuda" and not one_by_one else None
-    if device == "cuda" and not one_by_one and observe is None:
+    device = as_device(device)
+    seeds = np.random.SeedSequence(spec.seed).spawn(replicas)
+    on_cluster = dask_address is not None or cluster is not None
+    plan = ensemble_plan(spec, spec.build(seed=seeds[0]), device, on_cluster=on_cluster) if device.gpu \
+        else "processes"
+    observe = _gpu_observe(task) if plan == "together" else None
+    if plan == "together" and observe is None:
         raise InputError("device: 'cuda' runs the built-in replica task (run_replica, or a functools.partial of it "
                          "giving observe=)")
     task = run_replica if task is None else task
-    seeds = np.random.SeedSequence(spec.seed).spawn(replicas)
-    jobs = {k: (_attempt, task, spec, k, seeds[k]) for k in range(replicas)}
+    built_there = spec.on_device(device)  # whatever the task, it builds its simulation on the device
+    jobs = {k: (_attempt, task, built_there, k, seeds[k]) for k in range(replicas)}
 
     def lost(k: int, exc: BaseException) -> list[dict]:  # its worker died or was lost
         return [_error_row(k, seeds[k], exc)]
 
-    made = lineage.ensemble("pinnedballs.run_ensemble", {"kind": device})  # begun now
+    made = lineage.ensemble("pinnedballs.run_ensemble", {"kind": device.kind}, gpu=device.gpu)  # begun now
     start = time.perf_counter()
     with Progress(progress, replicas, "replicas", "replicas", scale=False) as bar:
         done = []
@@ -349,19 +350,19 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
             done.append(1)
             bar.update(len(done))
 
-        if one_by_one:
+        if plan == "one_by_one":
             where = "GPU, one replica at a time"
-            results = _on_this_gpu(spec, jobs, tick)
+            results = executors.in_process(jobs, tick)
             used = _this_gpu()
-        elif device == "cuda" and (dask_address is not None or cluster is not None):
+        elif plan == "together" and on_cluster:
             where, results, used = _on_cluster_gpus(spec, seeds, observe, dask_address, cluster, bar)
-        elif device == "cuda":
+        elif plan == "together":
             from .ensemble_gpu import run_on_gpu
 
             where = "GPU"
             results = run_on_gpu(spec, seeds, observe, replica_row, tick)
             used = _this_gpu()
-        elif dask_address is not None or cluster is not None:
+        elif on_cluster:
             client, own = executors.dask_client(dask_address, cluster)
             try:
                 where, used = f"dask {client.scheduler.address}", lineage.dask_facts(client)
@@ -397,11 +398,8 @@ def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address,
     (this process needs no GPU), every worker asked whether it sees one, then the replicas in groups
     (`ensemble_gpu.groups`), a group a job on a worker's GPU; a group whose worker is lost runs again elsewhere
     (`executors.on_dask`), and the rows are the same however the replicas were grouped."""
-    from ..engine.backends import check_device
     from .ensemble_gpu import gpu_workers, groups, on_worker_gpu
 
-    proto = spec.build(seed=seeds[0])
-    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler, here=False, replicas=True)
     client, own = executors.dask_client(dask_address, cluster)
     try:
         parts = groups(len(seeds), gpu_workers(client))
@@ -424,19 +422,32 @@ def _on_cluster_gpus(spec: RunSpec, seeds: list, observe: Observe, dask_address,
     return where, {k: rows for part in out.values() for k, rows in part.items()}, used
 
 
-def _on_this_gpu(spec: RunSpec, jobs: dict, tick: Callable[[], None]) -> dict:
-    """The results of ``jobs`` run in this process, one after another, every simulation a task builds from a spec
-    built on the GPU (`specs.run.BUILD_DEVICE`): a certified ensemble on ``device="cuda"``, whose spec is checked
-    first (`engine.backends.check_device`)."""
-    from ..engine.backends import check_device
+def ensemble_plan(spec: RunSpec, sim, device: str | Device, *, on_cluster: bool = False) -> str:
+    """How an ensemble of ``spec``'s replicas runs on ``device``, asked of the engine's door (`engine.door`) with
+    ``sim``, replica 0 built on the CPU: ``"together"`` (an engine that runs replicas together: a GPU thread
+    each, on this process's GPU or, ``on_cluster``, on each Dask worker's), ``"one_by_one"`` (a chain an engine of
+    this process's GPU runs: certified arithmetic, one replica a call in this process) or ``"processes"`` (the
+    CPU's engines: a replica a process, or a Dask job). A `SpecError` on ``device`` saying why none does, in the
+    spec's words."""
+    from ..specs.errors import SpecError
 
-    proto = spec.build(seed=0)
-    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler)
-    token = BUILD_DEVICE.set("cuda")
+    device = as_device(device)
+    model = sim.engine.model
     try:
-        return executors.in_process(jobs, tick)
-    finally:
-        BUILD_DEVICE.reset(token)
+        door.check(model, spec.arithmetic, device, replicas=True, here=not on_cluster)
+        return "together"
+    except door.Refused as together:
+        try:
+            door.check(model, spec.arithmetic, device)
+        except door.Refused:
+            raise spec.refused(together.refusal) from None
+    if not device.gpu:
+        return "processes"
+    if on_cluster:
+        raise SpecError("device", f"{device.kind!r} runs a {spec.arithmetic} ensemble's replicas one at a time on "
+                                  f"this process's GPU; on a Dask cluster, {spec.arithmetic} replicas run on its CPUs "
+                                  f"(device='cpu')")
+    return "one_by_one"
 
 
 def _gpu_observe(task: Task | None) -> Observe | None:

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..engine.backends import check_device
+from ..engine import door
 from ..engine.chain import NO_LIMIT
 from ..engine.driver import Drive, Writer, drive
 from ..engine.rows import row_pattern
@@ -47,7 +47,7 @@ def run_on_gpu(spec, seeds: list, observe: Callable, row_of: Callable, tick: Cal
     ``observe``'s columns, ``tick()`` is told of each replica done."""
     proto = spec.build(seed=seeds[0])
     # floats, the counter stream, a rule the GPU runs with the CPU's bits, numba-cuda and a GPU: or one line why
-    check_device(proto.engine.model, proto.arithmetic, proto.rule, proto.scheduler, replicas=True)
+    door.check(proto.engine.model, proto.arithmetic, "cuda", replicas=True)
     if proto.geometry.n_contacts > MAX_THREAD_CONTACTS:
         return _one_at_a_time(spec, seeds, observe, row_of, tick, first)
     out: dict[int, list] = {}

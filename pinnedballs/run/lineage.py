@@ -29,7 +29,7 @@ def life(sim, call: str) -> dict:
     """The entry of a run's life begun now at ``sim``'s state (``steps`` ``[sim.steps, sim.steps]``); ``call``: the
     Python call it is where no command line is recorded (`util.provenance.command`)."""
     used = resources(sim)
-    out = facts.entry(__version__, call, used, GPU_PACKAGES if used.get("kind") == "cuda" else ())
+    out = facts.entry(__version__, call, used, GPU_PACKAGES if "gpu" in used else ())  # a GPU's names it
     out["steps"] = [int(sim.steps), int(sim.steps)]
     return out
 
@@ -42,10 +42,11 @@ def checkpointed(entry: dict, sim, steps: int) -> dict:
             "steps": [min(int(first), int(steps)), int(steps)], "ended": facts.now()}
 
 
-def ensemble(call: str, device: dict) -> dict:
+def ensemble(call: str, device: dict, *, gpu: bool = False) -> dict:
     """An ensemble's entry, begun now; ``device``: where its replicas run (``{"kind": "cpu", "workers": 4}``,
-    ``{"kind": "cuda", "gpu": ...}``, with ``dask`` and ``hosts`` on a cluster)."""
-    return facts.entry(__version__, call, device, GPU_PACKAGES if device.get("kind") == "cuda" else ())
+    ``{"kind": "cuda", "gpu": ...}``, with ``dask`` and ``hosts`` on a cluster); ``gpu``: on GPUs (the GPU's
+    packages recorded too)."""
+    return facts.entry(__version__, call, device, GPU_PACKAGES if gpu else ())
 
 
 def ended(entry: dict, **more) -> dict:

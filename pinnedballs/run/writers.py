@@ -35,6 +35,7 @@ import numpy as np
 
 from .._version import __version__
 from ..analysis import observables as named
+from ..engine.devices import as_device
 from ..engine.driver import Writer
 from ..engine.field.arithmetic import AUTO, next_precisions
 from ..engine.field.fixed import UncertifiedDecision
@@ -261,8 +262,8 @@ class ResultsWriter(Writer):
                 raise InputError(f"resume: the run in {self.out_dir} {failed_run(said)}; continuing it would fail "
                                  f"the same way: {said.get('remedy') or 'run it again'}")
             _check_continues(store, sim, self.path)
-            store.attrs["device"] = getattr(sim, "device", "cpu")
-            store.attrs["simulated"] = simulated(store.attrs["device"])
+            device = as_device(getattr(sim, "device", None))
+            store.attrs["device"], store.attrs["simulated"] = device.kind, simulated(device)
             self._elapsed0 = float(store.attrs["elapsed_seconds"])
             stored = tuple(json.loads(store.attrs["observables"]))
             if stored != self.names:
@@ -280,20 +281,16 @@ class ResultsWriter(Writer):
         initial = Record.of(sim, self.names)
         spec = self.spec.model_dump_json() if self.spec is not None else ""
         run = "" if self.spec is not None else json.dumps(describe_run(sim, self))
-        device = getattr(sim, "device", "cpu")
+        device = as_device(getattr(sim, "device", None))
         return ResultsStore.create(self.path, spec=spec, run=run, geometry=sim.geometry, masses=sim.masses,
                                    initial=initial, version=__version__, criterion=(sim.threshold, sim.resolution),
-                                   device=device, simulated=simulated(device), life=lineage.life(sim, CALL))
+                                   device=device.kind, simulated=simulated(device), life=lineage.life(sim, CALL))
 
 
-def simulated(device: str) -> bool:
-    """Whether a run on ``device`` runs under numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``: its kernels
-    as Python threads on the CPU), not on a GPU."""
-    if device != "cuda":
-        return False
-    from ..engine.gpu.compile import SIMULATED
-
-    return bool(SIMULATED)
+def simulated(device) -> bool:
+    """Whether a run on ``device`` (a `Device` or its name) runs under numba-cuda's simulator
+    (``NUMBA_ENABLE_CUDASIM=1``: its kernels as Python threads on the CPU), not on a GPU."""
+    return bool(getattr(as_device(device), "simulated", False))
 
 
 def failure(exc: UncertifiedDecision, steps: int, spec=None) -> dict:

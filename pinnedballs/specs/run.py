@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-import contextvars
 import json
 import os
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ValidationError, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, PrivateAttr, ValidationError, field_validator, model_validator
 
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
+from ..engine.devices import Device, as_device
+from ..engine.door import Refusal, Refused
 from ..engine.field.arithmetic import AUTO, MAX_PRECISION, auto_precisions
 from ..engine.state import mass_array
 from ..geometry.base import Geometry
@@ -29,18 +30,12 @@ from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
 
-__all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe", "BUILD_DEVICE"]
-
-#: the device `RunSpec.build` builds on when none is named: ``"cpu"``; an ensemble whose replicas run on a GPU one
-#: at a time in this process (certified arithmetic, `pinnedballs.run.ensemble.run_ensemble`) sets ``"cuda"``
-#: around them, so that any replica task builds its simulation there
-BUILD_DEVICE: contextvars.ContextVar[str] = contextvars.ContextVar("BUILD_DEVICE", default="cpu")
+__all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe"]
 
 
 MassesField = Positive | FilePath
 
-#: the scheduler a GPU runs, as the engine names it (Python) and as a spec states it (JSON)
-_COUNTER_PYTHON = "UniformRandomPair(stream='counter')"
+#: the scheduler a GPU runs, as a spec states it (JSON)
 _COUNTER_JSON = '{"kind": "uniform_random_pair", "stream": "counter"}'
 
 
@@ -91,6 +86,8 @@ class RunSpec(_Spec):
     late_precision: Count | None = None
     resolution: float | None = None
     description: str = ""
+    #: where `build` builds when no device is named (`on_device`): not part of the spec, nor of its JSON
+    _device: Device | None = PrivateAttr(default=None)
 
     def _repr_html_(self) -> str:  # notebooks: a table of the parts
         from ..plot.display import spec_html
@@ -184,12 +181,20 @@ class RunSpec(_Spec):
             raise SpecError("masses", f"{self.masses}: must all be finite and > 0")
         return m
 
-    def build(self, seed: int | np.random.SeedSequence | None = None, device: str | None = None) -> Simulation:
+    def on_device(self, device: str | Device) -> RunSpec:
+        """This spec, built on ``device`` when `build` names none: the same spec (equal, the same JSON and bits),
+        for the replicas an ensemble runs there, whatever task builds them."""
+        spec = self.model_copy()
+        spec._device = as_device(device)
+        return spec
+
+    def build(self, seed: int | np.random.SeedSequence | None = None, device: str | Device | None = None
+              ) -> Simulation:
         """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``
-        (with neither, fresh entropy: see `Simulation`). ``device``: where it runs (``"cpu"``, ``"cuda"``),
-        not part of the spec: the same spec gives the same bits on either (None: `BUILD_DEVICE`'s, ``"cpu"``
-        unless an ensemble's replicas run on a GPU one at a time)."""
-        device = BUILD_DEVICE.get() if device is None else device
+        (with neither, fresh entropy: see `Simulation`). ``device``: where it runs (``"cpu"``, ``"cuda"``,
+        `pinnedballs.CPU`, `pinnedballs.CUDA`), not part of the spec: the same spec gives the same bits on either
+        (None: `on_device`'s, else the CPU)."""
+        device = self._device if device is None else device
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
             raise SpecError("seed", f"must be an integer in [0, 2**63) or a numpy SeedSequence, "
@@ -207,7 +212,7 @@ class RunSpec(_Spec):
         return self.build_with(geometry, velocities, masses, seq, device)
 
     def build_with(self, geometry, velocities, masses, seed: np.random.SeedSequence | None = None,
-                   device: str = "cpu") -> Simulation:
+                   device: str | Device | None = None) -> Simulation:
         """A `Simulation` of this spec's rule, scheduler and seed on a ``geometry``, ``velocities`` and
         ``masses`` already built (or read back from a results file), on ``device``."""
         seq = seed if seed is not None else self.seed_sequence()
@@ -227,6 +232,8 @@ class RunSpec(_Spec):
                                       masses=masses, seed=seq, arithmetic=self.arithmetic,
                                       resolution=self.resolution, precision=precision,
                                       late_precision=late_precision, device=device)
+                except Refused as exc:
+                    raise self.refused(exc.refusal) from None
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code
@@ -239,34 +246,21 @@ class RunSpec(_Spec):
         except UserCodeError:
             raise
         except SpecError as exc:
-            if exc.path == "device":
-                raise self._in_spec_words(exc) from None
             files = {"geometry": getattr(self.geometry, "positions", None),
                      "initial.path": getattr(self.initial, "path", None),
                      "masses": self.masses if isinstance(self.masses, str) else None}
             raise _in_file(exc, files[exc.path]) if files.get(exc.path) else exc from None
 
-    def check_device(self, sim: Simulation, *, here: bool = True) -> None:
-        """A `SpecError` on ``device`` unless a GPU can run ``sim`` (built from this spec on the CPU): what
-        `engine.backends.check_device` asks (float arithmetic, the counter stream, numba-cuda and a GPU: in this
-        process unless ``here`` is False), said in the spec's words."""
-        from ..engine.backends import check_device
-
-        try:
-            with engine_errors("device", {"device": "device"}):
-                check_device(sim.engine.model, sim.arithmetic, sim.rule, sim.scheduler, here=here)
-        except SpecError as exc:
-            raise self._in_spec_words(exc) from None
-
-    def _in_spec_words(self, exc: SpecError) -> SpecError:
-        """A refusal on ``device`` naming the scheduler the GPU runs, and this spec's, as a spec's JSON states them
-        (not as Python builds them)."""
-        if not exc.problem.startswith(f"'cuda' runs {_COUNTER_PYTHON} "):
-            return exc
+    def refused(self, refusal: Refusal) -> SpecError:
+        """The engine's `Refusal` of this spec as a `SpecError` on its field, in the spec's words: a scheduler it
+        needs named as a spec's JSON states it, and this spec's beside it."""
+        if ("scheduler", "counter") not in refusal.needs:
+            return SpecError(refusal.field, refusal.message)
         mine = {"kind": self.scheduler.kind, **self.scheduler.model_dump(mode="json", exclude_defaults=True,
                                                                           exclude={"kind"})}
-        return SpecError("device", f"'cuda' runs the scheduler {_COUNTER_JSON} (the pick of step s a function of "
-                                   f"the seed and s); this spec's scheduler, {json.dumps(mine)}, runs on the CPU")
+        return SpecError(refusal.field, f"'cuda' runs the scheduler {_COUNTER_JSON} (the pick of step s a function "
+                                        f"of the seed and s); this spec's scheduler, {json.dumps(mine)}, runs on the "
+                                        f"CPU")
 
     def to_json(self) -> str:
         """The spec as indented JSON, defaults filled in and paths absolute."""

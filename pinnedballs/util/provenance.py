@@ -236,8 +236,8 @@ def _device(item: dict) -> str:
     flags = [f.upper() for f in ("avx512f", "avx2", "sve", "asimd") if f in (c.get("flags") or ())][:1]
     cores = c.get("cores")
     said = f"CPU: {c.get('model', 'unknown')}" + (f" ({', '.join([f'{cores} cores', *flags])})" if cores else "")
-    if d.get("kind") == "cuda":
-        gpu = d.get("gpu", "unknown")
+    if "gpu" in d:  # a GPU's entry names it
+        gpu = d["gpu"]
         return (f"GPU: simulated (numba-cuda's simulator on the {said})" if gpu == "simulated" else
                 f"GPU: {gpu}" + (f" (compute capability {d['compute_capability']})" if "compute_capability" in d
                                  else "") + f"; {said}")

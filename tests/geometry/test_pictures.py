@@ -35,7 +35,12 @@ def test_the_pictures_come_from_the_display_installed(monkeypatch):
     assert sim._repr_mimebundle_() == {"text/html": "<simulation>", "image/png": b"simulation"}
 
 
-def test_without_a_display_the_error_names_it(monkeypatch):
+def test_with_no_display_installed_the_first_picture_loads_the_plots(monkeypatch):
+    """The rooms below the plots never import them: the first picture asked for loads them by name."""
+    import matplotlib.figure
+
+    from pinnedballs.plot import display
+
     monkeypatch.setattr(pictures, "_installed", None)
-    with pytest.raises(ImportError, match="pinnedballs.plot.display"):
-        pb.FlatTorus(4, 4).plot()
+    assert isinstance(pb.FlatTorus(4, 4).plot(), matplotlib.figure.Figure)
+    assert pictures.display() is display and pictures.DRAWN_BY == "pinnedballs.plot.display"

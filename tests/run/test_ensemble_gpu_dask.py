@@ -83,7 +83,8 @@ def test_a_worker_lost_mid_ensemble_costs_nothing(gpu_cluster):
 def test_what_a_gpu_cannot_run_is_refused_before_any_job(gpu_cluster):
     """The xoshiro stream or exact arithmetic is refused in one line naming ``device``, before the cluster
     runs anything."""
-    for changes, words in (({"scheduler": {"kind": "uniform_random_pair"}}, "runs UniformRandomPair(stream='counter')"),
+    for changes, words in (({"scheduler": {"kind": "uniform_random_pair"}},
+                            'runs the scheduler {"kind": "uniform_random_pair", "stream": "counter"}'),
                            ({"arithmetic": "exact"}, "'cuda' runs an ensemble's replicas in float arithmetic")):
         with pytest.raises(InputError, match="^device: ") as info:
             ens.run_ensemble(parse_spec({**GPU_SPEC, **changes}), 3, device="cuda", cluster=gpu_cluster)

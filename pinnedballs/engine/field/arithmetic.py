@@ -21,10 +21,11 @@ from ...util import checks
 from ...util.errors import FieldError
 from .chain import FieldChain
 from .fixed import PRECISION, FixedChain, NotFixed, UncertifiedDecision, lines_of
+from .numbers import NotExact
 from .rational import RationalChain
 
-__all__ = ["field_chain", "check_precisions", "ARITHMETICS", "MAX_PRECISION", "AUTO", "AUTO_GROWTH",
-           "AUTO_START", "auto_precisions", "next_precisions", "auto_failure", "until_proved"]
+__all__ = ["field_chain", "built_field_chain", "check_precisions", "ARITHMETICS", "MAX_PRECISION", "AUTO",
+           "AUTO_GROWTH", "AUTO_START", "auto_precisions", "next_precisions", "auto_failure", "until_proved"]
 
 #: the values of `Simulation`'s ``arithmetic``
 ARITHMETICS = ("float", "exact", "certified")
@@ -122,19 +123,39 @@ def check_precisions(arithmetic: str, precision, late_precision) -> tuple[int | 
 
 
 def field_chain(geometry, velocities: np.ndarray, masses: np.ndarray, restitution: float, arithmetic: str,
-                precision: int | None = None, late_precision: int | None = None) -> FieldChain:
-    """The chain of ``arithmetic`` (``"exact"`` or ``"certified"``; ``precision`` and ``late_precision``:
-    `FixedChain`'s); `NotFixed` saying why the certified one cannot run these, `fields.NotExact` why no
-    exact one can."""
+                precision: int | None = None, late_precision: int | None = None, picks=None) -> FieldChain:
+    """The chain of ``arithmetic`` (``"exact"`` or ``"certified"``; ``precision``, ``late_precision`` and
+    ``picks``, where its picks are tried: `FixedChain`'s); `NotFixed` saying why the certified one cannot run
+    these, `fields.NotExact` why no exact one can."""
     if not np.all(masses == masses[0]):
         reason = "the masses are not all equal"
     elif restitution != 1.0:
         reason = f"collisions are not elastic (restitution {restitution})"
     else:
         try:
-            return FixedChain(geometry, velocities, lines_of(geometry), arithmetic, precision, late_precision)
+            return FixedChain(geometry, velocities, lines_of(geometry), arithmetic, precision, late_precision, picks)
         except NotFixed as exc:
             reason = str(exc)
     if arithmetic == "certified":
         raise NotFixed(reason)
     return RationalChain(geometry, velocities, masses, restitution)
+
+
+def built_field_chain(model, velocities: np.ndarray, arithmetic: str, precision: int | None = None,
+                      late_precision: int | None = None, picks=None) -> FieldChain:
+    """`field_chain` for a chain's `engine.chain.Model` (its geometry, masses and restitution), or a
+    `FieldError` on ``arithmetic`` saying why none can run it."""
+    try:
+        return field_chain(model.geometry, velocities, model.masses, model.restitution, arithmetic, precision,
+                           late_precision, picks)
+    except NotFixed as exc:
+        raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "
+                                       f"whose normals have dyadic components in Q or one Q(sqrt d) (triangular "
+                                       f"lattices, FCC, square and cubic packings, chains), and {exc}; "
+                                       f"arithmetic=\"exact\" runs it") from None
+    except NotExact as exc:
+        raise FieldError("arithmetic", f"{arithmetic} arithmetic needs every contact normal in a known number field "
+                                       f"(q*sqrt(d) components), and {type(model.geometry).__name__}'s are not: "
+                                       f"{exc}; if they are within rounding of one, snap them there "
+                                       f"(GraphGeometry(graph, snap=True), GraphGeometry.from_positions(positions, "
+                                       f"snap=True))") from None

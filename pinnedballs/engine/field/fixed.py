@@ -265,7 +265,7 @@ class FixedChain(FieldChain):
     """
 
     def __init__(self, geometry, velocities: np.ndarray, lines: Lines, policy: str, precision: int | None = None,
-                 late_precision: int | None = None):
+                 late_precision: int | None = None, picks=None):
         super().__init__(geometry, lines.field, lines.units, np.ones(geometry.n_balls), 1.0)
         self.policy, self.tables = policy, lines.tables
         self.certify = policy == "certified"
@@ -318,7 +318,7 @@ class FixedChain(FieldChain):
         self.inside = 0
         chunk = max(FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT * geometry.n_contacts)
         self.chunk, self.block = chunk, 4 * chunk
-        self.picks = CPUPicks()  #: where the picks are tried (a GPU's `DevicePicks`)
+        self.picks = CPUPicks() if picks is None else picks  #: where the picks are tried (a GPU's `DevicePicks`)
         self._scratch()
 
     def _scratch(self) -> None:

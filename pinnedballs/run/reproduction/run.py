@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ...engine.backends import DEVICES, check_device
+from ...engine import door
+from ...engine.devices import Device, as_device
 from ...results.rundir import DirLock, check_out_dir
 from ...specs.run import RunSpec
 from ...util.atomic import write_text_atomic
-from ...util.checks import choice
 from .. import ensemble as ens
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
 from .extended.plan import EXTENDED_FULL, EXTENDED_GPU, EXTENDED_QUICK, ExtendedPlan, check_extended_plan
@@ -69,7 +69,7 @@ def _single(spec: RunSpec) -> _Run:
 
 def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool = False, workers: int | None = None,
               progress: bool | None = False, log: Callable[[str], None] | None = None,
-              extended: bool | ExtendedPlan = False, device: str = "cpu", **overrides) -> Path:
+              extended: bool | ExtendedPlan = False, device: str | Device = "cpu", **overrides) -> Path:
     """Run ``plan`` (default `QUICK` if ``quick`` else `FULL`, with ``overrides`` of its fields) into ``out``.
 
     Writes the PNGs of `expected_figures`, ``report.md``, ``results.json``, the specs
@@ -89,15 +89,15 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
     t0 = time.perf_counter()
     plan = dataclasses.replace(plan or (QUICK if quick else FULL), **overrides)
     _check_plan(plan)
-    device = choice("device", device, DEVICES)
+    device = as_device(device)
     xplan = _extended_plan(extended, quick, device)
     if xplan is not None:
         check_extended_plan(xplan)
     out = check_out_dir(out, force)
     say = log or (lambda message: None)
     say_t = lambda message: say(f"[{time.perf_counter() - t0:6.1f} s] {message}")  # noqa: E731
-    if device == "cuda":
-        _check_gpu(xplan)  # numba-cuda and a GPU, before anything runs
+    if device.gpu:
+        _check_gpu(xplan, device)  # numba-cuda and a GPU, before anything runs
         say(_device_note(xplan))
     # every spec is built (and so validated) before anything is written
     detail_steps = half_plane_spec(plan.detail, plan, {"at_steps": list(plan.steps)})
@@ -119,13 +119,13 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
             write_text_atomic(out / "specs" / f"{name}.json", spec.to_json() + "\n")
 
         checks: list[Check] = []
-        results: dict = {"plan": dataclasses.asdict(plan), "device": device}
+        results: dict = {"plan": dataclasses.asdict(plan), "device": device.kind}
         failures: list[dict] = []
 
         def ensemble(name: str, spec: RunSpec, replicas: int, **kwargs) -> ens.EnsembleResult:
-            on_gpu = device == "cuda" and _runs_on_gpu(spec, xplan)
+            on_gpu = device.gpu and _runs_on_gpu(spec, xplan)
             say_t(f"ensemble {name}: {replicas} replicas{' on the GPU' if on_gpu else ''}")
-            where = {"device": "cuda"} if on_gpu else {"workers": workers}
+            where = {"device": device} if on_gpu else {"workers": workers}
             result = ens.run_ensemble(spec, replicas, progress=progress, **where, **kwargs)
             ens.write_outputs(result, out / "ensembles" / name, figures=False)
             failures.extend({"ensemble": name, **row} for row in result.failures)
@@ -200,20 +200,20 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
 
 
 
-def _extended_plan(extended: bool | ExtendedPlan, quick: bool, device: str) -> ExtendedPlan | None:
+def _extended_plan(extended: bool | ExtendedPlan, quick: bool, device: Device) -> ExtendedPlan | None:
     """The extended studies' plan: for True ``EXTENDED_QUICK`` if ``quick`` else the full plan of ``device``
-    (``EXTENDED_GPU`` on cuda), or the plan given; on cuda its scaling study on the counter stream. None: none."""
+    (``EXTENDED_GPU`` on a GPU), or the plan given; on a GPU its scaling study on the counter stream. None: none."""
     if extended is False or extended is None:
         return None
     if extended is True:
-        extended = EXTENDED_QUICK if quick else (EXTENDED_GPU if device == "cuda" else EXTENDED_FULL)
-    return dataclasses.replace(extended, stream="counter") if device == "cuda" else extended
+        extended = EXTENDED_QUICK if quick else (EXTENDED_GPU if device.gpu else EXTENDED_FULL)
+    return dataclasses.replace(extended, stream="counter") if device.gpu else extended
 
 
 def _runs_on_gpu(spec: RunSpec, xplan: ExtendedPlan | None) -> bool:
     """Whether ``device="cuda"`` runs ``spec``'s ensemble on the GPU: float arithmetic (its replicas together) or
     certified (one at a time, sizes of at least ``xplan.exact_gpu_min_balls``) on the counter stream
-    (`engine.backends.check_device`; anything else it asks of a spec, it refuses in `run_ensemble` itself)."""
+    (the engine's door, `engine.door`; anything else it asks of a spec, it refuses in `run_ensemble` itself)."""
     if getattr(spec.scheduler, "stream", None) != "counter":
         return False
     if spec.arithmetic == "certified":
@@ -221,12 +221,12 @@ def _runs_on_gpu(spec: RunSpec, xplan: ExtendedPlan | None) -> bool:
     return spec.arithmetic == "float"
 
 
-def _check_gpu(xplan: ExtendedPlan | None) -> None:
+def _check_gpu(xplan: ExtendedPlan | None, device: Device) -> None:
     """A `FieldError` on ``device`` now, not after the paper's sections, when no GPU can run the scaling study."""
     if xplan is not None:
         length, depth, _ = xplan.scaling[0]
         sim = scaling_spec(length, depth, xplan).build()
-        check_device(sim.engine.model, sim.arithmetic, sim.rule, sim.scheduler)
+        door.check(sim.engine.model, sim.arithmetic, device)
 
 
 def _device_note(xplan: ExtendedPlan | None) -> str:
