@@ -424,7 +424,7 @@ def ensemble_command(args) -> int:
 
 
 def _ensemble(args, status) -> int:
-    from ..results.rundir import DirLock, check_out_dir
+    from ..results.rundir import DirLock, check_out_dir, made_for
     from ..run.ensemble import (
         ERROR_COLUMN,
         SPEC_NAME,
@@ -460,7 +460,8 @@ def _ensemble(args, status) -> int:
     client = None
     if args.dask is not None:
         client, _ = dask_client(args.dask, None, "--dask")
-    with DirLock(out, "--out"):  # one ensemble at a time writes into a directory
+    # refused on the cluster (workers without a GPU), or stopped: the directories made for --out go again
+    with made_for(out), DirLock(out, "--out"):  # one ensemble at a time writes into a directory
         try:
             result = run_ensemble(spec, replicas, workers=args.workers, cluster=client,
                                   progress=_progress(args), device=args.device)

@@ -6,14 +6,18 @@ file system, a directory without write permission). `DirLock` is an exclusive OS
 (``flock``) on ``DIR/.pinnedballs.lock``: one run, ensemble or reproduction at a time
 writes into a directory. The kernel drops the lock when its process dies, so a killed
 run never blocks its own ``--resume``; the lock file a killed run leaves is harmless.
+`made_for` removes again the directories a refused command made for its output (``a/``, ``a/b/`` of
+``--out a/b/out``): nothing written means none.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import os
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 from ..util.atomic import remove, tmp_path, unwritable
@@ -21,7 +25,7 @@ from ..util.errors import InputError
 from .format import DATA_DIR, RESULTS_NAME
 
 __all__ = ["LOCK_NAME", "BIRTH", "DirLock", "holder", "check_writable", "unwritable", "check_resumable", "take_run_dir",
-           "check_out_dir"]
+           "check_out_dir", "first_missing", "remove_made", "made_for"]
 
 #: the lock file in a locked directory (removed when the lock is released)
 LOCK_NAME = ".pinnedballs.lock"
@@ -39,6 +43,40 @@ def check_writable(out: str | os.PathLike, option: str = "--out") -> Path:
     if problem is not None:
         raise _fail(option, out, problem)
     return out
+
+
+def first_missing(path: str | os.PathLike) -> Path | None:
+    """The outermost of ``path`` and its parents that does not exist (None if ``path`` exists), absolute."""
+    missing, path = None, Path(path).absolute()
+    while not path.exists() and path != path.parent:
+        missing, path = path, path.parent
+    return missing
+
+
+def remove_made(out: str | os.PathLike, made: Path | None) -> None:
+    """Remove ``out`` and its parents up to ``made`` (`first_missing` before they were made), innermost
+    first, each only while it is empty: one that holds anything stays, and so do those above it."""
+    if made is None:
+        return
+    for directory in [Path(out).absolute(), *Path(out).absolute().parents]:
+        if not directory.is_relative_to(made):
+            break
+        try:
+            directory.rmdir()
+        except OSError:  # holds something (or is gone): it and those above stay
+            break
+
+
+@contextlib.contextmanager
+def made_for(out: str | os.PathLike) -> Iterator[None]:
+    """A block that may make the directory ``out`` and its missing parents: if it raises, those it made are
+    removed again where they are empty (`remove_made`), so a command refused after making them leaves none."""
+    made = first_missing(out)
+    try:
+        yield
+    except BaseException:
+        remove_made(out, made)
+        raise
 
 
 class DirLock:

@@ -23,11 +23,11 @@ from ..engine.driver import Writer, drive
 from ..engine.field.arithmetic import AUTO, auto_failure, until_proved
 from ..engine.field.fixed import UncertifiedDecision
 from ..engine.stop import Stop
-from ..geometry.simulation import Simulation
 from ..results.format import DATA_DIR, RESULTS_NAME, Record, failed_run
 from ..results.load import Results, load
-from ..results.rundir import DirLock, check_resumable
+from ..results.rundir import DirLock, check_resumable, first_missing, remove_made
 from ..results.trajectory import TRAJECTORY_NAME
+from ..simulation import Simulation
 from ..specs.run import RunSpec, load_spec
 from ..util.atomic import remove, tmp_path, write_text_atomic
 from ..util.errors import InputError
@@ -195,26 +195,14 @@ def _refusable(out: Path) -> Iterator[list]:
     """A run into ``out`` that may be refused before its first step: once it says so (appending to the
     list yielded) and raises, the directories made for it (``out``, and parents it made) are removed
     again, where they hold nothing else."""
-    made = _first_missing(out)
+    made = first_missing(out)
     refused: list = []
     try:
         yield refused
     except BaseException:
-        if refused and made is not None:
-            for directory in [out.absolute(), *out.absolute().parents]:
-                if not directory.is_relative_to(made):
-                    break
-                with contextlib.suppress(OSError):  # one that holds something else stays
-                    directory.rmdir()
+        if refused:
+            remove_made(out, made)  # one that holds something else stays
         raise
-
-
-def _first_missing(path: Path) -> Path | None:
-    """The outermost of ``path`` and its parents that does not exist (None if ``path`` exists)."""
-    missing, path = None, path.absolute()
-    while not path.exists() and path != path.parent:
-        missing, path = path, path.parent
-    return missing
 
 
 def _an_error(exc: BaseException) -> bool:

@@ -75,3 +75,41 @@ def test_an_ensemble_on_the_counter_stream_runs_on_the_simulated_gpu(tmp_path):
                                            snapshots=...))
     code, stdout, err = call("ensemble", path, "--replicas", 2, "--device", "cuda", "--out", tmp_path / "e")
     assert (code, err) == (0, "") and stdout.startswith("2 of 2 replicas done in ") and "(GPU)" in stdout
+
+
+def test_a_certified_ensemble_on_a_clusters_gpus_is_refused_and_makes_no_parents(tmp_path):
+    """A certified spec runs its replicas one at a time on this process's GPU, never on a Dask cluster's
+    (docs/gpu.md); refused before the scheduler is asked (none listens here), a/ and a/b/ not made."""
+    path = write(tmp_path / "s.json", spec(TORUS, arithmetic="certified", stop={"frozen": True, "max_steps": 10**5},
+                                           geometry={"kind": "half_plane", "rows": 3, "cols": 4},
+                                           initial={"kind": "single_ball", "ball": "boundary_center",
+                                                    "direction": [0, 1], "energy": 100},
+                                           scheduler={"kind": "uniform_random_pair", "stream": "counter"},
+                                           snapshots=...))
+    code, stdout, err = call("ensemble", path, "--replicas", 2, "--device", "cuda", "--dask", "tcp://127.0.0.1:9",
+                             "--out", tmp_path / "a" / "b" / "out", "--quiet")
+    assert_input_error(code, err, "device: 'cuda' runs a certified ensemble's replicas one at a time on this "
+                                  "process's GPU; on a Dask cluster, certified replicas run on its CPUs "
+                                  "(device='cpu')")
+    assert stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]
+
+
+@pytest.mark.slow
+def test_an_ensemble_on_a_cluster_without_gpus_is_refused_and_leaves_no_parents(tmp_path, no_gpu, monkeypatch):
+    """The issue's case: workers that see no GPU refuse the replicas after --out's lock made a/, a/b/ and
+    a/b/out: all go again; a directory that held something before stays, and what it held."""
+    distributed = pytest.importorskip("dask.distributed")
+    path = write(tmp_path / "s.json", spec(TORUS, scheduler={"kind": "uniform_random_pair", "stream": "counter"},
+                                           snapshots=...))
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "mine.txt").write_text("mine")
+    monkeypatch.setenv("NUMBA_ENABLE_CUDASIM", "0")  # the workers (spawned now) see no simulated GPU
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        for out in (tmp_path / "a" / "b" / "out", tmp_path / "kept" / "b" / "out"):
+            code, stdout, err = call("ensemble", path, "--replicas", 2, "--device", "cuda", "--dask",
+                                     cluster.scheduler_address, "--out", out, "--quiet")
+            assert_input_error(code, err, "device: 'cuda' on Dask needs a GPU on every worker; 1 of 1 have none")
+            assert stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept", "s.json"]
+    assert [p.name for p in (tmp_path / "kept").iterdir()] == ["mine.txt"]

@@ -73,6 +73,33 @@ def test_one_table_gives_the_bits_of_a_certified_run_and_the_other_pages_point_t
         assert "collisions.md#choosing-the-bits-of-a-certified-run" in text(ROOT / "docs" / page), page
 
 
+def sentences(page: str) -> list[str]:
+    """The sentences of ``docs/page`` (or README.md), each on one line."""
+    words = " ".join(text(ROOT / page if page == "README.md" else ROOT / "docs" / page).split())
+    return re.split(r"(?<=[.;:])\s+(?=[A-Z`(])", words)
+
+
+@pytest.mark.parametrize("page", ["extending.md", "getting-started.md", "README.md"])
+def test_the_pages_mark_a_run_as_the_writer_does(page):
+    """`ResultsWriter.abort`: a Ctrl-C, or an exception in a writer or an observable, "interrupted" (it goes on);
+    a decision certified arithmetic cannot make, or an error that left the chain between two states, "failed"
+    (it cannot): no page says that any exception, or one in the loop, marks a run "interrupted"."""
+    said = sentences(page)
+    wrong = [x for x in said if '"interrupted"' in x and re.search(r"\bany (other )?exception|the loop\b", x)]
+    wrong += [x for x in said if x.startswith("Any other exception during the run is saved the same way")]
+    assert not wrong, wrong
+    failed = [x for x in said if '"failed"' in x]
+    assert any("certified" in x and "between two states" in x for x in failed), failed
+
+
+def test_the_gpu_page_says_certified_replicas_on_a_cluster_are_refused_as_the_code_does():
+    """`run.ensemble.ensemble_plan` refuses a certified ensemble on a Dask cluster's GPUs (tests/cli/
+    test_device_refusals.py); the page said in one place that it is refused and in another that it runs on
+    the cluster's CPUs."""
+    about = [x for x in sentences("gpu.md") if "certified" in x and re.search(r"Dask cluster", x)]
+    assert about and all("refused" in x for x in about), about
+
+
 # ---------------------------------------------------------------- the GPU without a GPU
 
 

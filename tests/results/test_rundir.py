@@ -23,7 +23,7 @@ from helpers import TORUS, assert_identical, assert_input_error, call, read_only
 
 import pinnedballs as pb
 from pinnedballs.results.load import load
-from pinnedballs.results.rundir import LOCK_NAME, DirLock
+from pinnedballs.results.rundir import LOCK_NAME, DirLock, made_for
 from pinnedballs.util.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -223,3 +223,23 @@ def test_python_writers_take_the_lock_and_release_it_at_the_stop(tmp_path):
         with pytest.raises(InputError, match="in use by another run"):
             sim.run(steps=10, writers=[pb.ResultsWriter(out, resume=True)])
     assert sim.steps == 20
+
+
+# ---------------------------------------------------------------- a refused command leaves no parents
+
+
+def test_a_block_that_raises_removes_the_directories_it_made_and_only_those(tmp_path):
+    """`made_for`: a/, a/b/ and a/b/out made under the lock and the block refused: all go; a parent that
+    existed stays, and so does one that came to hold something; a block that ends well keeps them."""
+    out = tmp_path / "a" / "b" / "out"
+    with pytest.raises(InputError, match="^refused$"), made_for(out), DirLock(out):
+        raise InputError("refused")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError), made_for(out):
+        out.mkdir(parents=True)
+        (tmp_path / "a" / "held.txt").write_text("kept")
+        raise InputError("refused")
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["held.txt"]
+    with made_for(out), DirLock(out):
+        pass
+    assert out.is_dir() and list(out.iterdir()) == []
