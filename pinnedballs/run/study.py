@@ -34,12 +34,11 @@ import shutil
 from pathlib import Path
 
 from .._version import __version__
-from ..engine.backends import DEVICES
+from ..engine.devices import Device, as_device
 from ..results.rundir import DirLock, check_out_dir
 from ..specs.base import engine_errors
 from ..specs.errors import SpecError
 from ..specs.study import PointError, StudyPoint, StudySpec, load_study_spec, parse_study
-from ..util import checks
 from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
 from ..util.progress import Progress
@@ -66,7 +65,7 @@ def read_study(study, option: str = "study") -> StudySpec:
 
 
 def run_study(study, out, *, workers: int | None = None, dask_address: str | None = None, cluster=None,
-              device: str | None = None, resume: bool = False, progress: bool | None = None,
+              device: str | Device | None = None, resume: bool = False, progress: bool | None = None,
               task: ens.Task | None = None, status=None) -> StudyResult:
     """Run every point of ``study`` (a `StudySpec`, a dict or a study file's path) into the directory ``out``, a
     signac project with a job a point (the module's docstring); return the study read back (`load_study`).
@@ -78,8 +77,9 @@ def run_study(study, out, *, workers: int | None = None, dask_address: str | Non
     out : path
         The study directory: created, or empty; with ``resume``, one this function wrote before (or none yet).
     workers, dask_address, cluster, device, task
-        Where each point's ensemble runs, as `run_ensemble`'s (``device`` None: ``"cpu"``). The points run one
-        after another, each on all the workers its replicas can use.
+        Where each point's ensemble runs, as `run_ensemble`'s (``device``: a `pinnedballs.CPU` or
+        `pinnedballs.CUDA`, or its name; None: the CPU). The points run one after another, each on all the workers
+        its replicas can use.
     resume : bool
         Continue the study in ``out``: run the points that have no ensemble yet (a study killed, or points added
         to the study since), none of those done; a study without a seed keeps the one ``out`` records.
@@ -112,7 +112,7 @@ def run_study(study, out, *, workers: int | None = None, dask_address: str | Non
     if status is None:
         from .execute import SILENT as status
     study = read_study(study)
-    device = checks.choice("device", "cpu" if device is None else device, DEVICES)
+    device = as_device(device)
     _check_where(workers, dask_address, cluster)
     out = Path(out)
     if resume and is_study_dir(out):
@@ -124,7 +124,7 @@ def run_study(study, out, *, workers: int | None = None, dask_address: str | Non
     study = study.seeded()
     points = study.expand()
     status(f"building the {len(points)} points' systems")
-    balls = [_built(point, device, dask_address is not None or cluster is not None) for point in points]
+    balls = [_built(point, device, on_cluster=dask_address is not None or cluster is not None) for point in points]
     digest = study.digest()
     client, own = (None, False) if dask_address is None and cluster is None else \
         executors.dask_client(dask_address, cluster)  # one client for every point (an address refused here)
@@ -168,18 +168,15 @@ def _with_recorded_seed(study: StudySpec, out: Path) -> StudySpec:
     return study.model_copy(update={"seed": seed})
 
 
-def _built(point: StudyPoint, device: str, on_cluster: bool) -> int:
-    """The number of balls of ``point``, built once as its replica 0 is (and checked for ``device``): a point that
-    does not build is a `PointError` before anything runs."""
+def _built(point: StudyPoint, device, *, on_cluster: bool) -> int:
+    """The number of balls of ``point``, built once as its replica 0 is (and, on a GPU, asked how its ensemble runs
+    there: `run.ensemble.ensemble_plan`): a point that does not build or run there is a `PointError` before
+    anything runs."""
     try:
         with engine_errors(""):
             sim = point.spec.build(seed=ens.replica_seed(point.spec, 0))
-            if device == "cuda":
-                if on_cluster and point.spec.arithmetic == "certified":
-                    raise SpecError("device", "'cuda' runs a certified ensemble's replicas one at a time on this "
-                                              "process's GPU; on a Dask cluster, certified replicas run on its CPUs "
-                                              "(device='cpu')")
-                point.spec.check_device(sim, here=not on_cluster)
+            if device.gpu:
+                ens.ensemble_plan(point.spec, sim, device, on_cluster=on_cluster)
     except PointError:
         raise
     except SpecError as exc:
