@@ -445,11 +445,35 @@ class Simulation:
             raise FieldError("exact", "the exact velocities do not round to the state's velocities")
         return exact
 
-    def plot(self, ax=None, title: str | None = None):
-        """The current state in the geometry's own view (`pinnedballs.plot.states.state_picture`: arrows,
-        or a field above 5,000 balls), drawn into ``ax`` or a new figure; the matplotlib `Figure`."""
-        title = f"after {self.steps:,} steps, {self.collisions:,} collisions" if title is None else title
-        return display().state_picture(self.geometry)(self.velocities, title, ax=ax)
+    def plot(self, what: str = "state", ax=None, title: str | None = None):
+        """A figure of the current state, as a run's figures draw it (`pinnedballs.plot.run.plot_simulation`).
+
+        Parameters
+        ----------
+        what : str
+            ``"state"``: the state in the geometry's own view (arrows, or a field above 5,000 balls);
+            ``"energy"``: the energy by distance from the boundary (a geometry with one); ``"height"``: by
+            height (flat 3-D); ``"histograms"``: the velocity components. (`Results.plot` draws a run's
+            snapshots too.)
+        ax : matplotlib.axes.Axes, optional
+            Draw into these axes; else a new figure. (``sim.plot(ax)``, the axes first, draws the state.)
+        title : str, optional
+            The figure's title; by default the counts it is after.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ValueError
+            ``what`` is not a figure of this simulation (the message lists those it has).
+        TypeError
+            ``what`` is not a name (nor axes).
+        """
+        if not isinstance(what, str) and ax is None and hasattr(what, "set_title"):  # plot(ax): before ``what``
+            what, ax = "state", what
+        return display().simulation_figure(self, what, ax=ax, title=title)
 
     def _repr_html_(self) -> str:  # notebooks: the counters beside the picture of the state
         shown = display()

@@ -26,7 +26,8 @@ import numpy as np
 
 from ..geometry import pictures
 
-__all__ = ["state_picture", "geometry_html", "geometry_png", "simulation_html", "simulation_png", "spec_html",
+__all__ = ["state_picture", "simulation_figure", "geometry_html", "geometry_png", "simulation_html", "simulation_png",
+           "spec_html",
            "results_html", "ensemble_html", "study_spec_html", "study_html", "mimebundle", "state_png", "DISPLAY_DPI"]
 
 #: the resolution of pictures in a notebook (an 8-inch state picture is 480 pixels wide)
@@ -207,6 +208,13 @@ def state_picture(geometry):
     from .states import state_picture as draw
 
     return draw(geometry)
+
+
+def simulation_figure(sim, what: str, ax=None, title: str | None = None):
+    """`run.plot_simulation` (imported when first drawn: matplotlib): ``sim.plot(what)``."""
+    from .run import plot_simulation
+
+    return plot_simulation(sim, what, ax=ax, title=title)
 
 
 def state_png(geometry, velocities, title: str, dpi: int = DISPLAY_DPI) -> bytes | None:

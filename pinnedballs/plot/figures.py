@@ -9,7 +9,7 @@ from matplotlib.ticker import MaxNLocator
 from scipy import stats
 
 from ..analysis import observables as obs
-from .base import COMPONENT_NAMES, FIT_COLOUR, _new_axes, panels, save
+from .base import COMPONENT_NAMES, FIT_COLOUR, _new_axes, length_label, panels, save
 
 __all__ = ["energy_by_distance", "energy_profiles", "component_histograms", "correlation_histogram"]
 
@@ -17,14 +17,19 @@ __all__ = ["energy_by_distance", "energy_profiles", "component_histograms", "cor
 # ---------------------------------------------------------------- energy against distance from the boundary
 
 def energy_by_distance(distances, velocities, masses=None, bin_width: float | None = None, ax=None,
-                       title: str | None = None, path=None, xlabel: str = "distance from the boundary (ball radii)",
-                       first: str = "boundary row") -> Figure:
+                       title: str | None = None, path=None, xlabel: str | None = None,
+                       first: str = "boundary row", radius: float | None = None) -> Figure:
     """Bar plot of the energy profile (the paper's Figure 3): fraction of the energy per row.
 
     distances: ``(n_balls,)`` from the boundary; velocities: ``(n_balls, dim)``.
     The bars are the only patches of the axes and sum to 1; the share of the ``first`` row is
-    written in a band above the tallest bar. See `observables.energy_profile`.
+    written in a band above the tallest bar. See `observables.energy_profile`. The x axis is
+    ``xlabel``, else "distance from the boundary" in the unit of the balls' ``radius`` ("ball radii"
+    for radius 1, "ball radius 0.5" for 0.5), or with no unit where ``radius`` is not given.
     """
+    if xlabel is None:
+        xlabel = "distance from the boundary" if radius is None else length_label("distance from the boundary",
+                                                                                   radius)
     centres, fraction = obs.energy_profile(distances, velocities, masses, bin_width)
     fig, ax = _new_axes(ax, (8.0, 4.5), title)
     width = bin_width if bin_width is not None else (np.diff(centres).min() if len(centres) > 1 else 1.0)

@@ -17,8 +17,8 @@ from .states import state_picture
 #: the velocity histograms' range: this quantile of the absolute components (one outlier does not set it)
 ROBUST_RANGE = 0.99
 
-__all__ = ["write_figures", "figures", "plot_results", "PLOTS", "figure_files", "snapshot_name", "snapshot_counter",
-           "FIGURE_PATTERNS"]
+__all__ = ["write_figures", "figures", "plot_results", "plot_simulation", "PLOTS", "LIVE_PLOTS", "figure_files",
+           "snapshot_name", "snapshot_counter", "FIGURE_PATTERNS"]
 
 
 # ---------------------------------------------------------------- one run
@@ -100,19 +100,26 @@ def _figures(res, every_snapshot: bool = False) -> Iterator[tuple[str, Callable]
             v = np.asarray(snap.velocities, dtype=np.float64)
             yield name, lambda ax, v=v, t=title: draw(v, t, ax=ax)
     yield "state_final.png", lambda ax: draw(final, "final state", ax=ax)
+    yield from _observed(geometry, positions, final, res.masses, "final state")
+
+
+def _observed(geometry, positions: np.ndarray, v: np.ndarray, masses, when: str) -> Iterator[tuple[str, Callable]]:
+    """``(file name, make(ax, title=None) -> Figure)`` of the figures of the state ``v (n_balls, dim)`` beyond its
+    picture, as a run's figures draw them (``when``, e.g. "final state", ends their default titles): the energy
+    by distance on a geometry with a boundary, by height in flat 3-D, the velocity components' histograms."""
     if geometry.boundary is not None:
         unit = "lengths on the surface" if geometry.curved else length_unit(geometry.radius)
-        yield "energy_by_distance.png", lambda ax: energy_by_distance(
-            geometry.boundary.distance, final, res.masses, ax=ax, title="energy by distance from the boundary, "
-            "final state", xlabel=f"distance from the boundary ({unit})")
+        yield "energy_by_distance.png", lambda ax, title=None: energy_by_distance(
+            geometry.boundary.distance, v, masses, ax=ax,
+            title=title or f"energy by distance from the boundary, {when}",
+            xlabel=f"distance from the boundary ({unit})")
     if geometry.dim == 3 and positions.shape[1] == 3 and not geometry.curved:
-        yield "energy_by_height.png", lambda ax: energy_by_distance(
-            positions[:, 2] - positions[:, 2].min(), final, res.masses, ax=ax,
-            title="energy by height (z), final state",
+        yield "energy_by_height.png", lambda ax, title=None: energy_by_distance(
+            positions[:, 2] - positions[:, 2].min(), v, masses, ax=ax, title=title or f"energy by height (z), {when}",
             xlabel=length_label("height z above the lowest layer", geometry.radius), first="lowest layer")
-    if final.ndim == 2 and 1 <= final.shape[1] <= 3:
-        yield "velocity_histograms.png", lambda ax: component_histograms(
-            final, title="velocity components, final state", quantile=ROBUST_RANGE, ax=ax)
+    if v.ndim == 2 and 1 <= v.shape[1] <= 3:
+        yield "velocity_histograms.png", lambda ax, title=None: component_histograms(
+            v, title=title or f"velocity components, {when}", quantile=ROBUST_RANGE, ax=ax)
 
 
 def _steps(snapshots) -> list[int]:
@@ -151,3 +158,31 @@ def plot_results(res, what: str = "final", *, snapshot: int | None = None, ax=No
         known = [w for w, name in PLOTS.items() if name in makers] + ["snapshot", "all"]
         raise ValueError(f"what: {what!r} is not a figure of this run; it has: {', '.join(known)}")
     return makers[PLOTS[what]](ax)
+
+
+#: what `plot_simulation` draws of a simulation's current state: ``what`` -> the figure of a run it is drawn as
+LIVE_PLOTS = {"state": "state_final", "energy": "energy_by_distance", "height": "energy_by_height",
+              "histograms": "velocity_histograms"}
+
+
+def plot_simulation(sim, what: str = "state", *, ax=None, title: str | None = None):
+    """A figure of ``sim``'s current state (`pinnedballs.Simulation.plot`), as a run's figures draw it
+    (`Results.plot`): ``what`` is ``"state"`` (its picture in the geometry's view), ``"energy"`` (energy by
+    distance from the boundary), ``"height"`` (energy by height, flat 3-D) or ``"histograms"`` (the velocity
+    components); into ``ax`` or a new figure, titled ``title`` (by default, the counts it is after). A
+    simulation keeps no snapshots (a `ResultsWriter` does): a ValueError names the figures it has when
+    ``what`` does not fit it."""
+    g, v = sim.geometry, np.asarray(sim.velocities, dtype=np.float64)
+    when = f"after {sim.steps:,} steps, {sim.collisions:,} collisions"
+    makers = {"state_final": lambda ax, title=None: state_picture(g)(v, title or when, ax=ax)}
+    makers.update((name.removesuffix(".png"), make) for name, make in _observed(g, g.positions, v, sim.masses, when))
+    known = [w for w, name in LIVE_PLOTS.items() if name in makers]
+    if not isinstance(what, str):
+        raise TypeError(f"what: must name a figure of this simulation ({', '.join(known)}), got {what!r}")
+    if what not in LIVE_PLOTS or LIVE_PLOTS[what] not in makers:
+        hint = {"final": "; its current state is 'state'"}.get(what, "; a simulation keeps no snapshots: record it "
+                                                                     "with a ResultsWriter, then pb.load(DIR).plot()"
+                                                            if what in ("initial", "snapshot", "snapshots", "all")
+                                                            else "")
+        raise ValueError(f"what: {what!r} is not a figure of this simulation; it has: {', '.join(known)}{hint}")
+    return makers[LIVE_PLOTS[what]](ax, title)

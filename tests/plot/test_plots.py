@@ -406,3 +406,14 @@ def test_a_long_title_is_wrapped_inside_the_figure(tmp_path):
     assert "\n" in text.get_text() and text.get_text().replace("\n", " ") == title
     box = text.get_window_extent(renderer=fig.canvas.get_renderer())
     assert 0 <= box.x0 and box.x1 <= fig.bbox.width
+
+
+def test_the_energy_profile_names_its_unit_only_from_the_radius():
+    """Its axis said "ball radii" for balls of radius 0.5 (issue 49): the unit comes from ``radius``,
+    and without one none is claimed."""
+    half = pb.HalfPlane(4, 6, radius=0.5)
+    v = np.random.default_rng(0).standard_normal((half.n_balls, 2))
+    label = {r: figures.energy_by_distance(half.boundary.distance, v, radius=r).axes[0].get_xlabel()
+             for r in (None, 0.5, 1.0)}
+    assert label == {None: "distance from the boundary", 0.5: "distance from the boundary (ball radius 0.5)",
+                     1.0: "distance from the boundary (ball radii)"}

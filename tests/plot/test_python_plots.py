@@ -149,3 +149,31 @@ def test_an_animation_shows_itself_in_a_notebook(half_plane_run, tmp_path):
     html = movie._repr_html_()
     data = re.search(r'src="data:image/gif;base64,([^"]+)"', html).group(1)
     assert base64.b64decode(data) == movie.read_bytes()
+
+
+def test_sim_plot_draws_the_figures_of_a_run_of_its_current_state():
+    """``sim.plot("energy")`` raised AttributeError: 'str' object has no attribute 'set_title' (issue 49):
+    the kinds `Results.plot` has that a live state has, drawn as a run draws them; the others named."""
+    half = pb.HalfPlane(5, 8, radius=0.5)
+    sim = pb.Simulation(half, np.random.default_rng(0).standard_normal((half.n_balls, 2)), seed=0)
+    sim.run(steps=300)
+    ax = sim.plot("energy").axes[0]
+    _, fraction = obs.energy_profile(half.boundary.distance, sim.velocities)
+    assert np.allclose([bar.get_height() for bar in ax.patches], fraction, rtol=0, atol=1e-15)
+    assert ax.get_title() == f"energy by distance from the boundary, after 300 steps, {sim.collisions:,} collisions"
+    assert ax.get_xlabel() == "distance from the boundary (ball radius 0.5)"
+    assert len(sim.plot("histograms").axes) >= 2 and quivers(sim.plot("state").axes[0])
+    with pytest.raises(ValueError, match=r"^what: 'height' is not a figure of this simulation; it has: state, "
+                                         r"energy, histograms$"):
+        sim.plot("height")  # flat 2-D
+    with pytest.raises(ValueError, match=r"a simulation keeps no snapshots: record it with a ResultsWriter, then "
+                                         r"pb\.load\(DIR\)\.plot\(\)$"):
+        sim.plot("snapshots")
+    with pytest.raises(TypeError, match=r"^what: must name a figure of this simulation \(state, energy, "
+                                        r"histograms\), got 3$"):
+        sim.plot(3)
+    mine = new_figure((4, 4))
+    assert sim.plot(mine.add_subplot()) is mine and quivers(mine.axes[0])  # the axes first, as before
+    cube = pb.FCC(2, 2, 2, periodic=(True, True, False))
+    sim3 = pb.Simulation(cube, np.random.default_rng(1).standard_normal((cube.n_balls, 3)), seed=0)
+    assert sim3.plot("height").axes[0].get_title().startswith("energy by height (z), after 0 steps")

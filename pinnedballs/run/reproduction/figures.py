@@ -87,9 +87,10 @@ def _figures_half_plane(out: Path, plan: Plan, geom, by_steps: _Run, by_collisio
         title = f"{name}: after {plan.collisions:,} collisions ({snap.state.steps:,} steps)"
     else:
         v, title = sim.velocities, f"{name}: frozen after {sim.collisions:,} collisions, before {plan.collisions:,}"
-    energy_by_distance(dist, v, title=title, path=out / f"fig3_energy_by_distance_collisions_{plan.collisions}.png")
+    energy_by_distance(dist, v, title=title, path=out / f"fig3_energy_by_distance_collisions_{plan.collisions}.png",
+                       radius=geom.radius)
     state = "frozen" if sim.is_frozen() else "not frozen"
-    energy_by_distance(dist, sim.velocities, path=out / "fig3_energy_by_distance_final.png",
+    energy_by_distance(dist, sim.velocities, path=out / "fig3_energy_by_distance_final.png", radius=geom.radius,
                        title=f"{name}: final state, {state} after {sim.collisions:,} collisions ({sim.steps:,} steps)")
 
 
@@ -110,6 +111,7 @@ def _figure_paper_lattice(out: Path, run: _Run) -> None:
 
     g = run.sim.geometry
     energy_by_distance(g.boundary.distance, run.sim.velocities, path=out / "extra_paper_lattice_energy_by_distance.png",
+                       radius=g.radius,
                        title=f"paper orientation ({g.n_balls:,} balls, rows perpendicular to the boundary): "
                              f"frozen after {run.sim.collisions:,} collisions")
 
