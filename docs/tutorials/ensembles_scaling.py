@@ -20,7 +20,7 @@
 # balls on log scales, and the same ensemble on a Dask cluster giving the same table, bit for bit.
 # (The page *Beyond the paper*, `docs/extended.md`, runs the same study up to 577,000 balls.)
 #
-# It runs top to bottom in about a minute on 2 cores.
+# It runs top to bottom in about a minute on a quiet 2-core machine (more where the cores are shared).
 
 # %%
 # %matplotlib inline

@@ -24,7 +24,7 @@
 # (The pages *Exact collision counts*, `docs/collisions.md`, and *Every order of collisions*,
 # `docs/orders.md`, are the reference.)
 #
-# It runs top to bottom in about half a minute on 2 cores.
+# It runs top to bottom in about half a minute on a quiet 2-core machine (more where the cores are shared).
 
 # %%
 # %matplotlib inline

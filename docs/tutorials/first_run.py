@@ -21,7 +21,8 @@
 #
 # This page is a notebook: open `docs/tutorials/first_run.py` in Jupyter (with jupytext), or run it
 # headless into a notebook with its outputs, `jupytext --to notebook --execute docs/tutorials/first_run.py`
-# (both from `python3 -m pip install ".[notebook]"`). It runs top to bottom in about half a minute.
+# (both from `python3 -m pip install ".[notebook]"`). It runs top to bottom in about half a minute on a quiet
+# 2-core machine (more where the cores are shared).
 
 # %%
 # %matplotlib inline

@@ -23,7 +23,7 @@
 # (The pages *Extending*, `docs/extending.md`, and *Testing your components*, `docs/testing.md`, are
 # the reference.)
 #
-# It runs top to bottom in one to two minutes on 2 cores, most of it compiling: a function defined
+# It runs top to bottom in one to two minutes on a quiet 2-core machine, most of it compiling: a function defined
 # in a notebook is compiled once per kernel (one defined in a module is cached on disk).
 
 # %%

@@ -21,7 +21,7 @@
 # point), and `pb.load_study` reads back one table, its means and errors, a fit and a figure.
 #
 # Here: half-planes of three small sizes, rows of balls along the boundary and across it (the paper's
-# 1,425-ball count), four replicas of each of the six points. It runs in about 15 seconds on 2 cores.
+# 1,425-ball count), four replicas of each of the six points. It runs in about 15 seconds on a quiet 2-core machine.
 
 # %%
 # %matplotlib inline

@@ -486,7 +486,8 @@ def _ensemble(args, status) -> int:
 
 @subcommand("reproduce", "every figure of the paper as PNG, and report.md comparing its numbers with ours",
             arg("--out", required=True, metavar="DIR", help="output directory (created)"),
-            arg("--quick", action="store_true", help="smaller sizes and fewer replicas (about 10 seconds on 2 cores)"),
+            arg("--quick", action="store_true",
+                help="smaller sizes and fewer replicas (about 10 seconds on a quiet 2-core machine)"),
             arg("--extended", action="store_true",
                 help="then the studies beyond the paper (about 25 minutes on 2 cores, 9 of them the exact "
                      "counts of 1000x500 and 6 the 2000x1000 half-plane; with --quick under a minute)"),

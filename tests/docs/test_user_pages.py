@@ -100,6 +100,22 @@ def test_the_gpu_page_says_certified_replicas_on_a_cluster_are_refused_as_the_co
     assert about and all("refused" in x for x in about), about
 
 
+#: a time a page quotes for a command or a notebook: "about 10 seconds", "about 15 s", "about half a minute"
+TIMING = re.compile(r"\b(?:about|in) (?:\d[\d.,]* ?(?:s|seconds?|minutes?)|(?:half a|a|one to two) minutes?)\b")
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/reproduce.md", *sorted(
+    str(p.relative_to(ROOT)) for p in (ROOT / "docs" / "tutorials").glob("*.py"))])
+def test_a_time_a_page_quotes_says_it_holds_on_a_quiet_machine(page):
+    """README's "about 10 s" for reproduce --quick, "about 15 s" for the simulator's example and the tutorials'
+    "about half a minute" held only on a quiet machine (a shared one took twice as long): each says so."""
+    words = " ".join(text(ROOT / page).replace("#", " ").split())
+    quoted = [m for m in re.finditer(TIMING, words)]
+    assert quoted or page != "README.md"
+    bare = [words[max(0, m.start() - 60):m.end() + 60] for m in quoted if "quiet" not in words[m.start():m.end() + 60]]
+    assert not bare, bare
+
+
 # ---------------------------------------------------------------- the GPU without a GPU
 
 
