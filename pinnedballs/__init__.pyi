@@ -27,9 +27,6 @@ from .geometry import GraphGeometry as GraphGeometry
 from .geometry import HalfPlane as HalfPlane
 from .geometry import HyperbolicPlane as HyperbolicPlane
 from .geometry import Sphere as Sphere
-from .geometry.simulation import FreezeWarning as FreezeWarning
-from .geometry.simulation import RunState as RunState
-from .geometry.simulation import Simulation as Simulation
 from .results.format import ResultsError as ResultsError
 from .results.load import Results as Results
 from .results.load import load as load
@@ -42,6 +39,9 @@ from .run.ensemble import run_ensemble as run_ensemble
 from .run.ensemble_dir import load_ensemble as load_ensemble
 from .run.execute import run_spec as run_spec
 from .run.gsd_writer import GSDWriter as GSDWriter
+from .run.study import run_study as run_study
+from .run.study_dir import StudyResult as StudyResult
+from .run.study_dir import load_study as load_study
 from .run.writers import ResultsWriter as ResultsWriter
 from .schedulers import ColoredSweep as ColoredSweep
 from .schedulers import RandomSweep as RandomSweep
@@ -50,9 +50,14 @@ from .schedulers import Replay as Replay
 from .schedulers import Scheduler as Scheduler
 from .schedulers import Sweep as Sweep
 from .schedulers import UniformRandomPair as UniformRandomPair
+from .simulation import FreezeWarning as FreezeWarning
+from .simulation import RunState as RunState
+from .simulation import Simulation as Simulation
 from .specs.errors import SpecError as SpecError
 from .specs.run import RunSpec as RunSpec
 from .specs.run import load_spec as load_spec
+from .specs.study import StudySpec as StudySpec
+from .specs.study import load_study_spec as load_study_spec
 from .util.errors import FieldError as FieldError
 from .util.errors import FieldTypeError as FieldTypeError
 from .util.errors import InputError as InputError

@@ -44,8 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.base import Geometry
-from ..geometry.simulation import Simulation
 from ..schedulers.replay import Replay
+from ..simulation import Simulation
 from ..util import checks
 from ..util.errors import FieldError, FieldTypeError
 from ..util.progress import Progress

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.base import Geometry
-from ..geometry.simulation import Simulation
 from ..schedulers.simple import UniformRandomPair
+from ..simulation import Simulation
 from ..util import checks
 from ..util.errors import FieldError
 from ..util.limits import check_memory

@@ -11,6 +11,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..engine.devices import DEVICE_NAMES, as_device
+
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
 
 EXIT_OK, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -50,9 +52,10 @@ class UsageError(Exception):
 TRACEBACK = arg("--traceback", action="store_true",
                 help="when a user's code named by the spec fails, print its traceback too (for debugging it)")
 
-DEVICE = arg("--device", choices=("cpu", "cuda"), default="cpu",
+DEVICE = arg("--device", choices=tuple(DEVICE_NAMES), default="cpu",
              help="where the chain runs: cpu, or cuda (an NVIDIA GPU, pip install \".[cuda]\"; the counter "
-                  "stream's scheduler, float arithmetic and a built-in rule; the same bits as on the CPU)")
+                  "stream's scheduler, float or certified arithmetic, any rule numba-cuda compiles with the CPU's "
+                  "rounding; the same bits as on the CPU)")
 
 
 # ---------------------------------------------------------------- subcommands
@@ -431,6 +434,7 @@ def _ensemble(args, status) -> int:
         _check_replicas_memory,
         _remove_old_outputs,
         check_count,
+        ensemble_plan,
         replica_seed,
         run_ensemble,
         write_outputs,
@@ -441,9 +445,6 @@ def _ensemble(args, status) -> int:
 
     replicas = check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
-    if args.device == "cuda" and args.workers is not None:
-        raise InputError("--device cuda runs the replicas on a GPU (this machine's, or each Dask worker's with "
-                         "--dask): give no --workers")
     if args.workers is not None:
         check_count("--workers", args.workers)
         if args.dask is not None:
@@ -454,8 +455,11 @@ def _ensemble(args, status) -> int:
     out = check_out_dir(args.out, args.force)
     status("building the geometry")
     sim = spec.build(seed=replica_seed(spec, 0))  # a spec that cannot build fails here, before any output
-    if args.device == "cuda":
-        spec.check_device(sim, here=args.dask is None)  # the stream and a GPU: before the lock makes the directory
+    # where the replicas run (the stream, and a GPU): before the lock makes the directory
+    if ensemble_plan(spec, sim, args.device, on_cluster=args.dask is not None) != "processes" \
+            and args.workers is not None:
+        raise InputError(f"--device {args.device} runs the replicas on a GPU (this machine's, or each Dask worker's "
+                         f"with --dask): give no --workers")
     status.clear()
     client = None
     if args.dask is not None:
@@ -512,10 +516,7 @@ def reproduce_command(args) -> int:
         if args.workers is not None:
             check_count("--workers", args.workers)
         check_out_dir(args.out, args.force)
-        if args.device == "cuda":  # numba-cuda and a GPU, before anything runs (with --extended or without)
-            from ..engine.gpu import load as gpu
-
-            gpu()
+        as_device(args.device).check()  # a GPU: numba-cuda and one, before anything runs (with --extended or not)
     shown = status.shown  # the stages and bars on a terminal only
     stage: list[str] = []  # the stage running: a note names the run it is about, on a terminal or not
 

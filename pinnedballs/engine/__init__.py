@@ -8,9 +8,10 @@ The map, a room per concern (package-wide helpers, errors and argument checks am
 * what components give the engine: `closing` (a rule's arithmetic, written once and compiled for every
   engine: the closing speed, the kick, the forms each engine runs), `selector` (a scheduler's
   `selector.Selector`);
-* the door: `door` (engines as registered objects: `engines()`, `register()`, `Engine.supports` answering
-  with a `door.Refusal`, and `door.choose`, the one place an engine is chosen), `engines` (the built-in
-  engines, one per room), `devices` (`devices.CPU`, `devices.CUDA`: where a chain runs, as objects);
+* the door: `protocol` (what an engine is: `protocol.Engine`, whose ``supports`` answers with None or a
+  `protocol.Refusal`), `door` (the registered engines: `engines()`, `register()`, and `door.choose`, the one
+  place an engine is chosen), `builtin` (the built-in engines, one per room), `devices` (`devices.CPU`,
+  `devices.CUDA`: where a chain runs, as objects);
 * running: `harness` (the limits of a run, written once: chunks, the collision target, the freeze),
   `backends` (what the engines build: the chunk protocol), `driver` (a run in chunks to its
   `stop.Stop`, its writers fired on their `triggers`);
@@ -27,6 +28,7 @@ when first used.
 import lazy_loader as _lazy
 
 __getattr__, __dir__, __all__ = _lazy.attach(__name__, submod_attrs={
-    "door": ["Engine", "Refusal", "Refused", "engines", "register", "unregister", "find", "choose", "check"],
+    "door": ["engines", "register", "unregister", "find", "choose", "check"],
+    "protocol": ["Engine", "Refusal", "Refused"],
     "devices": ["Device", "CPU", "CUDA", "as_device"],
 })

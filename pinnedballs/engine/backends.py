@@ -1,4 +1,4 @@
-"""How a simulation's chain runs: the backends the engines build (`engine.engines`; the door chooses, `engine.door`).
+"""How a simulation's chain runs: the backends the engines build (`engine.builtin`; the door chooses, `engine.door`).
 
 A backend takes the chain's plain data, its `Model` (what it is) and its `ChainState` (what changes,
 written in place), and never the simulation itself. Every backend speaks the engine's chunk protocol, which
@@ -12,8 +12,8 @@ the live contacts of any velocities (``live_flags``).
   (`ColoredSweep`); the paper's picks on several threads, by regions on the xoshiro stream
   (`engine.threads.regions`) or by deterministic reservations on the counter stream (`engine.threads.reservations`);
   the logging loops when someone listens for collisions.
-* `FieldBackend`: exact or certified arithmetic (`engine.field`), in the number field of the contact normals,
-  on the same picks.
+* `engine.field.backend.FieldBackend`: exact or certified arithmetic (`engine.field`), in the number field of
+  the contact normals, on the same picks.
 * `DeviceBackend`: floats on an NVIDIA GPU (`engine.gpu`), the counter stream's chain with the CPU's bits.
 """
 
@@ -22,9 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..util.errors import FieldError
-from .chain import COLLISIONS, LAST, LIVE, NO_LIMIT, STEPS, ChainState, LiveSet, Model, incidence
+from .chain import LIVE, NO_LIMIT, ChainState, LiveSet, Model, incidence
 from .devices import as_device
-from .harness import limits_loop
 from .sequential.loops import (
     FREEZE_CHUNK_MIN,
     FREEZE_CHUNK_PER_CONTACT,
@@ -33,11 +32,10 @@ from .sequential.loops import (
     live_kernel,
     loops,
 )
-from .streams.philox import CounterPicks
 from .threads.regions import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
 from .threads.tuning import most_threads
 
-__all__ = ["Backend", "LoopBackend", "FieldBackend", "DeviceBackend", "LOG_CAPACITY"]
+__all__ = ["Backend", "LoopBackend", "DeviceBackend", "LOG_CAPACITY"]
 
 #: collisions a logging loop records before handing them to the listeners
 LOG_CAPACITY = 1 << 16
@@ -97,6 +95,17 @@ class Backend:
         """What this chain's runs have used so far, as a run's provenance records it (`util.provenance`):
         ``{"kind": "cpu", "threads": 1}`` here (one thread); a backend that runs elsewhere says so."""
         return {"kind": "cpu", "threads": 1}
+
+    # ------------------------------------------------------------ its state, saved and restored
+    def saved(self) -> dict:
+        """The parts of a `engine.state.RunState` this backend's arithmetic keeps beyond the velocities, counters,
+        stream and scheduler, as copies: in float arithmetic the closing margin (``{"margin": (4,) float64}``)."""
+        return {"margin": self.state.margin.copy()}
+
+    def restore(self, state, velocities: np.ndarray) -> None:
+        """Take ``state``'s arithmetic's parts (`saved`'s), checked before anything changes, and ``velocities``
+        (``(n_balls, dim)``, checked by the simulation); a `FieldError` naming the part that does not fit."""
+        self.set_velocities(velocities)
 
 
 class LoopBackend(Backend):
@@ -238,93 +247,6 @@ class LoopBackend(Backend):
                 self.tell(log[:made, 0].copy(), log[:made, 1].copy())
             if made < len(log) or taken >= max_steps or st.collisions >= max_collisions:
                 return taken
-
-
-class FieldBackend(Backend):
-    """Exact or certified arithmetic on the CPU (the chain in ``state.field_chain``): the compiled selector's
-    picks in blocks, each tried by the field chain (`engine.field.rational.FieldChain.run`), within the limits of
-    `engine.harness`; a block cut short is drawn again to its end, so the stream and the scheduler's state
-    are those of the float loop after the same steps. A decision certified arithmetic cannot make raises
-    once the picks before it are counted."""
-
-    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, device=None):
-        super().__init__(model, state, listeners, device)
-        s, g = model.selector, model.geometry
-        self.loops = loops(model.collide, s.select, s.begin, s.changed, s.skips, g.dim, g.contacts.flat)
-        self._to_limits = limits_loop(_no_mark, self._advance, self._live, _no_settle)
-
-    def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
-        ex = self.state.field_chain
-        ex.prepare(until_frozen)
-        taken, *_ = self._to_limits(until_frozen, None, self.state.collisions, max_steps, max_collisions,
-                                    until_frozen, max(1, max_steps))
-        self.state.counters[LIVE] = ex.live
-        return taken
-
-    def _live(self, until_frozen, carry) -> bool:
-        return self.state.field_chain.live != 0  # -1: not known, so maybe live
-
-    def _advance(self, until_frozen, carry, count: int, left: int, taken: int, collisions: int):
-        """Blocks of picks to ``count`` steps or ``left`` collisions (or the freeze); the counters advanced."""
-        ex, st, s, n = self.state.field_chain, self.state, self.model.selector, self.model.geometry.n_contacts
-        used_all, made_all, last = 0, 0, -1
-        first = st.steps + 1  # the step of the chunk's first pick
-        drawn = s.counter and getattr(ex, "picks", None) is not None and ex.picks.draws and not self.listeners
-        while used_all < count and made_all < left and not (until_frozen and ex.live == 0) and ex.failure is None:
-            block = int(min(ex.block, count - used_all))
-            # the counter stream's picks, drawn where they are tried (a GPU): the stream's words (k0, k1, s, 0)
-            if drawn:
-                picks = CounterPicks(st.rng[0], st.rng[1], int(st.rng[2]), block, n)
-                used, made, at = ex.run(picks, left - made_all, until_frozen, first + used_all)
-                st.rng[2] = np.uint64(int(st.rng[2]) + used)
-            else:
-                rng, sched = st.rng.copy(), st.scheduler.copy()
-                picks = ex.picks_buffer(block)
-                self.loops.picks(st.scheduler, s.aux, st.rng, n, picks)
-                used, made, at = ex.run(picks, left - made_all, until_frozen, first + used_all)
-            if made:
-                at = np.asarray(at, dtype=np.int64)
-                last = used_all + int(at[-1])
-                if self.listeners:
-                    self.tell(first + used_all + at, picks[at])
-            if used < block and not drawn:
-                st.rng[:], st.scheduler[:] = rng, sched
-                self.loops.picks(st.scheduler, s.aux, st.rng, n, picks[:used])
-            used_all, made_all = used_all + used, made_all + made
-        st.counters[STEPS] += used_all  # the velocities are rounded when read (`velocities`)
-        st.counters[COLLISIONS] += made_all
-        if last >= 0:
-            st.counters[LAST] = first + last
-        failure, ex.failure = ex.failure, None
-        if failure is not None:
-            st.counters[LIVE] = ex.live
-            raise failure
-        return used_all, made_all, last, carry
-
-    def velocities(self) -> np.ndarray:
-        return self.state.field_chain.sync()
-
-    def resources(self) -> dict:
-        """One thread of the CPU, or the GPU its picks are tried on (`engine.gpu.describe`: certified arithmetic)."""
-        if not self.device.gpu:
-            return super().resources()
-        from .gpu import describe
-
-        return {"kind": "cuda", **describe()}
-
-    def approaching(self) -> int:
-        return self.state.field_chain.count_live()
-
-    def is_frozen(self) -> bool:
-        return self.approaching() == 0
-
-
-def _no_mark(data, carry, count, left):
-    return carry
-
-
-def _no_settle(data, start, carry, used, count, frozen):
-    return carry
 
 
 class DeviceBackend(Backend):

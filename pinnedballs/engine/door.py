@@ -3,7 +3,7 @@
 An `Engine` has a ``name``, the ``devices`` and ``arithmetics`` it runs, and answers `Engine.supports` with
 None or a `Refusal` (the field to change, the reason, what runs it instead); `Engine.build` gives the backend
 that runs a chain (`engine.backends`: the chunk protocol the driver calls). The built-in engines, one per room
-(`engine.engines`), are registered when the door is first used, in the order it prefers them; a user's engine
+(`engine.builtin`), are registered when the door is first used, in the order it prefers them; a user's engine
 comes in through `register` (docs/architecture.md), and ``Simulation(..., engine=NAME)`` forces one.
 
 `choose` is where every chain's engine is chosen: a `Simulation`, an ensemble's replicas together
@@ -14,83 +14,15 @@ device's name or matches a refusal's text: it asks the door, and prints what the
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 from ..util.errors import FieldError
 from .devices import Device, as_device
+from .protocol import Engine, Refusal
 
-__all__ = ["Refusal", "Refused", "Engine", "engines", "register", "unregister", "find", "choose", "check"]
+__all__ = ["engines", "register", "unregister", "find", "choose", "check", "options", "ARITHMETICS"]
 
-
-@dataclass(frozen=True)
-class Refusal:
-    """Why an engine does not run a chain: ``field`` (what to change: ``"device"``, ``"arithmetic"``,
-    ``"engine"``...), ``reason`` and ``instead`` (what runs it instead), and ``needs``: what it would take, by the
-    field a spec states it in (``{"scheduler": "counter"}``: the counter stream), for a caller that says it in
-    its own words."""
-
-    field: str
-    reason: str
-    instead: str = ""
-    needs: tuple[tuple[str, str], ...] = ()
-
-    @property
-    def message(self) -> str:
-        """The reason and what runs it instead, as one line."""
-        return f"{self.reason}; {self.instead}" if self.instead else self.reason
-
-    def error(self) -> Refused:
-        """The refusal as the error that says it (a `FieldError` on ``field``)."""
-        return Refused(self)
-
-
-class Refused(FieldError):
-    """A chain no engine runs, as the error that says so: a `FieldError` on the refusal's field, its
-    `Refusal` kept (``refusal``) for a caller that words it for its own input (a spec)."""
-
-    def __init__(self, refusal: Refusal):
-        super().__init__(refusal.field, refusal.message)
-        self.refusal = refusal
-
-    def __reduce__(self):
-        return type(self), (self.refusal,)
-
-
-class Engine:
-    """What runs chains: a name, the devices (kinds: ``"cpu"``, ``"cuda"``) and arithmetics it runs, whether it
-    runs an ensemble's replicas together (``replicas``), and the two calls of the door.
-
-    Subclass it, set the attributes, and override `supports` and `build` (docs/architecture.md shows one).
-    """
-
-    name: str = ""
-    devices: tuple[str, ...] = ()
-    arithmetics: tuple[str, ...] = ()
-    #: it runs many replicas of one spec together (an ensemble's), not one simulation's chain
-    replicas: bool = False
-
-    def supports(self, model, arithmetic: str, device: Device) -> Refusal | None:
-        """None when this engine runs ``model`` (`engine.chain.Model`) in ``arithmetic`` on ``device``, else why
-        not. Cheap: what needs a compile or a GPU is checked by `build`."""
-        return self.refuse_kinds(arithmetic, device)
-
-    def build(self, model, state, listeners: list, device: Device, options: dict):
-        """The backend running ``model`` from ``state`` (`engine.chain.ChainState`, written in place), telling
-        ``listeners`` of each collision; a `FieldError` where a check only the build can make fails."""
-        raise NotImplementedError
-
-    def refuse_kinds(self, arithmetic: str, device: Device) -> Refusal | None:
-        """The refusal of an arithmetic or a device this engine does not run at all."""
-        if device.kind not in self.devices:
-            return Refusal("device", f"engine {self.name!r} runs on {' and '.join(self.devices)}, not {device.kind}")
-        if arithmetic not in self.arithmetics:
-            return Refusal("arithmetic", f"engine {self.name!r} runs {' and '.join(self.arithmetics)} arithmetic, "
-                                         f"not {arithmetic}")
-        return None
-
-    def __repr__(self) -> str:
-        return (f"<engine {self.name!r}: {', '.join(self.arithmetics)} on {', '.join(self.devices)}"
-                f"{', replicas' if self.replicas else ''}>")
+#: the arithmetics a chain runs in (`Simulation`'s ``arithmetic``)
+ARITHMETICS = ("float", "exact", "certified")
 
 
 _REGISTRY: dict[str, Engine] = {}
@@ -102,7 +34,7 @@ def _registry() -> dict[str, Engine]:
     global _BUILT_IN
     if not _BUILT_IN:
         _BUILT_IN = True
-        from .engines import BUILT_IN
+        from .builtin import BUILT_IN
 
         for engine in BUILT_IN:
             _REGISTRY.setdefault(engine.name, engine)
@@ -203,3 +135,15 @@ def check(model, arithmetic: str, device, *, replicas: bool = False, here: bool 
     if prepare is not None:
         prepare(model, arithmetic, as_device(device), here=here, rule=rule, scheduler=scheduler)
     return chosen
+
+
+def options(arithmetic: str, precision=None, late_precision=None) -> dict:
+    """What the engines are given beside a chain, checked: its ``arithmetic`` (one of `ARITHMETICS`) and
+    certified arithmetic's ``precision`` and ``late_precision`` (bits: `engine.field.arithmetic.check_precisions`,
+    a `FieldError` naming the one that is wrong, or given to another arithmetic)."""
+    from ..util import checks
+    from .field.arithmetic import check_precisions
+
+    arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
+    precision, late_precision = check_precisions(arithmetic, precision, late_precision)
+    return {"arithmetic": arithmetic, "precision": precision, "late_precision": late_precision}

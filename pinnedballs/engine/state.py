@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +14,7 @@ from ..util.errors import FieldError, FieldTypeError
 from .field.fixed_state import CertifiedState
 from .margin import LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST
 
-__all__ = ["RunState", "as_state", "mass_array", "margin_problem"]
+__all__ = ["RunState", "mass_array", "margin_problem"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,48 +54,6 @@ class RunState:
         """This state with the fields named in ``changes`` replaced."""
         return dataclasses.replace(self, **changes)
 
-    # ------------------------------------------------------------ the dict it used to be (deprecated)
-    def keys(self) -> tuple[str, ...]:
-        """Deprecated: the names of the fields, as the dict `Simulation.get_state` used to give had them
-        (``exact`` only for a run in exact arithmetic, ``margin`` only where there is one)."""
-        _mapping_deprecated("keys()")
-        return self._keys()
-
-    def _keys(self) -> tuple[str, ...]:
-        names = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
-        return names + tuple(n for n in ("exact", "margin", "certified") if getattr(self, n) is not None)
-
-    def __getitem__(self, name: str):
-        """Deprecated: ``state["velocities"]``; use ``state.velocities``."""
-        _mapping_deprecated(f"state[{name!r}]", f"state.{name}" if isinstance(name, str) else "its fields")
-        if not isinstance(name, str) or name not in self._keys():
-            raise KeyError(name)
-        return getattr(self, name)
-
-    def __iter__(self):
-        _mapping_deprecated("iterating over it")
-        return iter(self._keys())
-
-    def __len__(self) -> int:
-        _mapping_deprecated("len()")
-        return len(self._keys())
-
-    def __contains__(self, name) -> bool:
-        _mapping_deprecated("'in'")
-        return name in self._keys()
-
-    def items(self):
-        _mapping_deprecated("items()")
-        return [(name, getattr(self, name)) for name in self._keys()]
-
-    def values(self):
-        _mapping_deprecated("values()")
-        return [getattr(self, name) for name in self._keys()]
-
-    def get(self, name, default=None):
-        _mapping_deprecated("get()")
-        return getattr(self, name) if isinstance(name, str) and name in self._keys() else default
-
     def identical(self, other: RunState) -> bool:
         """True when ``other`` is this state bit for bit (every array, dtype and count, the exact
         velocities, the margin and the certified state)."""
@@ -112,32 +68,6 @@ class RunState:
 def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     """Both None, or arrays equal element for element (``inf`` equals ``inf``)."""
     return (a is None) == (b is None) and (a is None or np.array_equal(a, b))
-
-
-#: old code reads a state as the dict it was until 2026-11: ``dict(state, steps=0)``, ``state["steps"]``
-Mapping.register(RunState)
-
-
-def _mapping_deprecated(what: str, instead: str = "its fields (state.velocities, state.replace(steps=...))") -> None:
-    warnings.warn(f"RunState is a record, no longer a dict: {what} is deprecated and will be removed; use {instead}",
-                  DeprecationWarning, stacklevel=3)
-
-
-def as_state(state) -> RunState:
-    """``state`` as a `RunState`: a dict (what `Simulation.get_state` gave until 2026-11) is still
-    taken, with a DeprecationWarning."""
-    if isinstance(state, Mapping) and not isinstance(state, RunState):
-        warnings.warn("Simulation.set_state: a dict is deprecated and will be removed; pass the RunState that "
-                      "get_state gives (RunState(**d) makes one of a dict)", DeprecationWarning, stacklevel=3)
-        names = [f.name for f in dataclasses.fields(RunState)]
-        missing = [n for n in names if n not in ("exact", "margin", "certified") and n not in state]
-        if missing:
-            raise FieldError("state", f"the dict lacks {', '.join(missing)}")
-        unknown = sorted(str(k) for k in state if k not in names)
-        if unknown:
-            raise FieldError("state", f"unknown key(s) {', '.join(unknown)} (a state has {', '.join(names)})")
-        return RunState(**state)
-    return state
 
 
 def margin_problem(margin) -> str | None:

@@ -18,8 +18,8 @@ from ..engine.margin import ClosingMargin
 from ..engine.state import RunState, mass_array
 from ..geometry.base import Boundary, Geometry
 from ..geometry.graph import StoredGeometry
-from ..geometry.simulation import Simulation
 from ..rules import check_resolution, threshold
+from ..simulation import Simulation
 from ..specs.errors import SpecError, UserCodeError
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.python import IMPORT_FACTORIES, label

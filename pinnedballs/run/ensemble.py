@@ -38,6 +38,7 @@ from ..engine import door
 from ..engine.devices import Device, as_device
 from ..engine.field.arithmetic import AUTO, until_proved
 from ..engine.margin import NEAR, ClosingMargin, MarginWarning
+from ..engine.protocol import Refused
 from ..geometry.base import Geometry
 from ..rules import DEFAULT_RESOLUTION
 from ..specs.run import RunSpec
@@ -436,10 +437,10 @@ def ensemble_plan(spec: RunSpec, sim, device: str | Device, *, on_cluster: bool 
     try:
         door.check(model, spec.arithmetic, device, replicas=True, here=not on_cluster)
         return "together"
-    except door.Refused as together:
+    except Refused as together:
         try:
             door.check(model, spec.arithmetic, device)
-        except door.Refused:
+        except Refused:
             raise spec.refused(together.refusal) from None
     if not device.gpu:
         return "processes"

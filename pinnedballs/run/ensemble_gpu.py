@@ -24,8 +24,8 @@ from ..engine.rows import row_pattern
 from ..engine.state import RunState, mass_array
 from ..engine.streams.philox import counter_stream
 from ..engine.streams.xoshiro import seed_state
-from ..geometry.simulation import check_velocities
 from ..rules import threshold
+from ..simulation import check_velocities
 
 __all__ = ["run_on_gpu", "on_worker_gpu", "groups", "gpu_workers", "Replica", "replica_pattern", "MAX_THREAD_CONTACTS",
            "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS", "WORKER_GROUP"]

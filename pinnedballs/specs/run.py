@@ -13,12 +13,12 @@ from pydantic import AfterValidator, BaseModel, PrivateAttr, ValidationError, fi
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
 from ..engine.devices import Device, as_device
-from ..engine.door import Refusal, Refused
 from ..engine.field.arithmetic import AUTO, MAX_PRECISION, auto_precisions
+from ..engine.protocol import Refusal, Refused
 from ..engine.state import mass_array
 from ..geometry.base import Geometry
-from ..geometry.simulation import Simulation
 from ..rules import check_resolution
+from ..simulation import Simulation
 from ..util.errors import FieldError, InputError
 from ..util.limits import check_memory
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors

@@ -12,7 +12,7 @@ from typing import NoReturn
 import numpy as np
 
 from ..geometry.base import Contacts, Geometry
-from ..geometry.simulation import Simulation
+from ..simulation import Simulation
 
 __all__ = ["fail", "vector", "TableGeometry", "pair_geometry", "simulation", "SEED"]
 

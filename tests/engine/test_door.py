@@ -1,4 +1,4 @@
-"""The engine's door (`engine.door`, `engine.engines`, `engine.devices`): the registered engines say what they
+"""The engine's door (`engine.door`, `engine.builtin`, `engine.devices`): the registered engines say what they
 run, one function chooses, refusals are structured, devices are objects, and a forced engine gives the bits
 of the one the door would choose."""
 

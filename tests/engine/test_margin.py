@@ -19,8 +19,8 @@ from pinnedballs.engine.margin import (
     remnant_speed,
     track,
 )
-from pinnedballs.geometry.simulation import FreezeWarning
 from pinnedballs.rules import DEFAULT_RESOLUTION, collide_elastic
+from pinnedballs.simulation import FreezeWarning
 
 
 def _pair(v):

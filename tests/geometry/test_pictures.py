@@ -6,7 +6,6 @@ from __future__ import annotations
 import types
 
 import numpy as np
-import pytest
 
 import pinnedballs as pb
 from pinnedballs.geometry import pictures

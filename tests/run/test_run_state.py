@@ -1,9 +1,11 @@
-"""`RunState`, the record `Simulation.get_state` gives, still reads as the dict it was until 2026-11
-(issue 26, item 9): old code keeps working for a release, each use warned as deprecated."""
+"""`RunState`, the record `Simulation.get_state` gives and `set_state` takes: all of a run that changes, so that
+a run split at a saved state ends on the bits of the unbroken one (its margin too); a bad part is refused by
+name, changing nothing."""
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 
 import numpy as np
 import pytest
@@ -24,45 +26,15 @@ def run_sim(seed: int = 4) -> pb.Simulation:
     return sim
 
 
-def test_a_state_reads_as_the_dict_it_was_with_a_deprecation_warning():
-    st = run_sim().get_state()
-    with pytest.warns(DeprecationWarning, match=r"^RunState is a record, no longer a dict: state\['velocities'\] is "
-                                                r"deprecated and will be removed; use state.velocities$"):
-        v = st["velocities"]
-    assert v is st.velocities
-    with pytest.warns(DeprecationWarning):
-        assert list(st.keys()) == FLOAT_KEYS
-    with pytest.warns(DeprecationWarning):
-        assert list(st) == FLOAT_KEYS and len(st) == 6 and "steps" in st and "exact" not in st
-    with pytest.warns(DeprecationWarning):
-        old = dict(st, steps=99)
-    assert sorted(old) == sorted(FLOAT_KEYS) and old["steps"] == 99 and old["collisions"] == st.collisions
-    assert old["rng_state"] is st.rng_state
-    with pytest.warns(DeprecationWarning), pytest.raises(KeyError):
-        st["energy"]
-
-
-def test_set_state_still_takes_a_dict_and_continues_bit_for_bit():
-    a, b = run_sim(), run_sim()
-    with pytest.warns(DeprecationWarning):
-        saved = dict(a.get_state())  # what old code kept
-    a.run(steps=50)
-    with pytest.warns(DeprecationWarning, match=r"^Simulation.set_state: a dict is deprecated"):
-        a.set_state(saved)
-    assert a.get_state().identical(b.get_state())
-    a.run(steps=50)
-    b.run(steps=50)
-    assert a.get_state().identical(b.get_state())
-
-
-def test_a_dict_missing_a_field_or_with_a_stray_key_is_refused_by_name():
+def test_a_state_is_a_record_and_set_state_refuses_a_dict_in_one_line():
+    """1.0: the dict a state was until 2026-11 is gone (CHANGELOG): ``set_state`` names what it takes."""
     sim = run_sim()
     st = sim.get_state()
+    assert not isinstance(st, Mapping) and [f.name for f in dataclasses.fields(st)][:5] == OLD_KEYS
     fields = {f.name: getattr(st, f.name) for f in dataclasses.fields(st)}
-    with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match=r"^state: the dict lacks rng_state$"):
-        sim.set_state({k: v for k, v in fields.items() if k != "rng_state"})
-    with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match=r"^state: unknown key\(s\) energy "):
-        sim.set_state({**fields, "energy": 1.0})
+    with pytest.raises(TypeError, match=r"^state: must be a RunState \(what get_state gives\), got dict$"):
+        sim.set_state(fields)
+    sim.set_state(pb.RunState(**fields))  # a dict of its fields makes one
     assert sim.get_state().identical(st)
 
 
@@ -74,34 +46,20 @@ def test_a_state_stays_a_frozen_record():
     assert st.replace(steps=5).steps == 5 and st.steps == 37
 
 
-def test_an_exact_state_lists_its_exact_velocities():
+def test_an_exact_state_holds_its_exact_velocities_and_continues_bit_for_bit():
     g = pb.FlatTorus(4, 4)
     v = np.zeros((16, 2))
     v[0] = (1.0, 0.0)
     sim = pb.Simulation(g, v, seed=2, arithmetic="exact")
     sim.run(steps=20)
-    with pytest.warns(DeprecationWarning):
-        old = dict(sim.get_state())
-    assert list(old) == [*OLD_KEYS, "exact"]
+    saved = sim.get_state()
+    assert saved.exact.shape == (16, 2, 2) and saved.margin is None and saved.certified is None
     other = pb.Simulation(g, v, seed=2, arithmetic="exact")
-    with pytest.warns(DeprecationWarning):
-        other.set_state(old)
+    other.set_state(saved)
+    assert other.get_state().identical(saved)
+    other.run(steps=30)
+    sim.run(steps=30)
     assert other.get_state().identical(sim.get_state())
-
-
-def test_the_record_lives_below_the_simulation_and_keeps_its_old_names():
-    """`RunState` and `mass_array` moved to `engine.state`; ``pb.RunState``, the simulation's module and
-    the import scripts used (``from pinnedballs.run.simulation import RunState``, which the simulation
-    left for `geometry.simulation`: a DeprecationWarning) name the same objects."""
-    from pinnedballs.engine import state
-    from pinnedballs.geometry import simulation
-
-    with pytest.warns(DeprecationWarning, match="moved to pinnedballs.geometry.simulation"):
-        from pinnedballs.run.simulation import RunState, mass_array
-    assert pb.RunState is RunState is state.RunState is simulation.RunState and mass_array is state.mass_array
-    with pytest.warns(DeprecationWarning):
-        from pinnedballs.run.simulation import FreezeWarning, Simulation
-    assert Simulation is pb.Simulation and FreezeWarning is simulation.FreezeWarning
 
 
 def test_the_margin_travels_with_the_state():

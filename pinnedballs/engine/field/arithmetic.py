@@ -24,11 +24,9 @@ from .fixed import PRECISION, FixedChain, NotFixed, UncertifiedDecision, lines_o
 from .numbers import NotExact
 from .rational import RationalChain
 
-__all__ = ["field_chain", "built_field_chain", "check_precisions", "ARITHMETICS", "MAX_PRECISION", "AUTO",
+__all__ = ["field_chain", "built_field_chain", "check_precisions", "MAX_PRECISION", "AUTO",
            "AUTO_GROWTH", "AUTO_START", "auto_precisions", "next_precisions", "auto_failure", "until_proved"]
 
-#: the values of `Simulation`'s ``arithmetic``
-ARITHMETICS = ("float", "exact", "certified")
 #: the largest certified precision, in bits (64 limbs a coefficient). The error bounds are kept in units
 #: of the state's last place (`fixed_kernels`), so no precision makes them underflow
 MAX_PRECISION = 4096

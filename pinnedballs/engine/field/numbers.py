@@ -300,13 +300,3 @@ def snap(units: np.ndarray, tolerance: float) -> np.ndarray:
     field, exact = recognise(units, tolerance)
     out = np.array([[field.to_float(t) for t in vector] for vector in exact], dtype=np.float64).reshape(units.shape)
     return np.copysign(out, units)
-
-
-def __getattr__(name: str):
-    if name == "Exact":  # its name until 2026-11: "exact" now names the arithmetic alone
-        import warnings
-
-        warnings.warn("pinnedballs.engine.field.numbers.Exact is pinnedballs.engine.field.numbers.FieldNumber",
-                      DeprecationWarning, stacklevel=2)
-        return FieldNumber
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

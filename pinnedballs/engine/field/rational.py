@@ -13,8 +13,6 @@ where the fixed-point chain (`fixed`) cannot: unequal masses, restitution, HCP's
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ..chain import incidence
@@ -123,11 +121,3 @@ class RationalChain(FieldChain):
         """The float roundings written into ``shadow`` (the simulation's velocities), which it returns."""
         self.shadow[:] = self.floats
         return self.shadow
-
-
-def __getattr__(name: str):
-    if name == "ExactChain":  # its name until 2026-11: "exact" now names the arithmetic alone
-        warnings.warn("pinnedballs.engine.field.rational.ExactChain is pinnedballs.engine.field.rational.RationalChain",
-                      DeprecationWarning, stacklevel=2)
-        return RationalChain
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

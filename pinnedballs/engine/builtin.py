@@ -16,9 +16,9 @@ Each gives the bits of ``sequential`` (``field``'s: exact arithmetic's decisions
 from __future__ import annotations
 
 from ..util.errors import FieldError, described
-from .backends import DeviceBackend, FieldBackend, LoopBackend
+from .backends import DeviceBackend, LoopBackend
 from .devices import Device
-from .door import Engine, Refusal
+from .protocol import Engine, Refusal
 
 __all__ = ["Sequential", "Threads", "ColoredSweepThreads", "Field", "GPU", "GPUCertified", "GPUReplicas",
            "BUILT_IN", "COUNTER"]
@@ -101,7 +101,9 @@ class Field(Engine):
         state.field_chain = built_field_chain(model, state.velocities, options["arithmetic"],
                                               options.get("precision"), options.get("late_precision"), picks)
         state.velocities = state.field_chain.shadow  # its values rounded, brought up to date when read
-        return FieldBackend(model, state, listeners, device=device)
+        from .field.backend import FieldBackend
+
+        return FieldBackend(model, state, listeners, device=device, arithmetic=options["arithmetic"])
 
 
 class _OnGPU(Engine):

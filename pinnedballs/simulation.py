@@ -1,7 +1,8 @@
 """`Simulation`: balls on a geometry, run by a scheduler under a rule; owns the velocities, the counters
-and the random stream. It stands beside the geometry it is built on, below what builds, records and
-studies it (specs, results, analysis, run); the engine's driver runs it. (`RunState`, all of it that
-changes during a run as one record, lives in `engine.state`; its name is imported here too.)"""
+and the random stream. The one object every user meets: it stands on the geometry it is built on and the
+engine's door (`engine.door`), which chooses and builds what runs its chain, and below what builds, records
+and studies it (specs, results, analysis, run). (`RunState`, all of it that changes during a run as one
+record, lives in `engine.state`; its name is imported here too.)"""
 
 from __future__ import annotations
 
@@ -9,31 +10,27 @@ import warnings
 
 import numpy as np
 
-from ..engine.backends import Backend
-from ..engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
-from ..engine.devices import Device, as_device
-from ..engine.door import choose
-from ..engine.driver import check_writers, drive
-from ..engine.field.arithmetic import ARITHMETICS, check_precisions
-from ..engine.field.chain import FieldChain
-from ..engine.field.fixed_state import CertifiedState, nearest_floats
-from ..engine.field.limbs import from_limbs
-from ..engine.margin import ClosingMargin, MarginWarning, new_margin
-from ..engine.state import RunState, as_state, margin_problem, mass_array
-from ..engine.stop import Stop
-from ..engine.streams.philox import counter_stream
-from ..engine.streams.xoshiro import seed_state
-from ..rules import CollisionRule, Elastic, check_resolution, threshold
-from ..schedulers.base import Scheduler
-from ..schedulers.simple import UniformRandomPair
-from ..util import checks
-from ..util.errors import FieldError, FieldTypeError, check_jitted
-from ..util.limits import check_speeds
-from ..util.sigint import deferred
-from ..util.sums import kinetic_energy, momentum
-from .base import Geometry
-from .checks import check_contacts
-from .pictures import display
+from .engine.backends import Backend
+from .engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
+from .engine.devices import Device, as_device
+from .engine.door import choose, options
+from .engine.driver import check_writers, drive
+from .engine.margin import ClosingMargin, MarginWarning, new_margin
+from .engine.state import RunState, margin_problem, mass_array
+from .engine.stop import Stop
+from .engine.streams.philox import counter_stream
+from .engine.streams.xoshiro import seed_state
+from .geometry.base import Geometry
+from .geometry.checks import check_contacts
+from .geometry.pictures import display
+from .rules import CollisionRule, Elastic, check_resolution, threshold
+from .schedulers.base import Scheduler
+from .schedulers.simple import UniformRandomPair
+from .util import checks
+from .util.errors import FieldError, FieldTypeError, check_jitted
+from .util.limits import check_speeds
+from .util.sigint import deferred
+from .util.sums import kinetic_energy, momentum
 
 __all__ = ["Simulation", "RunState", "mass_array", "check_velocities", "FreezeWarning"]
 
@@ -186,8 +183,8 @@ class Simulation:
         #: order, in batches (`pinnedballs.run.collision_log.CollisionLog` is one); the loops that
         #: record them run a little slower
         self.collision_listeners: list = []
-        self.arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
-        precision, late_precision = check_precisions(self.arithmetic, precision, late_precision)
+        given = options(arithmetic, precision, late_precision)  # checked
+        self.arithmetic = given["arithmetic"]
         #: where the chain runs: a `pinnedballs.CPU` or `pinnedballs.CUDA` (given as one, or as "cpu" or "cuda");
         #: information about a run, not part of its model (the same bits on either)
         self.device = as_device(device)
@@ -199,9 +196,7 @@ class Simulation:
         state = ChainState(v, np.zeros(COUNTERS, dtype=np.int64), rng, scheduler.initial_state(geometry.n_contacts),
                            new_margin())  # the margin: every pick's closing speed against the threshold
         chosen = choose(model, self.arithmetic, self.device, engine=engine)
-        self._engine = chosen.build(model, state, self.collision_listeners, self.device,
-                                    {"arithmetic": self.arithmetic, "precision": precision,
-                                     "late_precision": late_precision})
+        self._engine = chosen.build(model, state, self.collision_listeners, self.device, given)
         #: the registered engine running the chain (`pinnedballs.engine.engines()`), by name
         self.engine_name = chosen.name
 
@@ -213,7 +208,7 @@ class Simulation:
         return self._engine
 
     @property
-    def _field(self) -> FieldChain | None:
+    def _field(self):
         """The chain of exact or certified arithmetic (None in float arithmetic)."""
         return self._engine.state.field_chain
 
@@ -339,7 +334,7 @@ class Simulation:
 
     @property
     def exact_velocities(self) -> np.ndarray | None:
-        """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.field.numbers.Exact` numbers) of a run in
+        """``(n_balls, dim)`` exact velocities (`pinnedballs.engine.field.numbers.FieldNumber` numbers) of a run in
         exact arithmetic; None in float or certified arithmetic."""
         if self._field is None or self.arithmetic != "exact":
             return None
@@ -377,21 +372,18 @@ class Simulation:
     def get_state(self) -> RunState:
         """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
         margin too: a float run's as ``margin``, a certified run's decisions' in ``certified``; none is kept
-        in exact arithmetic)."""
-        st, field = self._engine.state, self._field
-        exact = field.coefficients() if self.arithmetic == "exact" else None
-        certified = field.certified_state() if self.arithmetic == "certified" else None
-        margin = None if field is not None else st.margin.copy()
+        in exact arithmetic). What the arithmetic keeps beyond the velocities is its engine's to say
+        (`engine.backends.Backend.saved`)."""
+        st = self._engine.state
         return RunState(self.velocities.copy(), self.steps, self.collisions, st.rng.copy(), st.scheduler.copy(),
-                        exact, margin, certified)
+                        **self._engine.saved())
 
     def set_state(self, state: RunState) -> None:
         """Restore a state from `get_state` (of a simulation with the same geometry, rule and
         scheduler). Everything is checked before anything changes. A state without a margin (one
-        written before runs kept it) starts the margin afresh: it then covers the picks from here on.
-        (A dict with the same keys, what `get_state` gave until 2026-11, is still taken, with a
-        DeprecationWarning.)"""
-        state = as_state(state)
+        written before runs kept it) starts the margin afresh: it then covers the picks from here on."""
+        if not isinstance(state, RunState):
+            raise FieldTypeError("state", f"must be a RunState (what get_state gives), got {type(state).__name__}")
         velocities = check_velocities(self.geometry, self._masses, state.velocities)
         rng = np.asarray(state.rng_state)
         if rng.shape != (4,) or rng.dtype != np.uint64 or not rng.any():
@@ -408,42 +400,11 @@ class Simulation:
             raise FieldError("collisions", f"{collisions} is more than the {steps} steps taken")
         if state.margin is not None and (problem := margin_problem(state.margin)) is not None:
             raise FieldError("margin", problem)
-        exact = self._exact_state(state, velocities)
-        if self.arithmetic == "certified":
-            self._field.set_certified_state(self._certified_state(state, velocities))
-        elif exact is not None:
-            try:
-                self._field.set_velocities(exact)
-            except ValueError as exc:
-                raise FieldError("exact", str(exc)) from None
-        else:
-            self.velocities = velocities
+        self._engine.restore(state, velocities)  # the arithmetic's own parts, checked there first
         st = self._engine.state
         st.rng, st.scheduler = rng.copy(), sched.copy()
         st.counters[STEPS], st.counters[COLLISIONS] = steps, collisions
         st.margin[:] = new_margin() if state.margin is None else state.margin
-
-    def _exact_state(self, state: RunState, velocities: np.ndarray) -> list | None:
-        """The exact velocities of ``state`` for an exact simulation (None for a float one), checked:
-        they parse in this geometry's field and round to ``velocities``."""
-        if self.arithmetic != "exact":
-            return None
-        if state.exact is None:
-            raise FieldError("exact", "a simulation in exact arithmetic resumes only from an exact state "
-                                      "(this one holds float velocities only)")
-        shape = (*velocities.shape, self._field.field.m)
-        if np.shape(state.exact) != shape:
-            raise FieldError("exact", f"must have shape (n_balls, dim, m) = {shape} in {self._field.field}, "
-                                      f"got {np.shape(state.exact)}")
-        try:
-            exact = self._field.parse(state.exact)
-        except (ValueError, TypeError, ZeroDivisionError) as exc:
-            raise FieldError("exact", f"a coefficient is not a rational number ({exc})") from None
-        F = self._field.field
-        rounded = np.array([[F.to_float(x) for x in row] for row in exact])
-        if not np.array_equal(rounded, velocities):
-            raise FieldError("exact", "the exact velocities do not round to the state's velocities")
-        return exact
 
     def plot(self, what: str = "state", ax=None, title: str | None = None):
         """A figure of the current state, as a run's figures draw it (`pinnedballs.plot.run.plot_simulation`).
@@ -486,20 +447,6 @@ class Simulation:
         shown = display()
         return shown.mimebundle(self, shown.simulation_html, shown.simulation_png, include, exclude)
 
-    def _certified_state(self, state: RunState, velocities: np.ndarray) -> CertifiedState:
-        """The `CertifiedState` of ``state`` for a certified simulation, checked: it fits this geometry
-        and its nearest floats are ``velocities``."""
-        c = state.certified
-        if not isinstance(c, CertifiedState):
-            raise FieldError("certified", "a simulation in certified arithmetic resumes only from a certified state "
-                                          f"(this one holds {'exact' if state.exact is not None else 'float'} "
-                                          "velocities)")
-        ex = self._field
-        c.check((*velocities.shape, ex.field.m), ex.B.shape[1])
-        if not np.array_equal(nearest_floats(from_limbs(c.limbs), int(c.scale), ex.field.basis[-1]), velocities):
-            raise FieldError("certified", "the fixed-point velocities do not round to the state's velocities")
-        return c
-
     def __repr__(self) -> str:
         return (f"Simulation({self.geometry!r}, rule={self.rule!r}, scheduler={self.scheduler!r}, "
                 f"steps={self.steps}, collisions={self.collisions})")
@@ -511,8 +458,8 @@ def _outside_the_package() -> int:
     import sys
     from pathlib import Path
 
-    # the package's root (this module lives in geometry/): the driver (engine/) calls back into it on the way
-    package, frame, level = str(Path(__file__).resolve().parent.parent) + os.sep, sys._getframe(1), 1
+    # the package's root (this module lives at its top): the driver (engine/) calls back into it on the way
+    package, frame, level = str(Path(__file__).resolve().parent) + os.sep, sys._getframe(1), 1
     while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(package):
         frame, level = frame.f_back, level + 1
     return level

@@ -32,7 +32,7 @@ from reference import ReferenceSimulation
 from scipy import stats
 
 import pinnedballs as pb
-from pinnedballs.geometry.simulation import FreezeWarning
+from pinnedballs.simulation import FreezeWarning
 
 SCHEDULERS = [pb.UniformRandomPair, pb.Sweep, pb.RandomSweep]
 
