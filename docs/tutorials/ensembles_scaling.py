@@ -118,13 +118,16 @@ ax.legend()
 # processes import the script again, and without the guard each starts a cluster of its own ("Nanny
 # failed to start"). *Getting started* (`docs/getting-started.md`, "Many replicas: ensembles and Dask")
 # has that script, a cluster started by hand (`dask scheduler`, `dask worker ADDRESS`, `--dask ADDRESS`)
-# and a recipe for SLURM.
+# and a recipe for SLURM. The client is opened after the cluster and closed before it (one `with`,
+# which closes in reverse order): a cluster closed under a client still talking to it has Dask print
+# its connections' errors.
 
 # %%
-from dask.distributed import LocalCluster
+from dask.distributed import Client, LocalCluster
 
-with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-    on_dask = pb.run_ensemble(half_plane(60, 30), replicas=8, cluster=cluster)
+with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+        Client(cluster) as client:
+    on_dask = pb.run_ensemble(half_plane(60, 30), replicas=8, cluster=client)
 on_dask
 
 # %%

@@ -130,6 +130,9 @@ def test_ensembles_and_the_scaling_law(tmp_path):
     fit = re.fullmatch(r"collisions ~ [\d.]+ N\^([\d.]+)\n", printed(outputs(nb, "np.polyfit")))
     assert 1.5 < float(fit.group(1)) < 1.8                                 # docs/extended.md: 1.72 to 1.63 here
     assert text(outputs(nb, "on_dask.to_pandas().equals")) == "True"       # the same table on Dask
+    said = "".join(_without_bars(o) for c in nb.cells if c.cell_type == "code" for o in c.outputs
+                   if o.get("output_type") == "stream")
+    assert "Traceback" not in said and " - ERROR - " not in said, said     # the cluster closed after its client
     assert text(outputs(nb, "pb.load_ensemble(")).startswith("True\nEnsembleResult(8 replicas of half_plane")
     scaling = text(outputs(nb, "scaling = pd.DataFrame"))
     assert all(f"{size} " in scaling for size in ("10x5", "20x10", "30x15", "60x30", "100x50"))

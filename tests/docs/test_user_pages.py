@@ -195,3 +195,4 @@ def test_the_local_cluster_script_runs_as_a_script(tmp_path):
     done = subprocess.run([sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
     assert re.search(r"^count\s+8\.0+$", done.stdout, flags=re.M), done.stdout
+    assert "Traceback" not in done.stderr and " - ERROR - " not in done.stderr, done.stderr  # closed in order
