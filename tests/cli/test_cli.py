@@ -332,3 +332,17 @@ def test_a_closed_pipe_ends_quietly():
     finally:
         os.close(write_end)
     assert (proc.returncode, proc.stderr) == (0, "")
+
+
+def test_an_ensemble_says_the_replicas_time_and_the_whole_commands(tmp_path):
+    """It said "done in 5.3 s" of a command of 34.9 s (issue 49): the replicas' time, as summary.json keeps it,
+    and the command's, which holds it."""
+    out = tmp_path / "e"
+    code, stdout, err = call("ensemble", write(tmp_path / "s.json", TORUS), "--replicas", 3, "--workers", 1,
+                             "--out", out)
+    said = re.fullmatch(r"3 of 3 replicas done in ([\d.]+) s \(in-process\), ([\d.]+) s for the whole command; "
+                        r"wrote (.+)\n", stdout)
+    assert (code, err) == (0, "") and said and said.group(3) == str(out)
+    replicas, whole = float(said.group(1)), float(said.group(2))
+    assert f"{json.loads((out / 'summary.json').read_text())['wall_seconds']:.1f}" == said.group(1)
+    assert whole >= replicas
