@@ -32,3 +32,12 @@ from .scheduler_checks import check_scheduler_picks_in_range as check_scheduler_
 from .scheduler_checks import check_scheduler_same_seed_same_run as check_scheduler_same_seed_same_run
 from .scheduler_checks import check_scheduler_split_run as check_scheduler_split_run
 from .scheduler_checks import check_scheduler_state_round_trip as check_scheduler_state_round_trip
+from .engine_checks import ENGINE_CHECKS as ENGINE_CHECKS
+from .engine_checks import check_engine as check_engine
+from .engine_checks import check_engine_agrees_with_reference as check_engine_agrees_with_reference
+from .engine_checks import check_engine_collision_target as check_engine_collision_target
+from .engine_checks import check_engine_refuses as check_engine_refuses
+from .engine_checks import check_engine_resume as check_engine_resume
+from .engine_checks import check_engine_split_runs as check_engine_split_runs
+from .engine_checks import check_engine_until_frozen as check_engine_until_frozen
+from .engine_checks import engine_checks_for as engine_checks_for

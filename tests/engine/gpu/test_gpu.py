@@ -53,22 +53,6 @@ def test_a_half_plane_runs_to_frozen_with_the_cpu_bits():
     assert s.energy() == pytest.approx(100.0, rel=1e-12)
 
 
-def test_collision_targets_and_split_runs():
-    """A collision target stops right after that collision (found in the batch that passed it, the chunk
-    run again to it); runs split into calls give the bits of one."""
-    g = pb.HalfPlane.from_size(20, 10)
-
-    def run(sim):
-        sim.run(collisions=100, progress=False)
-        assert sim.collisions == 100
-        sim.run(steps=137, progress=False)
-        sim.run(collisions=sim.collisions + 1, progress=False)
-        sim.run_until_frozen(max_steps=10**6, progress=False)
-
-    (cpu, _), (gpu, _) = both(g, single(g), run)
-    assert gpu == cpu
-
-
 def _chain_run(geometry, v, steps, masses=None, rule=None, pattern=None, **chain):
     """The CPU's run of ``steps`` and a `DeviceChain`'s (``chain`` options), as states."""
     cpu = pb.Simulation(geometry, v, scheduler=COUNTER, seed=8, masses=masses, rule=rule)
