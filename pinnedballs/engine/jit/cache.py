@@ -8,6 +8,12 @@ per-process id: every process would miss and compile again (seconds each).
 source file, or, for one no file holds (a notebook's cell), its source as
 `linecache` keeps it and the values of the globals it reads (`function_key`),
 so a notebook's rule compiles once, not in every new kernel.
+
+Where: ``NUMBA_CACHE_DIR`` if it is set (numba's own rule), else a per-user cache directory of the
+package's (`cache_root`: ``~/.cache/pinnedballs/numba/<version>`` on Linux, the platform's user cache
+directory elsewhere), never the ``__pycache__`` beside the sources, which numba's default fills in a
+source checkout (``python3 -m pinnedballs`` run inside one wrote into the tree). Only where that
+directory cannot be written does numba's next choice, beside the sources, apply.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ import functools
 import hashlib
 import inspect
 import itertools
+import os
 import secrets
 import sys
 import types
@@ -24,11 +31,15 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
+from numba.core import caching
 from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import FunctionCache, IndexDataCacheFile
 from numba.core.dispatcher import Dispatcher
+from numba.misc.appdirs import AppDirs
 
-__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "code_names", "INLINED"]
+from ..._version import __version__
+
+__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "code_names", "cache_root", "INLINED"]
 
 #: the options of a kernel compiled on its own and inlined by LLVM into every function that calls it
 #: (``forceinline``), never called from Python (no wrappers to build)
@@ -45,8 +56,42 @@ INLINED = dict(forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 FunctionIdentity._unique_ids = itertools.count(secrets.randbits(62))
 
 
+def cache_root() -> str:
+    """The package's own numba cache directory: ``<user cache directory>/pinnedballs/numba/<version>``
+    (``$XDG_CACHE_HOME`` or ``~/.cache`` on Linux; numba's `AppDirs`, as its own user-wide cache uses,
+    elsewhere). ``NUMBA_CACHE_DIR``, when set, comes first (`_Locating`)."""
+    return os.path.join(AppDirs(appname="pinnedballs", appauthor=False).user_cache_dir, "numba", __version__)
+
+
+def _numba_class(name: str) -> type:
+    """numba's cache class ``name`` (``_name`` before numba 0.61)."""
+    return getattr(caching, name, None) or getattr(caching, f"_{name}")
+
+
+class _UserCacheLocator(_numba_class("UserWideCacheLocator")):
+    """numba's user-wide locator, in the package's own directory (`cache_root`) instead of numba's."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        self._cache_path = os.path.join(cache_root(), self.get_suitable_cache_subpath(py_file))
+
+
+class _Locating(caching.CompileResultCacheImpl):
+    """numba's cache of compile results, its locators in this order: ``NUMBA_CACHE_DIR`` (numba's), the
+    package's user cache directory, then numba's own choices where that cannot be written (beside the
+    sources, numba's user-wide directory, IPython's, a zip's). ``NUMBA_CACHE_LOCATOR_CLASSES`` still
+    overrides them all, as numba has it."""
+
+    _locator_classes = [_numba_class("UserProvidedCacheLocator"), _UserCacheLocator,
+                        *map(_numba_class, ("InTreeCacheLocator", "UserWideCacheLocator", "IPythonCacheLocator",
+                                            "ZipCacheLocator"))]
+
+
 class _KeyedCache(FunctionCache):
-    """numba's on-disk cache with `_KeyedFiles`: safe when processes fill it at once."""
+    """numba's on-disk cache with `_KeyedFiles`: safe when processes fill it at once; in the package's
+    user cache directory, not beside its sources (`_Locating`)."""
+
+    _impl_class = _Locating
 
     def __init__(self, py_func):
         super().__init__(py_func)

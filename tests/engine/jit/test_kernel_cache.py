@@ -173,3 +173,42 @@ def test_two_processes_filling_one_cache_never_swap_entries(tmp_path):
 
     assert interleaved(IndexDataCacheFile) == "code of B"  # numba's own files: A's key, B's code
     assert interleaved(_KeyedFiles) == "code of A"
+
+
+CHECKS = textwrap.dedent("""
+    import pinnedballs as pb
+    from pinnedballs.geometry.checks import _first_fault, check_contacts
+    check_contacts(pb.FlatTorus(4, 4))
+    stats = _first_fault.stats
+    print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), _first_fault._cache.cache_path)
+""")
+
+
+def _compiled_files(root) -> set:
+    """``(path, size, mtime)`` of every numba cache file (index and data) under ``root``."""
+    from pathlib import Path
+
+    return {(str(p), p.stat().st_size, p.stat().st_mtime_ns) for p in Path(root).rglob("*.nb[ic]")}
+
+
+def test_the_cache_lives_in_the_users_cache_directory_not_beside_the_sources(tmp_path):
+    """``python3 -m pinnedballs`` inside a checkout wrote numba's cache into its ``__pycache__`` (issue 49):
+    without NUMBA_CACHE_DIR it goes to the user's cache directory (XDG_CACHE_HOME here), under the
+    package's name and version, and a second process loads what the first compiled; NUMBA_CACHE_DIR,
+    when set, comes first. Nothing in the package's tree is written."""
+    import pinnedballs
+    from pinnedballs._version import __version__
+
+    package = os.path.dirname(pinnedballs.__file__)
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_CACHE_LOCATOR_CLASSES")}
+    env.update(XDG_CACHE_HOME=str(tmp_path / "xdg"), PYTHONPATH=os.path.dirname(package))
+    before = _compiled_files(package)
+    runs = [subprocess.run([sys.executable, "-c", CHECKS], capture_output=True, text=True, check=True, env=env)
+            .stdout.split() for _ in range(2)]
+    home = str(tmp_path / "xdg" / "pinnedballs" / "numba" / __version__)
+    assert runs[0][:2] == ["0", "1"] and runs[0][2].startswith(home + os.sep)  # compiled, kept there
+    assert runs[1] == ["1", "0", runs[0][2]]                                     # loaded by the next process
+    given = subprocess.run([sys.executable, "-c", CHECKS], capture_output=True, text=True, check=True,
+                           env={**env, "NUMBA_CACHE_DIR": str(tmp_path / "given")}).stdout.split()
+    assert given[:2] == ["0", "1"] and given[2].startswith(str(tmp_path / "given") + os.sep)
+    assert _compiled_files(package) == before
