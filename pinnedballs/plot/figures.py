@@ -11,7 +11,7 @@ from scipy import stats
 from ..analysis import observables as obs
 from .base import COMPONENT_NAMES, FIT_COLOUR, _new_axes, length_label, panels, save
 
-__all__ = ["energy_by_distance", "energy_profiles", "component_histograms", "correlation_histogram"]
+__all__ = ["energy_by_distance", "energy_bars", "energy_profiles", "component_histograms", "correlation_histogram"]
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary
@@ -31,12 +31,22 @@ def energy_by_distance(distances, velocities, masses=None, bin_width: float | No
         xlabel = "distance from the boundary" if radius is None else length_label("distance from the boundary",
                                                                                    radius)
     centres, fraction = obs.energy_profile(distances, velocities, masses, bin_width)
+    return energy_bars(centres, fraction, ax=ax, title=title, path=path, xlabel=xlabel,
+                       first=first if bin_width is None else "first bin", width=bin_width)
+
+
+def energy_bars(centres, fraction, ax=None, title: str | None = None, path=None,
+                xlabel: str = "distance from the boundary", first: str = "boundary row",
+                width: float | None = None) -> Figure:
+    """The bars of an energy profile ``fraction (n,)`` at distances ``centres (n,)`` (`energy_by_distance`'s,
+    or an ensemble's mean), ``width`` apart (default: the least gap), the share of the ``first`` written
+    in a band above the tallest bar."""
+    centres, fraction = np.asarray(centres, dtype=np.float64), np.asarray(fraction, dtype=np.float64)
     fig, ax = _new_axes(ax, (8.0, 4.5), title)
-    width = bin_width if bin_width is not None else (np.diff(centres).min() if len(centres) > 1 else 1.0)
+    width = width if width is not None else (np.diff(centres).min() if len(centres) > 1 else 1.0)
     ax.bar(centres, fraction, width=0.8 * width, color="tab:blue")
     if len(fraction) and np.isfinite(fraction[0]):
-        where = first if bin_width is None else "first bin"
-        ax.text(0.98, 0.97, f"{where}: {fraction[0]:.1%} of the energy", transform=ax.transAxes,
+        ax.text(0.98, 0.97, f"{first}: {fraction[0]:.1%} of the energy", transform=ax.transAxes,
                 ha="right", va="top")
     ax.set_xlabel(xlabel)
     ax.set_ylabel("fraction of the energy")

@@ -47,7 +47,7 @@ from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
 from ..util.limits import check_memory
 from ..util.progress import Progress
-from . import executors, lineage
+from . import executors, lineage, profiles
 
 __all__ = ["EnsembleResult", "run_ensemble", "ensemble_plan", "run_replica", "replica_row", "replica_seed", "state_row",
            "margin_columns", "write_outputs", "write_figures", "read_table", "KEY_COLUMNS", "MARGIN_COLUMNS",
@@ -81,12 +81,14 @@ def replica_seed(spec: RunSpec, index: int) -> np.random.SeedSequence:
 
 
 def state_row(geometry: Geometry, velocities: np.ndarray, masses=None) -> dict[str, float]:
-    """The observables of one state: `observables.summary`, and `far_shares` on a geometry with a boundary."""
+    """The observables of one state: `observables.summary`, and `far_shares` and the energy profile
+    (`profiles.PROFILE`, apart from the table's columns) on a geometry with a boundary."""
     from ..analysis import observables as obs
 
     row = obs.summary(velocities, geometry, masses)
     if geometry.boundary is not None:
         row.update(obs.far_shares(geometry.boundary.distance, velocities, masses))
+        row[profiles.PROFILE] = profiles.energy_shares(geometry, velocities, masses)
     return row
 
 
@@ -202,7 +204,7 @@ class EnsembleResult:
         if any(c in row for row in self.rows for c in MARGIN_COLUMNS):  # a run that keeps its margin
             seen.update(dict.fromkeys(MARGIN_COLUMNS))
         for row in self.rows:
-            seen.update(dict.fromkeys(k for k in row if k != ERROR_COLUMN))
+            seen.update(dict.fromkeys(k for k in row if k not in (ERROR_COLUMN, profiles.PROFILE)))
         return [*seen, ERROR_COLUMN]
 
     def thin(self) -> list[dict]:
@@ -526,7 +528,7 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
     ``figures/<correlation>_<at>.png`` into ``out_dir`` (created); return the paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    written = [write_table(result, out / TABLE_NAME)]
+    written = [write_table(result, out / TABLE_NAME), *profiles.write_profiles(result.rows, out)]
     summary = {
         "replicas": result.replicas,
         "succeeded": result.replicas - len(result.failures),
@@ -570,17 +572,19 @@ def write_figures(result: EnsembleResult, out_dir) -> list[Path]:
             correlation_histogram(x, CORRELATION_BIN_WIDTH, title=f"{label}\n{len(x)} replicas, {when}",
                                   xlabel=name.replace("_", " "), path=fig_path)
             written.append(fig_path)
-    return written
+    means = profiles.mean_profiles(result.rows, ERROR_COLUMN)  # on a geometry with a boundary: its mean profile
+    return written + profiles.write_profile_figures(means, result.spec.geometry.build(), out / FIGURES_DIR, FINAL)
 
 
 def _remove_old_outputs(out: Path) -> None:
     """Before writing with --force: remove what an earlier ensemble wrote here (other files stay)."""
-    for name in (TABLE_NAME, SUMMARY_NAME, SPEC_NAME):
+    for name in (TABLE_NAME, SUMMARY_NAME, SPEC_NAME, profiles.PROFILES_NAME):
         (out / name).unlink(missing_ok=True)
     _remove_figures(out)
 
 
 def _remove_figures(out: Path) -> None:
+    profiles.remove_profile_figures(out / FIGURES_DIR)
     for name in CORRELATIONS:
         for png in (out / FIGURES_DIR).glob(f"{name}_*.png"):
             png.unlink()

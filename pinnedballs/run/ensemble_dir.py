@@ -3,7 +3,8 @@
 ``pinnedballs info`` prints of it.
 
 The directory holds ``replicas.csv`` (a row per replica and snapshot, and one for each final
-state), ``summary.json`` (how it ran) and ``spec.json``. A directory without them, or a file
+state), ``summary.json`` (how it ran) and ``spec.json``, and on a geometry with a boundary ``profiles.csv``
+(each row's energy profile, `run.profiles`, put back in the rows). A directory without them, or a file
 that does not parse, or a table cut short (a row with fewer cells than its header, a replica without a
 row), is an `InputError` naming the file (and the row and column of a bad cell).
 """
@@ -21,6 +22,7 @@ from ..specs.run import stored_spec
 from ..util import provenance
 from ..util.errors import InputError
 from .ensemble import ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult, read_table
+from .profiles import PROFILE, read_profiles
 
 __all__ = ["load_ensemble", "is_ensemble_dir", "describe"]
 
@@ -95,6 +97,13 @@ def load_ensemble(path: str | os.PathLike) -> EnsembleResult:
         if ERROR_COLUMN not in row:
             row.setdefault("stop_reason", "")  # a snapshot's row: written as an empty cell
     _check_every_replica(table, rows, replicas)
+    try:
+        shares = read_profiles(out)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(" ".join(str(exc).split())) from None
+    for row in rows:
+        if (row["replica"], row.get("at")) in shares:
+            row[PROFILE] = shares[row["replica"], row["at"]]
     wall = summary.get("wall_seconds")
     return EnsembleResult(spec, replicas, rows, str(summary.get("where", "")),
                           float(wall) if isinstance(wall, (int, float)) and not isinstance(wall, bool) else math.nan,

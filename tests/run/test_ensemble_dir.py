@@ -117,8 +117,8 @@ def test_info_and_plot_describe_an_ensemble_directory(written, tmp_path):
     code, text, err = call("plot", out)
     assert (code, err) == (0, "")
     drawn = text.splitlines()
-    assert sorted(p.rsplit("/", 1)[1] for p in drawn) == sorted(
-        f"{name}_{at}.png" for name in ens.CORRELATIONS for at in ("collisions_50", "final"))
+    assert sorted(p.rsplit("/", 1)[1] for p in drawn) == sorted(  # the correlations, the mean energy profile
+        f"{name}_{at}.png" for name in (*ens.CORRELATIONS, "energy_by_distance") for at in ("collisions_50", "final"))
     assert all(open(p, "rb").read(8) == b"\x89PNG\r\n\x1a\n" for p in drawn)
 
 
