@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable, Mapping
 
+from ..engine.protocol import Engine
 from ..geometry.base import Geometry
 from ..rules import CollisionRule
 from ..schedulers.base import Scheduler
@@ -57,11 +58,17 @@ def _applies(check: Callable, component) -> bool:
 
 
 def checks_for(component) -> list[Callable]:
-    """The checks that apply to ``component`` (a `Geometry`, a `CollisionRule` or a `Scheduler`)."""
+    """The checks that apply to ``component`` (a `Geometry`, a `CollisionRule`, a `Scheduler`, or an engine:
+    `engine_checks.engine_checks_for`)."""
     for base, battery in ((Geometry, GEOMETRY_CHECKS), (CollisionRule, RULE_CHECKS), (Scheduler, SCHEDULER_CHECKS)):
         if isinstance(component, base):
             return [c for c in battery if _applies(c, component)]
-    raise TypeError(f"component: must be a Geometry, a CollisionRule or a Scheduler, got {type(component).__name__}")
+    if isinstance(component, Engine):
+        from .engine_checks import engine_checks_for
+
+        return engine_checks_for(component)
+    raise TypeError(f"component: must be a Geometry, a CollisionRule, a Scheduler or an Engine, got "
+                    f"{type(component).__name__}")
 
 
 def _run_all(component, base: type, what: str) -> None:
@@ -99,7 +106,8 @@ def _label(component, position: int | None = None) -> str:
 def parametrize_with_checks(components: Iterable, *,
                             expected_failed_checks: Callable[[object], Mapping[str, str]] | Mapping[str, str]
                             | None = None):
-    """A pytest decorator: one test per (component, check) that applies to it. The test takes
+    """A pytest decorator: one test per (component, check) that applies to it (engines too: their battery,
+    `check_engine`'s checks). The test takes
     ``component, check`` and calls ``check(component)``; its id is ``<component>-<check name>``, the
     component's repr or, when that is ``object``'s (a memory address, different in every process), its
     class and place in ``components`` (``Greedy[0]``): the same ids in every pytest-xdist worker.

@@ -27,7 +27,7 @@ from ..geometry.lattices import FlatTorus, HalfPlane
 from ..schedulers import ColoredSweep, UniformRandomPair
 from ..simulation import Simulation
 
-__all__ = ["SYSTEMS", "System", "ENGINE_CHECKS", "check_engine", "engine_checks_for", "systems_for",
+__all__ = ["SYSTEMS", "LARGE_SYSTEMS", "System", "ENGINE_CHECKS", "check_engine", "engine_checks_for", "systems_for",
            "check_engine_split_runs", "check_engine_collision_target", "check_engine_until_frozen",
            "check_engine_resume", "check_engine_agrees_with_reference", "check_engine_refuses"]
 
@@ -87,7 +87,11 @@ SYSTEMS = (
     System("half_plane/counter/certified", _half_plane("counter"), "certified"),
     System("torus/counter", _torus(lambda: UniformRandomPair(stream="counter")), freezes=False, steps=400),
     System("torus/colored_sweep", _torus(ColoredSweep), freezes=False, steps=400),
-    # large enough for threads to pay (`engine.threads.regions.MIN_PARALLEL_CONTACTS`): the threaded chains run
+)
+#: the systems ``large=True`` adds: large enough for threads to pay (`engine.threads.regions.MIN_PARALLEL_CONTACTS`,
+#: so the threaded chains run), run by compiled loops in a second or two (on the CPU alone: numba-cuda's simulator
+#: would take hours)
+LARGE_SYSTEMS = (
     System("half_plane_large/xoshiro", _half_plane("xoshiro", 400, 200), steps=300_000, max_steps=10**9,
            devices=("cpu",)),
     System("half_plane_large/counter", _half_plane("counter", 400, 200), steps=300_000, max_steps=10**9,
@@ -108,7 +112,7 @@ def _engine(engine: Engine | str) -> Engine:
 def _at_the_door(engine: Engine) -> Iterator[str]:
     """``engine``'s name, with ``engine`` registered meanwhile (taken out again if it was not)."""
     registered = {e.name: e for e in door.engines()}
-    if registered.get(engine.name) is engine:
+    if type(registered.get(engine.name)) is type(engine):  # it, or another of its kind under its name
         yield engine.name
         return
     if engine.name in registered:
@@ -129,11 +133,12 @@ def _model(system: System):
     return system.simulation(None, as_device("cpu")).engine.model
 
 
-def systems_for(engine: Engine | str) -> list[System]:
-    """The `SYSTEMS` ``engine`` runs on its first device."""
+def systems_for(engine: Engine | str, large: bool = False) -> list[System]:
+    """The `SYSTEMS` (and with ``large`` the `LARGE_SYSTEMS`) ``engine`` runs on its first device."""
     engine = _engine(engine)
     device = _device(engine)
-    return [s for s in SYSTEMS if device.kind in s.devices and engine.supports(_model(s), s.arithmetic, device) is None]
+    return [s for s in (*SYSTEMS, *(LARGE_SYSTEMS if large else ())) if device.kind in s.devices
+            and engine.supports(_model(s), s.arithmetic, device) is None]
 
 
 def _say(check: str, engine: Engine, system: System, what: str) -> str:
@@ -154,17 +159,17 @@ def _same(a: Simulation, b: Simulation) -> str:
     return ", ".join(parts) or "certified or exact state"
 
 
-def _runs(engine: Engine) -> Iterator[tuple[str, System]]:
+def _runs(engine: Engine, large: bool) -> Iterator[tuple[str, System]]:
     """``(name, system)`` for each system ``engine`` runs, the engine at the door meanwhile."""
     with _at_the_door(engine) as name:
-        for system in systems_for(engine):
+        for system in systems_for(engine, large):
             yield name, system
 
 
-def check_engine_split_runs(engine: Engine | str) -> None:
+def check_engine_split_runs(engine: Engine | str, large: bool = False) -> None:
     """A run split into calls (1, 2, many steps; a collision target between) ends on the bits of one call."""
     engine = _engine(engine)
-    for name, s in _runs(engine):
+    for name, s in _runs(engine, large):
         whole, split = s.simulation(name, _device(engine)), s.simulation(name, _device(engine))
         whole.run(steps=s.steps)
         for steps in (1, 2, 97, s.steps // 3):
@@ -176,10 +181,10 @@ def check_engine_split_runs(engine: Engine | str) -> None:
                                 f"a run split into calls ends otherwise than one call: {differ}")
 
 
-def check_engine_collision_target(engine: Engine | str) -> None:
+def check_engine_collision_target(engine: Engine | str, large: bool = False) -> None:
     """``run(collisions=c)`` stops right after the ``c``-th collision, on the reference engine's step."""
     engine = _engine(engine)
-    for name, s in _runs(engine):
+    for name, s in _runs(engine, large):
         sim, ref = s.simulation(name, _device(engine)), s.simulation(REFERENCE[s.arithmetic], as_device("cpu"))
         for target in (1, 5, 23):
             sim.run(collisions=target)
@@ -191,11 +196,11 @@ def check_engine_collision_target(engine: Engine | str) -> None:
                 f"differences)")
 
 
-def check_engine_until_frozen(engine: Engine | str) -> None:
+def check_engine_until_frozen(engine: Engine | str, large: bool = False) -> None:
     """A run until frozen stops right after its last collision (the reference's step), frozen; one more run
     takes no step."""
     engine = _engine(engine)
-    for name, s in _runs(engine):
+    for name, s in _runs(engine, large):
         if not s.freezes:
             continue
         sim, ref = s.simulation(name, _device(engine)), s.simulation(REFERENCE[s.arithmetic], as_device("cpu"))
@@ -209,11 +214,11 @@ def check_engine_until_frozen(engine: Engine | str) -> None:
             f"run), the reference at {ref.steps}; {differ or 'the same state'}")
 
 
-def check_engine_resume(engine: Engine | str) -> None:
+def check_engine_resume(engine: Engine | str, large: bool = False) -> None:
     """A state saved mid-run (`Simulation.get_state`), restored into a new simulation on the engine, continues
     on the bits of the unbroken run."""
     engine = _engine(engine)
-    for name, s in _runs(engine):
+    for name, s in _runs(engine, large):
         whole, first = s.simulation(name, _device(engine)), s.simulation(name, _device(engine))
         whole.run(steps=2 * s.steps)
         first.run(steps=s.steps)
@@ -226,11 +231,11 @@ def check_engine_resume(engine: Engine | str) -> None:
                                                                   f"{differ}")
 
 
-def check_engine_agrees_with_reference(engine: Engine | str) -> None:
+def check_engine_agrees_with_reference(engine: Engine | str, large: bool = False) -> None:
     """The bits of the reference engine (``"sequential"`` for floats, ``"field"`` for exact and certified
     arithmetic) on every system: velocities, counters, stream, scheduler and closing margin."""
     engine = _engine(engine)
-    for name, s in _runs(engine):
+    for name, s in _runs(engine, large):
         sim, ref = s.simulation(name, _device(engine)), s.simulation(REFERENCE[s.arithmetic], as_device("cpu"))
         sim.run(steps=s.steps)
         ref.run(steps=s.steps)
@@ -241,13 +246,13 @@ def check_engine_agrees_with_reference(engine: Engine | str) -> None:
                                                                   "another closing margin than the reference's")
 
 
-def check_engine_refuses(engine: Engine | str) -> None:
+def check_engine_refuses(engine: Engine | str, large: bool = False) -> None:
     """A system the engine does not run, forced on it, is refused before anything runs: one line on a field,
     the engine's `Refusal`."""
     engine = _engine(engine)
     with _at_the_door(engine) as name:
         device = _device(engine)
-        refused = [s for s in SYSTEMS if device.kind in s.devices and s not in systems_for(engine)]
+        refused = [s for s in SYSTEMS if device.kind in s.devices and s not in systems_for(engine)]  # small: cheap
         for s in refused:
             try:
                 s.simulation(name, _device(engine))
@@ -274,9 +279,22 @@ def engine_checks_for(engine: Engine | str) -> list[Callable]:
             if not (c is check_engine_agrees_with_reference and engine.name in REFERENCE.values())]
 
 
-def check_engine(engine: Engine | str) -> None:
+def check_engine(engine: Engine | str, large: bool = False) -> None:
     """Run every engine check on ``engine`` (an `Engine`, registered or not, or a registered engine's name); the
     first that fails raises its `AssertionError`, naming the property, the engine and the system.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (half-planes of 69,000 contacts, to the freeze: seconds for a compiled engine,
+        where an engine that only pays on large systems, as threads do, runs its own loops).
+
+    Raises
+    ------
+    AssertionError
+        The first check that fails, naming the property, the engine and the system.
 
     Examples
     --------
@@ -284,4 +302,4 @@ def check_engine(engine: Engine | str) -> None:
     >>> check_engine("sequential")
     """
     for check in engine_checks_for(engine):
-        check(engine)
+        check(engine, large)

@@ -442,7 +442,8 @@ def test_declared_failures_run_as_strict_xfail(component, check):
 
 
 def test_checks_for_refuses_what_is_no_component():
-    with pytest.raises(TypeError, match=r"^component: must be a Geometry, a CollisionRule or a Scheduler, got str$"):
+    with pytest.raises(TypeError, match=r"^component: must be a Geometry, a CollisionRule, a Scheduler or an "
+                                        r"Engine, got str$"):
         checks_for("torus")
 
 

@@ -38,6 +38,16 @@ def test_every_registered_engine_passes_the_battery(engine, check):
     check(engine)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("engine, check", [
+    pytest.param(e, c, id=f"{e.name}-{c.__name__}") for e in engines()
+    if any(s.name.startswith("half_plane_large") for s in systems_for(e, large=True))
+    for c in engine_checks_for(e) if c is not check_engine_refuses])
+def test_the_cpus_engines_pass_it_on_large_systems_too(engine, check):
+    """Past `MIN_PARALLEL_CONTACTS` the threads run and the sequential loops read prefetched rows: seconds each."""
+    check(engine, large=True)
+
+
 def test_every_built_in_engine_but_the_replicas_has_the_whole_battery():
     for engine in engines():
         said = [c.__name__ for c in engine_checks_for(engine)]
@@ -54,7 +64,7 @@ def test_the_threads_engine_is_checked_where_its_threads_run():
     """The battery's large half-planes are past `MIN_PARALLEL_CONTACTS`: the threaded chains run them."""
     from pinnedballs.engine.threads.regions import MIN_PARALLEL_CONTACTS
 
-    large = [s for s in systems_for("threads") if s.name.startswith("half_plane_large")]
+    large = [s for s in systems_for("threads", large=True) if s.name.startswith("half_plane_large")]
     assert len(large) == 2 and all(s.build()[0].n_contacts >= MIN_PARALLEL_CONTACTS for s in large)
 
 
