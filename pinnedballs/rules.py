@@ -94,7 +94,7 @@ def remnant_threshold(params):
 
     Read it at the top of ``collide``, before any branch, and test ``w <= threshold`` once: an
     array read on an early-return path of the inlined loop keeps numba from pruning its reference
-    counting, which costs 4x in the paper's chain."""
+    counting, which makes the paper's chain several times slower (`benchmarks/results/measurements.md`)."""
     return params[params.shape[0] - 1]
 
 

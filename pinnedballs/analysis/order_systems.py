@@ -17,12 +17,12 @@ with probability below 1e-26. Float states of at most `WHOLE_BYTES` are keyed fr
 once (the bits themselves up to `SMALL_BYTES`), which is faster for so few balls.
 
 Cost of a state: in float64, a copy of the velocities and the live contacts found again by a compiled
-kernel over all contacts (about 5 ns a contact); in exact arithmetic only the contacts at the two
-collided balls are tested again, each by a float filter first (`pinnedballs.engine.field.rational.FILTER`),
-the others keeping their parent's answer, so a state costs about as much on 10,000 balls as on 10,
-but more as its numbers grow: with restitution r < 1 they grow along an order (on a 4x4 torus with
-r = 1/2 two balls' numbers take 0.6 kB at first, 26 kB after 20,000 collisions), so such a state
-counts as several (`Node.cost`, `COST_BYTES`).
+kernel over all contacts (a few ns a contact: `benchmarks/results/measurements.md`); in exact arithmetic
+only the contacts at the two collided balls are tested again, each by a float filter first
+(`pinnedballs.engine.field.rational.FILTER`), the others keeping their parent's answer, so a state costs about
+as much on 10,000 balls as on 10, but more as its numbers grow: with restitution r < 1 they grow along an order
+(on a 4x4 torus with r = 1/2 two balls' numbers take 0.6 kB at first, 26 kB after 20,000 collisions), so such a
+state counts as several (`Node.cost`, `COST_BYTES`).
 """
 
 from __future__ import annotations
@@ -45,11 +45,11 @@ from ..rules import closing_speed
 
 __all__ = ["Node", "FloatSystem", "ExactSystem", "OrderKernels", "order_kernels", "NODE_BYTES", "COST_BYTES"]
 
-#: bytes a known state holds in the search's memo (its key, its figures, the dict's slot): measured 292, an upper
-#: estimate
+#: bytes a known state holds in the search's memo (its key, its figures, the dict's slot): an upper estimate of the
+#: size measured (`benchmarks/results/measurements.md`)
 NODE_BYTES = 320
 #: an exact state whose two collided balls' numbers take ``b`` bytes costs ``1 + b // COST_BYTES`` states:
-#: its time grows with them (measured on a 4x4 torus: 40 us, plus 25 us a kB), and restitution r < 1
+#: its time grows with them (`benchmarks/results/measurements.md`), and restitution r < 1
 #: makes them grow along an order without end, so the bounds count work, not states alone
 COST_BYTES = 2048
 #: float states of at most this many bytes are keyed by their bits themselves (exact) ...

@@ -358,7 +358,7 @@ class StoredGeometry(Geometry):
     its ``boundary`` (or None), its ``frames`` ``(n, d, k)`` on a curved surface (or None) and its
     ``view``. The same contact arrays give the same bits, so a run continues on it exactly.
     ``complete``: the view was given (results files store it with the boundary and frames since
-    the layout of 2026-11; older ones hold only the contacts).
+    the results layout that added them; older files hold only the contacts).
     """
 
     def __init__(self, positions, pairs, t_i, t_j, radius: float = 1.0, *, boundary: Boundary | None = None,

@@ -17,7 +17,7 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                              segments (JSON [[file, first, count], ...]),
                              digests (JSON {file: SHA-256} of static.h5 and every segment),
                              device ("cpu" | "cuda": where the run's last stretch ran; information only,
-                             absent from files written before 2026-11-27), simulated (true where
+                             absent from files written before it was kept), simulated (true where
                              numba-cuda's simulator stood in for the GPU; absent from older files),
                              failure (a failed run's only: JSON {"error": the exception's class,
                              "message": its one line, "steps": the step the run stood at, "precision",

@@ -3,7 +3,7 @@
 numpy's ``@`` and ``np.dot`` call the BLAS (OpenBLAS here), which splits a long sum among its threads and picks
 its kernel by the CPU: the same arrays give other last bits on a machine with other cores (``OPENBLAS_NUM_THREADS``
 1 and 2 differ on 2 million balls), and its threads spin for a while after each call, taking cores from the
-engine's threads (a 2-thread chain run just after one: 12.5 -> 14.9 ns a step on the 2-core machine, 2026-11-29).
+engine's threads (a 2-thread chain run just after one is a fifth slower: `benchmarks/results/measurements.md`).
 These use numpy's own reductions instead, whose order is fixed (pairwise sums), on one thread.
 """
 

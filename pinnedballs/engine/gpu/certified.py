@@ -27,8 +27,8 @@ which says why (``info``). The margin, the indices of the collisions and the cou
 from each pick's decision and closing speed. States written under the bound rule in step order (files from
 before the batched rule) resume on the CPU only.
 
-Not yet measured on a GPU (2026-11-29): each round is one launch and a read of its count by the host, and
-each segment's outcomes are read back to the host.
+Its speed on a GPU: `benchmarks/results/measurements.md`. Each round is one launch and a read of its count by the
+host, and each segment's outcomes are read back to the host.
 """
 
 from __future__ import annotations

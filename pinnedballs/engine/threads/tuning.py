@@ -83,8 +83,8 @@ class ThreadTuner:
     The first segment on each count is not timed, only run (a trial's share of the units): it may compile
     or load the count's loops and start numba's threads. Nor is a trial shorter than `MIN_TRIAL_SECONDS`
     kept. Both once made the threads' first trial, a single batch of a run's first small chunk, look
-    slower than one thread's, so that a run on 2 idle cores stayed on one (1.28x slower) until its next
-    trial, hundreds of millions of steps later.
+    slower than one thread's, so that a run on idle cores stayed on one until its next trial, hundreds of
+    millions of steps later (`benchmarks/results/measurements.md`).
 
     ``candidates``: the thread counts to try (default: `most_threads` and 1).
     """
