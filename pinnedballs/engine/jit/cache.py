@@ -64,7 +64,8 @@ def cache_root() -> str:
 
 
 def _numba_class(name: str) -> type:
-    """numba's cache class ``name`` (``_name`` before numba 0.61)."""
+    """numba's cache class ``name`` (``_name`` before numba 0.62). These classes are numba's internals, alike from
+    0.61 to 0.68: pyproject.toml bounds numba to the versions read and tested."""
     return getattr(caching, name, None) or getattr(caching, f"_{name}")
 
 
