@@ -64,13 +64,25 @@ def _index_dtype(n: int) -> np.dtype:
 class Contacts:
     """Contacts in the compact form the compiled loop reads.
 
-    pairs: ``(n_contacts, 2) uint32`` the balls ``i, j`` of each contact.
-    ends: ``(n_contacts, 2)`` unsigned rows of ``units`` holding ``t_i`` and ``t_j``
-        (uint8 for lattices, which need only six unit vectors).
-    units: ``(n_units, dim) float64`` unit vectors.
-
     Unsigned, narrow indices keep the tables small (a 1000x1000 torus needs 30 MB)
-    and spare the loop the negative-index checks.
+    and spare the loop the negative-index checks. `build` makes them from any integer arrays.
+
+    Parameters
+    ----------
+    pairs : numpy.ndarray
+        ``(n_contacts, 2) uint32``: the balls ``i, j`` of each contact.
+    ends : numpy.ndarray
+        ``(n_contacts, 2)`` unsigned rows of ``units`` holding ``t_i`` and ``t_j``
+        (uint8 for lattices, which need only six unit vectors).
+    units : numpy.ndarray
+        ``(n_units, dim) float64`` unit vectors.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> c = pb.Contacts.build([[0, 1]], [[0, 1]], [[1.0, 0.0], [-1.0, 0.0]])
+    >>> len(c), c.t_i.tolist(), c.t_j.tolist()
+    (1, [[1.0, 0.0]], [[-1.0, 0.0]])
     """
 
     pairs: np.ndarray
@@ -79,11 +91,31 @@ class Contacts:
 
     @classmethod
     def build(cls, pairs, ends, units) -> Contacts:
-        """Contacts from integer arrays ``pairs (E, 2)``, ``ends (E, 2)`` and ``units (K, dim)``.
+        """Contacts from integer arrays, narrowed to the compact tables.
 
         The arrays are checked as given (`checks.raw_tables`: whole numbers, no negative index, ends
         within units) before they are narrowed; the rest (balls in range, unit lengths, directions)
         is checked against the geometry when a `Simulation` is built (`checks.check_contacts`).
+
+        Parameters
+        ----------
+        pairs : array_like
+            ``(E, 2)`` integers: the balls of each contact.
+        ends : array_like
+            ``(E, 2)`` integers: the rows of ``units`` at each end.
+        units : array_like
+            ``(K, dim)`` unit vectors.
+
+        Returns
+        -------
+        Contacts
+            ``pairs`` as uint32, ``ends`` in the narrowest unsigned type that indexes ``units``.
+
+        Raises
+        ------
+        FieldError
+            On ``contacts`` for tables that are not whole numbers, hold a negative index or an end
+            outside ``units``.
         """
         pairs, ends, units = raw_tables(pairs, ends, units)
         return cls(
@@ -139,10 +171,21 @@ class Contacts:
 
 @dataclass(frozen=True, eq=False)
 class Boundary:
-    """A geometry's boundary as each ball sees it.
+    """A geometry's boundary as each ball sees it (`Geometry.boundary`).
 
-    distance: ``(n_balls,) float64`` distance of each centre from the boundary (0 on it).
-    outward: ``(n_balls, dim) float64`` unit vectors in each ball's frame, pointing out of the system.
+    Parameters
+    ----------
+    distance : numpy.ndarray
+        ``(n_balls,) float64``: distance of each centre from the boundary (0 on it).
+    outward : numpy.ndarray
+        ``(n_balls, dim) float64``: unit vectors in each ball's frame, pointing out of the system.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> b = pb.HalfPlane(rows=2, cols=2).boundary
+    >>> b.distance.round(3).tolist(), b.outward[0].tolist()
+    ([0.0, 0.0, 1.732, 1.732], [0.0, -1.0])
     """
 
     distance: np.ndarray
@@ -152,10 +195,39 @@ class Boundary:
 class Geometry(ABC):
     """Balls at fixed centres and the contacts between them.
 
-    Subclasses set ``positions`` and implement `_build_contacts`. Ball radius is
+    Subclasses set ``positions`` and implement `_build_contacts` (docs/extending.md). Ball radius is
     ``radius`` (contact distance ``2 * radius``). Capabilities that code above the
     engine asks for instead of a type: `boundary` (None, or a `Boundary`) and
     `frames` (each ball's tangent basis; identity in flat space).
+
+    Attributes
+    ----------
+    positions : numpy.ndarray
+        ``(n_balls, k) float64`` ball centres.
+    radius : float
+        The balls' radius (1.0 unless set).
+    curved : bool
+        True when velocities live in tangent planes of a curved surface (`frames` is not the identity).
+    metric : numpy.ndarray or None
+        On a curved surface, the embedding's inner product as the diagonal ``(k,)`` of its matrix (a
+        sphere: ``(1, 1, 1)``; the hyperboloid: ``(-1, 1, 1)``): the contact checks measure the direction
+        from one ball to another in its frame with it. None: not stated (directions on the surface are not
+        checked).
+    rtol : float
+        Relative tolerance on the length ``2 * radius`` of a contact in flat space (checked with the
+        contacts).
+    rigid : bool
+        True when only one common velocity gives every contact closing speed 0 (the closing speeds' map
+        has only the translations in its kernel): with `Contacts.closed_rows`, the only frozen states.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=3, cols=4)
+    >>> g.n_balls, g.n_contacts, g.dim, g.view, g.curved
+    (12, 23, 2, 'plane', False)
+    >>> g.degrees().tolist()
+    [2, 4, 4, 3, 5, 6, 6, 3, 2, 4, 4, 3]
     """
 
     positions: np.ndarray  #: ``(n_balls, k) float64`` ball centres
@@ -182,8 +254,20 @@ class Geometry(ABC):
         return {1: "chain", 2: "plane", 3: "layers"}.get(k, "components")
 
     def to_spec(self) -> dict | None:
-        """The geometry as a run spec's ``"geometry"`` (a dict with its ``"kind"``), or None if it has
-        none (it is then rebuilt from the contacts a results file stores)."""
+        """The geometry as a run spec's ``"geometry"``.
+
+        Returns
+        -------
+        dict or None
+            A dict with its ``"kind"`` (`pinnedballs.specs.geometry`), or None if it has none (it is then
+            rebuilt from the contacts a results file stores).
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> pb.FlatTorus(4, 3).to_spec()
+        {'kind': 'flat_torus', 'rows': 4, 'cols': 3, 'radius': 1.0}
+        """
         return None
 
     @property
@@ -192,10 +276,21 @@ class Geometry(ABC):
         return None
 
     def frames(self) -> np.ndarray:
-        """``(n_balls, dim, k)`` orthonormal tangent basis of each ball in embedding coordinates.
+        """The orthonormal tangent basis of each ball in embedding coordinates.
 
         A velocity ``v (n_balls, dim)`` in embedding coordinates is
-        ``einsum("nd,ndk->nk", v, frames)``. Flat space: the identity (read-only view).
+        ``einsum("nd,ndk->nk", v, frames)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls, dim, k)``; flat space: the identity (a read-only view).
+
+        Raises
+        ------
+        FieldError
+            On ``frames`` for a geometry whose ``dim`` differs from its positions' ``k`` and that gives
+            no frames of its own.
         """
         k = self.positions.shape[1]
         if self.dim != k:
@@ -210,13 +305,37 @@ class Geometry(ABC):
         return None
 
     def stated_contacts(self) -> np.ndarray | None:
-        """``(n_contacts,) bool``: contacts given as data whose straight segment need not be the contact
-        (it may cross a periodic boundary the geometry does not know); None: none. The contact checks
-        measure their direction only where the segment is ``2 * radius`` long, their length never."""
+        """The contacts given as data, whose straight segment need not be the contact.
+
+        Such a segment may cross a periodic boundary the geometry does not know. The contact checks
+        measure their direction only where the segment is ``2 * radius`` long, their length never.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``(n_contacts,) bool``, or None: no contact is stated.
+        """
         return None
 
     def boundary_center(self) -> int:
-        """Index of the boundary ball (least ``boundary.distance``) nearest the middle of the boundary balls."""
+        """The boundary ball nearest the middle of the boundary balls (those of least ``boundary.distance``).
+
+        Returns
+        -------
+        int
+            Its index (a spec's ``"ball": "boundary_center"`` names it).
+
+        Raises
+        ------
+        FieldError
+            On ``boundary_center`` for a geometry without a boundary.
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> pb.HalfPlane(rows=3, cols=5).boundary_center()
+        2
+        """
         b = self.boundary
         if b is None:
             raise FieldError("boundary_center", f"{type(self).__name__} has no boundary")
@@ -235,8 +354,13 @@ class Geometry(ABC):
         return self._build_contacts()
 
     def row_shape(self) -> tuple[int, int] | None:
-        """``(rows, cols)`` when the balls are numbered row by row, ``cols`` to a row, and the
-        contacts ball by ball (the lattices), else None."""
+        """The lattice's shape, where the balls are numbered row by row and the contacts ball by ball.
+
+        Returns
+        -------
+        tuple of int or None
+            ``(rows, cols)``, ``cols`` balls to a row (the lattices), else None.
+        """
         return None
 
     @functools.cached_property
@@ -263,17 +387,35 @@ class Geometry(ABC):
         return len(self.contacts)
 
     def degrees(self) -> np.ndarray:
-        """``(n_balls,)`` number of contacts of each ball."""
+        """The number of contacts of each ball.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls,)`` integers.
+        """
         return np.bincount(self.contacts.pairs.ravel().astype(np.intp), minlength=self.n_balls)
 
     def contact_graph(self) -> nx.Graph:
-        """A networkx graph: nodes ``0..n_balls-1`` with ``"pos"``, one edge per contact.
+        """The contacts as a networkx graph: nodes ``0..n_balls-1`` with ``"pos"``, one edge per contact.
 
         Each edge carries ``"units" = {i: t_i, j: t_j}``, its index ``"contact"`` and its
         orientation ``"pair" = (i, j)``; on a curved surface each node also carries its
         ``"frame"`` (``dim x k``) and the graph its ``"metric"``; the graph carries its ``"view"``. So
         ``GraphGeometry(geom.contact_graph())`` rebuilds exactly these contacts in the same order (the same seed then
         gives the same run), periodic or curved ones included.
+
+        Returns
+        -------
+        networkx.Graph
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> g = pb.FlatTorus(4, 3)
+        >>> again = pb.GraphGeometry(g.contact_graph())
+        >>> bool((again.contacts.pairs == g.contacts.pairs).all()), again.n_contacts
+        (True, 36)
         """
         g = nx.Graph(dim=self.dim, view=self.view)
         frames = self.frames() if self.curved else None
@@ -290,8 +432,19 @@ class Geometry(ABC):
         return g
 
     def plot(self, ax=None, title: str | None = None):
-        """The balls at rest in the geometry's own view (`pinnedballs.plot.states.state_picture`), drawn
-        into ``ax`` or a new figure; the matplotlib `Figure`."""
+        """The balls at rest in the geometry's own view (`pinnedballs.plot.states.state_picture`).
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Draw into these axes; else a new figure.
+        title : str, optional
+            The figure's title.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         return display().state_picture(self)(np.zeros((self.n_balls, self.dim)), title, ax=ax)
 
     def _repr_html_(self) -> str:  # notebooks: a table of the balls beside their picture

@@ -150,6 +150,11 @@ class GraphGeometry(Geometry):
         ``hexagonal_lattice_graph(m, n, with_positions=True)``: Q(sqrt 3)). The centres and the
         contacts stay as given. False (the default): the normals as computed.
 
+    Attributes
+    ----------
+    nodes : list
+        The graph's nodes: ball ``n`` is ``nodes[n]``.
+
     Raises
     ------
     FieldError
@@ -162,9 +167,18 @@ class GraphGeometry(Geometry):
     Examples
     --------
     >>> import networkx as nx
-    >>> g = GraphGeometry(nx.hexagonal_lattice_graph(2, 2, with_positions=True), radius=0.5, snap=True)
+    >>> import pinnedballs as pb
+    >>> g = pb.GraphGeometry(nx.hexagonal_lattice_graph(2, 2, with_positions=True), radius=0.5, snap=True)
     >>> sorted({round(abs(float(x)), 3) for x in g.contacts.units.ravel()})
     [0.0, 0.5, 0.866, 1.0]
+
+    A chain of three balls, contacts along the line:
+
+    >>> chain = nx.path_graph(3)
+    >>> nx.set_node_attributes(chain, {n: (2.0 * n,) for n in chain}, "pos")
+    >>> g = pb.GraphGeometry(chain)
+    >>> g.n_balls, g.n_contacts, g.dim, g.contacts.t_i.tolist()
+    (3, 2, 1, [[1.0], [1.0]])
     """
 
     def __init__(self, graph: nx.Graph, radius: float = 1.0, rtol: float = LENGTH_RTOL, snap: bool | float = False):
@@ -230,11 +244,23 @@ class GraphGeometry(Geometry):
         return frames
 
     def frames(self) -> np.ndarray:
-        """``(n_balls, dim, k)``: the nodes' ``"frame"`` attributes if given, else the identity."""
+        """Each ball's tangent basis (`Geometry.frames`).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls, dim, k)``: the nodes' ``"frame"`` attributes if given, else the identity.
+        """
         return super().frames() if self._frames is None else self._frames
 
     def stated_contacts(self) -> np.ndarray:
-        """The edges that carry ``"units"``."""
+        """The edges that carry ``"units"`` (`Geometry.stated_contacts`).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_contacts,) bool``.
+        """
         return self._stated
 
     @property
@@ -320,6 +346,13 @@ class GraphGeometry(Geometry):
         ------
         FieldError
             On ``positions`` (a bad shape, NaN, overlapping balls), ``radius``, ``rtol`` or ``snap``.
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> g = pb.GraphGeometry.from_positions([[0.0, 0.0], [2.0, 0.0], [1.0, 3 ** 0.5], [5.0, 0.0]])
+        >>> g.contacts.pairs.tolist()
+        [[0, 1], [0, 2], [1, 2]]
         """
         from scipy.spatial import cKDTree
 

@@ -47,6 +47,37 @@ class HyperbolicPlane(Geometry):
     The outermost ring is the boundary: ``boundary.distance`` is ``(layers - ring) *
     contact_length`` (the path length along contacts to the outermost ring) and
     ``boundary.outward`` the radial direction away from ball 0, ``(1, 0)`` in every frame.
+
+    Parameters
+    ----------
+    q : int
+        Triangles at each vertex, at least 7.
+    layers : int
+        Rings around ball 0, at least 0.
+    radius : float
+        The balls' size: the centres lie on the unit surface (the hyperboloid).
+
+    Attributes
+    ----------
+    ring : numpy.ndarray
+        ``(n_balls,) int64``: each ball's ring.
+    length : float
+        `contact_length` of ``q``.
+
+    Raises
+    ------
+    FieldError
+        On ``q``, ``layers`` (a tiling beyond 20,000,000 balls or this machine's memory) or ``radius``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HyperbolicPlane(q=7, layers=2)
+    >>> g.n_balls, g.n_contacts, np.bincount(g.ring).tolist()
+    (29, 63, [1, 7, 21])
+    >>> g.boundary.distance[:2].round(6).tolist()
+    [2.181099, 1.09055]
     """
 
     curved = True
@@ -63,20 +94,40 @@ class HyperbolicPlane(Geometry):
         self.positions = _hyperboloid(self._r, self._phi).astype(np.float64)
 
     def to_spec(self) -> dict:
+        """The tiling as a run spec's ``"geometry"`` (`Geometry.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "hyperbolic_plane", "q": ..., "layers": ..., "radius": ...}``.
+        """
         return {"kind": "hyperbolic_plane", "q": self.q, "layers": self.layers, "radius": self.radius}
 
     @property
     def boundary(self) -> Boundary:
+        """The outermost ring: distances ``(layers - ring) * length``, outward ``(1, 0)`` in every frame."""
         outward = np.zeros((self.n_balls, 2))
         outward[:, 0] = 1.0
         return Boundary((self.layers - self.ring) * self.length, outward)
 
     def polar(self) -> tuple[np.ndarray, np.ndarray]:
-        """``r, phi (n_balls,)``: distance from ball 0 and angle, ``x = (cosh r, sinh r cos phi, sinh r sin phi)``."""
+        """Each ball in polar form: ``x = (cosh r, sinh r cos phi, sinh r sin phi)``.
+
+        Returns
+        -------
+        r, phi : numpy.ndarray
+            ``(n_balls,) float64`` each: the distance from ball 0 and the angle.
+        """
         return self._r.astype(np.float64), self._phi.astype(np.float64)
 
     def frames(self) -> np.ndarray:
-        """``(n_balls, 2, 3)``: the radial unit tangent (away from ball 0) and the angular one."""
+        """Each ball's Minkowski-orthonormal tangent basis (`Geometry.frames`).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls, 2, 3)``: the radial unit tangent (away from ball 0) and the angular one.
+        """
         r, phi = self._r, self._phi
         c, s = np.cos(phi), np.sin(phi)
         radial = np.stack([np.sinh(r), np.cosh(r) * c, np.cosh(r) * s], axis=1)
@@ -84,7 +135,13 @@ class HyperbolicPlane(Geometry):
         return np.stack([radial, angular], axis=1).astype(np.float64)
 
     def poincare(self) -> np.ndarray:
-        """``(n_balls, 2)`` positions in the Poincare disk, ``tanh(r / 2) (cos phi, sin phi)``; for pictures only."""
+        """The positions in the Poincare disk, for pictures only.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls, 2)``: ``tanh(r / 2) (cos phi, sin phi)``.
+        """
         rho = np.tanh(self._r / 2)
         return np.column_stack([rho * np.cos(self._phi), rho * np.sin(self._phi)]).astype(np.float64)
 

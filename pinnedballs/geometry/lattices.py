@@ -119,9 +119,31 @@ class FlatTorus(Geometry):
     """Triangular lattice with periodic boundaries: ``rows * cols`` balls, each touching 6.
 
     Ball ``r * cols + c`` sits at ``(2c + r % 2, r * sqrt(3))`` radii; the box is
-    ``2 * cols`` by ``rows * sqrt(3)`` radii. ``rows`` must be even (so the
-    shifted rows close up) and at least 4, ``cols`` at least 3 (so that no two
-    balls touch twice).
+    ``2 * cols`` by ``rows * sqrt(3)`` radii (`period`).
+
+    Parameters
+    ----------
+    rows : int
+        Lattice rows: even (so the shifted rows close up) and at least 4.
+    cols : int
+        Balls to a row: at least 3 (so that no two balls touch twice).
+    radius : float
+        The balls' radius.
+
+    Raises
+    ------
+    FieldError
+        On ``rows`` (odd, or below 4), ``cols`` (below 3), ``rows*cols`` (more balls than 32-bit tables
+        or this machine's memory hold) or ``radius``.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.FlatTorus(rows=4, cols=3)
+    >>> g.n_balls, g.n_contacts, set(g.degrees().tolist()), g.boundary
+    (12, 36, {6}, None)
+    >>> g.period.round(3).tolist()
+    [6.0, 6.928]
     """
 
     rigid = True  # only a common velocity has every closing speed 0 (tested)
@@ -149,9 +171,23 @@ class FlatTorus(Geometry):
         return self.period
 
     def row_shape(self) -> tuple[int, int]:
+        """The lattice's shape (`Geometry.row_shape`).
+
+        Returns
+        -------
+        tuple of int
+            ``(rows, cols)``.
+        """
         return self.rows, self.cols
 
     def to_spec(self) -> dict:
+        """The torus as a run spec's ``"geometry"`` (`Geometry.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "flat_torus", "rows": ..., "cols": ..., "radius": ...}``.
+        """
         return {"kind": "flat_torus", "rows": self.rows, "cols": self.cols, "radius": self.radius}
 
     def _build_contacts(self) -> Contacts:
@@ -161,13 +197,41 @@ class FlatTorus(Geometry):
 class HalfPlane(Geometry):
     """Triangular lattice in a rectangle whose bottom side ``y = 0`` is the boundary of the half-plane.
 
-    ``orientation="along"``: ``rows`` lattice rows of ``cols`` balls parallel to the
-    boundary; ball ``r * cols + c`` at ``(2c + r % 2, r * sqrt(3))`` radii, so row 0 lies on
-    the boundary and row ``r`` is at distance ``r * sqrt(3)``.
-    ``orientation="across"`` (the paper's): the same lattice turned a quarter, its ``rows``
-    rows perpendicular to the boundary; ball ``r * cols + c`` at ``(r * sqrt(3), 2c + r % 2)``
-    radii, so the boundary is a zig-zag of balls at distances 0 and 1.
-    Interior balls touch 6 others; ``boundary.outward`` is ``(0, -1)``.
+    Interior balls touch 6 others; ``boundary.outward`` is ``(0, -1)``. `from_size` builds the
+    paper's ``length x depth`` rectangles.
+
+    Parameters
+    ----------
+    rows : int
+        Lattice rows (at least 1).
+    cols : int
+        Balls to a row (at least 1).
+    radius : float
+        The balls' radius.
+    orientation : {"along", "across"}
+        ``"along"``: ``rows`` lattice rows of ``cols`` balls parallel to the
+        boundary; ball ``r * cols + c`` at ``(2c + r % 2, r * sqrt(3))`` radii, so row 0 lies on
+        the boundary and row ``r`` is at distance ``r * sqrt(3)``.
+        ``"across"`` (the paper's): the same lattice turned a quarter, its ``rows``
+        rows perpendicular to the boundary; ball ``r * cols + c`` at ``(r * sqrt(3), 2c + r % 2)``
+        radii, so the boundary is a zig-zag of balls at distances 0 and 1.
+
+    Raises
+    ------
+    FieldError
+        On ``rows``, ``cols``, ``rows*cols`` (more balls than 32-bit tables or this machine's memory
+        hold), ``radius`` or ``orientation``.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=3, cols=4)
+    >>> g.n_balls, g.n_contacts
+    (12, 23)
+    >>> g.boundary.distance.round(3).tolist()[::4]
+    [0.0, 1.732, 3.464]
+    >>> pb.HalfPlane(rows=3, cols=4, orientation="across").boundary.distance.tolist()[::4]
+    [0.0, 1.0, 0.0]
     """
 
     def __init__(self, rows: int, cols: int, radius: float = 1.0, orientation: str = "along"):
@@ -190,6 +254,33 @@ class HalfPlane(Geometry):
         ``from_size(100, 50)`` gives 29 rows of 50 balls. ``"across"``: ``rows = floor(length /
         sqrt(3))`` rows of ``cols = floor(depth / 2)`` balls; ``from_size(100, 50, orientation="across")``
         gives 57 rows of 25, the paper's 1,425 balls.
+
+        Parameters
+        ----------
+        length : float
+            The side on the boundary, in radii (at least 2).
+        depth : float
+            The side perpendicular to it, in radii (at least 2).
+        radius : float
+            The balls' radius.
+        orientation : {"along", "across"}
+            How the lattice rows lie against the boundary, as for `HalfPlane`.
+
+        Returns
+        -------
+        HalfPlane
+
+        Raises
+        ------
+        FieldError
+            On ``length`` or ``depth`` below 2 (one ball is 2 radii wide), or on ``orientation``.
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> g = pb.HalfPlane.from_size(100, 50, orientation="across")
+        >>> g.rows, g.cols, g.n_balls
+        (57, 25, 1425)
         """
         for name, value in (("length", length), ("depth", depth)):
             if checks.number(name, value) < 2:
@@ -202,14 +293,34 @@ class HalfPlane(Geometry):
         return cls(rows=rows, cols=cols, radius=radius)
 
     def row_shape(self) -> tuple[int, int]:
+        """The lattice's shape (`Geometry.row_shape`).
+
+        Returns
+        -------
+        tuple of int
+            ``(rows, cols)``.
+        """
         return self.rows, self.cols
 
     def to_spec(self) -> dict:
+        """The half-plane as a run spec's ``"geometry"`` (`Geometry.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "half_plane", "rows": ..., "cols": ..., "radius": ..., "orientation": ...}``.
+        """
         return {"kind": "half_plane", "rows": self.rows, "cols": self.cols, "radius": self.radius,
                 "orientation": self.orientation}
 
     def boundary_distance(self) -> np.ndarray:
-        """``(n_balls,)`` distance of each centre from the boundary line ``y = 0``."""
+        """The distance of each centre from the boundary line ``y = 0``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls,) float64`` (a copy).
+        """
         return self.positions[:, 1].copy()
 
     @property

@@ -49,6 +49,13 @@ class _Packing(Geometry):
         self.positions = p
 
     def to_spec(self) -> dict:
+        """The packing as a run spec's ``"geometry"`` (`Geometry.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "fcc" or "hcp", "nx": ..., "ny": ..., "nz": ..., "periodic": [...], "radius": ...}``.
+        """
         nx, ny, nz = self.shape
         return {"kind": self.kind, "nx": nx, "ny": ny, "nz": nz, "periodic": list(self.periodic),
                 "radius": self.radius}
@@ -100,7 +107,44 @@ class _Packing(Geometry):
 
 class FCC(_Packing):
     """Face-centred cubic packing: ``4 nx ny nz`` balls, cubic cells of side ``2 sqrt(2)`` radii,
-    12 contacts per ball when periodic. ``periodic``: a bool or a triple for (x, y, z)."""
+    12 contacts per ball when periodic.
+
+    Parameters
+    ----------
+    nx, ny, nz : int
+        Cells along each axis, at least 1 (at least 2 along a periodic axis, so that no ball touches
+        itself or another twice).
+    periodic : bool or tuple of bool
+        One for every axis, or a triple for (x, y, z). An open z makes a 3-D half-space whose
+        boundary is the bottom layer ``z = 0``.
+    radius : float
+        The balls' radius.
+
+    Attributes
+    ----------
+    shape : tuple of int
+        ``(nx, ny, nz)``.
+    periodic : tuple of bool
+        For (x, y, z).
+
+    Raises
+    ------
+    FieldError
+        On an axis too short to be periodic, ``nx*ny*nz`` (too many cells for 32-bit tables or this
+        machine's memory) or ``radius``.
+    FieldTypeError
+        If ``periodic`` is neither a bool nor a triple of bools.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.FCC(2, 2, 2)
+    >>> g.n_balls, g.n_contacts, set(g.degrees().tolist())
+    (32, 192, {12})
+    >>> half = pb.FCC(2, 2, 2, periodic=(True, True, False))
+    >>> half.boundary.distance[:3].round(3).tolist(), half.box.round(3).tolist()
+    ([0.0, 0.0, 1.414], [5.657, 5.657, inf])
+    """
 
     kind = "fcc"
     rigid = True  # periodic on every axis, only a common velocity has every closing speed 0 (tested)
@@ -111,7 +155,39 @@ class FCC(_Packing):
 class HCP(_Packing):
     """Hexagonal close packing (layers A B A B ... along z, ``sqrt(8/3)`` radii apart):
     ``4 nx ny nz`` balls in cells of ``2 x 2 sqrt(3) x 2 sqrt(8/3)`` radii, 12 contacts per ball
-    when periodic. ``periodic``: a bool or a triple for (x, y, z)."""
+    when periodic.
+
+    Parameters
+    ----------
+    nx, ny, nz : int
+        Cells along each axis, at least 1 (a periodic x needs at least 3, y and z at least 2, so that
+        no ball touches itself or another twice).
+    periodic : bool or tuple of bool
+        One for every axis, or a triple for (x, y, z); an open z makes a half-space, as for `FCC`.
+    radius : float
+        The balls' radius.
+
+    Attributes
+    ----------
+    shape : tuple of int
+        ``(nx, ny, nz)``.
+    periodic : tuple of bool
+        For (x, y, z).
+
+    Raises
+    ------
+    FieldError
+        On an axis too short to be periodic, ``nx*ny*nz`` or ``radius``, as for `FCC`.
+    FieldTypeError
+        If ``periodic`` is neither a bool nor a triple of bools.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.HCP(3, 2, 2)
+    >>> g.n_balls, set(g.degrees().tolist()), g.to_spec()["kind"]
+    (48, {12}, 'hcp')
+    """
 
     kind = "hcp"
     _H = np.sqrt(8.0 / 3.0)

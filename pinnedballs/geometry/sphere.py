@@ -35,10 +35,38 @@ _ICO_FACES = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 
 
 
 class Sphere(Geometry):
-    """Balls at ``positions (n, 3)`` on the unit sphere; contacts are the edges ``pairs (E, 2)``.
+    """Balls on the unit sphere; contacts are the edges of a graph.
 
     Build with `geodesic` or `from_points`. ``dim`` is 2: a velocity is a tangent vector
-    in the ball's frame. No boundary.
+    in the ball's frame (`frames`). No boundary.
+
+    Parameters
+    ----------
+    positions : numpy.ndarray
+        ``(n, 3)`` centres on the unit sphere.
+    pairs : numpy.ndarray
+        ``(E, 2)`` the balls of each contact.
+    radius : float
+        The balls' size: the centres lie on the unit surface.
+
+    Attributes
+    ----------
+    frequency : int or None
+        Of the geodesic grid; None for a sphere from points.
+
+    Raises
+    ------
+    FieldError
+        On ``radius``.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.Sphere.geodesic(2)
+    >>> g.n_balls, g.n_contacts, g.dim, g.boundary
+    (42, 120, 2, None)
+    >>> sorted(set(g.degrees().tolist()))
+    [5, 6]
     """
 
     curved = True
@@ -57,6 +85,29 @@ class Sphere(Geometry):
 
         ``10 f^2 + 2`` balls (12 of degree 5, the rest 6) and ``30 f^2`` contacts. Points
         shared by faces are merged by exact integer barycentric keys, never by rounding.
+
+        Parameters
+        ----------
+        frequency : int
+            ``f``, at least 1 (at most 1,414: 20,000,000 balls).
+        radius : float
+            The balls' size.
+
+        Returns
+        -------
+        Sphere
+
+        Raises
+        ------
+        FieldError
+            On ``frequency`` (below 1, or a grid beyond 20,000,000 balls or this machine's memory).
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> g = pb.Sphere.geodesic(3)
+        >>> g.n_balls, g.n_contacts, g.to_spec()
+        (92, 270, {'kind': 'sphere', 'frequency': 3, 'radius': 1.0})
         """
         f = checks.integer("frequency", frequency, 1)
         _check_size(f)
@@ -87,9 +138,39 @@ class Sphere(Geometry):
 
     @classmethod
     def from_points(cls, points, radius: float = 1.0) -> Sphere:
-        """Balls at ``points (n, 3)``, all at the same distance from the origin (n >= 4, not all on one
-        plane); contacts are the edges of their spherical Delaunay triangulation: of the faces of
-        their convex hull that face away from the origin. Positions are scaled onto the unit sphere."""
+        """Balls at given points; contacts are the edges of their spherical Delaunay triangulation.
+
+        The Delaunay edges are those of the faces of the points' convex hull that face away from the
+        origin. Positions are scaled onto the unit sphere.
+
+        Parameters
+        ----------
+        points : array_like
+            ``(n, 3)``, all at the same distance from the origin (n >= 4, not all on one plane, no two
+            at the same place).
+        radius : float
+            The balls' size.
+
+        Returns
+        -------
+        Sphere
+
+        Raises
+        ------
+        FieldError
+            On ``points`` (a bad shape, NaN, a ball off the sphere or at the origin, two balls at the same
+            place, all on one plane).
+        FieldTypeError
+            If ``points`` are not numbers.
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> octahedron = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+        >>> g = pb.Sphere.from_points(octahedron)
+        >>> g.n_contacts, set(g.degrees().tolist()), g.to_spec()
+        (12, {4}, None)
+        """
         from scipy.spatial import ConvexHull, QhullError
 
         p = _points_on_a_sphere(points)
@@ -104,14 +185,26 @@ class Sphere(Geometry):
         return cls(p, np.unique(edges, axis=0), radius)
 
     def to_spec(self) -> dict | None:
-        """The geodesic grid's spec; None for a sphere from points (rebuilt from its stored positions)."""
+        """The geodesic grid as a run spec's ``"geometry"`` (`Geometry.to_spec`).
+
+        Returns
+        -------
+        dict or None
+            ``{"kind": "sphere", "frequency": ..., "radius": ...}``; None for a sphere from points (rebuilt
+            from its stored positions).
+        """
         if self.frequency is None:
             return None
         return {"kind": "sphere", "frequency": self.frequency, "radius": self.radius}
 
     def frames(self) -> np.ndarray:
-        """``(n_balls, 2, 3)`` orthonormal tangent bases: ``e1`` towards the z-axis (the x-axis within 0.9 of a
-        pole), ``e2 = x x e1``."""
+        """Each ball's orthonormal tangent basis (`Geometry.frames`).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_balls, 2, 3)``: ``e1`` towards the z-axis (the x-axis within 0.9 of a pole), ``e2 = x x e1``.
+        """
         x = self.positions
         axis = np.zeros_like(x)
         near_pole = np.abs(x[:, 2]) > 0.9
@@ -122,7 +215,13 @@ class Sphere(Geometry):
         return np.stack([e1, np.cross(x, e1)], axis=1)
 
     def great_circle_tangents(self) -> tuple[np.ndarray, np.ndarray]:
-        """``T_i, T_j (n_contacts, 3)``: unit tangents of the great circle at each end, towards the other."""
+        """The unit tangents of each contact's great circle at its ends, each towards the other ball.
+
+        Returns
+        -------
+        T_i, T_j : numpy.ndarray
+            ``(n_contacts, 3)`` each, in embedding coordinates.
+        """
         xi, xj = self.positions[self.pairs[:, 0]], self.positions[self.pairs[:, 1]]
         return _unit(xj - np.einsum("ek,ek->e", xi, xj)[:, None] * xi), \
             _unit(xi - np.einsum("ek,ek->e", xi, xj)[:, None] * xj)

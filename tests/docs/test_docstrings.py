@@ -1,0 +1,139 @@
+"""The public API's docstrings are numpydoc, and their examples run.
+
+Public: every name of `pb.__all__`, of `pinnedballs.testing` and of the engine's door (`pinnedballs.engine`),
+and the public methods of the classes a user holds (`Simulation`, `Results`, every `Geometry`,
+`EnsembleResult`, `StudyResult`). numpydoc's validator finds on none of them a parameter left undocumented
+(PR01), one documented that is not there (PR02), a value returned with no Returns section (RT01) or no
+docstring at all (GL08); the main names have an Examples section (`EXAMPLED`); and every public docstring's
+examples run as doctests, in a temporary working directory (examples write relative paths).
+"""
+
+from __future__ import annotations
+
+import doctest
+import inspect
+
+import pytest
+from numpydoc.validate import validate
+
+import pinnedballs as pb
+
+#: the engine's door: `pinnedballs.engine`'s names
+ENGINE_DOOR = ("engines", "register", "unregister", "find", "choose", "check", "Engine", "Refusal", "Refused",
+               "Device", "CPU", "CUDA", "as_device")
+#: the classes whose public methods are public (with every `Geometry` of `pb.__all__`)
+WITH_METHODS = ("Simulation", "Results", "Geometry", "EnsembleResult", "StudyResult")
+#: the numpydoc errors the public API may not have
+REFUSED = {"PR01": "parameters not documented", "PR02": "unknown parameters documented",
+           "RT01": "no Returns section", "GL08": "no docstring"}
+#: the main classes and functions: each has an Examples section
+EXAMPLED = ("Simulation", "HalfPlane", "FlatTorus", "GraphGeometry", "Sphere", "HyperbolicPlane", "FCC", "HCP",
+            "Elastic", "Restitution", "UniformRandomPair", "Sweep", "RandomSweep", "RejectionFree", "ColoredSweep",
+            "Replay", "load", "load_spec", "run_spec", "run_ensemble", "load_ensemble", "run_study", "load_study",
+            "explore_orders", "search_max_collisions", "ResultsWriter", "CollisionLog", "Stop", "AtSteps",
+            "EverySteps", "AtCollisions", "EveryCollisions", "CPU", "CUDA", "testing.check_engine",
+            "testing.check_geometry", "testing.check_rule", "testing.check_scheduler", "engine.engines",
+            "engine.choose", "Simulation.run", "Simulation.run_until_frozen")
+
+
+def _methods(cls: type, names: dict) -> dict:
+    """``{qualified name: function}`` of the public methods ``cls`` has from the package's classes (named by
+    the class that defines them: `pb.NAME` where public, else its module's path)."""
+    out = {}
+    for name in sorted(dir(cls)):
+        owner = next((k for k in cls.__mro__ if name in vars(k)), None)
+        if name.startswith("_") or owner is None or not owner.__module__.startswith("pinnedballs"):
+            continue
+        raw = vars(owner)[name]
+        func = raw.__func__ if isinstance(raw, (staticmethod, classmethod)) else raw
+        if inspect.isfunction(func):
+            prefix = f"pinnedballs.{names[owner]}" if owner in names else f"{owner.__module__}.{owner.__qualname__}"
+            out[f"{prefix}.{name}"] = func
+    return out
+
+
+def _properties(cls: type) -> dict:
+    """``{qualified name: property}`` of the public properties defined on ``cls`` itself."""
+    return {f"{cls.__module__}.{cls.__qualname__}.{name}": raw for name, raw in vars(cls).items()
+            if not name.startswith("_") and isinstance(raw, property)}
+
+
+def public() -> dict:
+    """``{qualified name: object}`` of every public callable, each once."""
+    import pinnedballs.engine as door
+    import pinnedballs.testing as testing
+
+    out, seen = {}, set()
+    for prefix, module, names in (("pinnedballs", pb, pb.__all__), ("pinnedballs.testing", testing, testing.__all__),
+                                  ("pinnedballs.engine", door, ENGINE_DOOR)):
+        for name in names:
+            obj = getattr(module, name)
+            if callable(obj) and id(obj) not in seen:
+                seen.add(id(obj))
+                out[f"{prefix}.{name}"] = obj
+    named = {getattr(pb, n): n for n in pb.__all__ if inspect.isclass(getattr(pb, n))}
+    classes = [getattr(pb, n) for n in WITH_METHODS] + [c for c in named if issubclass(c, pb.Geometry)]
+    for cls in classes:
+        out.update((k, f) for k, f in _methods(cls, named).items() if id(f) not in seen and not seen.add(id(f)))
+    return out
+
+
+PUBLIC = public()
+#: the modules whose docstrings are not numpydoc yet (issue 47, item 2), emptied room by room
+PENDING = ("pinnedballs.rules", "pinnedballs.schedulers", "pinnedballs.simulation", "pinnedballs.results",
+           "pinnedballs.run", "pinnedballs.specs", "pinnedballs.analysis", "pinnedballs.engine", "pinnedballs.util",
+           "pinnedballs.testing")
+
+
+def _pending(name: str) -> bool:
+    module = inspect.getmodule(PUBLIC[name]).__name__
+    return module.startswith(PENDING)
+
+
+@pytest.mark.parametrize("name", sorted(PUBLIC))
+def test_every_public_callable_has_numpydoc_parameters_and_returns(name):
+    if _pending(name):
+        pytest.xfail("not numpydoc yet")
+    errors = [f"{code} ({REFUSED[code]}): {message}" for code, message in validate(name)["errors"] if code in REFUSED]
+    assert not errors, f"{name}: " + "; ".join(errors)
+
+
+@pytest.mark.parametrize("name", EXAMPLED)
+def test_the_main_names_have_examples(name):
+    full = f"pinnedballs.{name}"
+    assert full in PUBLIC, f"{full} is not a public callable"
+    if _pending(full):
+        pytest.xfail("not numpydoc yet")
+    assert "EX01" not in {code for code, _ in validate(full)["errors"]}, f"{full} has no Examples section"
+
+
+def _doctests() -> dict:
+    """``{name: doctest}`` of every public docstring with examples: the callables, their classes' properties, and
+    the modules the API page shows."""
+    finder = doctest.DocTestFinder(recurse=False)
+    objects = dict(PUBLIC)
+    for obj in list(PUBLIC.values()):
+        if inspect.isclass(obj) and obj.__module__.startswith("pinnedballs"):
+            objects.update(_properties(obj))
+    tests = {}
+    for name, obj in objects.items():
+        module = inspect.getmodule(getattr(obj, "fget", obj))
+        for test in finder.find(obj, name, module=module, globs={}):
+            if test.examples:
+                tests[name] = test
+    return tests
+
+
+DOCTESTS = _doctests()
+
+
+@pytest.mark.parametrize("name", sorted(DOCTESTS))
+def test_the_examples_run(name, tmp_path, monkeypatch):
+    """Each docstring's examples give what they show, in a fresh directory (what they write stays there)."""
+    monkeypatch.chdir(tmp_path)
+    test = DOCTESTS[name]
+    test.globs = {"__name__": f"doctest_{name.replace('.', '_')}"}
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    report = []
+    result = runner.run(test, out=report.append, clear_globs=True)
+    assert result.failed == 0, "".join(report)
