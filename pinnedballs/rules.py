@@ -69,10 +69,33 @@ DEFAULT_RESOLUTION = THRESHOLD_ULPS * 2.0**-53
 
 
 def threshold(velocities: np.ndarray, masses: np.ndarray, resolution: float = DEFAULT_RESOLUTION) -> float:
-    """``resolution * sqrt(2 E / m_mean)`` for velocities ``(n_balls, dim)`` and masses ``(n_balls,)``:
-    closing speeds at or below it do not collide. The default resolution, ``4 * 2^-53``, sets aside
-    exactly the rounding remnants on every case measured (the module docstring); another resolution
-    ``e`` defines a model of its own, whose counts ``N_e`` are those of a criterion ``w > e V``."""
+    """The collision criterion's threshold ``resolution * sqrt(2 E / m_mean)``: closing speeds at or below it
+    do not collide.
+
+    The default resolution, ``4 * 2^-53``, sets aside exactly the rounding remnants on every case measured
+    (the module docstring); another resolution ``e`` defines a model of its own, whose counts ``N_e`` are
+    those of a criterion ``w > e V``.
+
+    Parameters
+    ----------
+    velocities : numpy.ndarray
+        ``(n_balls, dim)`` pseudo-velocities.
+    masses : numpy.ndarray
+        ``(n_balls,)`` masses.
+    resolution : float
+        ``e``, in (0, 1).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from pinnedballs.rules import threshold
+    >>> threshold(np.array([[3.0, 4.0], [0.0, 0.0]]), np.ones(2), resolution=0.01)
+    0.05
+    """
     energy = kinetic_energy(masses, velocities)
     return resolution * float(np.sqrt(2.0 * energy / float(masses.mean())))
 
@@ -127,41 +150,120 @@ collide_masses = impulse_rule(masses_impulse)
 
 
 class CollisionRule(ABC):
-    """What a collision does. Subclasses give the compiled loop a jitted function."""
+    """What a collision does. Subclasses give the compiled loop a jitted function (`kernel`).
+
+    The module's docstring says what the function is given and returns; docs/extending.md writes one.
+    """
 
     @abstractmethod
     def kernel(self, equal_masses: bool) -> tuple[Callable, np.ndarray]:
-        """``(collide, params)`` for the compiled loop; ``params`` is a float64 array."""
+        """The rule's compiled collision, for the compiled loop.
+
+        Parameters
+        ----------
+        equal_masses : bool
+            Whether every ball has the same mass (a rule may then skip the masses).
+
+        Returns
+        -------
+        collide : callable
+            A jitted ``collide(v, units, i, j, a, b, masses, params, dim, flat, write) -> bool`` (or one made
+            by `impulse_rule`).
+        params : numpy.ndarray
+            ``(p,) float64``: its parameters (the engine appends the threshold).
+        """
 
     def exact_restitution(self) -> float | None:
-        """The coefficient ``r`` when the rule is the paper's with restitution ``r`` (exact arithmetic
-        can run it: `pinnedballs.engine.field.rational`), else None."""
+        """The rule's coefficient of restitution, where exact arithmetic can run it.
+
+        Returns
+        -------
+        float or None
+            ``r`` when the rule is the paper's with restitution ``r`` (exact arithmetic can run it:
+            `pinnedballs.engine.field.rational`), else None.
+        """
         return None
 
     def to_spec(self) -> dict | None:
-        """The rule as a run spec's ``"rule"`` (a dict with its ``"kind"``), or None if it has none.
+        """The rule as a run spec's ``"rule"``.
 
         A run built in Python records this spec, so that ``pb.load(dir).simulation()`` rebuilds
         the rule; a rule of your own may return ``{"kind": "python", "factory": ..., "args": ...}``.
+
+        Returns
+        -------
+        dict or None
+            A dict with its ``"kind"``, or None if it has none.
         """
         return None
 
 
 class Restitution(CollisionRule):
-    """Inelastic collisions with coefficient of restitution ``r`` in [0, 1]; momentum kept, energy never gained."""
+    """Inelastic collisions with coefficient of restitution ``r``; momentum kept, energy never gained.
+
+    A collision closing at ``w`` along ``t_i`` takes ``(1 + r) m_j / (m_i + m_j) w`` from ``v_i . t_i``
+    and alike from ``v_j . t_j`` (the module's docstring).
+
+    Parameters
+    ----------
+    r : float
+        The coefficient of restitution, in [0, 1] (1: `Elastic`).
+
+    Raises
+    ------
+    FieldError
+        On ``r`` outside [0, 1].
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.GraphGeometry.from_positions([[0.0], [2.0]])
+    >>> sim = pb.Simulation(g, [[1.0], [0.0]], rule=pb.Restitution(0.5), seed=0)
+    >>> sim.run(steps=1), sim.velocities.tolist(), sim.energy()
+    (1, [[0.25], [0.75]], 0.3125)
+    >>> pb.Restitution(0.5).to_spec()
+    {'kind': 'restitution', 'r': 0.5}
+    """
 
     def __init__(self, r: float):
         self.r = checks.number("r", r, 0.0, 1.0, what="coefficient of restitution")
 
     def kernel(self, equal_masses: bool) -> tuple[Callable, np.ndarray]:
+        """The paper's collision with restitution ``r`` (`CollisionRule.kernel`).
+
+        Parameters
+        ----------
+        equal_masses : bool
+            Whether every ball has the same mass.
+
+        Returns
+        -------
+        collide : callable
+            `collide_elastic` (equal masses, ``r = 1``), `collide_equal` or `collide_masses`.
+        params : numpy.ndarray
+            ``[(1 + r) / 2]`` for equal masses, else ``[1 + r]``.
+        """
         if equal_masses:
             return collide_elastic if self.r == 1.0 else collide_equal, np.array([(1.0 + self.r) / 2.0])
         return collide_masses, np.array([1.0 + self.r])
 
     def exact_restitution(self) -> float:
+        """The coefficient ``r`` (`CollisionRule.exact_restitution`): exact arithmetic runs every ``r``.
+
+        Returns
+        -------
+        float
+        """
         return self.r
 
     def to_spec(self) -> dict:
+        """The rule as a run spec's ``"rule"`` (`CollisionRule.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "restitution", "r": r}``.
+        """
         return {"kind": "restitution", "r": self.r}
 
     def __repr__(self) -> str:
@@ -175,12 +277,33 @@ class Restitution(CollisionRule):
 
 
 class Elastic(Restitution):
-    """Totally elastic collisions (``r = 1``): energy and momentum conserved, any masses."""
+    """Totally elastic collisions (``r = 1``): energy and momentum conserved, any masses.
+
+    With equal masses this is the paper's exchange of the components along the line of centres
+    (Algorithm 1). The default rule of a `Simulation`.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.GraphGeometry.from_positions([[0.0], [2.0]])
+    >>> sim = pb.Simulation(g, [[1.0], [0.0]], rule=pb.Elastic(), seed=0)
+    >>> sim.run(steps=1), sim.velocities.tolist(), sim.energy()
+    (1, [[0.0], [1.0]], 0.5)
+    >>> pb.Elastic().to_spec()
+    {'kind': 'elastic'}
+    """
 
     def __init__(self):
         super().__init__(1.0)
 
     def to_spec(self) -> dict:
+        """The rule as a run spec's ``"rule"`` (`CollisionRule.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "elastic"}``.
+        """
         return {"kind": "elastic"}
 
     def __repr__(self) -> str:
