@@ -179,6 +179,15 @@ class GPUReplicas(_OnGPU):
         raise FieldError("engine", "'gpu_replicas' runs an ensemble's replicas together (run_ensemble(..., "
                                    "device='cuda')), not one simulation")
 
+    def build_replicas(self, backends: list, device: Device, pattern=None):
+        """The replicas of ``backends`` (their simulations' engines: one model's chains, each its own state) as
+        one `engine.gpu.replicas.ReplicaSet` on the GPU, each state written back after every launch."""
+        model = backends[0].model
+        self.check(model, "float", device)
+        from .gpu.replicas import ReplicaSet
+
+        return ReplicaSet(backends, pattern)
+
 
 #: the built-in engines, in the order the door prefers them
 BUILT_IN = (ColoredSweepThreads(), Threads(), Sequential(), Field(), GPUCertified(), GPU(), GPUReplicas())

@@ -2,11 +2,13 @@
 
 Small systems run one replica a GPU thread (`engine.gpu.replicas.ReplicaChains`), as many at once as the
 GPU's memory holds (`REPLICA_MEMORY_SHARE` of it), group after group. A replica's stream is its own
-seed's counter stream, so it runs the chain its `Simulation` would run on the CPU. Each replica goes
-through the run driver (`engine.driver.Drive`), as a replica on the CPU does: the driver says where its
-next chunk ends (the spec's stop, its snapshots' trigger), the chunks of all the replicas run in one
-launch, and the driver fires the snapshot rows and finds the stop's reason. A replica is seen by the
-driver and the rows as a `Replica`: a simulation's counters, state and freeze, read from the group's arrays.
+seed's counter stream, so it runs the chain its `Simulation` would run on the CPU. Each replica is a real
+`Simulation`, built on the CPU as a replica on the CPU is (its velocities checked, its threshold, its stream
+seeded), whose state the GPU's replicas engine runs with the others' (`engine.gpu.replicas.ReplicaSet`: replicas
+as state) and writes back after every launch; so a replica goes on as a simulation with the CPU's bits
+(`run_replicas`). Each goes through the run driver (`engine.driver.Drive`), as a replica on the CPU does: the
+driver says where its next chunk ends (the spec's stop, its snapshots' trigger), the chunks of all the replicas
+run in one launch, and the driver fires the snapshot rows and finds the stop's reason.
 Systems larger than `MAX_THREAD_CONTACTS` contacts run one replica after another, each a
 `Simulation(device="cuda")` (the chain by deterministic reservations on the whole GPU).
 """
@@ -19,16 +21,12 @@ import numpy as np
 
 from ..engine import door
 from ..engine.chain import NO_LIMIT
+from ..engine.devices import as_device
 from ..engine.driver import Drive, Writer, drive
 from ..engine.rows import row_pattern
-from ..engine.state import RunState, mass_array
-from ..engine.streams.philox import counter_stream
-from ..engine.streams.xoshiro import seed_state
-from ..rules import threshold
-from ..simulation import check_velocities
 
-__all__ = ["run_on_gpu", "on_worker_gpu", "groups", "gpu_workers", "Replica", "replica_pattern", "MAX_THREAD_CONTACTS",
-           "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS", "WORKER_GROUP"]
+__all__ = ["run_on_gpu", "run_replicas", "on_worker_gpu", "groups", "gpu_workers", "replica_pattern",
+           "MAX_THREAD_CONTACTS", "REPLICA_MEMORY_SHARE", "LAUNCH_STEPS", "WORKER_GROUP"]
 
 #: systems with more contacts than this run one replica at a time on the whole GPU
 MAX_THREAD_CONTACTS = 1 << 16
@@ -148,38 +146,6 @@ def _groups(count: int, proto) -> list[range]:
     return [range(a, min(count, a + size)) for a in range(0, count, size)]
 
 
-class Replica:
-    """Replica ``r`` of a group on the GPU as the run driver and the rows see a simulation: its counters,
-    state, freeze and what a row reads (geometry, masses, threshold, resolution)."""
-
-    smallest_exact_collision = None
-
-    def __init__(self, chains, r: int, proto, threshold_: float):
-        self.chains, self.r, self.proto = chains, r, proto
-        self.geometry, self.masses, self.resolution = proto.geometry, proto.masses, proto.resolution
-        self.threshold = threshold_
-
-    @property
-    def steps(self) -> int:
-        return int(self.chains.state[self.r, 0])
-
-    @property
-    def collisions(self) -> int:
-        return int(self.chains.state[self.r, 1])
-
-    @property
-    def velocities(self) -> np.ndarray:
-        return self.chains.velocities(self.r)
-
-    def is_frozen(self) -> bool:
-        """No live contact in its velocities (counted on the CPU, as `Simulation.approaching` counts them)."""
-        return not self.proto.engine.live_flags(self.velocities).any()
-
-    def get_state(self) -> RunState:
-        return RunState(self.velocities, self.steps, self.collisions, np.zeros(4, dtype=np.uint64),
-                        np.zeros(1, dtype=np.int64), None, self.chains.margin[self.r].copy(), None)
-
-
 def replica_pattern(g) -> tuple | None:
     """The lattice's row pattern (`engine.rows`) for the replica kernels, or None (not a lattice): a
     replica's thread decodes its picks from it instead of reading four entries of the contact tables a
@@ -188,60 +154,60 @@ def replica_pattern(g) -> tuple | None:
     return None if shape is None else row_pattern(g.contacts.pairs, g.contacts.ends, *shape, min_balls=0)
 
 
+def run_replicas(sims: list, stops: list, writers: list | None = None, chunk: int = LAUNCH_STEPS) -> list[str]:
+    """Run ``sims`` (simulations of one geometry and rule on the counter stream, each its own state) together on
+    this process's GPU, simulation ``r`` to its `Stop` ``stops[r]`` with its ``writers[r]``, by the door's replicas
+    engine (`engine.builtin.GPUReplicas`): each simulation's state is then its replica's, and it goes on as a
+    `Simulation`, on either device, with the bits of one that ran alone. Returns each one's stop reason."""
+    model = sims[0].engine.model
+    engine = door.choose(model, sims[0].arithmetic, "cuda", replicas=True)
+    replicas = engine.build_replicas([sim.engine for sim in sims], as_device("cuda"), replica_pattern(model.geometry))
+    writers = writers or [[] for _ in sims]
+    drives = [Drive(sim, stop, list(w), chunk=chunk) for sim, stop, w in zip(sims, stops, writers)]
+    until_frozen = [d.stop.until_frozen for d in drives]
+    freeze_chunk = max(1 << 12, 4 * model.geometry.n_contacts)
+    for d in drives:
+        d.attach()
+        d.start()
+    active = list(range(len(sims)))
+    while True:
+        limits = np.zeros((len(sims), 3), dtype=np.int64)
+        moving = []
+        for r in active:
+            asked = drives[r].next()
+            if asked is None:
+                continue
+            steps, collisions = asked
+            limits[r] = (sims[r].steps + steps, NO_LIMIT if collisions is None else collisions, int(until_frozen[r]))
+            moving.append(r)
+        if not moving:
+            break
+        for r in set(range(len(sims))) - set(moving):  # done: no step
+            limits[r] = (sims[r].steps, NO_LIMIT, 0)
+        before = [sims[r].steps for r in range(len(sims))]
+        replicas.run(limits, freeze_chunk)
+        for r in moving:
+            sim = sims[r]
+            short = sim.steps < limits[r, 0] and sim.collisions < limits[r, 1]
+            frozen = bool(short and until_frozen[r] and replicas.frozen(r))
+            if short and not frozen and sim.steps == before[r]:
+                raise RuntimeError(f"replica {r} took no step and did not freeze")
+            drives[r].advanced(frozen)
+        active = moving
+    return [d.reason for d in drives]
+
+
 class _Group:
-    """Replicas of one spec on the GPU, each driven to its snapshots and its stop (module docstring)."""
+    """Replicas of one spec on the GPU, each a `Simulation` driven to its snapshots and its stop (module
+    docstring)."""
 
     def __init__(self, spec, proto, members: list, observe: Callable, row_of: Callable):
-        from ..engine.gpu.replicas import ReplicaChains
-
-        self.spec, self.proto, self.members = spec, proto, members
-        model = proto.engine.model
-        g, masses = proto.geometry, model.masses
-        v, params, keys, thresholds = [], [], [], []
-        for _k, seed in members:
-            velocities = check_velocities(g, masses, spec.initial.build(g, mass_array(spec.build_masses(g.n_balls),
-                                                                                      g.n_balls), seed))
-            tau = threshold(velocities, masses, proto.resolution)
-            v.append(velocities)
-            params.append(np.append(model.params[:-1], tau))
-            keys.append(counter_stream(seed_state(seed))[:2])
-            thresholds.append(tau)
-        self.chains = ReplicaChains(np.stack(v), np.stack(params), np.stack(keys), g.contacts, replica_pattern(g),
-                                    masses, model.collide)
+        self.spec, self.members = spec, members
+        self.sims = [spec.build(seed=seed, geometry=proto.geometry) for _, seed in members]  # real simulations
+        for sim in self.sims:
+            sim.warns_thin_margin = False  # the ensemble says it once
         self.rows = [_Rows(spec, k, seed, observe, row_of) for k, seed in members]
-        self.drives = [Drive(Replica(self.chains, r, proto, thresholds[r]), spec.stop.build(), [self.rows[r]],
-                             chunk=LAUNCH_STEPS) for r in range(len(members))]
 
     def run(self) -> dict[int, list]:
-        n, until_frozen = len(self.members), self.drives[0].stop.until_frozen
-        freeze_chunk = max(1 << 12, 4 * self.proto.geometry.n_contacts)
-        for d in self.drives:
-            d.attach()
-            d.start()
-        active = list(range(n))
-        while True:
-            limits = np.zeros((n, 3), dtype=np.int64)
-            moving = []
-            for r in active:
-                asked = self.drives[r].next()
-                if asked is None:
-                    continue
-                steps, collisions = asked
-                st = self.chains.state[r]
-                limits[r] = (st[0] + steps, NO_LIMIT if collisions is None else collisions, int(until_frozen))
-                moving.append(r)
-            if not moving:
-                break
-            for r in set(range(n)) - set(moving):  # done: no step
-                limits[r] = (self.chains.state[r, 0], NO_LIMIT, 0)
-            before = self.chains.state[:, :2].copy()
-            self.chains.run(limits, freeze_chunk)
-            for r in moving:
-                st = self.chains.state[r]
-                short = st[0] < limits[r, 0] and st[1] < limits[r, 1]
-                frozen = bool(short and until_frozen and st[3])
-                if short and not frozen and st[0] == before[r, 0]:
-                    raise RuntimeError(f"replica {self.members[r][0]} took no step and did not freeze")
-                self.drives[r].advanced(frozen)
-            active = moving
+        run_replicas(self.sims, [self.spec.stop.build() for _ in self.sims], [[rows] for rows in self.rows])
         return {k: self.rows[r].rows for r, (k, _) in enumerate(self.members)}

@@ -188,12 +188,13 @@ class RunSpec(_Spec):
         spec._device = as_device(device)
         return spec
 
-    def build(self, seed: int | np.random.SeedSequence | None = None, device: str | Device | None = None
-              ) -> Simulation:
+    def build(self, seed: int | np.random.SeedSequence | None = None, device: str | Device | None = None,
+              geometry: Geometry | None = None) -> Simulation:
         """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``
         (with neither, fresh entropy: see `Simulation`). ``device``: where it runs (``"cpu"``, ``"cuda"``,
         `pinnedballs.CPU`, `pinnedballs.CUDA`), not part of the spec: the same spec gives the same bits on either
-        (None: `on_device`'s, else the CPU)."""
+        (None: `on_device`'s, else the CPU). ``geometry``: this spec's geometry, built already (an ensemble's
+        replicas share one)."""
         device = self._device if device is None else device
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
@@ -201,10 +202,10 @@ class RunSpec(_Spec):
                                     f"got {_short(seed)}")
         if seed is None and self.seed is None:
             # its seed then fits a spec: sim.seed repeats it as the spec's "seed"
-            return self.seeded().build(device=device)
+            return self.seeded().build(device=device, geometry=geometry)
         seq = seed if isinstance(seed, np.random.SeedSequence) else \
             self.seed_sequence() if seed is None else np.random.SeedSequence(seed)
-        geometry = self.geometry.build()
+        geometry = self.geometry.build() if geometry is None else geometry
         masses = self.build_masses(geometry.n_balls)
         with engine_errors("", {"masses": "masses"}):
             masses_all = mass_array(masses, geometry.n_balls)

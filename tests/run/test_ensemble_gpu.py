@@ -95,3 +95,29 @@ def test_a_certified_ensemble_runs_one_replica_at_a_time_on_the_gpu_with_the_cpu
     with pytest.raises(InputError, match="^device: 'cuda' runs a certified ensemble's replicas one at a time on this "
                                          "process's GPU; on a Dask cluster, certified replicas run on its CPUs"):
         pb.run_ensemble(s, 2, device="cuda", dask_address="tcp://127.0.0.1:1")
+
+
+def test_gpu_replicas_are_simulations_whose_states_go_on_with_the_cpus_bits():
+    """Replicas as state: simulations built on the CPU run together on the GPU (`run_replicas`) to a stop; each
+    then holds the state of the same simulation run alone on the CPU (stream words and scheduler state too), and
+    goes on, on the CPU, to the CPU's frozen state."""
+    from pinnedballs.engine.stop import Stop
+    from pinnedballs.run.ensemble_gpu import run_replicas
+
+    g = pb.HalfPlane.from_size(12, 6)
+    v = np.zeros((g.n_balls, 2))
+    v[g.boundary_center()] = [0.5, 10.0]
+    counter = pb.UniformRandomPair(stream="counter")
+    gpu = [pb.Simulation(g, v, scheduler=counter, seed=seed) for seed in range(3)]
+    cpu = [pb.Simulation(g, v, scheduler=counter, seed=seed) for seed in range(3)]
+    stops = [Stop(steps=150), Stop(collisions=7, until_frozen=True), Stop(steps=10**6, until_frozen=True)]
+    reasons = run_replicas(gpu, stops)
+    cpu[0].run(steps=150)
+    cpu[1].run(collisions=7)
+    cpu[2].run_until_frozen(max_steps=10**6)
+    assert reasons[2] == "frozen" and gpu[1].collisions == 7
+    for a, b in zip(gpu, cpu):
+        assert a.get_state().identical(b.get_state()) and a.engine_name == "threads"   # a CPU engine's state
+        a.run_until_frozen(max_steps=10**6)
+        b.run_until_frozen(max_steps=10**6)
+        assert a.get_state().identical(b.get_state()) and a.closing_margin() == b.closing_margin()

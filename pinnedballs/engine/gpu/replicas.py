@@ -20,6 +20,8 @@ import os
 import numpy as np
 from numba import cuda
 
+from ...util.errors import FieldError
+from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..harness import given, limits_loop, taken
 from ..margin import track as margin_track
 from . import load
@@ -27,7 +29,8 @@ from .chain import upload_contacts
 from .compile import device_function, device_trial
 from .device import SIMULATED, contact_reader, counter_pick, device, launching, lemire, philox_block
 
-__all__ = ["replicas_kernel", "ReplicaChains", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN", "STATE_SIZE"]
+__all__ = ["replicas_kernel", "ReplicaChains", "ReplicaSet", "S_STEPS", "S_COLLISIONS", "S_LAST", "S_FROZEN",
+           "STATE_SIZE"]
 
 #: columns of the per-replica ``state (R, STATE_SIZE) int64``: steps (= the stream's position), collisions,
 #: the steps right after the last collision (0: none), 1 when the last launch ended at a freeze, and the
@@ -315,3 +318,54 @@ class ReplicaChains:
     def velocities(self, replica: int | None = None) -> np.ndarray:
         """A host copy of replica ``replica``'s velocities ``(N, dim)``, or of all ``(R, N, dim)``."""
         return self._v.copy_to_host() if replica is None else self._v[replica].copy_to_host()
+
+
+class ReplicaSet:
+    """Replicas as state: the `engine.chain.ChainState` of each of ``R`` simulations of one model (one geometry,
+    rule and masses; each its own velocities, threshold, counter stream, counters and margin), run together
+    on the GPU by `ReplicaChains` and written back into those states after each launch. So each simulation
+    holds its replica's state, its stream's words and its scheduler's included, and goes on as a `Simulation`
+    (on the CPU or the GPU) with the bits of one that ran alone.
+
+    backends: the simulations' backends (``sim.engine``), of one geometry and rule on the counter stream, each at
+    a step where its stream's position is its step count (``rng[2] == steps``, as every run on that stream
+    leaves it); pattern: the lattice's row pattern for the kernels (`run.ensemble_gpu.replica_pattern`) or None.
+    """
+
+    def __init__(self, backends: list, pattern=None):
+        first = backends[0].model
+        for b in backends:
+            m, st = b.model, b.state
+            if m.geometry is not first.geometry or m.collide is not first.collide or not m.selector.counter:
+                raise FieldError("replicas", "must be simulations of one geometry and rule on the counter stream")
+            if int(st.rng[2]) != st.steps:
+                raise FieldError("replicas", f"a replica's stream is at {int(st.rng[2])}, its steps at {st.steps}")
+        self.states = [b.state for b in backends]
+        g = first.geometry
+        self.chains = ReplicaChains(np.stack([b.velocities() for b in backends]),
+                                    np.stack([b.model.params for b in backends]),
+                                    np.stack([st.rng[:2] for st in self.states]), g.contacts, pattern,
+                                    first.masses, first.collide)
+        for r, st in enumerate(self.states):
+            self.chains.state[r, [S_STEPS, S_COLLISIONS, S_LAST]] = st.counters[[STEPS, COLLISIONS, LAST]]
+            self.chains.margin[r] = st.margin
+
+    def __len__(self) -> int:
+        return len(self.states)
+
+    def run(self, limits: np.ndarray, chunk: int) -> None:
+        """Run replica ``r`` to ``limits[r] = (steps, collisions, until_frozen)`` (absolute counts), in one
+        launch; every state is then its replica's (velocities copied back in one transfer)."""
+        self.chains.run(limits, chunk)
+        v = self.chains.velocities()
+        for r, st in enumerate(self.states):
+            st.velocities[:] = v[r]
+            steps, collisions, last = self.chains.state[r, [S_STEPS, S_COLLISIONS, S_LAST]]
+            st.counters[STEPS], st.counters[COLLISIONS], st.counters[LAST], st.counters[LIVE] = \
+                steps, collisions, last, -1
+            st.rng[2] = np.uint64(steps)  # the counter stream's position: the next pick is that of this step
+            st.margin[:] = self.chains.margin[r]
+
+    def frozen(self, replica: int) -> bool:
+        """Whether replica ``replica``'s last launch ended at its freeze."""
+        return bool(self.chains.state[replica, S_FROZEN])
