@@ -154,13 +154,15 @@ def replica_pattern(g) -> tuple | None:
     return None if shape is None else row_pattern(g.contacts.pairs, g.contacts.ends, *shape, min_balls=0)
 
 
-def run_replicas(sims: list, stops: list, writers: list | None = None, chunk: int = LAUNCH_STEPS) -> list[str]:
+def run_replicas(sims: list, stops: list, writers: list | None = None, chunk: int = LAUNCH_STEPS,
+                 engine: str | None = None) -> list[str]:
     """Run ``sims`` (simulations of one geometry and rule on the counter stream, each its own state) together on
     this process's GPU, simulation ``r`` to its `Stop` ``stops[r]`` with its ``writers[r]``, by the door's replicas
-    engine (`engine.builtin.GPUReplicas`): each simulation's state is then its replica's, and it goes on as a
-    `Simulation`, on either device, with the bits of one that ran alone. Returns each one's stop reason."""
+    engine (`engine.builtin.GPUReplicas`, or the one named ``engine``): each simulation's state is then its
+    replica's, and it goes on as a `Simulation`, on either device, with the bits of one that ran alone. Returns
+    each one's stop reason."""
     model = sims[0].engine.model
-    engine = door.choose(model, sims[0].arithmetic, "cuda", replicas=True)
+    engine = door.choose(model, sims[0].arithmetic, "cuda", replicas=True, engine=engine)
     replicas = engine.build_replicas([sim.engine for sim in sims], as_device("cuda"), replica_pattern(model.geometry))
     writers = writers or [[] for _ in sims]
     drives = [Drive(sim, stop, list(w), chunk=chunk) for sim, stop, w in zip(sims, stops, writers)]

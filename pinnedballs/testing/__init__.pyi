@@ -41,3 +41,4 @@ from .engine_checks import check_engine_resume as check_engine_resume
 from .engine_checks import check_engine_split_runs as check_engine_split_runs
 from .engine_checks import check_engine_until_frozen as check_engine_until_frozen
 from .engine_checks import engine_checks_for as engine_checks_for
+from .engine_checks import check_engine_replicas as check_engine_replicas

@@ -29,7 +29,8 @@ from ..simulation import Simulation
 
 __all__ = ["SYSTEMS", "LARGE_SYSTEMS", "System", "ENGINE_CHECKS", "check_engine", "engine_checks_for", "systems_for",
            "check_engine_split_runs", "check_engine_collision_target", "check_engine_until_frozen",
-           "check_engine_resume", "check_engine_agrees_with_reference", "check_engine_refuses"]
+           "check_engine_resume", "check_engine_agrees_with_reference", "check_engine_refuses", "check_engine_replicas",
+           "REPLICAS_CHECKS"]
 
 #: the engine a check compares with, by arithmetic
 REFERENCE = {"float": "sequential", "exact": "field", "certified": "field"}
@@ -53,11 +54,16 @@ class System:
 
     def simulation(self, engine: str | None, device: Device, seed: int = 11) -> Simulation:
         """The system's simulation on ``engine`` (None: the door's choice) and ``device``."""
+        return self.simulations(engine, device, [seed])[0]
+
+    def simulations(self, engine: str | None, device: Device, seeds: list[int]) -> list[Simulation]:
+        """Simulations of the system on one geometry, one a seed (replicas)."""
         g, v, scheduler = self.build()
-        sim = Simulation(g, v, scheduler=scheduler, seed=seed, arithmetic=self.arithmetic, device=device,
-                         engine=engine)
-        sim.warns_thin_margin = False  # a check compares counts; the margin is compared, not told
-        return sim
+        sims = [Simulation(g, v, scheduler=scheduler, seed=seed, arithmetic=self.arithmetic, device=device,
+                           engine=engine) for seed in seeds]
+        for sim in sims:
+            sim.warns_thin_margin = False  # a check compares counts; the margin is compared, not told
+        return sims
 
 
 def _half_plane(stream: str, length: int = 12, depth: int = 6) -> Callable:
@@ -264,17 +270,51 @@ def check_engine_refuses(engine: Engine | str, large: bool = False) -> None:
                                                                              "supports() refuses"))
 
 
+def check_engine_replicas(engine: Engine | str, large: bool = False) -> None:
+    """An engine of replicas (``engine.replicas``) runs simulations of one system together (`run.ensemble_gpu.
+    run_replicas`) to steps, a collision count and the freeze, each then in the state of the same simulation run
+    alone on the reference engine, and going on from there with its bits."""
+    from ..engine.stop import Stop
+    from ..run.ensemble_gpu import run_replicas
+
+    engine = _engine(engine)
+    with _at_the_door(engine) as name:
+        for s in SYSTEMS:
+            if engine.supports(_model(s), s.arithmetic, _device(engine)) is not None:
+                continue
+            mine = s.simulations(None, as_device("cpu"), [0, 1, 2])
+            ref = s.simulations(REFERENCE[s.arithmetic], as_device("cpu"), [0, 1, 2])
+            last = s.max_steps if s.freezes else 2 * s.steps  # to the freeze, where there is one
+            stops = [Stop(steps=s.steps), Stop(collisions=9, until_frozen=True),
+                     Stop(steps=last, until_frozen=s.freezes)]
+            run_replicas(mine, stops, engine=name)
+            ref[0].run(steps=s.steps)
+            ref[1].run(collisions=9)
+            ref[2].run(steps=last, until_frozen=s.freezes)
+            for r, (a, b) in enumerate(zip(mine, ref)):
+                differ = _same(a, b)
+                assert not differ, _say("check_engine_replicas", engine, s, f"replica {r} ({stops[r]}) ends "
+                                                                           f"otherwise than alone: {differ}")
+                a.run(steps=s.steps)
+                b.run(steps=s.steps)
+                differ = _same(a, b)
+                assert not differ, _say("check_engine_replicas", engine, s, f"replica {r} goes on otherwise than "
+                                                                           f"the simulation alone: {differ}")
+
+
 #: every engine check, in the order they run
 ENGINE_CHECKS = (check_engine_refuses, check_engine_agrees_with_reference, check_engine_split_runs,
                  check_engine_collision_target, check_engine_until_frozen, check_engine_resume)
+#: the checks of an engine of replicas
+REPLICAS_CHECKS = (check_engine_replicas,)
 
 
 def engine_checks_for(engine: Engine | str) -> list[Callable]:
     """The checks that apply to ``engine``: all, but the comparison with the reference for a reference engine
-    itself (``"sequential"``, ``"field"``), and none for an engine of replicas (checked by its ensembles)."""
+    itself (``"sequential"``, ``"field"``); for an engine of replicas, `REPLICAS_CHECKS`."""
     engine = _engine(engine)
     if engine.replicas:
-        return []
+        return list(REPLICAS_CHECKS)
     return [c for c in ENGINE_CHECKS
             if not (c is check_engine_agrees_with_reference and engine.name in REFERENCE.values())]
 

@@ -52,12 +52,12 @@ def test_every_built_in_engine_but_the_replicas_has_the_whole_battery():
     for engine in engines():
         said = [c.__name__ for c in engine_checks_for(engine)]
         if engine.replicas:
-            assert said == [], engine
+            assert said == ["check_engine_replicas"], engine
         elif engine.name in ("sequential", "field"):  # the references (tests/reference.py checks sequential)
             assert said == [c.__name__ for c in ENGINE_CHECKS if c is not check_engine_agrees_with_reference]
         else:
             assert said == [c.__name__ for c in ENGINE_CHECKS], engine
-        assert engine.replicas or systems_for(engine), f"{engine.name} runs none of the battery's systems"
+        assert systems_for(engine) or engine.replicas, f"{engine.name} runs none of the battery's systems"
 
 
 def test_the_threads_engine_is_checked_where_its_threads_run():
@@ -196,3 +196,29 @@ def test_a_users_engine_is_checked_registered_or_not_and_left_as_it_was():
     with pytest.raises(ValueError, match="another engine is registered as 'sequential'"):
         check_engine(_Broken("sequential", LoopBackend))
     assert np.array_equal([e.name for e in engines()], before)
+
+
+@pytest.mark.cuda
+def test_an_engine_of_replicas_that_forgets_a_replicas_stream_is_caught():
+    """Replicas as state: a replica set that leaves each simulation's stream where it was fails
+    `check_engine_replicas` (the simulations would go on from another pick)."""
+    from pinnedballs.engine.builtin import GPUReplicas
+    from pinnedballs.engine.gpu.replicas import ReplicaSet
+
+    class Forgetful(ReplicaSet):
+        def run(self, limits, chunk):
+            words = [st.rng.copy() for st in self.states]
+            super().run(limits, chunk)
+            for st, w in zip(self.states, words):
+                st.rng[:] = w
+
+    class Broken(GPUReplicas):
+        name = "forgetful"
+
+        def build_replicas(self, backends, device, pattern=None):
+            return Forgetful(backends, pattern)
+
+    check_engine("gpu_replicas")
+    with pytest.raises(AssertionError, match=r"^check_engine_replicas: engine 'forgetful' on half_plane/counter: "
+                                             r"replica 0 \(.*\) ends otherwise than alone: rng_state"):
+        check_engine(Broken())
