@@ -2,17 +2,16 @@
 ``plot``, ``--resume``): a file edited or damaged by hand or by another program is refused
 with one message naming the file and the dataset, never read as a run.
 
-First what the index says of itself (`index`: format and version, attributes, the segment list
-and the links to the data files), then the data. What is checked (``n`` balls, ``d`` velocity components, ``E``
-contacts, ``F`` snapshots): shapes and dtypes of the geometry, the initial and latest velocities, the snapshots and
-their observables; the contacts against the geometry the stored spec builds; finite numbers (the
-snapshots' of format 3 as each is read, `frames`: their digests are verified here); the
-counters (``0 <= collisions <= steps``, snapshots in order and not past the state); the random
-state (4 words, not all zero) and the scheduler state (as its scheduler would check it); the
-closing margin where the file keeps one (as `Simulation.set_state` would check it, with its
-criterion); and
-every segment and the static file behind the index (virtual datasets read missing or truncated
-sources as zeros, so each one is opened and measured).
+First what the index says of itself (`index`: format and version, attributes, the segment list and the links
+to the data files; an older format's as `legacy` says), then the data. What is checked (``n`` balls, ``d``
+velocity components, ``E`` contacts, ``F`` snapshots): shapes and dtypes of the geometry, the initial and
+latest velocities, the snapshots and their observables; the contacts against the geometry the stored spec
+builds; finite numbers (the snapshots' of format 3 as each is read, `frames`: their digests are verified here;
+those of older formats all at once, `legacy.scan_frames`); the counters (``0 <= collisions <= steps``,
+snapshots in order and not past the state); the random state (4 words, not all zero) and the scheduler state
+(as its scheduler would check it); the closing margin where the file keeps one (as `Simulation.set_state`
+would check it, with its criterion); and every segment and the static file behind the index (virtual
+datasets read missing or truncated sources as zeros, so each one is opened and measured).
 """
 
 from __future__ import annotations
@@ -31,8 +30,8 @@ from ..specs.errors import first_error
 from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.run import RunSpec, stored_spec
 from ..util.errors import FieldError
+from . import legacy
 from .format import STATIC_NAME, ResultsError
-from .format import data_dir as data_dir_of
 from .index import (
     Damage,
     check_attributes,
@@ -41,7 +40,8 @@ from .index import (
     check_initial,
     check_links,
     check_provenance,
-    segment_list,
+    check_sources,
+    data_files,
 )
 
 __all__ = ["check_results"]
@@ -53,22 +53,14 @@ def check_results(p: Path, f: h5py.File, sealed: bool) -> int:
     a digest, which its bytes matched (`digest.unseal`): format 3 must, earlier formats cannot."""
     try:
         version = check_format(p, f)
-        if sealed != (version >= 3):
-            raise Damage("/ (attribute format_version)", f"is {version}, but the index {'has' if sealed else 'lacks'} "
-                                                         f"the digest of format 3")
-        check_attributes(f, version)
-        check_provenance(f)
-        if version >= 2:
-            data, segments = data_dir_of(p), segment_list(f)
-            missing = [name for name in [STATIC_NAME, *(s[0] for s in segments)] if not (data / name).is_file()]
-            if missing:
-                raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
-            if version >= 3:
-                check_digests(f, data, [STATIC_NAME, *(s[0] for s in segments)])
-            _check_sources(segments, data)
-            check_links(f, data, segments, json.loads(f.attrs["observables"]))
+        if legacy.older(version):
+            legacy.check_index(p, f, version, sealed)
+        else:
+            _check_index(p, f, version, sealed)
         check_initial(f)
         _check(f)
+        if legacy.older(version):  # no digest vouches for their frames
+            legacy.scan_frames(f)
     except ResultsError:
         raise
     except Damage as exc:
@@ -76,6 +68,19 @@ def check_results(p: Path, f: h5py.File, sealed: bool) -> int:
     except (KeyError, OSError, ValueError, TypeError) as exc:
         raise ResultsError(f"{p}: damaged results file ({' '.join(str(exc).split())})") from None
     return version
+
+
+def _check_index(p: Path, f: h5py.File, version: int, sealed: bool) -> None:
+    """The index of format 3: its digest (``sealed``), attributes, provenance, and the static file and
+    segments it lists, each with its digest and the rows the index says, under its virtual datasets."""
+    if not sealed:
+        raise Damage("/ (attribute format_version)", f"is {version}, but the index lacks the digest of format 3")
+    check_attributes(f)
+    check_provenance(f)
+    data, segments = data_files(p, f)
+    check_digests(f, data, [STATIC_NAME, *(s[0] for s in segments)])
+    check_sources(segments, data)
+    check_links(f, data, segments, json.loads(f.attrs["observables"]))
 
 
 def _dataset(f: h5py.File, name: str) -> h5py.Dataset:
@@ -149,26 +154,7 @@ def _check(f: h5py.File) -> None:
         _check_margin(f)
     if "certified" in f["state"]:
         _check_certified(f, n, d)
-    _check_snapshots(f, n, d, steps, collisions, scan=int(f.attrs["format_version"]) < 3)
-
-
-def _check_sources(segments: list, data_dir: Path) -> None:
-    """The static file and each segment open, and hold the rows the index says."""
-    _open_source(data_dir / STATIC_NAME, lambda g: None)
-    for name, _, count in segments:
-        def measure(g, name=name, count=count):
-            rows = _dataset(g, "velocities").shape[:1]
-            if rows != (count,):
-                raise Damage(f"{data_dir.name}/{name}: velocities", f"must have {count} rows, got {rows}")
-        _open_source(data_dir / name, measure)
-
-
-def _open_source(path: Path, check) -> None:
-    try:
-        with h5py.File(path, "r") as g:
-            check(g)
-    except OSError as exc:
-        raise Damage(str(path), f"not a readable HDF5 file (truncated?): {' '.join(str(exc).split())}") from None
+    _check_snapshots(f, n, d, steps, collisions)
 
 
 def _stored_spec(f: h5py.File) -> RunSpec | None:
@@ -217,24 +203,15 @@ def _check_scheduler_state(f: h5py.File, sched: np.ndarray, e: int) -> None:
         raise Damage("state/scheduler_state", exc.problem) from None
 
 
-#: the snapshot velocities a scan holds at once
-_SCAN_BYTES = 16 << 20
-
-
-def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int, scan: bool) -> None:
-    """Snapshot velocities ``(F, n, d)``; counters ``(F,)`` in order, within the state's. ``scan``: read
-    every frame to check it is finite (formats 1 and 2; a run of format 3 had its digests verified, and
-    `frames.Snapshots` checks each frame as it reads it, so a large run opens at once)."""
+def _check_snapshots(f: h5py.File, n: int, d: int, steps: int, collisions: int) -> None:
+    """Snapshot velocities ``(F, n, d)``; counters ``(F,)`` in order, within the state's. The frames are not
+    read: a run of format 3 had its digests verified, and `frames.Snapshots` checks each frame as it reads it,
+    so a large run opens at once (`legacy.scan_frames` reads those of older formats)."""
     frames = _dataset(f, "snapshots/velocities")
     if frames.ndim != 3 or frames.shape[1:] != (n, d) or frames.dtype.kind != "f":
         raise Damage("snapshots/velocities", f"must be floating point of shape (F, {n}, {d}), got "
                                               f"{frames.dtype} {frames.shape}")
     count = frames.shape[0]
-    if scan:
-        rows = max(1, _SCAN_BYTES // max(1, 8 * n * d))  # a few frames at a time: bounded memory
-        for start in range(0, count, rows):
-            if not np.isfinite(frames[start:start + rows]).all():
-                raise Damage("snapshots/velocities", "holds non-finite values (NaN or inf)")
     at = {}
     for name, last in (("steps", steps), ("collisions", collisions)):
         x = _array(f, f"observables/{name}", "i", (count,))

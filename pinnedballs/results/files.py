@@ -1,6 +1,7 @@
 """Results files written so that a kill, a Ctrl-C or a full disk never leaves half of one: HDF5 files
 built in memory first (`h5_image`), then written whole (`util.atomic.write_bytes_atomic`); their
-rows gathered from segments (`virtual_rows`); signals held while a checkpoint is written (`held_signals`)."""
+rows gathered from segments (`virtual_rows`); signals held while a checkpoint is written (`held_signals`); an
+attribute read as a plain number (`scalar`)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from collections.abc import Callable, Iterator
 import h5py
 import numpy as np
 
-__all__ = ["h5_image", "virtual_rows", "held_signals"]
+__all__ = ["h5_image", "virtual_rows", "held_signals", "scalar"]
 
 
 def h5_image(fill: Callable[[h5py.File], None]) -> bytes:
@@ -63,3 +64,8 @@ def virtual_rows(f: h5py.File, where: str, source: str, dtype: np.dtype, shape: 
     for name, first, count in segments:
         layout[first:first + count] = h5py.VirtualSource(rel + name, source, shape=(count, *shape), dtype=dtype)
     f.create_virtual_dataset(where, layout)
+
+
+def scalar(value):
+    """An HDF5 attribute as a plain Python number."""
+    return value.item() if isinstance(value, np.generic) else value

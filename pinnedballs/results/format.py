@@ -65,9 +65,9 @@ whose segments all exist. A segment the index does not list (a kill between the 
 renames) is removed when the run continues. An HDF5 file appended in place would be
 smaller to describe but can be left unreadable by a kill in the middle of a write.
 
-Format 2 is format 3 without the digests and the statuses "interrupted" and "failed"; format 1 is a single
-file, copied whole at each checkpoint. Both still load; continuing such a run converts it to
-format 3 first. A file written before runs kept their margin (of any format) has no
+Formats 1 and 2 are `legacy`'s alone (format 2 is format 3 without the digests and the statuses "interrupted"
+and "failed"; format 1 is a single file, copied whole at each checkpoint): both still load, and continuing such
+a run goes on in format 3. A file written before runs kept their margin (of any format) has no
 ``/state/margin``: its margin is unknown (`Results.closing_margin` is None), and stays so when
 the run is continued, whose later picks alone the margin could not speak for.
 """
@@ -87,7 +87,7 @@ from ..engine.state import RunState
 from ..util.errors import InputError
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "RESULTS_NAME", "DATA_DIR", "STATIC_NAME", "ResultsError", "Snapshot",
-           "Record", "results_path", "data_dir", "STATE_KEYS", "V1_OBSERVABLES", "failed_run"]
+           "Record", "results_path", "data_dir", "STATE_KEYS", "failed_run"]
 
 FORMAT = "pinnedballs-results"
 FORMAT_VERSION = 3
@@ -97,7 +97,6 @@ DATA_DIR = "results.data"
 STATIC_NAME = "static.h5"
 #: the fields of ``/state`` a results file holds (its attribute ``keys`` lists them)
 STATE_KEYS = ("velocities", "steps", "collisions", "rng_state", "scheduler_state")
-V1_OBSERVABLES = ("steps", "collisions", "energy", "momentum", "approaching")
 
 
 class ResultsError(InputError):

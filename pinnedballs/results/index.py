@@ -1,6 +1,7 @@
 """What a results file's index says of itself, checked before its data is read (`check.check_results`
-runs these first): its format and version, the type of every attribute, the list of segments,
-and the links to the static file and the virtual datasets over the segments.
+runs these first): its format and version, the type of every attribute, the list of segments and their
+files, and the links to the static file and the virtual datasets over the segments. Format 3's, and the
+pieces `legacy` checks formats 1 and 2 with.
 
 A damaged attribute must never be read as a number it is not (``int("abc")``, a checkpoint
 count of 2.7), and an index that lists a segment twice must never pass its frames off as new
@@ -21,12 +22,13 @@ import numpy as np
 from ..util import provenance
 from .digest import file_digest
 from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, ResultsError
+from .format import data_dir as data_dir_of
 
 __all__ = ["Damage", "check_format", "check_attributes", "check_initial", "check_provenance", "segment_list",
-           "check_digests", "check_links", "STATUSES", "UNKNOWN"]
+           "data_files", "check_sources", "check_digests", "check_links", "ROOT", "STATUSES", "UNKNOWN"]
 
-#: what ``status`` may say: "interrupted" and "failed" since format 3
-STATUSES = {1: ("running", "done"), 2: ("running", "done"), 3: ("running", "done", "interrupted", "failed")}
+#: what ``status`` may say (format 3)
+STATUSES = ("running", "done", "interrupted", "failed")
 #: ``/state``'s ``approaching`` of a failed run whose live contacts could not be counted (certified arithmetic)
 UNKNOWN = -1
 _SEGMENT = re.compile(r"frames_(\d{9})\.h5")
@@ -56,26 +58,25 @@ def check_format(p: Path, f: h5py.File) -> int:
 
 # ---------------------------------------------------------------- attributes
 
-#: attribute -> type, of the root, of /state and of /initial (format 1 on); "json-list" and
-#: "json-object": text holding one
-_ROOT = {"version": str, "spec": str, "status": str, "stop_reason": str, "created": str, "updated": str,
-         "elapsed_seconds": float, "checkpoints": int}
-_ROOT_2 = {"run": "json-object", "checked": bool, "observables": "json-list", "segments": "json-list"}
-_ROOT_3 = {"digests": "json-object"}
+#: attribute -> type, of the root (format 3), of /state and of /initial; "json-list" and "json-object": text
+#: holding one
+ROOT = {"version": str, "spec": str, "status": str, "stop_reason": str, "created": str, "updated": str,
+        "elapsed_seconds": float, "checkpoints": int, "run": "json-object", "checked": bool,
+        "observables": "json-list", "segments": "json-list", "digests": "json-object"}
 _STATE = {"steps": int, "collisions": int, "energy": float, "approaching": int, "frozen": bool, "keys": "json-list"}
 _INITIAL = {"energy": float, "approaching": int}
 
 
-def check_attributes(f: h5py.File, version: int) -> None:
+def check_attributes(f: h5py.File, root: dict = ROOT, statuses: tuple[str, ...] = STATUSES) -> None:
     """Every attribute of the index the reader uses is there, of its type, and sane (counts >= 0,
     finite numbers, a known status, ``frozen`` exactly when nothing approaches, the state's ``keys``;
     a failed run's ``failure``, and its ``approaching`` `UNKNOWN` where it could not be counted);
-    those of ``/initial`` (in the static file) are `check_initial`'s."""
-    root = {**_ROOT, **(_ROOT_2 if version >= 2 else {}), **(_ROOT_3 if version >= 3 else {})}
+    those of ``/initial`` (in the static file) are `check_initial`'s. ``root``: the root's attributes and
+    their types, ``statuses``: what ``status`` may say (format 3's; an older format's from `legacy`)."""
     where = "/ (attribute status)"
     _attribute("/", "status", f.attrs.get("status"), str)
-    if f.attrs["status"] not in STATUSES[version]:
-        raise Damage(where, f"must be {' or '.join(map(repr, STATUSES[version]))}, got {_short(f.attrs['status'])}")
+    if f.attrs["status"] not in statuses:
+        raise Damage(where, f"must be {' or '.join(map(repr, statuses))}, got {_short(f.attrs['status'])}")
     failed = f.attrs["status"] == "failed"
     if failed:
         _attribute("/", "failure", f.attrs.get("failure"), "json-object")
@@ -90,7 +91,7 @@ def check_attributes(f: h5py.File, version: int) -> None:
                                                  f"approaching")
     if json.loads(state["keys"]) != list(STATE_KEYS):
         raise Damage("state/keys", f"must list {list(STATE_KEYS)}, got {_short(state['keys'])}")
-    if version >= 2:
+    if "observables" in root:  # formats 2 and 3 list them
         names = json.loads(f.attrs["observables"])
         if not all(isinstance(n, str) for n in names) or not {"steps", "collisions"} <= set(names) \
                 or len(set(names)) != len(names):
@@ -179,6 +180,42 @@ def segment_list(f: h5py.File) -> list[tuple[str, int, int]]:
         out.append((name, first, count))
         total += count
     return out
+
+
+def data_files(p: Path, f: h5py.File) -> tuple[Path, list[tuple[str, int, int]]]:
+    """The data directory of the results file ``f`` (at ``p``) and its segments (`segment_list`), once the
+    static file and every segment are there (a `ResultsError` naming the first missing)."""
+    data, segments = data_dir_of(p), segment_list(f)
+    missing = [name for name in [STATIC_NAME, *(s[0] for s in segments)] if not (data / name).is_file()]
+    if missing:
+        raise ResultsError(f"{p}: damaged results file ({data / missing[0]} is missing)")
+    return data, segments
+
+
+def check_sources(segments: list, data_dir: Path) -> None:
+    """The static file and each segment open, and hold the rows the index says (virtual datasets read a missing
+    or truncated source as zeros)."""
+    _open_source(data_dir / STATIC_NAME, lambda g: None)
+    for name, _, count in segments:
+        def measure(g, name=name, count=count):
+            try:
+                ds = g["velocities"]
+            except (KeyError, OSError) as exc:
+                raise Damage("velocities", f"missing or unreadable ({' '.join(str(exc).split())})") from None
+            if not isinstance(ds, h5py.Dataset):
+                raise Damage("velocities", "is not a dataset")
+            rows = ds.shape[:1]
+            if rows != (count,):
+                raise Damage(f"{data_dir.name}/{name}: velocities", f"must have {count} rows, got {rows}")
+        _open_source(data_dir / name, measure)
+
+
+def _open_source(path: Path, check) -> None:
+    try:
+        with h5py.File(path, "r") as g:
+            check(g)
+    except OSError as exc:
+        raise Damage(str(path), f"not a readable HDF5 file (truncated?): {' '.join(str(exc).split())}") from None
 
 
 def check_digests(f: h5py.File, data_dir: Path, names: list[str]) -> None:

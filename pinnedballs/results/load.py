@@ -25,9 +25,10 @@ from ..specs.geometry import geometry_from_stored, parse_geometry
 from ..specs.python import IMPORT_FACTORIES, label
 from ..specs.run import RunSpec, stored_spec
 from ..util.errors import InputError
+from . import legacy
 from .check import check_results
 from .digest import unseal
-from .format import FORMAT_VERSION, RESULTS_NAME, V1_OBSERVABLES, ResultsError, data_dir, results_path
+from .format import FORMAT_VERSION, RESULTS_NAME, ResultsError, data_dir, results_path
 from .frames import FrameFile, Snapshots
 from .index import segment_list
 
@@ -346,7 +347,7 @@ def read(p: Path, f: h5py.File) -> Results:
                                    float(c.attrs.get("unfolded", 0.0)))
     latest = RunState(s["velocities"][()], int(s.attrs["steps"]), int(s.attrs["collisions"]), s["rng_state"][()],
                       s["scheduler_state"][()], exact, margin, certified)
-    names = V1_OBSERVABLES if version == 1 else json.loads(f.attrs["observables"])
+    names = legacy.observable_names(f, version) if legacy.older(version) else json.loads(f.attrs["observables"])
     observables = {name: o[name][()] for name in names}
     steps, collisions = observables["steps"], observables["collisions"]
     g = f["geometry"]
@@ -370,9 +371,9 @@ def read(p: Path, f: h5py.File) -> Results:
 
 
 def _frame_files(p: Path, f: h5py.File, version: int) -> list[FrameFile]:
-    """Where each snapshot's velocities are: the segments (formats 2 and 3), or the file itself (format 1)."""
-    if version == 1:
-        return [FrameFile.at(p, "snapshots/velocities", 0, len(f["snapshots/velocities"]))]
+    """Where each snapshot's velocities are: the segments (`legacy.frame_files` for older formats)."""
+    if legacy.older(version):
+        return legacy.frame_files(p, f, version)
     data = data_dir(p)
     return [FrameFile.at(data / name, "velocities", first, count) for name, first, count in segment_list(f)]
 
@@ -390,8 +391,3 @@ def stored_geometry(g: h5py.Group) -> StoredGeometry:
                             frames=g["frames"][()] if "frames" in g else None, view=None if view is None else str(view))
     stored.rigid = bool(g.attrs.get("rigid", False))
     return stored
-
-
-def scalar(value):
-    """An HDF5 attribute as a plain Python number."""
-    return value.item() if isinstance(value, np.generic) else value

@@ -16,12 +16,13 @@ import numpy as np
 from ..analysis import observables
 from ..engine.state import RunState
 from ..geometry.base import Geometry
-from ..geometry.graph import StoredGeometry
 from ..util.atomic import remove, tmp_path, write_bytes_atomic
-from .digest import bytes_digest, file_digest, seal
-from .files import h5_image, virtual_rows
-from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, V1_OBSERVABLES, Record, data_dir, results_path
-from .load import open_checked, read, scalar
+from . import legacy
+from .digest import seal
+from .files import h5_image, scalar, virtual_rows
+from .format import FORMAT, FORMAT_VERSION, STATE_KEYS, STATIC_NAME, Record, data_dir, results_path
+from .load import open_checked, read
+from .segments import write_segment, write_static
 
 __all__ = ["ResultsStore"]
 
@@ -73,7 +74,7 @@ class ResultsStore:
         path = Path(path)
         data = data_dir(path)
         data.mkdir(parents=True, exist_ok=True)
-        static = _write_static(data / STATIC_NAME, geometry, masses, initial)
+        static = write_static(data / STATIC_NAME, geometry, masses, initial)
         n, d = initial.state.velocities.shape
         now = _now()
         attrs = dict(format=FORMAT, format_version=FORMAT_VERSION, version=version, spec=spec, run=run,
@@ -88,29 +89,28 @@ class ResultsStore:
 
     @classmethod
     def reopen(cls, path: str | os.PathLike) -> ResultsStore:
-        """The store of an existing results file, ready to append; a format-1 file is converted, a
-        format-2 file gets the digests of its files (`digest`) with its next index."""
+        """The store of an existing results file, ready to append. A file of an older format goes on in
+        format 3 (`legacy.upgrade`): a format-2 file gets the digests of its files (`digest`) with its next
+        index, a format-1 file its data files and a format-3 index at once."""
         path = results_path(path)
         with open_checked(path) as f:
-            version = int(f.attrs["format_version"])
-            if version == 1:
-                return _convert_v1(path, f)
             res = read(path, f)
-            attrs = {k: scalar(v) for k, v in f.attrs.items()}
-            segments = json.loads(f.attrs["segments"])
-            columns = {name: (f["observables"][name].dtype.str, f["observables"][name].shape[1:])
-                       for name in json.loads(f.attrs["observables"])}
-            margin = res.closing_margin
-            lives = res.provenance
-        data = data_dir(path)
-        digests = json.loads(attrs.pop("digests")) if version >= 3 else \
-            {name: file_digest(data / name) for name in [STATIC_NAME, *(s[0] for s in segments)]}
-        attrs["format_version"] = FORMAT_VERSION
+            if legacy.older(res.format_version):
+                attrs, columns, segments, digests, written = legacy.upgrade(path, f, res)
+            else:
+                attrs = {k: scalar(v) for k, v in f.attrs.items()}
+                segments = json.loads(f.attrs["segments"])
+                columns = {name: (f["observables"][name].dtype.str, f["observables"][name].shape[1:])
+                           for name in json.loads(f.attrs["observables"])}
+                digests, written = json.loads(attrs.pop("digests")), False
+        margin = res.closing_margin
         state = Record(res.state(), res.energy, res.momentum, res.approaching)
         store = cls(path, attrs, res.velocities.shape, columns, segments, sum(s[2] for s in segments), digests,
                     int(res.snapshots.steps[-1]) if len(res.snapshots) else -1, state,
-                    None if margin is None else (margin.threshold, margin.resolution), lives)
+                    None if margin is None else (margin.threshold, margin.resolution), res.provenance)
         store.remove_strays()
+        if written:  # data files only an index of format 3 lists
+            store.write_index(state, attrs, segments, digests)
         return store
 
     def checkpoint(self, frames: list[Record], state: Record, *, status: str = "running", stop_reason: str = "",
@@ -127,7 +127,7 @@ class ResultsStore:
         segments, digests, count = list(self.segments), dict(self.digests), self.frames
         if frames:
             name = f"frames_{count:09d}.h5"
-            digests[name] = _write_segment(self.data_dir / name, frames, list(self.columns))
+            digests[name] = write_segment(self.data_dir / name, frames, list(self.columns))
             segments.append([name, count, len(frames)])
             count += len(frames)
         attrs = {k: v for k, v in self.attrs.items() if k != "failure"}
@@ -185,50 +185,6 @@ class ResultsStore:
 _STRAY = re.compile(r"(static|frames_\d+)\.h5(\.tmp)?")
 
 
-def _write_static(path: Path, geometry: Geometry, masses, initial: Record) -> str:
-    """The geometry (with its boundary, frames and view: all that reading the run needs) and the
-    initial state; the digest of the file."""
-    n = geometry.n_balls
-
-    def fill(f: h5py.File) -> None:
-        g = f.create_group("geometry")
-        c = geometry.contacts
-        g["positions"] = geometry.positions
-        g["pairs"] = np.ascontiguousarray(c.pairs)
-        g["t_i"], g["t_j"] = c.t_i, c.t_j
-        g.attrs["radius"] = float(getattr(geometry, "radius", 1.0))
-        g.attrs["view"] = geometry.view
-        g.attrs["rigid"] = bool(geometry.rigid)  # `Geometry.rigid`: a torus's, when the file stands in for it
-        boundary = geometry.boundary
-        if boundary is not None:
-            g["boundary_distance"], g["boundary_outward"] = boundary.distance, boundary.outward
-        if geometry.curved:
-            g["frames"] = np.ascontiguousarray(geometry.frames())
-        if masses is not None:
-            g["masses"] = np.broadcast_to(np.asarray(masses, dtype=np.float64), (n,))
-        i = f.create_group("initial")
-        i["velocities"] = initial.state.velocities
-        i["momentum"] = initial.momentum
-        i.attrs.update(energy=initial.energy, approaching=initial.approaching)
-
-    return _write(path, h5_image(fill))
-
-
-def _write_segment(path: Path, frames: list[Record], names: list[str]) -> str:
-    """``frames`` as one segment; the digest of the file."""
-    def fill(f: h5py.File) -> None:
-        f["velocities"] = np.stack([r.state.velocities for r in frames])
-        for name in names:
-            f[f"observables/{name}"] = np.stack([np.asarray(r.values[name]) for r in frames])
-
-    return _write(path, h5_image(fill))
-
-
-def _write(path: Path, image: bytes) -> str:
-    write_bytes_atomic(path, image)
-    return bytes_digest(image)
-
-
 def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | None) -> None:
     """``/state``: ``record``'s arrays as datasets, its counts as attributes, and its margin with the
     run's ``criterion`` (threshold, resolution) when it has one and the run keeps it."""
@@ -257,31 +213,3 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
     if criterion is not None and state.margin is not None:
         s["margin"] = np.asarray(state.margin, dtype=np.float64)
         s["margin"].attrs.update(threshold=float(criterion[0]), resolution=float(criterion[1]))
-
-
-def _convert_v1(path: Path, f: h5py.File) -> ResultsStore:
-    """A format-1 file rewritten as format 3 (static data, one segment of its frames, the index)."""
-    res = read(path, f)
-    n, d = res.velocities.shape
-    names = list(V1_OBSERVABLES)
-    start = RunState(res.initial_velocities, 0, 0, res.rng_state, res.scheduler_state)
-    initial = Record(start, res.initial_energy, f["initial/momentum"][()], int(f["initial"].attrs["approaching"]))
-    geometry = StoredGeometry(res.positions, res.pairs, res.t_i, res.t_j)
-    state = Record(res.state(), res.energy, res.momentum, res.approaching)
-    frames = [Record(RunState(s.velocities, s.steps, s.collisions, res.rng_state, res.scheduler_state), 0.0,
-                     None, 0, {k: res.observables[k][i] for k in names}) for i, s in enumerate(res.snapshots)]
-    attrs = {k: scalar(v) for k, v in f.attrs.items()}
-    f.close()
-    data = data_dir(path)
-    data.mkdir(exist_ok=True)
-    digests = {STATIC_NAME: _write_static(data / STATIC_NAME, geometry, res.masses, initial)}
-    columns = {k: (res.observables[k].dtype.str, res.observables[k].shape[1:]) for k in names}
-    attrs.update(format_version=FORMAT_VERSION, run="", checked=True, observables=json.dumps(names))
-    store = ResultsStore(path, attrs, (n, d), columns, digests=digests, state=state)
-    store.remove_strays()
-    if frames:
-        name = f"frames_{0:09d}.h5"
-        digests[name] = _write_segment(data / name, frames, names)
-        store.segments, store.frames, store.last_step = [[name, 0, len(frames)]], len(frames), frames[-1].state.steps
-    store.write_index(state, attrs, store.segments, digests)
-    return store
