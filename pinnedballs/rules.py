@@ -184,6 +184,37 @@ class CollisionRule(ABC):
         """
         return None
 
+    def exact_kick(self, m_i, m_j):
+        """The rule's kick as an exact linear form, what exact and certified arithmetic run: a collision closing
+        at ``w`` kicks ``v_i -= a_i w t_i`` and ``v_j -= a_j w t_j``.
+
+        Parameters
+        ----------
+        m_i, m_j : exact rationals
+            The two balls' masses, as exact numbers (``gmpy2.mpq``, ``fractions.Fraction``).
+
+        Returns
+        -------
+        tuple or None
+            ``(a_i, a_j)`` in the masses' type, or None where the rule has no exact form (the default: by
+            `exact_restitution`, the paper's rule with restitution ``r`` taken exactly,
+            ``a_i = (1 + r) m_j / (m_i + m_j)``).
+
+        Examples
+        --------
+        >>> from fractions import Fraction
+        >>> import pinnedballs as pb
+        >>> pb.Restitution(0.5).exact_kick(Fraction(1), Fraction(3))
+        (Fraction(9, 8), Fraction(3, 8))
+        >>> pb.Elastic().exact_kick(Fraction(2), Fraction(2))
+        (Fraction(1, 1), Fraction(1, 1))
+        """
+        r = self.exact_restitution()
+        if r is None:
+            return None
+        scale = (1 + type(m_i)(r)) / (m_i + m_j)  # the float r exactly (a float is a rational)
+        return scale * m_j, scale * m_i
+
     def to_spec(self) -> dict | None:
         """The rule as a run spec's ``"rule"``.
 

@@ -191,8 +191,7 @@ class Simulation:
         threads = getattr(scheduler, "threads", None)
         model = Model(geometry, self._masses, collide,
                       np.append(np.asarray(params, dtype=np.float64), self.threshold),  # params[-1]: the threshold
-                      selector, getattr(self.device, "threads", None) if threads is None else threads,
-                      rule.exact_restitution(), rule, scheduler)
+                      selector, getattr(self.device, "threads", None) if threads is None else threads, rule, scheduler)
         state = ChainState(v, np.zeros(COUNTERS, dtype=np.int64), rng, scheduler.initial_state(geometry.n_contacts),
                            new_margin())  # the margin: every pick's closing speed against the threshold
         chosen = choose(model, self.arithmetic, self.device, engine=engine)

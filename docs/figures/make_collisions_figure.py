@@ -34,7 +34,7 @@ def lockstep(geometry, v: np.ndarray, seed: int, steps: int) -> dict[str, list[t
     picks = np.empty(steps, dtype=np.int64)
     sim.engine.loops.picks(sim.engine.state.scheduler, sim.engine.model.selector.aux, sim.engine.state.rng,
                            geometry.n_contacts, picks)
-    exact = RationalChain(geometry, v, np.ones(geometry.n_balls), 1.0)
+    exact = RationalChain(geometry, v, np.ones(geometry.n_balls), pb.Elastic().exact_kick)
     c = geometry.contacts
     pairs, t_i, t_j = c.pairs.astype(int).tolist(), c.t_i.tolist(), c.t_j.tolist()
     vf = np.array(v, dtype=np.float64).tolist()

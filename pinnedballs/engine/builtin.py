@@ -15,6 +15,8 @@ Each gives the bits of ``sequential`` (``field``'s: exact arithmetic's decisions
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from ..util.errors import FieldError, described
 from .backends import DeviceBackend, LoopBackend
 from .devices import Device
@@ -23,6 +25,7 @@ from .protocol import Engine, Refusal
 __all__ = ["Sequential", "Threads", "ColoredSweepThreads", "Field", "GPU", "GPUCertified", "GPUReplicas",
            "BUILT_IN", "COUNTER"]
 
+_ONE = Fraction(1)
 #: the scheduler a GPU runs, as Python builds it and as a spec states it
 COUNTER = "UniformRandomPair(stream='counter')"
 _COUNTER_SPEC = '{"kind": "uniform_random_pair", "stream": "counter"}'
@@ -76,7 +79,7 @@ class ColoredSweepThreads(Engine):
 def _refuse_field(model, arithmetic: str) -> Refusal | None:
     """What exact and certified arithmetic need of a chain, wherever they run: a built-in rule (its exact
     form) and picks made without a live set."""
-    if model.restitution is None:
+    if model.rule.exact_kick(_ONE, _ONE) is None:
         return Refusal("arithmetic", f"{arithmetic} arithmetic runs the built-in rules (Elastic, Restitution); "
                                      f"{described(model.rule)} has no exact form")
     if model.selector.tracks:

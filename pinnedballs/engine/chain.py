@@ -34,9 +34,9 @@ class Model:
     geometry: the `Geometry` (its ``contacts``, ``n_balls``, ``dim``, ``row_pattern``); masses ``(n_balls,)``;
     collide: the rule's jitted ``collide`` (`pinnedballs.rules`); params: the rule's params with the collision
     threshold last (``params[-1]``); selector: the scheduler's `Selector`; threads: the threads the scheduler
-    asks for (None: as many as pay); restitution: the rule's ``r`` where it is the paper's (exact arithmetic
-    runs it), else None; rule and scheduler: the components themselves, which an engine names in a refusal and
-    compiles for itself (a GPU compiles the rule's functions).
+    asks for (None: as many as pay); rule and scheduler: the components themselves, which an engine names in a
+    refusal, compiles for itself (a GPU compiles the rule's functions) or runs in exact form (exact and certified
+    arithmetic: the rule's `pinnedballs.rules.CollisionRule.exact_kick`).
     """
 
     geometry: object
@@ -45,7 +45,6 @@ class Model:
     params: np.ndarray
     selector: object
     threads: int | None = None
-    restitution: float | None = None
     rule: object = None
     scheduler: object = None
 

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 import numpy as np
+from gmpy2 import mpq
 
 from ...util import checks
 from ...util.errors import FieldError
@@ -120,15 +121,18 @@ def check_precisions(arithmetic: str, precision, late_precision) -> tuple[int | 
     return precision, late_precision
 
 
-def field_chain(geometry, velocities: np.ndarray, masses: np.ndarray, restitution: float, arithmetic: str,
+def field_chain(geometry, velocities: np.ndarray, masses: np.ndarray, kick, arithmetic: str,
                 precision: int | None = None, late_precision: int | None = None, picks=None) -> FieldChain:
-    """The chain of ``arithmetic`` (``"exact"`` or ``"certified"``; ``precision``, ``late_precision`` and
-    ``picks``, where its picks are tried: `FixedChain`'s); `NotFixed` saying why the certified one cannot run
-    these, `fields.NotExact` why no exact one can."""
+    """The chain of ``arithmetic`` (``"exact"`` or ``"certified"``; ``kick``: the rule's exact linear form,
+    `pinnedballs.rules.CollisionRule.exact_kick`; ``precision``, ``late_precision`` and ``picks``, where its picks
+    are tried: `FixedChain`'s); `NotFixed` saying why the certified one cannot run these, `fields.NotExact` why no
+    exact one can. The fixed-point chain runs the paper's exchange alone (equal masses, ``a_i = a_j = 1``)."""
+    one = mpq(1)
+    a, _ = kick(one, one)
     if not np.all(masses == masses[0]):
         reason = "the masses are not all equal"
-    elif restitution != 1.0:
-        reason = f"collisions are not elastic (restitution {restitution})"
+    elif a != 1:
+        reason = f"collisions are not elastic (restitution {float(2 * a - 1)})"
     else:
         try:
             return FixedChain(geometry, velocities, lines_of(geometry), arithmetic, precision, late_precision, picks)
@@ -136,15 +140,15 @@ def field_chain(geometry, velocities: np.ndarray, masses: np.ndarray, restitutio
             reason = str(exc)
     if arithmetic == "certified":
         raise NotFixed(reason)
-    return RationalChain(geometry, velocities, masses, restitution)
+    return RationalChain(geometry, velocities, masses, kick)
 
 
 def built_field_chain(model, velocities: np.ndarray, arithmetic: str, precision: int | None = None,
                       late_precision: int | None = None, picks=None) -> FieldChain:
-    """`field_chain` for a chain's `engine.chain.Model` (its geometry, masses and restitution), or a
-    `FieldError` on ``arithmetic`` saying why none can run it."""
+    """`field_chain` for a chain's `engine.chain.Model` (its geometry, masses and the rule's exact linear form), or
+    a `FieldError` on ``arithmetic`` saying why none can run it."""
     try:
-        return field_chain(model.geometry, velocities, model.masses, model.restitution, arithmetic, precision,
+        return field_chain(model.geometry, velocities, model.masses, model.rule.exact_kick, arithmetic, precision,
                            late_precision, picks)
     except NotFixed as exc:
         raise FieldError("arithmetic", f"certified arithmetic needs equal masses, elastic collisions and flat contacts "

@@ -9,6 +9,8 @@ sign; inside it (rest, rounding remnants, genuine slow approaches) the exact ``w
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from gmpy2 import mpq
 
@@ -55,7 +57,7 @@ class FieldChain:
             self._picks = np.empty(max(size, self.block), dtype=np.int64)
         return self._picks[:size]
 
-    def __init__(self, geometry, field, units: list, masses: np.ndarray, restitution: float):
+    def __init__(self, geometry, field, units: list, masses: np.ndarray, kick: Callable):
         c = geometry.contacts
         self.field, self.units = field, units
         self.pairs = c.pairs.astype(np.int64).tolist()
@@ -65,7 +67,9 @@ class FieldChain:
         m = np.asarray(masses, dtype=np.float64)
         self.equal = bool(np.all(m == m[0]))
         self.masses = [mpq(x) for x in m.tolist()]
-        self.factor = (1 + mpq(restitution)) / (2 if self.equal else 1)
+        #: the rule's exact linear form (`pinnedballs.rules.CollisionRule.exact_kick`): its kick by masses
+        self.kick = kick
+        self.factor = kick(self.masses[0], self.masses[0])[0] if self.equal else None  # all alike: computed once
 
     # ------------------------------------------------------------ one contact, in any state
     def closing_of(self, vi, vj, k: int) -> tuple:
@@ -84,8 +88,8 @@ class FieldChain:
         if self.equal:
             c = F.scale(w, self.factor)
             return c, c
-        s = F.scale(w, self.factor / (self.masses[i] + self.masses[j]))
-        return F.scale(s, self.masses[j]), F.scale(s, self.masses[i])
+        ai, aj = self.kick(self.masses[i], self.masses[j])
+        return F.scale(w, ai), F.scale(w, aj)
 
     def kicked(self, row, c: tuple, t: tuple) -> list:
         """``row - c t``: a velocity after a kick ``c`` along unit vector ``t``."""

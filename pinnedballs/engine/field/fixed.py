@@ -253,6 +253,12 @@ class CPUPicks:
         return int(np.count_nonzero(long)) <= state.X.shape[0] // 1000
 
 
+def exchange(m_i, m_j) -> tuple:
+    """The paper's elastic exchange of equal masses as an exact linear form: ``a_i = a_j = 1`` (what the
+    fixed-point chain runs; `pinnedballs.rules.CollisionRule.exact_kick`)."""
+    return type(m_i)(1), type(m_j)(1)
+
+
 class FixedChain(FieldChain):
     """The velocities of ``geometry``'s balls in fixed point, and their collisions (module docstring).
 
@@ -266,7 +272,7 @@ class FixedChain(FieldChain):
 
     def __init__(self, geometry, velocities: np.ndarray, lines: Lines, policy: str, precision: int | None = None,
                  late_precision: int | None = None, picks=None):
-        super().__init__(geometry, lines.field, lines.units, np.ones(geometry.n_balls), 1.0)
+        super().__init__(geometry, lines.field, lines.units, np.ones(geometry.n_balls), exchange)
         self.policy, self.tables = policy, lines.tables
         self.certify = policy == "certified"
         v = np.array(velocities, dtype=np.float64)

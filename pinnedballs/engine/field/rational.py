@@ -8,7 +8,8 @@ live contact collides it with the paper's rule in exact arithmetic (equal masses
 ``v_j -= (1 + r) m_i/(m_i + m_j) w t_j``), and every velocity it changes is rounded again. The float filter
 (`chain.filtered_sign`) decides most signs. The live contacts are kept after every collision (the contacts of
 its two balls re-tested), so the freeze is found on the collision that causes it. Exact arithmetic runs it
-where the fixed-point chain (`fixed`) cannot: unequal masses, restitution, HCP's Q(sqrt 2, sqrt 3), other graphs.
+where the fixed-point chain (`fixed`) cannot: unequal masses, restitution (any rule's exact linear form), HCP's
+Q(sqrt 2, sqrt 3), other graphs.
 """
 
 from __future__ import annotations
@@ -26,13 +27,13 @@ class RationalChain(FieldChain):
     """The velocities of ``geometry``'s balls in exact arithmetic, and their collisions.
 
     velocities: ``(n_balls, dim)`` floats, taken exactly (a float is a rational); masses:
-    ``(n_balls,)`` floats; restitution: the rule's ``r`` (1: elastic). Raises `fields.NotExact`
-    when the contact normals lie in no known number field.
+    ``(n_balls,)`` floats; kick: the rule's exact linear form (`pinnedballs.rules.CollisionRule.exact_kick`).
+    Raises `fields.NotExact` when the contact normals lie in no known number field.
     """
 
-    def __init__(self, geometry, velocities: np.ndarray, masses: np.ndarray, restitution: float):
+    def __init__(self, geometry, velocities: np.ndarray, masses: np.ndarray, kick):
         field, units = recognise(geometry.contacts.units)
-        super().__init__(geometry, field, units, masses, restitution)
+        super().__init__(geometry, field, units, masses, kick)
         F = self.field
         self.shadow = np.array(velocities, dtype=np.float64)  # written by `sync`
         self.floats = self.shadow.tolist()  # the roundings the filter reads, as Python floats

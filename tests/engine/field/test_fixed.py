@@ -26,7 +26,8 @@ FEW = settings(max_examples=25, deadline=None, derandomize=True, suppress_health
 def rational(g, v, **kwargs) -> pb.Simulation:
     """An exact simulation run by the rational chain (today's `RationalChain`), whatever the geometry."""
     sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
-    sim.engine.state.field_chain = RationalChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
+    sim.engine.state.field_chain = RationalChain(g, sim.velocities.copy(), sim.engine.model.masses,
+                                                 pb.Elastic().exact_kick)
     sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 

@@ -30,7 +30,8 @@ def inward(g) -> np.ndarray:
 
 def rational(g, v, **kwargs) -> pb.Simulation:
     sim = pb.Simulation(g, v, arithmetic="exact", **kwargs)
-    sim.engine.state.field_chain = RationalChain(g, sim.velocities.copy(), sim.engine.model.masses, 1.0)
+    sim.engine.state.field_chain = RationalChain(g, sim.velocities.copy(), sim.engine.model.masses,
+                                                 pb.Elastic().exact_kick)
     sim.velocities = sim.engine.state.field_chain.shadow
     return sim
 
