@@ -38,22 +38,55 @@ PICK_RETURNS = "(k, rng): the contact's index (an integer) and the random stream
 class Scheduler(ABC):  # noqa: B024
     """Chooses which contact the engine tries next: a `kernel` pick, or a whole `selector`.
 
-    ``law``: the law of its picks, which `pinnedballs.testing.check_scheduler_law` tests: ``"uniform"``
-    (each pick uniform over the contacts, independent of the others), ``"sweep"`` (every contact once
-    in each sweep of ``n_contacts`` picks), ``"uniform_chain"`` (the paper's uniform chain without its
-    rejected picks: the same law of steps, collisions and velocities), or None (none claimed).
+    The module's docstring says what each gives the engine; docs/extending.md writes one.
+
+    Attributes
+    ----------
+    law : str or None
+        The law of its picks, which `pinnedballs.testing.check_scheduler_law` tests: ``"uniform"``
+        (each pick uniform over the contacts, independent of the others), ``"sweep"`` (every contact once
+        in each sweep of ``n_contacts`` picks), ``"uniform_chain"`` (the paper's uniform chain without its
+        rejected picks: the same law of steps, collisions and velocities), or None (none claimed).
     """
 
     law: str | None = None
 
     def kernel(self) -> Callable:
-        """The jitted ``pick(state, rng, n_contacts) -> (k, rng)``."""
+        """The scheduler's pick, for a scheduler that picks one contact a step.
+
+        Returns
+        -------
+        callable
+            The jitted ``pick(state, rng, n_contacts) -> (k, rng)``.
+
+        Raises
+        ------
+        FieldTypeError
+            On ``scheduler``, where the scheduler defines neither this nor `selector`.
+        """
         raise FieldTypeError("scheduler", f"{type(self).__name__} must define kernel() (a pick function) "
                                           f"or selector()")
 
     def selector(self, geometry) -> Selector:
         """What the engine runs for this scheduler on ``geometry``; built once per `Simulation`.
-        Default: `kernel`'s pick, one contact per step."""
+
+        Parameters
+        ----------
+        geometry : Geometry
+            The geometry the simulation is built on.
+
+        Returns
+        -------
+        pinnedballs.engine.selector.Selector
+            By default `kernel`'s pick, one contact per step (a user's pick checked first, and its contact
+            at every step).
+
+        Raises
+        ------
+        FieldTypeError
+            On ``scheduler``, where the pick is not jitted, does not compile for the engine's arguments or
+            returns something other than ``(k, rng)``.
+        """
         pick = check_jitted(self.kernel(), "scheduler", f"{type(self).__name__}.kernel()'s pick")
         if not (getattr(pick, "__module__", None) or "").startswith("pinnedballs."):
             name = f"{type(self).__name__}.kernel()'s pick {getattr(pick, '__name__', pick)!r}"
@@ -63,27 +96,70 @@ class Scheduler(ABC):  # noqa: B024
 
     # an optional hook, empty on purpose: nothing to check by default
     def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:  # noqa: B027
-        """Raise a `FieldError` unless ``state`` (already through `check_state`) fits the tables of
-        ``selector`` and, for a selector that tracks live contacts, the live contacts ``flags (E,)``
-        of the velocities it is restored with. Nothing to check for a ``pick`` scheduler."""
+        """Check that a state fits what it resumes on. Nothing to check for a ``pick`` scheduler.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            ``int64``: the scheduler's state, already through `check_state`.
+        selector : pinnedballs.engine.selector.Selector
+            The selector it resumes with (its tables).
+        flags : numpy.ndarray or None
+            ``(E,) bool``: for a selector that tracks live contacts, the live contacts of the velocities it
+            is restored with; else None.
+
+        Raises
+        ------
+        FieldError
+            On ``scheduler_state``, where ``state`` does not fit the tables or the live contacts.
+        """
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
-        """The ``int64`` state array ``pick`` starts from."""
+        """The state a run starts from.
+
+        Parameters
+        ----------
+        n_contacts : int
+            The geometry's contacts.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``int64``; ``(1,)`` zeros unless the scheduler keeps more.
+        """
         return np.zeros(1, dtype=np.int64)
 
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
-        """Raise ValueError unless ``state`` is one this scheduler can resume from.
+        """Check that ``state`` is one this scheduler can resume from.
 
         The compiled loop indexes with it unchecked, so a corrupt checkpoint must stop here.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            ``int64``: a saved state (`Simulation.get_state`'s ``scheduler_state``).
+        n_contacts : int
+            The geometry's contacts.
+
+        Raises
+        ------
+        FieldError
+            On ``scheduler_state`` (a ValueError), unless it has `initial_state`'s shape and fits the scheduler.
         """
         expected = self.initial_state(n_contacts).shape
         if state.shape != expected:
             raise FieldError("scheduler_state", f"must have shape {expected} for {self!r}, got {state.shape}")
 
     def to_spec(self) -> dict | None:
-        """The scheduler as a run spec's ``"scheduler"`` (a dict with its ``"kind"``), or None if it
-        has none. A run built in Python records this spec, so that ``pb.load(dir).simulation()``
+        """The scheduler as a run spec's ``"scheduler"``.
+
+        A run built in Python records this spec, so that ``pb.load(dir).simulation()``
         rebuilds the scheduler; one of your own may return ``{"kind": "python", "factory": ..., "args": ...}``.
+
+        Returns
+        -------
+        dict or None
+            A dict with its ``"kind"``, or None if it has none.
         """
         return None
 

@@ -202,11 +202,36 @@ def sweep_steps(collide: Callable, dim: int, flat: bool, shuffle: bool) -> Calla
 
 class ColoredSweep(Scheduler):
     """Every contact once per sweep, colour class by colour class (`classes`); each class runs in
-    parallel, with the same bits on any number of threads. With ``shuffle``, a fresh random order
-    of the classes each sweep (the order within a class does not matter).
+    parallel, with the same bits on any number of threads.
 
-    ``threads``: how many of numba's threads a run uses; None (the default) uses as many as numba
-    is set to (``NUMBA_NUM_THREADS``, every core unless set; see `pinnedballs.engine.threads`)."""
+    The module's docstring gives the colouring and the state.
+
+    Parameters
+    ----------
+    shuffle : bool
+        A fresh random order of the classes each sweep (the order within a class does not matter).
+    threads : int or None
+        How many of numba's threads a run uses; None (the default) uses as many as numba
+        is set to (``NUMBA_NUM_THREADS``, every core unless set; see `pinnedballs.engine.threads`).
+
+    Raises
+    ------
+    FieldError
+        On ``shuffle`` not a bool or ``threads`` below 1.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> [len(c) for c in pb.ColoredSweep.classes(g)]
+    [12, 12, 9, 6, 10, 4]
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, scheduler=pb.ColoredSweep(shuffle=True), seed=1)
+    >>> sim.run_until_frozen(100_000), sim.steps, sim.collisions
+    (True, 198, 45)
+    """
 
     law = "sweep"  #: `Scheduler.law`
 
@@ -216,14 +241,39 @@ class ColoredSweep(Scheduler):
 
     @staticmethod
     def classes(geometry) -> list[np.ndarray]:
-        """The colour classes of ``geometry``'s contacts, in the order a sweep runs them (without
-        shuffle): a list of ``int64`` arrays of contact indices, each a matching."""
+        """The colour classes of ``geometry``'s contacts, in the order a sweep runs them (without shuffle).
+
+        Parameters
+        ----------
+        geometry : Geometry
+            Any geometry.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            ``int64`` arrays of contact indices, each a matching (no two of its contacts share a ball).
+        """
         c = geometry.contacts
         return colour_classes(c.pairs, c.ends, geometry.n_balls)
 
     def selector(self, geometry) -> Selector:
         """The sweep one contact at a time (`sweep_selector`) and its parallel loop of plain steps
-        (`sweep_steps`)."""
+        (`sweep_steps`): `Scheduler.selector`.
+
+        Parameters
+        ----------
+        geometry : Geometry
+            The geometry the simulation is built on.
+
+        Returns
+        -------
+        pinnedballs.engine.selector.Selector
+
+        Raises
+        ------
+        FieldError
+            On ``threads`` beyond numba's ``NUMBA_NUM_THREADS``.
+        """
         classes = self.classes(geometry)
         starts = np.zeros(len(classes) + 1, dtype=np.int64)
         np.cumsum([len(c) for c in classes], out=starts[1:])
@@ -234,12 +284,38 @@ class ColoredSweep(Scheduler):
                         steps=functools.partial(_threaded_steps, shuffle=self.shuffle, threads=self.threads))
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
-        """``[-1, 0, 0, 0, 0, 0]``: start a sweep before the first contact."""
+        """A sweep about to start (`Scheduler.initial_state`).
+
+        Parameters
+        ----------
+        n_contacts : int
+            The geometry's contacts.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(6,) int64``: ``[-1, 0, 0, 0, 0, 0]``, start a sweep before the first contact.
+        """
         state = np.zeros(_STATE, dtype=np.int64)
         state[0] = -1
         return state
 
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        """`Scheduler.check_state`: the position in the sweep, and the words of a shuffled one.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            ``(6,) int64``: ``[slot, offset, w0, w1, w2, w3]``.
+        n_contacts : int
+            The geometry's contacts.
+
+        Raises
+        ------
+        FieldError
+            On ``scheduler_state``, for another shape, a slot below -1, a negative offset (or one not 0
+            between sweeps), or a shuffled sweep under way whose random words are all zero.
+        """
         super().check_state(state, n_contacts)
         if state[0] < -1 or state[1] < 0 or (state[0] == -1 and state[1] != 0):
             raise FieldError("scheduler_state", f"the position in the sweep must be a class slot >= -1 and an offset "
@@ -248,6 +324,22 @@ class ColoredSweep(Scheduler):
             raise FieldError("scheduler_state", "the random words of the sweep under way must not all be zero")
 
     def check_resume(self, state: np.ndarray, selector: Selector, flags) -> None:
+        """`Scheduler.check_resume`: the slot and offset within the classes of the selector's geometry.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            The state, through `check_state`.
+        selector : pinnedballs.engine.selector.Selector
+            The selector it resumes with (its classes).
+        flags : numpy.ndarray or None
+            Unused: the sweep tracks no live contacts.
+
+        Raises
+        ------
+        FieldError
+            On ``scheduler_state``, for a slot beyond the classes or an offset beyond its class.
+        """
         starts = selector.aux[1]
         n_classes = len(starts) - 1
         if state[0] >= n_classes:
@@ -259,6 +351,13 @@ class ColoredSweep(Scheduler):
                 raise FieldError("scheduler_state", f"offset {state[1]} is beyond the {size} contacts of its class")
 
     def to_spec(self) -> dict:
+        """The scheduler as a run spec's ``"scheduler"`` (`Scheduler.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "colored_sweep", "shuffle": ...}``, with ``"threads"`` where given.
+        """
         return {"kind": "colored_sweep", "shuffle": self.shuffle,
                 **({} if self.threads is None else {"threads": self.threads})}
 

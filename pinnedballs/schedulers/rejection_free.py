@@ -145,25 +145,84 @@ class RejectionFree(Scheduler):
     """The paper's chain without its rejected picks: each step of the loop jumps over the
     picks of non-live contacts (a geometric number, counted in ``steps``) and collides a live
     contact chosen uniformly. Same joint law of steps, collisions and velocities as
-    `UniformRandomPair`; far faster when few contacts are live (a half-plane near its freeze)."""
+    `UniformRandomPair` (not its bits); far faster when few contacts are live (a half-plane near its
+    freeze). The module's docstring gives the draw, the live set and the checkpoint.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, scheduler=pb.RejectionFree(), seed=1)
+    >>> sim.run_until_frozen(100_000), sim.steps, sim.collisions
+    (True, 593, 52)
+    """
 
     law = "uniform_chain"  #: `Scheduler.law`
 
     def selector(self, geometry) -> Selector:
+        """The live set's selector (`Scheduler.selector`): it jumps over the picks of non-live contacts.
+
+        Parameters
+        ----------
+        geometry : Geometry
+            The geometry the simulation is built on.
+
+        Returns
+        -------
+        pinnedballs.engine.selector.Selector
+            One that tracks the live contacts and skips picks.
+        """
         n = geometry.n_contacts
         aux = (np.full(n, -1, dtype=np.int64), np.zeros(n + 1))
         return Selector(select, begin, changed, aux, tracks=True, skips=True)
 
     def to_spec(self) -> dict:
+        """The scheduler as a run spec's ``"scheduler"`` (`Scheduler.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"kind": "rejection_free"}``.
+        """
         return {"kind": "rejection_free"}
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
-        """``[-1, 0, -1, -1, ...]`` ``(n_contacts + 2,)``: build the live array from the velocities."""
+        """A live set still to be built from the velocities (`Scheduler.initial_state`).
+
+        Parameters
+        ----------
+        n_contacts : int
+            The geometry's contacts.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_contacts + 2,) int64``: ``[-1, 0, -1, -1, ...]``.
+        """
         state = np.full(n_contacts + 2, -1, dtype=np.int64)
         state[1] = 0
         return state
 
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        """`Scheduler.check_state`: the live set's size, the picks still to come and the live contacts.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            ``(n_contacts + 2,) int64``: ``[L, rest, live[0], ..., live[L-1], -1, ...]``.
+        n_contacts : int
+            The geometry's contacts.
+
+        Raises
+        ------
+        FieldError
+            On ``scheduler_state``, for another shape, ``L`` outside ``[-1, n_contacts]``, ``rest`` outside
+            ``[0, 2**62]`` (or not 0 with no live contact), live contacts not distinct indices, or entries
+            after them other than -1.
+        """
         super().check_state(state, n_contacts)
         n_live = state[0]
         if not -1 <= n_live <= n_contacts:
@@ -179,6 +238,22 @@ class RejectionFree(Scheduler):
             raise FieldError("scheduler_state", "entries after the live contacts must be -1")
 
     def check_resume(self, state: np.ndarray, selector: Selector, flags: np.ndarray | None) -> None:
+        """`Scheduler.check_resume`: the live contacts saved are those of the velocities.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            The state, through `check_state`.
+        selector : pinnedballs.engine.selector.Selector
+            The selector it resumes with.
+        flags : numpy.ndarray
+            ``(E,) bool``: the live contacts of the velocities restored.
+
+        Raises
+        ------
+        FieldError
+            On ``scheduler_state``, where its live contacts are not those of the velocities.
+        """
         n_live = state[0]
         if n_live >= 0 and not np.array_equal(np.sort(state[2:2 + n_live]), np.flatnonzero(flags)):
             raise FieldError("scheduler_state", f"its {n_live} live contacts are not those of the velocities "

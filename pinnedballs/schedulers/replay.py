@@ -24,12 +24,44 @@ def pick_replay(state, rng, n_contacts):
 
 
 class Replay(Scheduler):
-    """Tries the contacts of ``order`` (a sequence of contact indices) in turn, then refuses to go on.
+    """Tries the contacts of ``order`` in turn, then refuses to go on.
 
     Replays an order from `explore_orders`: ``Simulation(geom, v, scheduler=Replay(r.max_order))``
-    then ``run_until_frozen(max_steps=len(r.max_order))``. A run that asks for more steps
-    than the order holds raises ValueError; that simulation's counters then miss the steps
+    then ``run_until_frozen(max_steps=len(r.max_order))``, or a collision log's. A run that asks for
+    more steps than the order holds raises ValueError; that simulation's counters then miss the steps
     of that call (its velocities do not), so start a new one.
+
+    Parameters
+    ----------
+    order : sequence of int
+        Contact indices (>= 0), one per step.
+
+    Attributes
+    ----------
+    order : numpy.ndarray
+        ``(len(order),) int64``.
+
+    Raises
+    ------
+    TypeError
+        If ``order`` is not a sequence of integers.
+    ValueError
+        If ``order`` is not 1-D or holds a negative index (and when a run is built on a geometry
+        without one of its contacts).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=2, cols=3)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[1] = [0.0, 1.0]
+    >>> r = pb.explore_orders(g, v)
+    >>> r.max_order
+    (3, 2, 4, 0, 8, 6)
+    >>> sim = pb.Simulation(g, v, scheduler=pb.Replay(r.max_order))
+    >>> sim.run_until_frozen(max_steps=len(r.max_order)), sim.collisions
+    (True, 6)
     """
 
     def __init__(self, order):
@@ -46,15 +78,53 @@ class Replay(Scheduler):
         self.order = a.astype(np.int64)
 
     def kernel(self) -> Callable:
+        """The replay's pick (`Scheduler.kernel`).
+
+        Returns
+        -------
+        callable
+            `pick_replay`.
+        """
         return pick_replay
 
     def initial_state(self, n_contacts: int) -> np.ndarray:
+        """No pick made yet, then the order (`Scheduler.initial_state`).
+
+        Parameters
+        ----------
+        n_contacts : int
+            The geometry's contacts.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(len(order) + 1,) int64``: ``[0, order[0], order[1], ...]``.
+
+        Raises
+        ------
+        ValueError
+            If the order names a contact the geometry does not have.
+        """
         if self.order.size and self.order.max() >= n_contacts:
             raise ValueError(f"order: contact {self.order.max()} does not exist; "
                              f"the geometry has {n_contacts} contacts")
         return np.concatenate([[0], self.order]).astype(np.int64)
 
     def check_state(self, state: np.ndarray, n_contacts: int) -> None:
+        """`Scheduler.check_state`: the picks made in range, and this replay's order.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            ``(len(order) + 1,) int64``: the picks made, then the order.
+        n_contacts : int
+            The geometry's contacts.
+
+        Raises
+        ------
+        ValueError
+            For another shape (a `FieldError`), picks made outside ``[0, len(order)]``, or another order.
+        """
         super().check_state(state, n_contacts)
         if not 0 <= state[0] <= len(self.order):
             raise ValueError(f"scheduler_state: the picks made must be in [0, {len(self.order)}], got {state[0]}")

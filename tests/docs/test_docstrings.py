@@ -1,11 +1,12 @@
 """The public API's docstrings are numpydoc, and their examples run.
 
 Public: every name of `pb.__all__`, of `pinnedballs.testing` and of the engine's door (`pinnedballs.engine`),
-and the public methods of the classes a user holds (`Simulation`, `Results`, every `Geometry`,
-`EnsembleResult`, `StudyResult`). numpydoc's validator finds on none of them a parameter left undocumented
-(PR01), one documented that is not there (PR02), a value returned with no Returns section (RT01) or no
-docstring at all (GL08); the main names have an Examples section (`EXAMPLED`); and every public docstring's
-examples run as doctests, in a temporary working directory (examples write relative paths).
+and the public methods of their classes (those a user holds, `Simulation`, `Results`, every `Geometry`, and
+those a user's component overrides, `Scheduler.kernel`, `Writer.write`, ...). numpydoc's validator finds on
+none of them a parameter left undocumented (PR01), one documented that is not there (PR02), a value returned
+with no Returns section (RT01) or no docstring at all (GL08); the main names have an Examples section
+(`EXAMPLED`); and every public docstring's examples run as doctests, in a temporary working directory
+(examples write relative paths).
 """
 
 from __future__ import annotations
@@ -25,8 +26,6 @@ DOCS = Path(__file__).resolve().parents[2] / "docs"
 #: the engine's door: `pinnedballs.engine`'s names
 ENGINE_DOOR = ("engines", "register", "unregister", "find", "choose", "check", "Engine", "Refusal", "Refused",
                "Device", "CPU", "CUDA", "as_device")
-#: the classes whose public methods are public (with every `Geometry` of `pb.__all__`)
-WITH_METHODS = ("Simulation", "Results", "Geometry", "EnsembleResult", "StudyResult")
 #: the numpydoc errors the public API may not have
 REFUSED = {"PR01": "parameters not documented", "PR02": "unknown parameters documented",
            "RT01": "no Returns section", "GL08": "no docstring"}
@@ -50,7 +49,7 @@ def _methods(cls: type, names: dict) -> dict:
             continue
         raw = vars(owner)[name]
         func = raw.__func__ if isinstance(raw, (staticmethod, classmethod)) else raw
-        if inspect.isfunction(func):
+        if inspect.isfunction(func) and func.__module__.startswith("pinnedballs"):
             prefix = f"pinnedballs.{names[owner]}" if owner in names else f"{owner.__module__}.{owner.__qualname__}"
             out[f"{prefix}.{name}"] = func
     return out
@@ -76,15 +75,14 @@ def public() -> dict:
                 seen.add(id(obj))
                 out[f"{prefix}.{name}"] = obj
     named = {getattr(pb, n): n for n in pb.__all__ if inspect.isclass(getattr(pb, n))}
-    classes = [getattr(pb, n) for n in WITH_METHODS] + [c for c in named if issubclass(c, pb.Geometry)]
-    for cls in classes:
+    for cls in [obj for obj in out.values() if inspect.isclass(obj)]:
         out.update((k, f) for k, f in _methods(cls, named).items() if id(f) not in seen and not seen.add(id(f)))
     return out
 
 
 PUBLIC = public()
 #: the modules whose docstrings are not numpydoc yet (issue 47, item 2), emptied room by room
-PENDING = ("pinnedballs.schedulers", "pinnedballs.simulation", "pinnedballs.results",
+PENDING = ("pinnedballs.simulation", "pinnedballs.results",
            "pinnedballs.run", "pinnedballs.specs", "pinnedballs.analysis", "pinnedballs.engine", "pinnedballs.util",
            "pinnedballs.testing")
 
