@@ -16,13 +16,29 @@ __all__ = ["SpecError", "UserCodeError", "first_error", "failure"]
 
 
 class SpecError(FieldError):
-    """A spec field is wrong. ``path`` (also ``field``) is the dotted field path (``"geometry.rows"``)."""
+    """A spec field is wrong: the message is one line, ``"geometry.rows: ..."`` (a `FieldError`, a ValueError).
+
+    Parameters
+    ----------
+    path : str
+        The dotted field path (``"geometry.rows"``), or a file's path; also ``field``.
+    problem : str
+        What is wrong.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> error = pb.SpecError("geometry.rows", "must be >= 1, got 0")
+    >>> str(error), error.path, error.problem
+    ('geometry.rows: must be >= 1, got 0', 'geometry.rows', 'must be >= 1, got 0')
+    """
 
     def __init__(self, path: str, problem: str):
         super().__init__(path, problem)
 
     @property
     def path(self) -> str:
+        """The dotted field path (`FieldError.field`)."""
         return self.field
 
 

@@ -46,27 +46,68 @@ def _known_observable(name: str) -> str:
 
 
 class RunSpec(_Spec):
-    """A whole run: geometry, initial velocities, rule, scheduler, masses, seed, stop, snapshots, the
-    arithmetic (``"float"``, ``"exact"`` or ``"certified"``: `Simulation`'s ``arithmetic``; ``precision``:
-    certified arithmetic's bits per coefficient, None for its default, ``"auto"`` for the bits the run
-    finds itself: it starts at the default and, where a decision cannot be proved, again from its first
-    step with 1.5 times the bits (`pinnedballs.engine.field.arithmetic.next_precisions`), the results recording
-    the bits it ran at; ``late_precision``: its bits once the first wave has passed, None for
-    ``precision`` throughout) and the resolution.
+    """A whole run as data: the JSON of ``pinnedballs run SPEC.json`` (the README's run spec by example).
 
-    ``resolution``: the collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
-    exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model
-    parameter: the run records it, and ``--resume`` continues with it.
+    Every component is chosen by its ``"kind"``; unknown keys are errors (`load_spec`, `parse_spec`).
 
-    ``seed``: seeds the run's random stream; a spec without one gets one drawn from fresh entropy when
-    it runs (`seeded`), which the run's own spec (``spec.json``, the results file) records, so
-    ``--resume`` continues the same run and the recorded spec repeats it. ``replica``: the run is
-    replica ``k`` of an ensemble of this spec (`pinnedballs ensemble`), seeded as it seeds it,
-    ``SeedSequence(seed, spawn_key=(k,))``: one replica run alone, checkpointed and resumed, on the
-    ensemble's picks (it needs a seed).
+    Parameters
+    ----------
+    geometry : GeometrySpec
+        The geometry (``{"kind": "half_plane", "rows": ..., "cols": ...}``, ...: `pinnedballs.specs.geometry`).
+    initial : InitialSpec
+        The initial velocities (``{"kind": "single_ball", ...}``, ``"gaussian"``, ``"from_file"``).
+    rule : RuleSpec
+        The collision rule; ``{"kind": "elastic"}`` by default.
+    scheduler : SchedulerSpec
+        The scheduler; ``{"kind": "uniform_random_pair"}`` by default.
+    masses : float or str or None
+        A number > 0 for every ball, the path of a ``(n_balls,)`` .npy file, or None (all 1).
+    seed : int or None
+        Seeds the run's random stream; a spec without one gets one drawn from fresh entropy when
+        it runs (`seeded`), which the run's own spec (``spec.json``, the results file) records, so
+        ``--resume`` continues the same run and the recorded spec repeats it.
+    replica : int or None
+        The run is replica ``k`` of an ensemble of this spec (`pinnedballs ensemble`), seeded as it seeds it,
+        ``SeedSequence(seed, spawn_key=(k,))``: one replica run alone, checkpointed and resumed, on the
+        ensemble's picks (it needs a seed).
+    stop : StopSpec
+        When the run ends: ``{"steps": N}``, ``{"collisions": N}`` or ``{"frozen": true, "max_steps": N}``.
+    snapshots : SnapshotsSpec or None
+        When to store the velocities (``{"at_steps": [...]}``, ``{"every_collisions": N}``, ...); None: none.
+    trajectory : SnapshotsSpec or None
+        When to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
+        freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
+    checkpoint : CheckpointSpec
+        How often the run checkpoints (``{"every_seconds": 60}`` by default).
+    observables : list of str
+        The observables a run's table records (`pinnedballs.analysis.observables`).
+    arithmetic : {"float", "exact", "certified"}
+        `Simulation`'s ``arithmetic``.
+    precision : int or "auto" or None
+        Certified arithmetic's bits per coefficient, None for its default, ``"auto"`` for the bits the run
+        finds itself: it starts at the default and, where a decision cannot be proved, again from its first
+        step with 1.5 times the bits (`pinnedballs.engine.field.arithmetic.next_precisions`), the results
+        recording the bits it ran at.
+    late_precision : int or None
+        Certified arithmetic's bits once the first wave has passed, None for ``precision`` throughout.
+    resolution : float or None
+        The collision criterion ``e`` in (0, 1), a pick colliding when its closing speed
+        exceeds ``e V`` (`Simulation`'s ``resolution``); None: the default, ``4 * 2^-53``. A model
+        parameter: the run records it, and ``--resume`` continues with it.
+    description : str
+        Words for the reader; no effect on the run.
 
-    ``trajectory``: when to write a frame of ``DIR/trajectory.gsd`` (a GSD trajectory for OVITO,
-    freud and MDAnalysis), in the words of ``snapshots`` (``{"every_steps": 1000}``, ...); None: none.
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.specs.run import parse_spec
+    >>> spec = parse_spec({"geometry": {"kind": "half_plane", "rows": 4, "cols": 6},
+    ...                    "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1],
+    ...                                "energy": 0.5},
+    ...                    "stop": {"frozen": True, "max_steps": 100000}, "seed": 1})
+    >>> sim = spec.build()
+    >>> sim.run_until_frozen(100_000), sim.steps, sim.collisions
+    (True, 556, 50)
     """
 
     geometry: GeometrySpec
@@ -190,11 +231,30 @@ class RunSpec(_Spec):
 
     def build(self, seed: int | np.random.SeedSequence | None = None, device: str | Device | None = None,
               geometry: Geometry | None = None) -> Simulation:
-        """A fresh `Simulation` of this spec; ``seed`` (int or SeedSequence) overrides ``self.seed``
-        (with neither, fresh entropy: see `Simulation`). ``device``: where it runs (``"cpu"``, ``"cuda"``,
-        `pinnedballs.CPU`, `pinnedballs.CUDA`), not part of the spec: the same spec gives the same bits on either
-        (None: `on_device`'s, else the CPU). ``geometry``: this spec's geometry, built already (an ensemble's
-        replicas share one)."""
+        """A fresh `Simulation` of this spec.
+
+        Parameters
+        ----------
+        seed : int or numpy.random.SeedSequence, optional
+            Overrides ``self.seed`` (with neither, fresh entropy: see `Simulation`).
+        device : str or Device, optional
+            Where it runs (``"cpu"``, ``"cuda"``, `pinnedballs.CPU`, `pinnedballs.CUDA`), not part of the spec:
+            the same spec gives the same bits on either (None: `on_device`'s, else the CPU).
+        geometry : Geometry, optional
+            This spec's geometry, built already (an ensemble's replicas share one).
+
+        Returns
+        -------
+        Simulation
+
+        Raises
+        ------
+        SpecError
+            Naming the spec's field the engine refused (``geometry``, ``initial``, ``masses``, ``device``, ...),
+            or ``seed`` for one that is neither an integer in [0, 2**63) nor a SeedSequence.
+        UserCodeError
+            Where a user's component the spec names failed in its own code (a `SpecError`).
+        """
         device = self._device if device is None else device
         if not (seed is None or isinstance(seed, np.random.SeedSequence) or (
                 isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and 0 <= seed < 2**63)):
@@ -264,7 +324,13 @@ class RunSpec(_Spec):
                                         f"CPU")
 
     def to_json(self) -> str:
-        """The spec as indented JSON, defaults filled in and paths absolute."""
+        """The spec as JSON.
+
+        Returns
+        -------
+        str
+            Indented JSON, defaults filled in and paths absolute.
+        """
         return self.model_dump_json(indent=2)
 
 
@@ -349,7 +415,42 @@ def _check_tree(data: Any, source: str) -> None:
 
 
 def load_spec(path: str | os.PathLike) -> RunSpec:
-    """Read and validate the JSON spec at ``path``; relative paths in it resolve against its directory."""
+    """Read and validate the JSON spec at ``path``; relative paths in it resolve against its directory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A run spec file.
+
+    Returns
+    -------
+    RunSpec
+
+    Raises
+    ------
+    SpecError
+        In one line naming the file or the first wrong field, with a suggestion on a typo: no such file,
+        not UTF-8 JSON, an unknown key or kind, a bad value.
+
+    Examples
+    --------
+    >>> import json
+    >>> import pinnedballs as pb
+    >>> run = {"geometry": {"kind": "half_plane", "rows": 4, "cols": 6},
+    ...        "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 0.5},
+    ...        "stop": {"frozen": True, "max_steps": 100000}, "seed": 1}
+    >>> with open("run.json", "w") as f:
+    ...     json.dump(run, f)
+    >>> pb.load_spec("run.json").geometry
+    HalfPlaneSpec(kind='half_plane', rows=4, cols=6, length=None, depth=None, radius=1.0, orientation='along')
+    >>> run["geometry"]["colls"] = run["geometry"].pop("cols")
+    >>> with open("bad.json", "w") as f:
+    ...     json.dump(run, f)
+    >>> pb.load_spec("bad.json")
+    Traceback (most recent call last):
+    ...
+    pinnedballs.specs.errors.SpecError: geometry.colls: unknown key; did you mean 'cols'? (valid keys: ...)
+    """
     path = Path(path)
     try:
         check_memory(_JSON_BYTES_PER_CHAR * path.stat().st_size, str(path), "reading this spec file")

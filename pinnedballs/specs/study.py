@@ -92,8 +92,21 @@ def label(overrides: Any, most: int = 160) -> str:
 def point_seed(seed: int, overrides: dict) -> int:
     """A point's run seed: the first 63 bits (little-endian) of SHA-256 of ``"<seed>:<canonical(overrides)>"``.
 
+    Parameters
+    ----------
+    seed : int
+        The study's seed.
+    overrides : dict
+        The point's overrides (dotted path -> JSON value).
+
+    Returns
+    -------
+    int
+        In [0, 2**63).
+
     Examples
     --------
+    >>> from pinnedballs.specs.study import point_seed
     >>> point_seed(0, {"geometry.length": 10}) == point_seed(0, {"geometry.length": 10})
     True
     >>> point_seed(0, {"geometry.length": 10}) != point_seed(1, {"geometry.length": 10})
@@ -149,8 +162,37 @@ class StudyPoint:
 
 
 class StudySpec(_Spec):
-    """A study: a ``base`` run spec over points (``zip``, ``grid``, ``points``), ``replicas`` of each, seeded by
-    ``seed`` (the module's docstring says how the parts combine and how points are seeded)."""
+    """A study: a ``base`` run spec over points, ``replicas`` of each, seeded by ``seed``.
+
+    The module's docstring says how the parts combine and how points are seeded.
+
+    Parameters
+    ----------
+    description : str
+        Words for the reader.
+    base : RunSpec
+        The run spec every point overrides (in JSON, inline or the path of one).
+    zip, grid : dict
+        Dotted path -> list of values: ``zip``'s varied together, ``grid``'s as a Cartesian product.
+    points : list of dict
+        Override dicts, one a point.
+    replicas : int or list of ReplicasRule
+        One number for every point, or rules (``{"where": {...}, "replicas": N}``) tried in order.
+    seed : int or None
+        The study's seed (`point_seed`); None: drawn when it first runs (`seeded`).
+    seeds : {"by_point", "as_spec"}
+        How points are seeded.
+
+    Examples
+    --------
+    >>> from pinnedballs.specs.study import parse_study
+    >>> run = {"geometry": {"kind": "half_plane", "rows": 4, "cols": 6},
+    ...        "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 0.5},
+    ...        "stop": {"frozen": True, "max_steps": 100000}}
+    >>> study = parse_study({"base": run, "grid": {"geometry.cols": [6, 8]}, "replicas": 2, "seed": 0})
+    >>> [(p.overrides, p.spec.geometry.cols, p.replicas) for p in study.expand()]
+    [({'geometry.cols': 6}, 6, 2), ({'geometry.cols': 8}, 8, 2)]
+    """
 
     description: str = ""
     base: RunSpec
@@ -239,15 +281,27 @@ class StudySpec(_Spec):
         return list(dict.fromkeys([*self.zip, *self.grid, *(p for point in self.points for p in point)]))
 
     def digest(self) -> str:
-        """The base spec's digest (16 hex digits of SHA-256 of its canonical JSON: defaults and the description
-        left out, and, with seeds "by_point", its seed, which the points do not use): a point's state point
-        holds it, so the points of another base are other jobs."""
+        """The base spec's digest: a point's state point holds it, so the points of another base are other jobs.
+
+        Returns
+        -------
+        str
+            16 hex digits of SHA-256 of its canonical JSON: defaults and the description left out, and, with
+            seeds "by_point", its seed, which the points do not use.
+        """
         exclude = {"description"} | ({"seed", "replica"} if self.seeds == "by_point" else set())
         dumped = {k: v for k, v in stated(self.base).items() if k not in exclude}
         return hashlib.sha256(canonical(dumped).encode()).hexdigest()[:16]
 
     def seeded(self) -> StudySpec:
-        """This study with a seed: its own, one drawn from fresh entropy (63 bits), or none for seeds "as_spec"."""
+        """This study with a seed.
+
+        Returns
+        -------
+        StudySpec
+            Itself with its own seed, or none for seeds "as_spec"; else a copy with one drawn from fresh entropy
+            (63 bits).
+        """
         if self.seed is not None or self.seeds == "as_spec":
             return self
         drawn = int(np.random.SeedSequence().generate_state(1, np.uint64)[0] >> np.uint64(1))
@@ -262,6 +316,11 @@ class StudySpec(_Spec):
 
     def expand(self) -> list[StudyPoint]:
         """The points: each one's overrides, its run spec (the base with them, validated and seeded) and replicas.
+
+        Returns
+        -------
+        list of StudyPoint
+            In the study's order (the module's docstring).
 
         Raises
         ------
@@ -288,8 +347,25 @@ class StudySpec(_Spec):
         return out
 
     def point_spec(self, overrides: dict[str, Any]) -> RunSpec:
-        """The run spec of the point with ``overrides`` (a point of the study or not), validated and seeded as the
-        study seeds its points; a `PointError` if it is not a valid run spec."""
+        """The run spec of the point with ``overrides`` (a point of the study or not).
+
+        Parameters
+        ----------
+        overrides : dict
+            Dotted path -> JSON value.
+
+        Returns
+        -------
+        RunSpec
+            Validated and seeded as the study seeds its points.
+
+        Raises
+        ------
+        PointError
+            If it is not a valid run spec.
+        SpecError
+            On ``seed``, for a study without one (seeds "by_point").
+        """
         for path, value in overrides.items():
             try:
                 _check_override(path, value, "")
@@ -336,7 +412,13 @@ class StudySpec(_Spec):
                 raise SpecError(f"replicas[{k}].where", f"{label(rule.where)} holds for no point of the study")
 
     def to_json(self) -> str:
-        """The study as indented JSON, its base inline (`stated`: paths absolute): a file that repeats it."""
+        """The study as JSON: a file that repeats it.
+
+        Returns
+        -------
+        str
+            Indented JSON, its base inline (`stated`: paths absolute).
+        """
         given = self.model_dump(mode="json", exclude_defaults=True, exclude={"base"})
         study = {**({"description": given.pop("description")} if "description" in given else {}),
                  "base": stated(self.base), **given}
@@ -454,7 +536,24 @@ def parse_study(data: str | bytes | dict, base_dir: str | os.PathLike | None = N
 
 
 def load_study_spec(path: str | os.PathLike) -> StudySpec:
-    """Read and validate the study file at ``path``; its relative paths resolve against its directory."""
+    """Read and validate the study file at ``path``; its relative paths resolve against its directory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A study file.
+
+    Returns
+    -------
+    StudySpec
+        Its points are validated by `StudySpec.expand`.
+
+    Raises
+    ------
+    SpecError
+        In one line naming the file or the first wrong field (no such file, not JSON, a bad base, part or
+        replicas rule).
+    """
     path = Path(path)
     try:
         check_memory(_JSON_BYTES_PER_CHAR * path.stat().st_size, str(path), "reading this study file")

@@ -1,12 +1,12 @@
 """The public API's docstrings are numpydoc, and their examples run.
 
 Public: every name of `pb.__all__`, of `pinnedballs.testing` and of the engine's door (`pinnedballs.engine`),
-and the public methods of their classes (those a user holds, `Simulation`, `Results`, every `Geometry`, and
-those a user's component overrides, `Scheduler.kernel`, `Writer.write`, ...). numpydoc's validator finds on
-none of them a parameter left undocumented (PR01), one documented that is not there (PR02), a value returned
-with no Returns section (RT01) or no docstring at all (GL08); the main names have an Examples section
-(`EXAMPLED`); and every public docstring's examples run as doctests, in a temporary working directory
-(examples write relative paths).
+and the public methods of their classes: every one of the classes a user holds (`HELD`); of the others, those
+the API page shows, the methods a user's component overrides among them (`Scheduler.kernel`, `Writer.write`).
+numpydoc's validator finds on none of them a parameter left undocumented (PR01), one documented that is not
+there (PR02), a value returned with no Returns section (RT01) or no docstring at all (GL08); the main names
+have an Examples section (`EXAMPLED`); and every public docstring's examples run as doctests, in a temporary
+working directory (examples write relative paths).
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ DOCS = Path(__file__).resolve().parents[2] / "docs"
 #: the engine's door: `pinnedballs.engine`'s names
 ENGINE_DOOR = ("engines", "register", "unregister", "find", "choose", "check", "Engine", "Refusal", "Refused",
                "Device", "CPU", "CUDA", "as_device")
+#: the classes a user holds: every public method is public, whatever the API page shows (with every `Geometry`)
+HELD = ("Simulation", "Results", "Geometry", "EnsembleResult", "StudyResult")
 #: the numpydoc errors the public API may not have
 REFUSED = {"PR01": "parameters not documented", "PR02": "unknown parameters documented",
            "RT01": "no Returns section", "GL08": "no docstring"}
@@ -75,15 +77,34 @@ def public() -> dict:
                 seen.add(id(obj))
                 out[f"{prefix}.{name}"] = obj
     named = {getattr(pb, n): n for n in pb.__all__ if inspect.isclass(getattr(pb, n))}
-    for cls in [obj for obj in out.values() if inspect.isclass(obj)]:
-        out.update((k, f) for k, f in _methods(cls, named).items() if id(f) not in seen and not seen.add(id(f)))
+    shown = _members_shown()
+    for name, cls in [(n, obj) for n, obj in out.items() if inspect.isclass(obj)]:
+        methods = _methods(cls, named)
+        if name in shown and not (name.removeprefix("pinnedballs.") in HELD or issubclass(cls, pb.Geometry)):
+            methods = {k: f for k, f in methods.items() if k.rpartition(".")[2] in shown[name]}
+        out.update((k, f) for k, f in methods.items() if id(f) not in seen and not seen.add(id(f)))
     return out
+
+
+def _members_shown() -> dict:
+    """``{name: members}`` of the API page's entries that show only some members (``members: [a, b]``, or
+    ``members: false``: none)."""
+    shown, entry = {}, None
+    for line in (DOCS / "api.md").read_text(encoding="utf-8").splitlines():
+        if line.startswith("::: "):
+            entry = line[4:].strip()
+        elif entry and (m := re.fullmatch(r"\s+members:\s*(.*)", line)):
+            listed = m.group(1).strip()
+            shown[entry] = () if listed == "false" else tuple(x.strip() for x in listed.strip("[]").split(","))
+        elif not line.startswith(" "):
+            entry = None
+    return shown
 
 
 PUBLIC = public()
 #: the modules whose docstrings are not numpydoc yet (issue 47, item 2), emptied room by room
 PENDING = ("pinnedballs.simulation", "pinnedballs.results",
-           "pinnedballs.run", "pinnedballs.specs", "pinnedballs.analysis", "pinnedballs.engine", "pinnedballs.util",
+           "pinnedballs.run", "pinnedballs.analysis", "pinnedballs.engine", "pinnedballs.util",
            "pinnedballs.testing")
 
 
