@@ -10,12 +10,12 @@ import warnings
 
 import numpy as np
 
-from .engine.backends import Backend
 from .engine.chain import COLLISIONS, COUNTERS, NO_LIMIT, STEPS, ChainState, Model
 from .engine.devices import Device, as_device
 from .engine.door import choose, options
 from .engine.driver import check_writers, drive
 from .engine.margin import ClosingMargin, MarginWarning, new_margin
+from .engine.protocol import Backend
 from .engine.state import RunState, margin_problem, mass_array
 from .engine.stop import Stop
 from .engine.streams.philox import counter_stream
@@ -372,7 +372,7 @@ class Simulation:
         """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
         margin too: a float run's as ``margin``, a certified run's decisions' in ``certified``; none is kept
         in exact arithmetic). What the arithmetic keeps beyond the velocities is its engine's to say
-        (`engine.backends.Backend.saved`)."""
+        (`engine.protocol.Backend.saved`)."""
         st = self._engine.state
         return RunState(self.velocities.copy(), self.steps, self.collisions, st.rng.copy(), st.scheduler.copy(),
                         **self._engine.saved())

@@ -12,7 +12,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..engine.devices import DEVICE_NAMES, as_device
+from ..engine import door
+from ..engine.devices import DEVICE_NAMES
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
 
@@ -518,7 +519,7 @@ def reproduce_command(args) -> int:
         if args.workers is not None:
             check_count("--workers", args.workers)
         check_out_dir(args.out, args.force)
-        as_device(args.device).check()  # a GPU: numba-cuda and one, before anything runs (with --extended or not)
+        door.ready(args.device)  # a GPU: numba-cuda and one, before anything runs (with --extended or not)
     shown = status.shown  # the stages and bars on a terminal only
     stage: list[str] = []  # the stage running: a note names the run it is about, on a terminal or not
 

@@ -29,6 +29,6 @@ import lazy_loader as _lazy
 
 __getattr__, __dir__, __all__ = _lazy.attach(__name__, submod_attrs={
     "door": ["engines", "register", "unregister", "find", "choose", "check"],
-    "protocol": ["Engine", "Refusal", "Refused"],
+    "protocol": ["Engine", "Refusal", "Refused", "Backend"],
     "devices": ["Device", "CPU", "CUDA", "as_device"],
 })

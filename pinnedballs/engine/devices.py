@@ -3,7 +3,8 @@ belongs to the device (the CPU's threads; the GPU's index, and whether numba-cud
 
 A device is information about a run, not part of its model: the same spec and seed give the same bits on
 either. The strings ``"cpu"`` and ``"cuda"`` are taken wherever a device is (`as_device`), in Python, specs'
-runs and on the command line. Which engine runs a chain on a device is the door's choice (`engine.door`).
+runs and on the command line. Devices are plain data: which engine runs a chain on one, and whether one is
+here at all, is the door's to say (`engine.door.choose`, `engine.door.ready`).
 """
 
 from __future__ import annotations
@@ -27,9 +28,6 @@ class Device:
 
     def __str__(self) -> str:
         return self.kind
-
-    def check(self) -> None:
-        """Nothing, where the device is here; a `FieldError` on ``device`` saying what is missing otherwise."""
 
 
 @dataclass(frozen=True)
@@ -84,20 +82,6 @@ class CUDA(Device):
 
     def __post_init__(self):
         checks.integer("device", self.device, 0, 1 << 10)
-
-    def check(self) -> None:
-        """numba-cuda and a GPU it sees (or its simulator), else `pinnedballs.GPUUnavailable` saying which is
-        missing, in one line."""
-        from .gpu import load
-
-        load()
-
-    @property
-    def simulated(self) -> bool:
-        """True under numba-cuda's simulator (its kernels as Python threads on the CPU); asks numba-cuda."""
-        from .gpu.compile import SIMULATED
-
-        return SIMULATED
 
 
 #: a device by its name, as specs and the command line give it

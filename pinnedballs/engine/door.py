@@ -19,7 +19,8 @@ from ..util.errors import FieldError
 from .devices import Device, as_device
 from .protocol import Engine, Refusal
 
-__all__ = ["engines", "register", "unregister", "find", "choose", "check", "options", "ARITHMETICS"]
+__all__ = ["engines", "register", "unregister", "find", "choose", "check", "options", "ready", "simulated",
+           "ARITHMETICS"]
 
 #: the arithmetics a chain runs in (`Simulation`'s ``arithmetic``)
 ARITHMETICS = ("float", "exact", "certified")
@@ -147,3 +148,22 @@ def options(arithmetic: str, precision=None, late_precision=None) -> dict:
     arithmetic = checks.choice("arithmetic", arithmetic, ARITHMETICS)
     precision, late_precision = check_precisions(arithmetic, precision, late_precision)
     return {"arithmetic": arithmetic, "precision": precision, "late_precision": late_precision}
+
+
+def ready(device) -> None:
+    """Nothing where ``device`` (a `Device` or its name) is here; else its one-line refusal: a GPU needs numba-cuda
+    and a GPU it sees, or its simulator (`pinnedballs.GPUUnavailable` saying which is missing)."""
+    if as_device(device).gpu:
+        from .gpu import load
+
+        load()
+
+
+def simulated(device) -> bool:
+    """Whether chains on ``device`` (a `Device` or its name) run under numba-cuda's simulator
+    (``NUMBA_ENABLE_CUDASIM=1``: the kernels as Python threads on the CPU), not on a GPU."""
+    if not as_device(device).gpu:
+        return False
+    from .gpu.compile import SIMULATED
+
+    return bool(SIMULATED)

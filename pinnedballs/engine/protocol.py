@@ -1,15 +1,22 @@
-"""What an engine is (`Engine`: a name, the devices and arithmetics it runs, `Engine.supports` and `Engine.build`)
-and what it says when it does not run a chain (`Refusal`, raised as `Refused`). The door (`engine.door`) keeps
-the registered engines and chooses among them; the built-in ones are `engine.builtin`'s."""
+"""What an engine is (`Engine`: a name, the devices and arithmetics it runs, `Engine.supports` and `Engine.build`),
+what it builds (`Backend`: the chunk protocol the run driver calls, ``run(max_steps, max_collisions,
+until_frozen) -> steps taken``, and the state its arithmetic saves and restores), and what it says when it does
+not run a chain (`Refusal`, raised as `Refused`). The door (`engine.door`) keeps the registered engines and
+chooses among them; the built-in ones are `engine.builtin`'s, their backends `engine.backends`' and
+`engine.field.backend`'s."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..util.errors import FieldError
-from .devices import Device
+import numpy as np
 
-__all__ = ["Refusal", "Refused", "Engine"]
+from ..util.errors import FieldError
+from .chain import NO_LIMIT, ChainState, Model
+from .devices import Device, as_device
+from .sequential.loops import live_kernel
+
+__all__ = ["Refusal", "Refused", "Engine", "Backend"]
 
 
 @dataclass(frozen=True)
@@ -81,3 +88,69 @@ class Engine:
     def __repr__(self) -> str:
         return (f"<engine {self.name!r}: {', '.join(self.arithmetics)} on {', '.join(self.devices)}"
                 f"{', replicas' if self.replicas else ''}>")
+
+
+class Backend:
+    """What every backend shares: the chain's ``model`` and ``state``, the listeners told of each collision
+    (``listeners(steps (C,) int64, contacts (C,) int64)``, in order), the `Device` it runs on, and the protocol
+    (module docstring)."""
+
+    def __init__(self, model: Model, state: ChainState, listeners: list | None = None, device=None):
+        self.model, self.state = model, state
+        self.listeners = [] if listeners is None else listeners
+        self.device = as_device(device)
+        g = model.geometry
+        self._live_flags, self._any_live = live_kernel(model.collide, g.dim, g.contacts.flat)
+
+    def run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        """At most ``max_steps`` steps (never past the counter's range), stopping at a total of ``max_collisions``
+        collisions and, with ``until_frozen``, right after the collision that leaves no live contact. A state left
+        between two states by an error inside a compiled loop (``state.broken``) cannot go on."""
+        if self.state.broken:
+            raise FieldError("simulation", f"cannot go on: {self.state.broken}; build it again (or load its last "
+                                           f"checkpoint)")
+        return self._run(min(max_steps, NO_LIMIT - self.state.steps), max_collisions, until_frozen)
+
+    def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
+        raise NotImplementedError
+
+    def velocities(self) -> np.ndarray:
+        """``(n_balls, dim) float64``: the velocities now."""
+        return self.state.velocities
+
+    def set_velocities(self, velocities: np.ndarray) -> None:
+        self.state.velocities = velocities
+
+    def approaching(self) -> int:
+        """The number of live contacts."""
+        return int(self.live_flags(self.velocities()).sum())
+
+    def is_frozen(self) -> bool:
+        return not self._any_live(*self.model.chain(self.velocities()))
+
+    def live_flags(self, velocities: np.ndarray) -> np.ndarray:
+        """``(E,) uint8``: the live contacts of ``velocities`` in float arithmetic (1 where a pick would collide)."""
+        flags = np.empty(self.model.geometry.n_contacts, dtype=np.uint8)
+        self._live_flags(*self.model.chain(velocities), flags)
+        return flags
+
+    def tell(self, steps: np.ndarray, contacts: np.ndarray) -> None:
+        """Tell the listeners of collisions at ``steps`` of ``contacts``."""
+        for listener in self.listeners:
+            listener(steps, contacts)
+
+    def resources(self) -> dict:
+        """What this chain's runs have used so far, as a run's provenance records it (`util.provenance`):
+        ``{"kind": "cpu", "threads": 1}`` here (one thread); a backend that runs elsewhere says so."""
+        return {"kind": "cpu", "threads": 1}
+
+    # ------------------------------------------------------------ its state, saved and restored
+    def saved(self) -> dict:
+        """The parts of a `engine.state.RunState` this backend's arithmetic keeps beyond the velocities, counters,
+        stream and scheduler, as copies: in float arithmetic the closing margin (``{"margin": (4,) float64}``)."""
+        return {"margin": self.state.margin.copy()}
+
+    def restore(self, state, velocities: np.ndarray) -> None:
+        """Take ``state``'s arithmetic's parts (`saved`'s), checked before anything changes, and ``velocities``
+        (``(n_balls, dim)``, checked by the simulation); a `FieldError` naming the part that does not fit."""
+        self.set_velocities(velocities)

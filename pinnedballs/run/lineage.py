@@ -1,6 +1,6 @@
 """The lineage of an output: the provenance a run's results and an ensemble's directory record. What this process
 is (`util.provenance`: versions, command, host, CPU) and what the run used, as its engine says
-(`engine.backends.Backend.resources`: the threads, or the GPU). `life` begins a run's entry, `checkpointed` brings
+(`engine.protocol.Backend.resources`: the threads, or the GPU). `life` begins a run's entry, `checkpointed` brings
 it up to a checkpoint (its ``ended`` and ``steps``); `ensemble` gives an ensemble's, `ended` closes it. Metadata
 only: no bit of a run depends on it.
 """

@@ -35,6 +35,7 @@ import numpy as np
 
 from .._version import __version__
 from ..analysis import observables as named
+from ..engine import door
 from ..engine.devices import as_device
 from ..engine.driver import Writer
 from ..engine.field.arithmetic import AUTO, next_precisions
@@ -287,10 +288,7 @@ class ResultsWriter(Writer):
                                    device=device.kind, simulated=simulated(device), life=lineage.life(sim, CALL))
 
 
-def simulated(device) -> bool:
-    """Whether a run on ``device`` (a `Device` or its name) runs under numba-cuda's simulator
-    (``NUMBA_ENABLE_CUDASIM=1``: its kernels as Python threads on the CPU), not on a GPU."""
-    return bool(getattr(as_device(device), "simulated", False))
+simulated = door.simulated  # whether a run on a device runs under numba-cuda's simulator
 
 
 def failure(exc: UncertifiedDecision, steps: int, spec=None) -> dict:

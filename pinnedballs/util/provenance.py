@@ -11,7 +11,7 @@ per ensemble (``summary.json``). `entry` gives what this process knows of itself
     host      the host name; platform: ``platform.platform()``
     cpu       {"model": the CPU's name, "cores": logical CPUs, "usable": those this process may run on,
               "l2_cache": bytes (absent where unreadable), "flags": its vector extensions (avx2, avx512f, ...)}
-    device    what ran it, from the run (`engine.backends.Backend.resources`): {"kind": "cpu", "threads": k,
+    device    what ran it, from the run (`engine.protocol.Backend.resources`): {"kind": "cpu", "threads": k,
               "tuned": {count: share of the work}, where a `ThreadTuner` chose the count}, or {"kind": "cuda",
               "gpu": its name, "compute_capability": "9.0"} ({"gpu": "simulated"} under numba-cuda's simulator)
     started, ended  UTC, ISO 8601 (``"2026-12-01T23:30:53Z"``); ended None until the life's first checkpoint

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...util.errors import FieldError
-from ..backends import Backend
 from ..chain import COLLISIONS, LAST, LIVE, STEPS, ChainState, Model
 from ..harness import limits_loop
+from ..protocol import Backend
 from ..sequential.loops import loops
 from ..streams.philox import CounterPicks
 from .fixed_state import CertifiedState, nearest_floats
@@ -85,12 +85,10 @@ class FieldBackend(Backend):
         return self.state.field_chain.sync()
 
     def resources(self) -> dict:
-        """One thread of the CPU, or the GPU its picks are tried on (`engine.gpu.describe`: certified arithmetic)."""
-        if not self.device.gpu:
-            return super().resources()
-        from ..gpu import describe
-
-        return {"kind": "cuda", **describe()}
+        """One thread of the CPU, or what its chain's picks say of where they are tried (a GPU's
+        `engine.gpu.certified.DevicePicks`: the GPU's name, certified arithmetic)."""
+        said = getattr(getattr(self.state.field_chain, "picks", None), "resources", None)
+        return said() if callable(said) else super().resources()
 
     def approaching(self) -> int:
         return self.state.field_chain.count_live()

@@ -173,6 +173,13 @@ class DevicePicks:
     #: it draws the counter stream's picks itself (`engine.streams.philox.CounterPicks`)
     draws = True
 
+    @staticmethod
+    def resources() -> dict:
+        """Where its picks are tried, as a run's provenance records it: the GPU (`engine.gpu.describe`)."""
+        from . import describe
+
+        return {"kind": "cuda", **describe()}
+
     def __init__(self):
         self.cuda = cuda
         self.kernels = _kernels()
