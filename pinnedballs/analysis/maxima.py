@@ -64,16 +64,33 @@ SAMPLED_ORDERS = 20
 
 @dataclass(frozen=True, eq=False)
 class MaxCollisionsResult:
-    """The most collisions until frozen found over initial velocities and orders.
+    """The most collisions until frozen found over initial velocities and orders (`search_max_collisions`).
 
-    collisions: the most found; velocities ``(n_balls, dim) float64`` reaching it (take them
-    exactly: a float is a rational); order: contact indices of an order reaching it, every pick
-    a collision, ending frozen (verified by a replay in ``arithmetic`` before returning).
-    exhaustive_orders: True when ``collisions`` is the most over *every* order for these velocities
-    (else a lower bound); min_collisions: the fewest over orders for them (an upper bound when not
-    exhaustive); states: distinct states of that search over orders. trials: velocities evaluated;
-    climbs: of which random restarts (or ``start``); found_at: the trial (from 1) that found them.
     The most over velocities is the best found, not proven, unless a known answer applies.
+
+    Parameters
+    ----------
+    collisions : int
+        The most found.
+    velocities : numpy.ndarray
+        ``(n_balls, dim) float64`` reaching it (take them exactly: a float is a rational).
+    order : tuple of int
+        Contact indices of an order reaching it, every pick a collision, ending frozen (verified by a
+        replay in ``arithmetic`` before returning).
+    exhaustive_orders : bool
+        True when ``collisions`` is the most over *every* order for these velocities (else a lower bound).
+    min_collisions : int
+        The fewest over orders for them (an upper bound when not exhaustive).
+    states : int
+        Distinct states of that search over orders.
+    trials : int
+        Velocities evaluated.
+    climbs : int
+        Of which random restarts (or ``start``).
+    found_at : int
+        The trial (from 1) that found them.
+    arithmetic : {"exact", "float"}
+        Of the final search and the replay.
     """
 
     collisions: int
@@ -254,22 +271,55 @@ def search_max_collisions(geometry: Geometry, trials: int = 1000, seed=0, *, sta
     most ``max_states`` distinct states, else a lower bound), by hill climbing from random
     directions: one move at a time (one ball's velocity perturbed, or two balls' exchanged), kept
     when the count does not decrease, a new climb after ``patience`` trials without a rise (module
-    docstring). ``start`` ``(n_balls, dim)``,
-    if given, is where the first climb starts. ``seed``: int or ``numpy.random.SeedSequence``;
-    same inputs give the same result.
+    docstring). The best velocities are searched again over orders with ``final_states`` states in
+    ``arithmetic``; their most order is replayed in it (`Replay`) to its count, frozen, before returning.
+    Same inputs give the same result. The bounds bound the call: ``trials`` searches of at most
+    ``max_states`` states each and one of ``final_states`` (`explore_orders` says what a state costs).
 
-    The best velocities are searched again over orders with ``final_states`` states in
-    ``arithmetic``: ``"auto"`` (exact where the contact normals lie in a known number field, float
-    elsewhere), ``"exact"`` or ``"float"``; their most order is replayed in it (`Replay`) to its
-    count, frozen, before returning. Returns a `MaxCollisionsResult`. A system that never
-    freezes (a torus, a sphere) is refused with a `FieldError` on ``geometry``: an order came back
-    to a state it passed, or one of ``max_collisions`` collisions had not frozen.
+    Parameters
+    ----------
+    geometry : Geometry
+        The balls.
+    trials : int
+        Velocities evaluated.
+    seed : int or numpy.random.SeedSequence
+        Seeds the search.
+    start : array_like, optional
+        ``(n_balls, dim)``: where the first climb starts.
+    patience : int
+        Trials without a rise before a new climb.
+    max_states : int
+        States of each trial's search over orders.
+    final_states : int
+        States of the final search over orders.
+    max_collisions : int
+        The most collisions of one order.
+    arithmetic : {"auto", "exact", "float"}
+        Of the final search and the replay: ``"auto"`` (exact where the contact normals lie in a known
+        number field, float elsewhere), ``"exact"`` or ``"float"``.
+    progress : bool or None
+        A bar over the trials, the most found so far beside it, then the final search's (True, False, or
+        None: in a terminal or a notebook, once the call has taken 2 s).
 
-    The bounds bound the call: ``trials`` searches of at most ``max_states`` states each and one of
-    ``final_states`` (`explore_orders` says what a state costs). ``progress``: a bar over the trials,
-    the most found so far beside it, then the final search's (True, False, or None: in a terminal or a
-    notebook, once the call has taken 2 s). Ctrl-C stops it with KeyboardInterrupt, the search so far
-    discarded.
+    Returns
+    -------
+    MaxCollisionsResult
+
+    Raises
+    ------
+    FieldError
+        On ``geometry`` for a system that never freezes (a torus, a sphere): an order came back to a state
+        it passed, or one of ``max_collisions`` collisions had not frozen; on ``start`` (a bad shape, NaN,
+        all zero) or another argument.
+    KeyboardInterrupt
+        On Ctrl-C, the search so far discarded.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> m = pb.search_max_collisions(pb.HalfPlane(rows=2, cols=2), trials=20, seed=0)
+    >>> m.collisions, len(m.order), m.exhaustive_orders, m.arithmetic
+    (7, 7, True, 'exact')
     """
     if not isinstance(geometry, Geometry):
         raise FieldTypeError("geometry", f"must be a pinnedballs Geometry, got {type(geometry).__name__}")

@@ -371,7 +371,42 @@ _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def register_observable(name: str, fn: Callable, *, replace: bool = False) -> Callable:
-    """Register ``fn(sim) -> number or array`` as the observable ``name``; returns ``fn``."""
+    """Register an observable: a spec's ``"observables"`` and an ensemble's table may then name it.
+
+    Parameters
+    ----------
+    name : str
+        An identifier (letters, digits, _), not a built-in counter.
+    fn : callable
+        ``fn(sim) -> number or array`` of a `Simulation`'s current state.
+    replace : bool
+        Replace an observable registered under ``name`` already.
+
+    Returns
+    -------
+    callable
+        ``fn``.
+
+    Raises
+    ------
+    ValueError
+        On ``name``: not an identifier, registered already (without ``replace``), or a built-in counter.
+    TypeError
+        On ``fn`` that is not callable.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.analysis.observables import OBSERVABLES
+    >>> def top_speed(sim):
+    ...     return float(np.linalg.norm(sim.velocities, axis=1).max())
+    >>> pb.register_observable("top_speed", top_speed, replace=True) is top_speed
+    True
+    >>> g = pb.HalfPlane(rows=2, cols=2)
+    >>> OBSERVABLES["top_speed"](pb.Simulation(g, [[0, 3], [0, 4], [0, 0], [0, 0]], seed=0))
+    4.0
+    """
     if not isinstance(name, str) or not _NAME.fullmatch(name):
         raise ValueError(f"name: must be an identifier (letters, digits, _), got {name!r}")
     if not callable(fn):

@@ -51,14 +51,37 @@ _SHOW_EVERY = 64
 
 @dataclass(frozen=True)
 class OrdersResult:
-    """Fewest and most collisions until frozen over orders of collisions.
+    """Fewest and most collisions until frozen over orders of collisions (what `explore_orders` returns).
 
-    min_order, max_order: contact indices reaching ``min_collisions`` and ``max_collisions``
-    (every pick a collision; replay them with `Replay`). ``states``: distinct states the
-    depth-first search visited. When not ``exhaustive`` (``max_states`` stopped it, or the
-    search path's velocities reached `PATH_BYTES`) the
-    figures are bounds reached by real orders: the fewest is *at most* ``min_collisions``,
-    the most *at least* ``max_collisions``; ``sampled`` orders (greedy, random) helped find them.
+    When not ``exhaustive`` the figures are bounds reached by real orders: the fewest is *at most*
+    ``min_collisions``, the most *at least* ``max_collisions``.
+
+    Parameters
+    ----------
+    min_collisions, max_collisions : int
+        The fewest and the most collisions until frozen.
+    min_order, max_order : tuple of int
+        Contact indices reaching ``min_collisions`` and ``max_collisions`` (every pick a collision;
+        replay them with `Replay`).
+    states : int
+        Distinct states the depth-first search visited.
+    exhaustive : bool
+        Every order was searched (False: ``max_states`` stopped it, or the search path's velocities
+        reached `PATH_BYTES`).
+    sampled : int
+        Orders sampled (greedy, random) that helped find the bounds.
+    arithmetic : {"exact", "float"}
+        The arithmetic of the search.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=2, cols=3)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[1] = [0.0, 1.0]
+    >>> print(pb.explore_orders(g, v))
+    Collisions until frozen over every order (32 distinct states): fewest 4, most 6.
     """
 
     min_collisions: int
@@ -297,41 +320,81 @@ def explore_orders(geometry: Geometry, velocities, masses=None, rule=None, max_s
                    max_collisions: int = 10**6, arithmetic: str = "auto", progress: bool | None = None) -> OrdersResult:
     """Fewest and most collisions until frozen over every order of collisions.
 
-    geometry, velocities ``(n_balls, dim)``, masses ``(n_balls,)`` or None, rule (default
-    `Elastic()`): as for `Simulation`. Searches every order when the system has at most
-    ``max_states`` distinct states; otherwise returns bounds (``exhaustive=False``) from the
-    part searched, two greedy orders (largest, then smallest closing speed first) and up to
-    ``restarts`` orders choosing a live contact uniformly at random (``seed``: int or
-    ``numpy.random.SeedSequence``), these sampled orders taking at most ``max(max_states, 10,000)``
-    collisions in all (`WALK_FLOOR`), each at most ``max_collisions``. Same inputs give the same result.
+    Searches every order when the system has at most ``max_states`` distinct states; otherwise returns
+    bounds (``exhaustive=False``) from the part searched, two greedy orders (largest, then smallest closing
+    speed first) and up to ``restarts`` orders choosing a live contact uniformly at random. Same inputs give
+    the same result. States are told apart by a 128-bit key of their velocities (`order_systems`): two of a
+    million distinct states share one with probability below 1e-26.
 
-    ``max_states`` bounds the call: at most ``max_states`` states are searched and
-    ``max(max_states, 10,000)`` more made along the sampled orders, each in about 2-30 us (float64,
-    ten to a thousand balls) or 0.04-1 ms (exact arithmetic, any size), a state whose exact numbers
-    have grown large counting as several (`order_systems.COST_BYTES`: restitution r < 1 makes them
-    grow along an order), and the search keeps about 300 bytes per state (a bound needing more
-    memory than the machine has is refused at once, a `FieldError` on ``max_states``); when no
-    order reaches frozen within the bound, a ValueError says so (raise ``max_states``). None, the default: `MAX_STATES`
-    in float64 (10^6), `MAX_EXACT_STATES` in exact arithmetic (10^5), a minute or two either way.
-    ``progress``: a bar over the states, then a count of the sampled orders' collisions (True,
-    False, or None: in a terminal or a notebook, once the call has taken 2 s). Ctrl-C stops it with
-    KeyboardInterrupt, the partial search discarded.
+    Parameters
+    ----------
+    geometry : Geometry
+        As for `Simulation`.
+    velocities : array_like
+        ``(n_balls, dim)``, as for `Simulation`.
+    masses : array_like, optional
+        ``(n_balls,)``, or None (all equal).
+    rule : CollisionRule, optional
+        Default `Elastic()`.
+    max_states : int, optional
+        Bounds the call: at most ``max_states`` states are searched and ``max(max_states, 10,000)`` more
+        made along the sampled orders (`WALK_FLOOR`), each in about 2-30 us (float64, ten to a thousand
+        balls) or 0.04-1 ms (exact arithmetic, any size), a state whose exact numbers have grown large
+        counting as several (`order_systems.COST_BYTES`: restitution r < 1 makes them grow along an order);
+        the search keeps about 300 bytes per state. None, the default: `MAX_STATES` in float64 (10^6),
+        `MAX_EXACT_STATES` in exact arithmetic (10^5), a minute or two either way.
+    restarts : int
+        Orders choosing a live contact uniformly at random, these sampled orders taking at most
+        ``max(max_states, 10,000)`` collisions in all.
+    seed : int or numpy.random.SeedSequence
+        Seeds the sampled orders.
+    min_closing_speed : float
+        > 0 also leaves out contacts closing at or below it, in velocity units; the orders still replay
+        collision for collision, but end with only such slow contacts live.
+    max_collisions : int
+        The most collisions of one sampled order.
+    arithmetic : {"auto", "exact", "float"}
+        ``"exact"`` searches in exact arithmetic (`pinnedballs.engine.field.rational`): states
+        are merged by their exact values and a contact is live when its exact closing speed is positive,
+        so the fewest and the most are exact; ``"float"`` uses the engine's float64 loop (states merged
+        by their bits, rounding remnants below the engine's threshold left out); ``"auto"`` (default):
+        exact where the geometry's normals lie in a known number field, float elsewhere. The result
+        says which (``arithmetic``).
+    progress : bool or None
+        A bar over the states, then a count of the sampled orders' collisions (True, False, or None: in
+        a terminal or a notebook, once the call has taken 2 s).
 
-    ``arithmetic``: ``"exact"`` searches in exact arithmetic (`pinnedballs.engine.field.rational`): states
-    are merged by their exact values and a contact is live when its exact closing speed is positive,
-    so the fewest and the most are exact; ``"float"`` uses the engine's float64 loop (states merged
-    by their bits, rounding remnants below the engine's threshold left out); ``"auto"`` (default):
-    exact where the geometry's normals lie in a known number field, float elsewhere. The result
-    says which (``arithmetic``). States are told apart by a 128-bit key of their velocities
-    (`order_systems`): two of a million distinct states share one with probability below 1e-26.
+    Returns
+    -------
+    OrdersResult
 
-    ``min_closing_speed`` > 0 also leaves out contacts closing at or below it, in velocity units;
-    the orders still replay collision for collision, but end with only such slow contacts live.
+    Raises
+    ------
+    FieldError
+        On ``max_states`` for a bound needing more memory than the machine has (at once), or on the
+        system as `Simulation` checks it.
+    ValueError
+        Naming the argument: at once on ``velocities`` where no order can freeze (a torus not frozen at the
+        start, ``min_closing_speed`` 0, with any r > 0 in exact arithmetic or, on a `Geometry.rigid` one,
+        elastic collisions: `docs/model.md`), and on a count or speed out of range (a TypeError for one that
+        is no number); when no order reaches frozen within the bound (raise ``max_states``), when an order
+        returns to a state it passed, or when an order of ``max_collisions`` collisions has not frozen: a
+        torus or a sphere can collide forever.
+    KeyboardInterrupt
+        On Ctrl-C, the partial search discarded.
 
-    Raises ValueError when an order returns to a state it passed, or when an order of
-    ``max_collisions`` collisions has not frozen: a torus or a sphere can collide forever. Refused
-    at once where no order can freeze (a torus not frozen at the start, ``min_closing_speed`` 0, with
-    any r > 0 in exact arithmetic or, on a `Geometry.rigid` one, elastic collisions: `docs/model.md`).
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=2, cols=3)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[1] = [0.0, 1.0]
+    >>> r = pb.explore_orders(g, v)
+    >>> r.min_collisions, r.max_collisions, r.exhaustive, r.arithmetic
+    (4, 6, True, 'exact')
+    >>> r.max_order
+    (3, 2, 4, 0, 8, 6)
     """
     with deferred() as held:  # Ctrl-C at the next state or collision, never inside numba (compiling or running)
         sim = _simulation(geometry, velocities, masses, rule, checks.choice("arithmetic", arithmetic,

@@ -104,7 +104,7 @@ def _members_shown() -> dict:
 PUBLIC = public()
 #: the modules whose docstrings are not numpydoc yet (issue 47, item 2), emptied room by room
 PENDING = ("pinnedballs.simulation", "pinnedballs.results",
-           "pinnedballs.run", "pinnedballs.analysis", "pinnedballs.engine", "pinnedballs.util",
+           "pinnedballs.run", "pinnedballs.engine", "pinnedballs.util",
            "pinnedballs.testing")
 
 
@@ -166,13 +166,21 @@ DOCTESTS = _doctests()
 
 @pytest.mark.parametrize("name", sorted(DOCTESTS))
 def test_the_examples_run(name, tmp_path, monkeypatch):
-    """Each docstring's examples give what they show, in a fresh directory (what they write stays there)."""
+    """Each docstring's examples give what they show, in a fresh directory (what they write stays there), the
+    observables they register forgotten after them."""
+    from pinnedballs.analysis.observables import OBSERVABLES
+
     monkeypatch.chdir(tmp_path)
+    registered = dict(OBSERVABLES)
     obj, test = DOCTESTS[name]
     if _pending(obj):
         pytest.xfail("not numpydoc yet")
     test.globs = {"__name__": f"doctest_{name.replace('.', '_')}"}
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     report = []
-    result = runner.run(test, out=report.append, clear_globs=True)
+    try:
+        result = runner.run(test, out=report.append, clear_globs=True)
+    finally:
+        OBSERVABLES.clear()
+        OBSERVABLES.update(registered)
     assert result.failed == 0, "".join(report)
