@@ -52,7 +52,8 @@ class UsageError(Exception):
 
 #: the flag of every subcommand that may run a user's code (a spec's factories)
 TRACEBACK = arg("--traceback", action="store_true",
-                help="when a user's code named by the spec fails, print its traceback too (for debugging it)")
+                help="when a user's code named by the spec, or an engine, fails, print its traceback too "
+                     "(for debugging it)")
 
 DEVICE = arg("--device", choices=tuple(DEVICE_NAMES), default="cpu",
              help="where the chain runs: cpu, or cuda (an NVIDIA GPU, pip install \".[cuda]\"; the counter "
@@ -376,6 +377,8 @@ def _status(res) -> str:
 
         remedy = res.failure.get("remedy")
         return f"{failed_run(res.failure)}; it cannot go on" + (f": {remedy}" if isinstance(remedy, str) else "")
+    if res.cannot_resume:
+        return f"{res.status} at its last checkpoint; it cannot go on: {res.cannot_resume}"
     how = "--resume" if res.spec is not None else "pb.load(DIR).simulation()"
     if res.status == "interrupted":
         return f"interrupted (continue with {how})"

@@ -259,7 +259,7 @@ def _check_certified(f: h5py.File, n: int, d: int) -> None:
     problem = precisions_problem(attrs.get("precision", 0), attrs.get("late_precision", 0), limbs.shape[3])
     if problem:
         raise Damage("state/certified", problem)
-    if "bound_batch" in attrs:  # absent: the bound rule in step order (files written before the batched rule)
+    if "bound_batch" in attrs:  # absent: the bound rule in step order (files of pinnedballs < 1.0: they load)
         pending = np.asarray(attrs.get("pending", np.zeros(0)))
         plain = lambda x: x.item() if isinstance(x, np.generic) else x  # noqa: E731 (numpy's scalars, said plainly)
         problem = bound_rule_problem(plain(attrs["bound_batch"]), plain(attrs.get("bound_at")),

@@ -48,7 +48,7 @@ that had new snapshots. Layout of the index (``n`` balls, ``d`` velocity compone
                       closing speed exactly 0), absent from files written before it was kept and
                       from runs continued from them (unknown); bound_batch, bound_at, pending (2,)
                       uint64, unfolded: the batched bound rule's state (`CertifiedState`), absent from
-                      files written before it (their runs resume under the rule in step order)
+                      files written before it (the step-order rule of pinnedballs < 1.0: they load, and do not resume)
     /provenance       (L,) text, absent from files written before runs kept it: one JSON object a life of the run
                       (the first, then each resumed one), how it was made (`pinnedballs.util.provenance`: versions,
                       command, host, CPU, the device and threads used, steps, started and ended); a resumed life

@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 
 from ..engine.field.arithmetic import AUTO
-from ..engine.field.fixed_state import SMALLEST, CertifiedState
+from ..engine.field.fixed_state import SMALLEST, STEP_ORDER_RULE, CertifiedState
 from ..engine.margin import ClosingMargin
 from ..engine.state import RunState, mass_array
 from ..geometry.base import Boundary, Geometry
@@ -181,6 +181,17 @@ class Results:
             return self.stored
         return geometry_from_stored(spec, self.positions)
 
+    @property
+    def cannot_resume(self) -> str:
+        """Why this run cannot be continued from its file, or "": a certified run written under the step-order
+        bound rule of pinnedballs < 1.0 (no ``bound_batch``: its states, counts and figures load, but the chain
+        keeps the batched rule alone)."""
+        certified = self.latest.certified
+        if certified is None or certified.bound_batch:
+            return ""
+        again = "its spec" if self.spec is not None else "the start"
+        return f"{STEP_ORDER_RULE}; run it again from {again}"
+
     def state(self) -> RunState:
         """A copy of the latest state, for `Simulation.set_state`."""
         return self.latest.copy()
@@ -191,8 +202,11 @@ class Results:
 
         A run built in Python with a rule or scheduler that has no spec needs them given. A run
         whose spec names a user's factory (``"kind": "python"``) needs its module importable: an
-        `InputError` names the module and how otherwise.
+        `InputError` names the module and how otherwise. A run that cannot go on (`cannot_resume`) is an
+        `InputError` naming its directory and why.
         """
+        if self.cannot_resume:
+            raise InputError(f"{self.run_dir}: {self.cannot_resume}")
         try:
             sim = self._build(rule, scheduler, device)
         except SpecError as exc:
@@ -341,7 +355,7 @@ def read(p: Path, f: h5py.File) -> Results:
                                    int(c.attrs.get("bound_scale", 0)),  # 0: absolute (files before it was kept)
                                    int(c.attrs.get("precision", 0)), int(c.attrs.get("late_precision", 0)),
                                    None if decided is None else np.array(decided, dtype=np.float64),
-                                   # absent: the bound rule in step order (files before the batched rule)
+                                   # absent: the bound rule in step order (pinnedballs < 1.0: no resume)
                                    int(c.attrs.get("bound_batch", 0)), int(c.attrs.get("bound_at", -1)),
                                    tuple(int(x) for x in c.attrs.get("pending", (0, 0))),
                                    float(c.attrs.get("unfolded", 0.0)))

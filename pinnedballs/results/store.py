@@ -202,7 +202,7 @@ def _write_state(f: h5py.File, record: Record, criterion: tuple[float, float] | 
         c.attrs.update(scale=state.certified.scale, rounding=state.certified.rounding,
                        bound_scale=state.certified.bound_scale,  # bounds in units of 2^-bound_scale
                        precision=state.certified.precision, late_precision=state.certified.late_precision)
-        if state.certified.bound_batch:  # the batched bound rule (absent: the rule in step order, files before it)
+        if state.certified.bound_batch:  # the batched bound rule (absent: the rule in step order, pinnedballs < 1.0)
             c.attrs.update(bound_batch=state.certified.bound_batch, bound_at=state.certified.bound_at,
                            pending=np.array(state.certified.pending, dtype=np.uint64),
                            unfolded=state.certified.unfolded)

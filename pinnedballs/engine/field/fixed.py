@@ -64,7 +64,6 @@ from .fixed_kernels import (
     DONE,
     DUE,
     FROZEN,
-    SQRT2_UP,
     UNCERTIFIED,
     UNCOUNTED,
     UP,
@@ -79,7 +78,7 @@ from .fixed_kernels import (
     run_picks,
     unfolded,
 )
-from .fixed_state import CertifiedState, error_bound, nearest_floats, power_text, scaled_up
+from .fixed_state import STEP_ORDER_RULE, CertifiedState, error_bound, nearest_floats, power_text, scaled_up
 from .limbs import from_limbs, to_limbs
 from .numbers import Field, recognise
 
@@ -569,9 +568,8 @@ class FixedChain(FieldChain):
                               int(self.bound[1]), tuple(int(x) for x in self.rho), self._unfolded())
 
     def _set_cap(self) -> None:
-        """``G`` from ``acc[0]``: in step order ``sqrt(2)`` times it, batched its `fixed_kernels.cap`."""
-        K = int(self.bound[0])
-        self.acc[1] = self.acc[0] * SQRT2_UP * UP if K == 0 else cap(float(self.acc[0]), self.tables.rmax * K)
+        """``G`` from ``acc[0]``: its `fixed_kernels.cap` for a batch of ``K`` steps."""
+        self.acc[1] = cap(float(self.acc[0]), self.tables.rmax * int(self.bound[0]))
 
     def _unfolded(self) -> float:
         """The batched rule's sums not yet folded, as a float in units of ``2^-S`` rounded up (0: none)."""
@@ -579,17 +577,15 @@ class FixedChain(FieldChain):
 
     def _fold_pending(self) -> None:
         """The batched rule's sums not yet folded, folded into ``acc[0]`` (before ``S`` changes)."""
-        if self.bound[0] > 0:
-            fold(self.acc, self.rho, self.bound, self.bound[1], self.tables.emax, self.tables.rmax,
-                 self.tables.root[2])
+        fold(self.acc, self.rho, self.bound, self.bound[1], self.tables.emax, self.tables.rmax, self.tables.root[2])
 
     def set_certified_state(self, state: CertifiedState) -> None:
         """Take a `CertifiedState` of this geometry (checked by the caller); its bounds rescaled to units
         of ``2^-S`` (rounded up), its margin as it is (one that kept none leaves the margin unknown,
-        `margin_kept`)."""
-        if state.bound_batch == 0 and not isinstance(self.picks, CPUPicks):
-            raise FieldError("certified", "a certified state written under the bound rule in step order (files before "
-                                          "the batched rule) resumes on the CPU only: device='cpu'")
+        `margin_kept`). A state of the step-order bound rule (``bound_batch`` 0) is refused: the chain keeps
+        the batched rule alone."""
+        if state.bound_batch == 0:
+            raise FieldError("certified", f"a state {STEP_ORDER_RULE} does not resume; run it again from its start")
         self._host(writes=True)  # (the new arrays go to a GPU at its next run)
         self.X, self.S, self.P = state.limbs.copy(), int(state.scale), state.limbs.shape[-1]
         self.margin_kept = state.margin is not None

@@ -97,7 +97,7 @@ class State(NamedTuple):
     T: np.ndarray  #: (P,): T[h] = 2^(64 (h + 1) - S), the scale of a float read from limb h down
     #: (2,) uint64: the batched rule's sums of |rho_0|, |rho_1| not yet folded, in units of 2^-(S + emax)
     rho: np.ndarray
-    bound: np.ndarray  #: (2,) int64: the batched rule's steps a batch ``K`` (0: the rule in step order), the batch of G
+    bound: np.ndarray  #: (2,) int64: the batched rule's steps a batch ``K`` (> 0), the batch of G
 
 
 class Scratch(NamedTuple):
@@ -281,20 +281,13 @@ def fold(acc, rho, bound, batch, emax, rmax, root_up):
 
 
 @inlined
-def _round_off(state, tables, step, line, rho0, rho1, r):
+def _round_off(state, tables, step, line, rho0, rho1):
     """What a collision at ``step`` along ``line`` rounded off (``rho0 + rho1 sqrt d`` in units of
-    ``2^-(S + e)``, ``r`` its bound in units of ``2^-S``) added to the sum behind ``G``. In step order
-    (``K = 0``, files written before the batched rule): ``acc[0] += r``, rounded up. Batched (``K > 0``): the
-    first collision of a batch of ``K`` steps folds the sums of the batches before (`fold`); ``G`` is then
-    fixed for the batch, and the collision's ``|rho|`` is added to exact integer sums, so that neither
-    depends on the order the batch's collisions are made in (a GPU's, by reservations)."""
-    K = state.bound[0]
-    if K == 0:
-        if r > 0.0:
-            state.acc[0] = (state.acc[0] + r) * UP
-            state.acc[1] = state.acc[0] * SQRT2_UP * UP
-        return
-    batch = step // K
+    ``2^-(S + e)``) added to the sum behind ``G``, batched: the first collision of a batch of ``K`` steps folds
+    the sums of the batches before (`fold`); ``G`` is then fixed for the batch, and the collision's ``|rho|``
+    is added to exact integer sums, so that neither depends on the order the batch's collisions are made in
+    (a GPU's, by reservations)."""
+    batch = step // state.bound[0]
     if batch != state.bound[1]:
         fold(state.acc, state.rho, state.bound, batch, tables.emax, tables.rmax, tables.root[2])
     shift = np.uint64(tables.emax - tables.e[line])
@@ -326,7 +319,7 @@ def _collide(k, tables, state, scale, certify, scratch, step):
     _shadow(X, j, state.T, root, state.rows)
     state.dirty[i], state.dirty[j] = 1, 1
     if certify:
-        _round_off(state, tables, step, line, rho0, rho1, r)
+        _round_off(state, tables, step, line, rho0, rho1)
         _carry_bounds(state, tables.coef, i, j, line, r, scale)
     return True
 

@@ -11,8 +11,11 @@ import numpy as np
 from ...util.errors import FieldError
 
 __all__ = ["CertifiedState", "nearest_floats", "error_bound", "scaled_up", "power_text", "precisions_problem",
-           "bound_rule_problem",
-           "margin_problem", "SMALLEST", "LARGEST", "ZEROS"]
+           "bound_rule_problem", "margin_problem", "SMALLEST", "LARGEST", "ZEROS", "STEP_ORDER_RULE"]
+
+#: why a certified state with ``bound_batch`` 0 does not resume: its bounds grew under the rule in step order,
+#: which the chain no longer keeps (its kernel sums the batched rule's alone); it still loads
+STEP_ORDER_RULE = "written under the step-order bound rule of pinnedballs < 1.0"
 
 #: the entries of a certified state's ``margin`` (`CertifiedState`): the smallest closing speed counted as a
 #: collision, the largest nonzero one set aside, the picks set aside whose closing speed is exactly 0
@@ -83,7 +86,8 @@ class CertifiedState:
 
     The bound rule (`pinnedballs.engine.field.fixed_kernels._round_off`): bound_batch ``K``, the steps a batch
     of the batched rule, whose ``G`` does not depend on the order of a batch's collisions (a GPU's), or 0:
-    the rule in step order of files written before it (such a state resumes under that rule, on the CPU);
+    the rule in step order of files written by pinnedballs before 1.0 (such a state loads, but does not
+    resume: `STEP_ORDER_RULE`);
     bound_at: the batch of the last collision (-1: none yet); pending: the exact sums of ``|rho_0|`` and
     ``|rho_1|`` of that batch, not yet in ``rounding`` (units of ``2^-(bound_scale + e_max)``); unfolded:
     those sums as a float in units of ``2^-bound_scale``, rounded up (for `error_bound`).

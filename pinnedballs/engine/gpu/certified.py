@@ -24,8 +24,7 @@ at a time (`engine.streams.philox.CounterPicks`). A call that must end at a pick
 certified arithmetic cannot decide, the collision target with collisions after it) runs again from a copy of
 its start kept on the GPU, to that pick; the pick that cannot be decided is then tried by the CPU's kernel,
 which says why (``info``). The margin, the indices of the collisions and the counters are the CPU's, computed
-from each pick's decision and closing speed. States written under the bound rule in step order (files from
-before the batched rule) resume on the CPU only.
+from each pick's decision and closing speed.
 
 Its speed on a GPU: `benchmarks/results/measurements.md`. Each round is one launch and a read of its count by the
 host, and each segment's outcomes are read back to the host.
@@ -265,8 +264,6 @@ class DevicePicks:
         """`fixed_kernels.run_picks`, its picks tried on the GPU (module docstring): ``picks`` an array or the
         counter stream's `CounterPicks`, drawn on the GPU. A call that must end at a pick inside a segment (the
         collision target, a pick that cannot be decided) runs again from a copy of its start to that pick."""
-        if int(state.bound[0]) <= 0:
-            raise ValueError("a certified state under the bound rule in step order runs on the CPU")
         d = self._device(tables, state, scratch)
         self._newest = "device"
         if not isinstance(picks, CounterPicks):

@@ -131,15 +131,54 @@ def test_a_freeze_leaves_the_margin_of_the_run_it_ends(monkeypatch, chunk):
     assert split.get_state().identical(whole.get_state())  # the margin too, bit for bit
 
 
-def test_a_files_bound_rule_is_checked_and_a_file_without_one_resumes_in_step_order(tmp_path):
-    """The batched bound rule's attributes (`CertifiedState`): damage is named; a file without them (written before
-    the batched rule) reads as the rule in step order."""
-    split_run(tmp_path / "r")
+def test_a_files_bound_rule_is_checked_and_a_file_without_one_loads_but_does_not_resume(tmp_path):
+    """The batched bound rule's attributes (`CertifiedState`): damage is named; a file without them (written under
+    the bound rule in step order, by pinnedballs < 1.0) loads, its state and counts as written, and its resume is
+    refused in one line saying why."""
+    sim = split_run(tmp_path / "r")
     assert pb.load(tmp_path / "r").latest.certified.bound_batch > 0
     rewritten(tmp_path / "r", lambda f: f["state/certified"].attrs.__setitem__("bound_batch", 1000))
     with pytest.raises(pb.ResultsError, match=r"state/certified: bound_batch must be 0 or a power of two, got 1000"):
         pb.load(tmp_path / "r")
     for name in ("bound_batch", "bound_at", "pending", "unfolded"):
         rewritten(tmp_path / "r", lambda f, name=name: f["state/certified"].attrs.__delitem__(name))
-    old = pb.load(tmp_path / "r").latest.certified
+    res = pb.load(tmp_path / "r")
+    old = res.latest.certified
     assert (old.bound_batch, old.bound_at, old.pending, old.unfolded) == (0, -1, (0, 0), 0.0)
+    written = sim.get_state().certified
+    assert (res.steps, res.collisions) == (sim.steps, sim.collisions) and np.array_equal(res.velocities, sim.velocities)
+    assert np.array_equal(old.limbs, written.limbs) and np.array_equal(old.bounds, written.bounds)
+    with pytest.raises(pb.InputError, match=rf"^{tmp_path / 'r'}: written under the step-order bound rule of "
+                                            r"pinnedballs < 1\.0; run it again from the start$"):
+        res.simulation()
+
+
+@pytest.mark.slow
+def test_the_command_line_reads_a_step_order_file_and_refuses_its_resume(tmp_path):
+    """A certified run of a spec, written under the bound rule in step order (pinnedballs < 1.0) and stopped at a
+    checkpoint: ``info`` and ``plot`` read it, ``--resume`` exits 2 in one line saying why, and writes nothing."""
+    from helpers import assert_input_error, call, write
+
+    s = write(tmp_path / "s.json", {**HALF_PLANE_30, "stop": {"steps": 2000}})
+    run = tmp_path / "run"
+    assert call("run", s, "--out", run, "--quiet", "--no-figures")[0] == 0
+    done = pb.load(run)
+
+    def as_before_1_0(f):  # no batched rule, and stopped at this checkpoint (killed)
+        for name in ("bound_batch", "bound_at", "pending", "unfolded"):
+            del f["state/certified"].attrs[name]
+        f.attrs["status"], f.attrs["stop_reason"] = "running", ""
+
+    rewritten(run, as_before_1_0)
+    res = pb.load(run)
+    assert (res.steps, res.collisions, res.complete) == (done.steps, done.collisions, False)
+    assert res.latest.velocities.tobytes() == done.latest.velocities.tobytes()
+    code, out, _ = call("info", run)
+    assert code == 0 and ("status:      running at its last checkpoint; it cannot go on: written under the "
+                          "step-order bound rule of pinnedballs < 1.0; run it again from its spec") in out, out
+    assert call("plot", run)[0] == 0 and (run / "state_final.png").stat().st_size > 0
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    code, out, err = call("run", s, "--out", run, "--resume", "--quiet", "--no-figures")
+    assert_input_error(code, err, f"{run}: written under the step-order bound rule of pinnedballs < 1.0; run it "
+                                  f"again from its spec")
+    assert out == "" and {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before

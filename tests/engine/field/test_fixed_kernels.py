@@ -1,6 +1,6 @@
 """The fixed-point chain's kernels: the bound rule behind ``G``. Batched (`fixed_kernels._round_off`), the state
 after a batch does not depend on the order its collisions are made in, so long as each ball sees its own in
-step order (what a GPU's deterministic reservations keep); in step order (files written before) it does."""
+step order (what a GPU's deterministic reservations keep)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import math
 from fractions import Fraction
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -34,30 +33,25 @@ def rounds(picks: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return picks[np.array(order)]
 
 
-def chain(g, v, batched: bool) -> FixedChain:
-    c = FixedChain(g, v, lines_of(g), "certified", precision=64)
-    if not batched:
-        c.bound[0] = 0
-        c.acc[1] = 0.0
-    return c
+def chain(g, v) -> FixedChain:
+    return FixedChain(g, v, lines_of(g), "certified", precision=64)
 
 
-@pytest.mark.parametrize("batched", [True, False])
-def test_the_batched_rule_does_not_depend_on_the_order_of_a_batchs_collisions(batched):
+def test_the_batched_rule_does_not_depend_on_the_order_of_a_batchs_collisions():
     """The same picks of one batch, in step order and in the order of reservation rounds: the batched rule ends
-    on the same bits (velocities, bounds, sums); the rule in step order sums its floats in another order."""
+    on the same bits (velocities, bounds, sums)."""
     g = pb.HalfPlane(8, 8)
     rng = np.random.default_rng(3)
     v = np.round(rng.normal(size=(g.n_balls, 2)) * 2**45) / 2**45  # 64 bits hold them, and soon round
     picks = rng.integers(0, g.n_contacts, size=bound_batch(g.n_contacts, 1) - 1)
-    one, other = chain(g, v, batched), chain(g, v, batched)
+    one, other = chain(g, v), chain(g, v)
     _, made, _ = one.run(picks, len(picks) + 1, False, 1)
     _, made_too, _ = other.run(rounds(picks, g.contacts.pairs), len(picks) + 1, False, 1)
     assert made == made_too > 200 and np.array_equal(one.X, other.X)
     assert (one.rho.any() or one.acc[0] > 0) and one.B.any()  # it rounded
     same = [np.array_equal(a, b) for a, b in ((one.B, other.B), (one.Pp, other.Pp), (one.acc, other.acc),
                                                (one.rho, other.rho))]
-    assert all(same) if batched else not all(same)
+    assert all(same)
 
 
 def test_the_largest_rounding_bounds_every_collisions():

@@ -131,8 +131,8 @@ def test_what_a_gpu_cannot_run_in_certified_arithmetic_is_refused_in_one_line():
     state = cpu.get_state()
     old = state.replace(certified=dataclasses.replace(state.certified, bound_batch=0))
     gpu = pb.Simulation(g, v, scheduler=COUNTER, arithmetic="certified", seed=1, device="cuda")
-    with pytest.raises(FieldError, match=r"^certified: a certified state written under the bound rule in step order "
-                                         r"\(files before the batched rule\) resumes on the CPU only: device='cpu'$"):
+    with pytest.raises(FieldError, match=r"^certified: a state written under the step-order bound rule of "
+                                         r"pinnedballs < 1\.0 does not resume; run it again from its start$"):
         gpu.set_state(old)
     assert gpu.get_state().identical(state)
     assert isinstance(gpu.engine.state.field_chain.picks, DevicePicks)
