@@ -20,7 +20,15 @@ __all__ = ["Device", "CPU", "CUDA", "as_device", "DEVICE_NAMES"]
 
 @dataclass(frozen=True)
 class Device:
-    """A device a chain runs on; `CPU` or `CUDA`. ``kind``: its name, as a string names it (``"cpu"``)."""
+    """A device a chain runs on; `CPU` or `CUDA`.
+
+    Attributes
+    ----------
+    kind : str
+        Its name, as a string names it (``"cpu"``).
+    gpu : bool
+        Whether it is a GPU: its state lives in the GPU's memory, its chains run by reservations there.
+    """
 
     kind: ClassVar[str] = ""
     #: whether it is a GPU: its state lives in the GPU's memory, its chains run by reservations there
@@ -39,6 +47,11 @@ class CPU(Device):
     threads : int or None
         The threads a chain may use (None: as many as pay, up to numba's ``NUMBA_NUM_THREADS``); a scheduler's
         own ``threads=`` wins where it names one. The bits never depend on it.
+
+    Raises
+    ------
+    FieldError
+        On ``threads`` outside [1, 65536].
 
     Examples
     --------
@@ -67,6 +80,11 @@ class CUDA(Device):
     device : int
         The GPU's index among those numba-cuda sees (0: the first). The bits never depend on it.
 
+    Raises
+    ------
+    FieldError
+        On ``device`` outside [0, 1024].
+
     Examples
     --------
     >>> import pinnedballs as pb
@@ -89,8 +107,28 @@ DEVICE_NAMES: dict[str, type[Device]] = {"cpu": CPU, "cuda": CUDA}
 
 
 def as_device(device) -> Device:
-    """``device`` as a `Device`: one already, or its name (``"cpu"``, ``"cuda"``); None is the CPU. A
-    `FieldError` on ``device`` otherwise."""
+    """``device`` as a `Device`: the strings ``"cpu"`` and ``"cuda"`` are taken wherever a device is.
+
+    Parameters
+    ----------
+    device : Device or str or None
+        A `Device` already, or its name (``"cpu"``, ``"cuda"``); None is the CPU.
+
+    Returns
+    -------
+    Device
+
+    Raises
+    ------
+    FieldError
+        On ``device``, for another name (a `FieldTypeError` for what is neither a device nor a name).
+
+    Examples
+    --------
+    >>> from pinnedballs.engine import as_device
+    >>> as_device("cuda"), as_device(None)
+    (CUDA(device=0), CPU(threads=None))
+    """
     if device is None:
         return CPU()
     if isinstance(device, Device):

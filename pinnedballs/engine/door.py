@@ -45,6 +45,11 @@ def _registry() -> dict[str, Engine]:
 def engines() -> list[Engine]:
     """Every registered engine, in the order the door prefers them (a user's after the built-in ones).
 
+    Returns
+    -------
+    list of Engine
+        Each with its ``name``, ``devices``, ``arithmetics`` and `Engine.supports`.
+
     Examples
     --------
     >>> from pinnedballs.engine import engines
@@ -55,8 +60,38 @@ def engines() -> list[Engine]:
 
 
 def register(engine: Engine, *, replace: bool = False) -> Engine:
-    """Add ``engine`` to the door (after those registered before it); returns it. A name already registered
-    is an error unless ``replace``."""
+    """Add ``engine`` to the door, after those registered before it (docs/architecture.md).
+
+    Parameters
+    ----------
+    engine : Engine
+        The engine; its ``name`` an identifier.
+    replace : bool
+        Replace the engine registered under its name already.
+
+    Returns
+    -------
+    Engine
+        ``engine``.
+
+    Raises
+    ------
+    TypeError
+        If ``engine`` is not an `Engine`.
+    ValueError
+        If its name is not an identifier, or is registered already (without ``replace``).
+
+    Examples
+    --------
+    >>> from pinnedballs.engine import Engine, engines, register, unregister
+    >>> class Mine(Engine):
+    ...     name, devices, arithmetics = "mine", ("cpu",), ("float",)
+    >>> register(Mine())
+    <engine 'mine': float on cpu>
+    >>> [e.name for e in engines()][-1]
+    'mine'
+    >>> unregister("mine")
+    """
     if not isinstance(engine, Engine):
         raise TypeError(f"engine: must be a pinnedballs.engine.Engine, got {type(engine).__name__}")
     if not (isinstance(engine.name, str) and engine.name.isidentifier()):
@@ -69,12 +104,44 @@ def register(engine: Engine, *, replace: bool = False) -> Engine:
 
 
 def unregister(name: str) -> None:
-    """Take the engine ``name`` out of the door (a KeyError when none has it)."""
+    """Take an engine out of the door.
+
+    Parameters
+    ----------
+    name : str
+        The engine's name.
+
+    Raises
+    ------
+    KeyError
+        When no engine has it.
+    """
     del _registry()[name]
 
 
 def find(name: str) -> Engine:
-    """The registered engine ``name``; a `FieldError` on ``engine`` listing them otherwise."""
+    """The registered engine of a name.
+
+    Parameters
+    ----------
+    name : str
+        The engine's name.
+
+    Returns
+    -------
+    Engine
+
+    Raises
+    ------
+    FieldError
+        On ``engine``, listing the registered ones, where none has it.
+
+    Examples
+    --------
+    >>> from pinnedballs.engine import find
+    >>> find("sequential")
+    <engine 'sequential': float on cpu>
+    """
     registry = _registry()
     if name not in registry:
         raise FieldError("engine", f"no engine {name!r} is registered (registered: {', '.join(registry)})")
@@ -86,10 +153,48 @@ def _candidates(replicas: bool) -> Iterator[Engine]:
 
 
 def choose(model, arithmetic: str, device, *, engine: str | None = None, replicas: bool = False) -> Engine:
-    """The engine that runs ``model`` in ``arithmetic`` on ``device`` (a `Device` or its name): ``engine``,
-    named, if it does, else the first registered that does (of those running replicas together, with
-    ``replicas``). A `Refused` error saying why where none does: the refusal of the first engine that runs this
-    arithmetic on this device (it knows best what is missing), else that of the device itself."""
+    """The engine that runs ``model`` in ``arithmetic`` on ``device``: the one place an engine is chosen.
+
+    Parameters
+    ----------
+    model : pinnedballs.engine.chain.Model
+        What the chain is (a simulation's ``sim.engine.model``).
+    arithmetic : {"float", "exact", "certified"}
+        The chain's arithmetic.
+    device : Device or str
+        A `Device` or its name.
+    engine : str, optional
+        An engine's name: that one, if it runs the chain.
+    replicas : bool
+        Choose among the engines that run an ensemble's replicas together.
+
+    Returns
+    -------
+    Engine
+        ``engine``, named, if it runs the chain, else the first registered that does.
+
+    Raises
+    ------
+    Refused
+        Saying why where none does: the refusal of the first engine that runs this arithmetic on this device
+        (it knows best what is missing), else that of the device itself; or the named engine's.
+    FieldError
+        On ``engine``: no engine of that name, or one that runs replicas where one chain is asked for (or the
+        other way round).
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.engine import choose
+    >>> g = pb.HalfPlane(rows=2, cols=2)
+    >>> model = pb.Simulation(g, [[0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], seed=0).engine.model
+    >>> choose(model, "certified", "cpu").name
+    'field'
+    >>> choose(model, "float", "cuda")
+    Traceback (most recent call last):
+    ...
+    pinnedballs.engine.protocol.Refused: device: 'cuda' runs UniformRandomPair(stream='counter') ...
+    """
     device = as_device(device)
     if engine is not None:
         chosen = find(engine)
@@ -128,9 +233,37 @@ def _no_engine(arithmetic: str, device: Device, replicas: bool) -> Refusal:
 
 def check(model, arithmetic: str, device, *, replicas: bool = False, here: bool = True,
           rule=None, scheduler=None) -> Engine:
-    """`choose`, and the checks its engine makes before it builds (`Engine.check`, where it has one: a GPU
-    engine compiles the rule and asks for a GPU; with ``here=False`` the chain runs elsewhere, a cluster's GPUs,
-    so this process needs neither). ``rule`` and ``scheduler`` name them in a message."""
+    """`choose`, and the checks its engine makes before it builds, before anything runs.
+
+    ``Engine.check``, where the engine has one: a GPU engine compiles the rule and asks for a GPU.
+
+    Parameters
+    ----------
+    model : pinnedballs.engine.chain.Model
+        What the chain is.
+    arithmetic : {"float", "exact", "certified"}
+        The chain's arithmetic.
+    device : Device or str
+        A `Device` or its name.
+    replicas : bool
+        As for `choose`.
+    here : bool
+        False: the chain runs elsewhere, a cluster's GPUs, so this process needs neither.
+    rule, scheduler : optional
+        Named in a message.
+
+    Returns
+    -------
+    Engine
+        The engine `choose` chooses.
+
+    Raises
+    ------
+    Refused
+        As for `choose`.
+    FieldError
+        Where the engine's checks fail (`pinnedballs.GPUUnavailable`: no numba-cuda or no GPU).
+    """
     chosen = choose(model, arithmetic, device, replicas=replicas)
     prepare = getattr(chosen, "check", None)
     if prepare is not None:

@@ -69,31 +69,87 @@ NO_LIMIT = 2**63 - 1
 
 
 class Writer:
-    """Something a run records into. Subclasses override what they need.
+    """Something a run records into (``sim.run(..., writers=[...])``). Subclasses override what they need.
 
-    ``trigger``: when `write` is called (None: never); a `pinnedballs.engine.triggers.Trigger`, or any
-    object with its ``fires``, ``next_steps`` and ``next_collisions``.
+    Attributes
+    ----------
+    trigger : Trigger or None
+        When `write` is called (None: never); a `pinnedballs.engine.triggers.Trigger`, or any
+        object with its ``fires``, ``next_steps`` and ``next_collisions``.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> class Steps(pb.Writer):
+    ...     trigger = pb.EverySteps(100)
+    ...     def __init__(self):
+    ...         self.seen = []
+    ...     def write(self, sim):
+    ...         self.seen.append(sim.steps)
+    >>> g = pb.HalfPlane(rows=2, cols=2)
+    >>> sim = pb.Simulation(g, [[0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], seed=0)
+    >>> w = Steps()
+    >>> sim.run(steps=350, writers=[w]), w.seen
+    (350, [100, 200, 300])
     """
 
     trigger = None
 
     def attach(self, sim) -> Counts | None:
-        """The run starts (take the output, write what is static). Returns the counts at which
-        the trigger was already checked (a resumed or continued run), else None."""
+        """The run starts: take the output, write what is static.
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation run.
+
+        Returns
+        -------
+        tuple of int or None
+            The counts ``(steps, collisions)`` at which the trigger was already checked (a resumed or
+            continued run), else None.
+        """
         return None
 
     def write(self, sim) -> None:
-        """The trigger fired at the current state."""
+        """The trigger fired at the current state.
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at the count the trigger names.
+        """
 
     def after_chunk(self, sim) -> None:
-        """Between chunks (e.g. checkpoint when due)."""
+        """Between chunks (e.g. checkpoint when due).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, between two chunks.
+        """
 
     def finish(self, sim, reason: str) -> None:
-        """The run reached its stop for ``reason``."""
+        """The run reached its stop.
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at its stop.
+        reason : str
+            Why it stopped (`Stop.reason`).
+        """
 
     def abort(self, sim, checked: Counts | None) -> None:
         """The run stopped on an exception (which goes on after this): save what is consistent.
-        ``checked``: the counts at which the driver last finished checking the trigger (None: never)."""
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, as the exception left it.
+        checked : tuple of int or None
+            The counts at which the driver last finished checking the trigger (None: never).
+        """
 
 
 def check_writers(writers) -> list[Writer]:

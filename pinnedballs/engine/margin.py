@@ -35,7 +35,13 @@ NEAR = 1e4
 
 
 class MarginWarning(UserWarning):
-    """A float run's count depends on its collision criterion: picks came near the threshold."""
+    """A float run's count depends on its collision criterion: picks came near the threshold.
+
+    Said once, in one line about the caller's line, by a float run at the default resolution that ends frozen
+    with a thin closing margin (`Simulation.warn_if_thin`; the module's docstring says what thin is). The line
+    says what to do: count exactly with ``arithmetic="exact"`` (or ``"certified"``) on the same seed, or give
+    ``resolution=`` to make the criterion part of the model (docs/collisions.md).
+    """
 
 
 def new_margin() -> np.ndarray:

@@ -21,10 +21,29 @@ __all__ = ["Refusal", "Refused", "Engine", "Backend"]
 
 @dataclass(frozen=True)
 class Refusal:
-    """Why an engine does not run a chain: ``field`` (what to change: ``"device"``, ``"arithmetic"``,
-    ``"engine"``...), ``reason`` and ``instead`` (what runs it instead), and ``needs``: what it would take, by the
-    field a spec states it in (``{"scheduler": "counter"}``: the counter stream), for a caller that says it in
-    its own words."""
+    """Why an engine does not run a chain (what `Engine.supports` answers with).
+
+    Parameters
+    ----------
+    field : str
+        What to change: ``"device"``, ``"arithmetic"``, ``"engine"``...
+    reason : str
+        Why not.
+    instead : str
+        What runs it instead.
+    needs : tuple of (str, str)
+        What it would take, by the field a spec states it in (``(("scheduler", "counter"),)``: the counter
+        stream), for a caller that says it in its own words.
+
+    Examples
+    --------
+    >>> from pinnedballs.engine import Refusal
+    >>> refusal = Refusal("device", "no GPU here", "device 'cpu' gives the same bits")
+    >>> refusal.message
+    "no GPU here; device 'cpu' gives the same bits"
+    >>> str(refusal.error())
+    "device: no GPU here; device 'cpu' gives the same bits"
+    """
 
     field: str
     reason: str
@@ -37,13 +56,24 @@ class Refusal:
         return f"{self.reason}; {self.instead}" if self.instead else self.reason
 
     def error(self) -> Refused:
-        """The refusal as the error that says it (a `FieldError` on ``field``)."""
+        """The refusal as the error that says it.
+
+        Returns
+        -------
+        Refused
+            A `FieldError` on ``field``.
+        """
         return Refused(self)
 
 
 class Refused(FieldError):
-    """A chain no engine runs, as the error that says so: a `FieldError` on the refusal's field, its
-    `Refusal` kept (``refusal``) for a caller that words it for its own input (a spec)."""
+    """A chain no engine runs, as the error that says so: a `FieldError` on the refusal's field.
+
+    Parameters
+    ----------
+    refusal : Refusal
+        Kept (``refusal``) for a caller that words it for its own input (a spec).
+    """
 
     def __init__(self, refusal: Refusal):
         super().__init__(refusal.field, refusal.message)
@@ -58,6 +88,17 @@ class Engine:
     runs an ensemble's replicas together (``replicas``), and the two calls of the door.
 
     Subclass it, set the attributes, and override `supports` and `build` (docs/architecture.md shows one).
+
+    Attributes
+    ----------
+    name : str
+        An identifier, by which `find` and ``Simulation(..., engine=NAME)`` find it.
+    devices : tuple of str
+        The device kinds it runs on (``"cpu"``, ``"cuda"``).
+    arithmetics : tuple of str
+        The arithmetics it runs (``"float"``, ``"exact"``, ``"certified"``).
+    replicas : bool
+        It runs many replicas of one spec together (an ensemble's), not one simulation's chain.
     """
 
     name: str = ""
@@ -67,17 +108,75 @@ class Engine:
     replicas: bool = False
 
     def supports(self, model, arithmetic: str, device: Device) -> Refusal | None:
-        """None when this engine runs ``model`` (`engine.chain.Model`) in ``arithmetic`` on ``device``, else why
-        not. Cheap: what needs a compile or a GPU is checked by `build`."""
+        """Whether this engine runs a chain. Cheap: what needs a compile or a GPU is checked by `build`.
+
+        Parameters
+        ----------
+        model : pinnedballs.engine.chain.Model
+            What the chain is.
+        arithmetic : str
+            Its arithmetic.
+        device : Device
+            Where it would run.
+
+        Returns
+        -------
+        Refusal or None
+            None when this engine runs it, else why not (by default `refuse_kinds`).
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> from pinnedballs.engine import find
+        >>> g = pb.HalfPlane(rows=2, cols=2)
+        >>> model = pb.Simulation(g, [[0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], seed=0).engine.model
+        >>> find("sequential").supports(model, "exact", pb.CPU()).reason
+        "engine 'sequential' runs float arithmetic, not exact"
+        """
         return self.refuse_kinds(arithmetic, device)
 
     def build(self, model, state, listeners: list, device: Device, options: dict):
-        """The backend running ``model`` from ``state`` (`engine.chain.ChainState`, written in place), telling
-        ``listeners`` of each collision; a `FieldError` where a check only the build can make fails."""
+        """The backend running a chain (docs/architecture.md builds one).
+
+        Parameters
+        ----------
+        model : pinnedballs.engine.chain.Model
+            What the chain is.
+        state : pinnedballs.engine.chain.ChainState
+            What changes, written in place.
+        listeners : list
+            Told of each collision.
+        device : Device
+            Where it runs.
+        options : dict
+            The arithmetic's (`door.options`: ``arithmetic``, ``precision``, ``late_precision``).
+
+        Returns
+        -------
+        Backend
+
+        Raises
+        ------
+        FieldError
+            Where a check only the build can make fails.
+        """
         raise NotImplementedError
 
     def refuse_kinds(self, arithmetic: str, device: Device) -> Refusal | None:
-        """The refusal of an arithmetic or a device this engine does not run at all."""
+        """The refusal of an arithmetic or a device this engine does not run at all.
+
+        Parameters
+        ----------
+        arithmetic : str
+            The chain's arithmetic.
+        device : Device
+            Where it would run.
+
+        Returns
+        -------
+        Refusal or None
+            None where ``device.kind`` is one of ``devices`` and ``arithmetic`` one of ``arithmetics``.
+        """
         if device.kind not in self.devices:
             return Refusal("device", f"engine {self.name!r} runs on {' and '.join(self.devices)}, not {device.kind}")
         if arithmetic not in self.arithmetics:

@@ -19,16 +19,40 @@ __all__ = ["RunState", "mass_array", "margin_problem"]
 
 @dataclass(frozen=True, eq=False)
 class RunState:
-    """Everything that changes during a run: enough to resume it bit for bit.
+    """Everything that changes during a run: enough to resume it bit for bit (`Simulation.get_state`).
 
-    velocities ``(n_balls, dim) float64``; steps and collisions so far; rng_state ``(4,) uint64``,
-    the random stream; scheduler_state ``(L,) int64``, the scheduler's own state; exact: for a
-    run in exact arithmetic, the exact velocities as ``(n_balls, dim, m)`` strings, each velocity
-    component's coefficients on its number field's basis (``velocities`` are then their roundings);
-    margin: the closing margin so far, ``(4,) float64`` (`engine.margin`), of a float run (None: not
-    kept, as in exact arithmetic or a results file written before margins were); certified: for a run
-    in certified arithmetic, its fixed-point velocities, error bounds and the margin of its decisions
-    (`pinnedballs.engine.field.fixed_state.CertifiedState`; ``velocities`` are their nearest floats).
+    Parameters
+    ----------
+    velocities : numpy.ndarray
+        ``(n_balls, dim) float64``.
+    steps, collisions : int
+        The counts so far.
+    rng_state : numpy.ndarray
+        ``(4,) uint64``: the random stream.
+    scheduler_state : numpy.ndarray
+        ``(L,) int64``: the scheduler's own state.
+    exact : numpy.ndarray or None
+        For a run in exact arithmetic, the exact velocities as ``(n_balls, dim, m)`` strings, each velocity
+        component's coefficients on its number field's basis (``velocities`` are then their roundings).
+    margin : numpy.ndarray or None
+        The closing margin so far, ``(4,) float64`` (`engine.margin`), of a float run (None: not kept, as in
+        exact arithmetic or a results file written before margins were).
+    certified : CertifiedState or None
+        For a run in certified arithmetic, its fixed-point velocities, error bounds and the margin of its
+        decisions (`pinnedballs.engine.field.fixed_state.CertifiedState`; ``velocities`` are their nearest
+        floats).
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=2, cols=2)
+    >>> sim = pb.Simulation(g, [[0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], seed=0)
+    >>> state = sim.get_state()
+    >>> sim.run(steps=100)
+    100
+    >>> sim.set_state(state)
+    >>> sim.steps, state.identical(sim.get_state())
+    (0, True)
     """
 
     velocities: np.ndarray
@@ -44,19 +68,45 @@ class RunState:
     ARRAYS = ("velocities", "rng_state", "scheduler_state")
 
     def copy(self) -> RunState:
-        """A copy whose arrays share no memory with this one's."""
+        """A copy whose arrays share no memory with this one's.
+
+        Returns
+        -------
+        RunState
+        """
         return RunState(self.velocities.copy(), self.steps, self.collisions, self.rng_state.copy(),
                         self.scheduler_state.copy(), None if self.exact is None else self.exact.copy(),
                         None if self.margin is None else self.margin.copy(),
                         None if self.certified is None else self.certified.copy())
 
     def replace(self, **changes) -> RunState:
-        """This state with the fields named in ``changes`` replaced."""
+        """This state with some fields replaced.
+
+        Parameters
+        ----------
+        **changes
+            Fields and their new values.
+
+        Returns
+        -------
+        RunState
+        """
         return dataclasses.replace(self, **changes)
 
     def identical(self, other: RunState) -> bool:
-        """True when ``other`` is this state bit for bit (every array, dtype and count, the exact
-        velocities, the margin and the certified state)."""
+        """Whether ``other`` is this state bit for bit.
+
+        Parameters
+        ----------
+        other : RunState
+            Another state.
+
+        Returns
+        -------
+        bool
+            True when every array, dtype and count, the exact velocities, the margin and the certified state
+            are the same.
+        """
         return (self.steps, self.collisions) == (other.steps, other.collisions) \
             and _same(self.exact, other.exact) and _same(self.margin, other.margin) \
             and (self.certified is None) == (other.certified is None) \

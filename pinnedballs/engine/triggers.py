@@ -24,23 +24,70 @@ Counts = tuple[int, int]
 
 
 class Trigger:
-    """Base of every trigger; combine with ``|``."""
+    """Base of every trigger; combine with ``|`` (an `AnyOf`).
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> either = pb.EverySteps(100) | pb.AtCollisions([3])
+    >>> either.next_steps(150), either.next_collisions(0), either.to_spec()
+    (200, 3, None)
+    """
 
     def fires(self, prev: Counts | None, now: Counts) -> bool:
-        """True if the trigger fires at ``now``, the driver's previous check having been at ``prev``."""
+        """Whether the trigger fires at ``now``.
+
+        Parameters
+        ----------
+        prev : tuple of int or None
+            ``(steps, collisions)`` at the driver's previous check (None: a fresh start).
+        now : tuple of int
+            ``(steps, collisions)`` now.
+
+        Returns
+        -------
+        bool
+        """
         raise NotImplementedError
 
     def next_steps(self, steps: int) -> int | None:
-        """The smallest step count ``> steps`` at which it may fire, or None."""
+        """The smallest step count ``> steps`` at which it may fire (the driver cuts its chunk there).
+
+        Parameters
+        ----------
+        steps : int
+            The steps so far.
+
+        Returns
+        -------
+        int or None
+            None: none.
+        """
         return None
 
     def next_collisions(self, collisions: int) -> int | None:
-        """The smallest collision count ``> collisions`` at which it may fire, or None."""
+        """The smallest collision count ``> collisions`` at which it may fire.
+
+        Parameters
+        ----------
+        collisions : int
+            The collisions so far.
+
+        Returns
+        -------
+        int or None
+            None: none.
+        """
         return None
 
     def to_spec(self) -> dict | None:
-        """The trigger as a run spec's ``"snapshots"`` (``{"every_steps": 1000}``, ...), or None if
-        a spec cannot say it (an `AnyOf`)."""
+        """The trigger as a run spec's ``"snapshots"``.
+
+        Returns
+        -------
+        dict or None
+            ``{"every_steps": 1000}``, ..., or None if a spec cannot say it (an `AnyOf`).
+        """
         return None
 
     def __or__(self, other: Trigger) -> AnyOf:
@@ -71,13 +118,48 @@ class _OnCounter(Trigger):
         raise NotImplementedError
 
     def fires(self, prev: Counts | None, now: Counts) -> bool:
+        """At one of its counts, if its counter has moved since ``prev`` (`Trigger.fires`).
+
+        Parameters
+        ----------
+        prev : tuple of int or None
+            ``(steps, collisions)`` at the driver's previous check (None: a fresh start).
+        now : tuple of int
+            ``(steps, collisions)`` now.
+
+        Returns
+        -------
+        bool
+        """
         v = now[self.counter]
         return self._targets(v) and (prev is None or prev[self.counter] < v)
 
     def next_steps(self, steps: int) -> int | None:
+        """Its next count after ``steps``, for a trigger on the steps (`Trigger.next_steps`).
+
+        Parameters
+        ----------
+        steps : int
+            The steps so far.
+
+        Returns
+        -------
+        int or None
+        """
         return self._next(steps) if self.counter == 0 else None
 
     def next_collisions(self, collisions: int) -> int | None:
+        """Its next count after ``collisions``, for a trigger on the collisions (`Trigger.next_collisions`).
+
+        Parameters
+        ----------
+        collisions : int
+            The collisions so far.
+
+        Returns
+        -------
+        int or None
+        """
         return self._next(collisions) if self.counter == 1 else None
 
 
@@ -110,38 +192,116 @@ class _Every(_OnCounter):
 
 
 class AtSteps(_At):
-    """Fires at each of the listed step counts."""
+    """Fires at each of the listed step counts.
+
+    Parameters
+    ----------
+    counts : iterable of int
+        Step counts (>= 0), kept sorted and once each.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> t = pb.AtSteps([100, 10])
+    >>> t, t.next_steps(10), t.fires(None, (10, 0)), t.to_spec()
+    (AtSteps([10, 100]), 100, True, {'at_steps': [10, 100]})
+    """
 
     counter = 0
 
     def to_spec(self) -> dict:
+        """A run spec's ``"snapshots"`` (`Trigger.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"at_steps": [...]}``.
+        """
         return {"at_steps": list(self.counts)}
 
 
 class AtCollisions(_At):
-    """Fires right after the collision that brings the total to each listed count (0: at the start)."""
+    """Fires right after the collision that brings the total to each listed count (0: at the start).
+
+    Parameters
+    ----------
+    counts : iterable of int
+        Collision counts (>= 0), kept sorted and once each.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> t = pb.AtCollisions([3])
+    >>> t.fires((9, 2), (10, 3)), t.fires((10, 3), (11, 3))
+    (True, False)
+    """
 
     counter = 1
 
     def to_spec(self) -> dict:
+        """A run spec's ``"snapshots"`` (`Trigger.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"at_collisions": [...]}``.
+        """
         return {"at_collisions": list(self.counts)}
 
 
 class EverySteps(_Every):
-    """Fires at steps ``period, 2 period, ...``."""
+    """Fires at steps ``period, 2 period, ...``.
+
+    Parameters
+    ----------
+    period : int
+        At least 1.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> pb.EverySteps(100).next_steps(150), pb.EverySteps(100).to_spec()
+    (200, {'every_steps': 100})
+    """
 
     counter = 0
 
     def to_spec(self) -> dict:
+        """A run spec's ``"snapshots"`` (`Trigger.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"every_steps": period}``.
+        """
         return {"every_steps": self.period}
 
 
 class EveryCollisions(_Every):
-    """Fires right after collisions ``period, 2 period, ...``."""
+    """Fires right after collisions ``period, 2 period, ...``.
+
+    Parameters
+    ----------
+    period : int
+        At least 1.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> pb.EveryCollisions(5).next_collisions(7), pb.EveryCollisions(5).to_spec()
+    (10, {'every_collisions': 5})
+    """
 
     counter = 1
 
     def to_spec(self) -> dict:
+        """A run spec's ``"snapshots"`` (`Trigger.to_spec`).
+
+        Returns
+        -------
+        dict
+            ``{"every_collisions": period}``.
+        """
         return {"every_collisions": self.period}
 
 

@@ -12,12 +12,32 @@ __all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "che
 
 
 class InputError(ValueError):
-    """Bad input from the user: a spec, a data file, an argument or an output directory."""
+    """Bad input from the user: a spec, a data file, an argument or an output directory (a ValueError).
+
+    The base of every error the command line says in one line, exiting with status 2.
+    """
 
 
 class FieldError(InputError):
-    """A bad value of one argument or field. ``field`` names it, ``problem`` says what is wrong;
-    the message is ``"field: problem"`` (just ``problem`` when ``field`` is empty)."""
+    """A bad value of one argument or field: the message is ``"field: problem"`` (just ``problem`` when
+    ``field`` is empty).
+
+    Parameters
+    ----------
+    field : str
+        The argument or field it names.
+    problem : str
+        What is wrong.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> try:
+    ...     pb.FlatTorus(rows=5, cols=3)
+    ... except pb.FieldError as error:
+    ...     print(error.field, "|", error.problem)
+    rows | must be even for a flat torus, got 5
+    """
 
     def __init__(self, field: str, problem: str):
         self.field, self.problem = field, problem
@@ -32,7 +52,15 @@ FieldValueError = FieldError
 
 
 class FieldTypeError(FieldError, TypeError):
-    """A `FieldError` for a value of the wrong type (also a ``TypeError``)."""
+    """A `FieldError` for a value of the wrong type (also a ``TypeError``).
+
+    Parameters
+    ----------
+    field : str
+        The argument or field it names.
+    problem : str
+        What is wrong.
+    """
 
 
 

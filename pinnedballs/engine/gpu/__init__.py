@@ -28,8 +28,15 @@ __all__ = ["load", "importable", "describe", "GPUUnavailable", "INSTALL"]
 INSTALL = 'python3 -m pip install ".[cuda]" (from the checkout)'
 
 class GPUUnavailable(FieldError):
-    """A GPU run was asked for where none can run: numba-cuda missing, or no GPU its driver sees (a
-    `FieldError` on ``device``: the command line says it in one line and exits with status 2)."""
+    """A GPU run was asked for where none can run: numba-cuda missing, or no GPU its driver sees.
+
+    A `FieldError` on ``device``: the command line says it in one line and exits with status 2.
+
+    Parameters
+    ----------
+    problem : str
+        What is missing.
+    """
 
     def __init__(self, problem: str):
         super().__init__("device", problem)
