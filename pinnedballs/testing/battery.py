@@ -58,8 +58,30 @@ def _applies(check: Callable, component) -> bool:
 
 
 def checks_for(component) -> list[Callable]:
-    """The checks that apply to ``component`` (a `Geometry`, a `CollisionRule`, a `Scheduler`, or an engine:
-    `engine_checks.engine_checks_for`)."""
+    """The checks that apply to a component, in the order they run.
+
+    Parameters
+    ----------
+    component : Geometry or CollisionRule or Scheduler or Engine
+        A component (an engine: `engine_checks.engine_checks_for`).
+
+    Returns
+    -------
+    list of callable
+        Each ``check(component)``; those with nothing to look at in it left out (the module's docstring).
+
+    Raises
+    ------
+    TypeError
+        For anything else.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.testing import checks_for
+    >>> [c.__name__ for c in checks_for(pb.Sweep())][:3]
+    ['check_scheduler_picks_in_range', 'check_scheduler_same_seed_same_run', 'check_scheduler_split_run']
+    """
     for base, battery in ((Geometry, GEOMETRY_CHECKS), (CollisionRule, RULE_CHECKS), (Scheduler, SCHEDULER_CHECKS)):
         if isinstance(component, base):
             return [c for c in battery if _applies(c, component)]
@@ -79,17 +101,74 @@ def _run_all(component, base: type, what: str) -> None:
 
 
 def check_geometry(geometry: Geometry) -> None:
-    """Run every geometry check on ``geometry``; the first that fails raises its `AssertionError`."""
+    """Run every geometry check on ``geometry`` (`GEOMETRY_CHECKS`, those that apply).
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        The first check that fails, naming the broken property and a small example.
+    TypeError
+        If ``geometry`` is not a `Geometry`.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.testing import check_geometry
+    >>> check_geometry(pb.HalfPlane(rows=3, cols=4))
+    """
     _run_all(geometry, Geometry, "geometry")
 
 
 def check_rule(rule: CollisionRule) -> None:
-    """Run every rule check on ``rule``; the first that fails raises its `AssertionError`."""
+    """Run every rule check on ``rule`` (`RULE_CHECKS`, those that apply).
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        The first check that fails, naming the broken property and a small example.
+    TypeError
+        If ``rule`` is not a `CollisionRule`.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.testing import check_rule
+    >>> check_rule(pb.Restitution(0.5))
+    """
     _run_all(rule, CollisionRule, "rule")
 
 
 def check_scheduler(scheduler: Scheduler) -> None:
-    """Run every scheduler check on ``scheduler``; the first that fails raises its `AssertionError`."""
+    """Run every scheduler check on ``scheduler`` (`SCHEDULER_CHECKS`, those that apply).
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        The first check that fails, naming the broken property and a small example.
+    TypeError
+        If ``scheduler`` is not a `Scheduler`.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.testing import check_scheduler
+    >>> check_scheduler(pb.Sweep())
+    """
     _run_all(scheduler, Scheduler, "scheduler")
 
 
@@ -112,14 +191,40 @@ def parametrize_with_checks(components: Iterable, *,
     component's repr or, when that is ``object``'s (a memory address, different in every process), its
     class and place in ``components`` (``Greedy[0]``): the same ids in every pytest-xdist worker.
 
-    ``expected_failed_checks``: ``{check name: reason}`` for checks a component is known to fail, or a
-    callable giving that dict for each component. Those are marked ``xfail`` (strict: one that passes
-    fails the test run, so a declaration cannot outlive its reason). A name that is no check of the
-    component is an error. Needs pytest (imported here only)::
+    Needs pytest (imported here only)::
 
         @parametrize_with_checks([MyGeometry(8), MyRule()])
         def test_my_components(component, check):
             check(component)
+
+    Parameters
+    ----------
+    components : iterable
+        Geometries, rules, schedulers and engines.
+    expected_failed_checks : dict or callable, optional
+        ``{check name: reason}`` for checks a component is known to fail, or a callable giving that dict for
+        each component. Those are marked ``xfail`` (strict: one that passes fails the test run, so a
+        declaration cannot outlive its reason).
+
+    Returns
+    -------
+    pytest.MarkDecorator
+        ``pytest.mark.parametrize("component, check", ...)``.
+
+    Raises
+    ------
+    ValueError
+        On ``expected_failed_checks`` naming what is no check of the component.
+    TypeError
+        For a component that is none of the four.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.testing import parametrize_with_checks
+    >>> mark = parametrize_with_checks([pb.Sweep()])
+    >>> [case.id for case in mark.args[1]][:2]
+    ['Sweep()-check_scheduler_picks_in_range', 'Sweep()-check_scheduler_same_seed_same_run']
     """
     import pytest
 

@@ -173,7 +173,20 @@ def _runs(engine: Engine, large: bool) -> Iterator[tuple[str, System]]:
 
 
 def check_engine_split_runs(engine: Engine | str, large: bool = False) -> None:
-    """A run split into calls (1, 2, many steps; a collision target between) ends on the bits of one call."""
+    """A run split into calls (1, 2, many steps; a collision target between) ends on the bits of one call.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     engine = _engine(engine)
     for name, s in _runs(engine, large):
         whole, split = s.simulation(name, _device(engine)), s.simulation(name, _device(engine))
@@ -188,7 +201,20 @@ def check_engine_split_runs(engine: Engine | str, large: bool = False) -> None:
 
 
 def check_engine_collision_target(engine: Engine | str, large: bool = False) -> None:
-    """``run(collisions=c)`` stops right after the ``c``-th collision, on the reference engine's step."""
+    """``run(collisions=c)`` stops right after the ``c``-th collision, on the reference engine's step.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     engine = _engine(engine)
     for name, s in _runs(engine, large):
         sim, ref = s.simulation(name, _device(engine)), s.simulation(REFERENCE[s.arithmetic], as_device("cpu"))
@@ -204,7 +230,20 @@ def check_engine_collision_target(engine: Engine | str, large: bool = False) -> 
 
 def check_engine_until_frozen(engine: Engine | str, large: bool = False) -> None:
     """A run until frozen stops right after its last collision (the reference's step), frozen; one more run
-    takes no step."""
+    takes no step.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     engine = _engine(engine)
     for name, s in _runs(engine, large):
         if not s.freezes:
@@ -222,7 +261,20 @@ def check_engine_until_frozen(engine: Engine | str, large: bool = False) -> None
 
 def check_engine_resume(engine: Engine | str, large: bool = False) -> None:
     """A state saved mid-run (`Simulation.get_state`), restored into a new simulation on the engine, continues
-    on the bits of the unbroken run."""
+    on the bits of the unbroken run.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     engine = _engine(engine)
     for name, s in _runs(engine, large):
         whole, first = s.simulation(name, _device(engine)), s.simulation(name, _device(engine))
@@ -239,7 +291,20 @@ def check_engine_resume(engine: Engine | str, large: bool = False) -> None:
 
 def check_engine_agrees_with_reference(engine: Engine | str, large: bool = False) -> None:
     """The bits of the reference engine (``"sequential"`` for floats, ``"field"`` for exact and certified
-    arithmetic) on every system: velocities, counters, stream, scheduler and closing margin."""
+    arithmetic) on every system: velocities, counters, stream, scheduler and closing margin.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     engine = _engine(engine)
     for name, s in _runs(engine, large):
         sim, ref = s.simulation(name, _device(engine)), s.simulation(REFERENCE[s.arithmetic], as_device("cpu"))
@@ -254,7 +319,20 @@ def check_engine_agrees_with_reference(engine: Engine | str, large: bool = False
 
 def check_engine_refuses(engine: Engine | str, large: bool = False) -> None:
     """A system the engine does not run, forced on it, is refused before anything runs: one line on a field,
-    the engine's `Refusal`."""
+    the engine's `Refusal`.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     engine = _engine(engine)
     with _at_the_door(engine) as name:
         device = _device(engine)
@@ -273,7 +351,20 @@ def check_engine_refuses(engine: Engine | str, large: bool = False) -> None:
 def check_engine_replicas(engine: Engine | str, large: bool = False) -> None:
     """An engine of replicas (``engine.replicas``) runs simulations of one system together (`run.ensemble_gpu.
     run_replicas`) to steps, a collision count and the freeze, each then in the state of the same simulation run
-    alone on the reference engine, and going on from there with its bits."""
+    alone on the reference engine, and going on from there with its bits.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine checked, or a registered engine's name.
+    large : bool
+        Also the `LARGE_SYSTEMS` (as for `check_engine`).
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and the engine and the system.
+    """
     from ..engine.stop import Stop
     from ..run.ensemble_gpu import run_replicas
 
@@ -310,8 +401,25 @@ REPLICAS_CHECKS = (check_engine_replicas,)
 
 
 def engine_checks_for(engine: Engine | str) -> list[Callable]:
-    """The checks that apply to ``engine``: all, but the comparison with the reference for a reference engine
-    itself (``"sequential"``, ``"field"``); for an engine of replicas, `REPLICAS_CHECKS`."""
+    """The checks that apply to ``engine``, in the order they run.
+
+    Parameters
+    ----------
+    engine : Engine or str
+        The engine, or a registered engine's name.
+
+    Returns
+    -------
+    list of callable
+        All of `ENGINE_CHECKS`, but the comparison with the reference for a reference engine itself
+        (``"sequential"``, ``"field"``); for an engine of replicas, `REPLICAS_CHECKS`.
+
+    Examples
+    --------
+    >>> from pinnedballs.testing import engine_checks_for
+    >>> [c.__name__ for c in engine_checks_for("sequential")][:2]
+    ['check_engine_refuses', 'check_engine_split_runs']
+    """
     engine = _engine(engine)
     if engine.replicas:
         return list(REPLICAS_CHECKS)

@@ -21,7 +21,18 @@ __all__ = ["check_contact_tables", "check_contacts_are_touching_pairs", "check_c
 def check_contact_tables(geometry) -> None:
     """The contact tables are sound (what `Simulation` checks, `pinnedballs.geometry.checks`): balls and
     ends in range, no ball touching itself, no pair twice, unit vectors of length 1 pointing from
-    each ball towards the other, flat contacts ``2 * radius`` long."""
+    each ball towards the other, flat contacts ``2 * radius`` long.
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     try:
         check_contacts(geometry)
     except FieldError as error:
@@ -52,7 +63,18 @@ def _touching_pairs(geometry) -> set[tuple[int, int]]:
 def check_contacts_are_touching_pairs(geometry) -> None:
     """Flat space: the contacts are exactly the pairs of balls that touch (``2 * radius`` apart within
     ``geometry.rtol``, to the nearest periodic image of `Geometry.box`): none joins balls apart, none
-    is left out. (On a curved surface a contact's length is the surface's own business, not checked.)"""
+    is left out. (On a curved surface a contact's length is the surface's own business, not checked.)
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     if geometry.curved:
         return
     prop = "contacts are the touching pairs"
@@ -72,7 +94,18 @@ def check_contacts_are_touching_pairs(geometry) -> None:
 
 def check_contact_graph_round_trip(geometry) -> None:
     """``GraphGeometry(geometry.contact_graph())`` has the same balls and the same contacts, in the same
-    order and orientation, with the same unit vectors, bit for bit (so the same seed gives the same run)."""
+    order and orientation, with the same unit vectors, bit for bit (so the same seed gives the same run).
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     prop = "contact graph round trip"
     try:
         twin = GraphGeometry(geometry.contact_graph(), radius=geometry.radius)
@@ -92,7 +125,18 @@ def check_contact_graph_round_trip(geometry) -> None:
 
 def check_frames(geometry) -> None:
     """`Geometry.frames` is ``(n_balls, dim, k)``, finite and orthonormal, under the geometry's metric
-    where it states one (`Geometry.metric`), to ``1e-12``."""
+    where it states one (`Geometry.metric`), to ``1e-12``.
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     prop = "frames orthonormal"
     n, dim, k = geometry.n_balls, geometry.dim, np.shape(geometry.positions)[1]
     f = np.asarray(geometry.frames(), dtype=np.float64)
@@ -109,7 +153,18 @@ def check_frames(geometry) -> None:
 
 def check_boundary(geometry) -> None:
     """A boundary (`Geometry.boundary`), where the geometry has one: ``distance (n_balls,)`` finite and
-    ``>= 0``, ``outward (n_balls, dim)`` unit vectors (within ``1e-12``). (Nothing to check without one.)"""
+    ``>= 0``, ``outward (n_balls, dim)`` unit vectors (within ``1e-12``). (Nothing to check without one.)
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     b = geometry.boundary
     if b is None:
         return

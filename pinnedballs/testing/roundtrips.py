@@ -62,14 +62,36 @@ def _same_geometry(prop: str, a, b) -> None:
 
 def check_geometry_spec_round_trip(geometry) -> None:
     """``geometry.to_spec()``, through JSON and the spec's ``build``, gives the same geometry. (Nothing
-    to check for a geometry without a spec.)"""
+    to check for a geometry without a spec.)
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     spec = geometry.to_spec()
     if spec is not None:
         _same_geometry("spec round trip", geometry, _from_spec("spec round trip", "geometry", spec))
 
 
 def check_geometry_pickles(geometry) -> None:
-    """A pickled geometry comes back the same."""
+    """A pickled geometry comes back the same.
+
+    Parameters
+    ----------
+    geometry : Geometry
+        The geometry checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     _same_geometry("pickles", geometry, _pickled("pickles", geometry))
 
 
@@ -86,14 +108,36 @@ def _same_rule(prop: str, a, b) -> None:
 
 def check_rule_spec_round_trip(rule) -> None:
     """``rule.to_spec()``, through JSON and the spec's ``build``, gives a rule with the same compiled
-    function and parameters. (Nothing to check for a rule without a spec.)"""
+    function and parameters. (Nothing to check for a rule without a spec.)
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     spec = rule.to_spec()
     if spec is not None:
         _same_rule("spec round trip", rule, _from_spec("spec round trip", "rule", spec))
 
 
 def check_rule_pickles(rule) -> None:
-    """A pickled rule comes back with the same compiled function and parameters."""
+    """A pickled rule comes back with the same compiled function and parameters.
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     _same_rule("pickles", rule, _pickled("pickles", rule))
 
 
@@ -112,12 +156,34 @@ def _same_scheduler(prop: str, a, b, equal: bool) -> None:
 def check_scheduler_spec_round_trip(scheduler) -> None:
     """``scheduler.to_spec()``, through JSON and the spec's ``build``, gives a scheduler of its class that
     runs the same (a spec need not keep what changes no bit, such as a number of threads). (Nothing to
-    check for a scheduler without a spec.)"""
+    check for a scheduler without a spec.)
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     spec = scheduler.to_spec()
     if spec is not None:
         _same_scheduler("spec round trip", scheduler, _from_spec("spec round trip", "scheduler", spec), equal=False)
 
 
 def check_scheduler_pickles(scheduler) -> None:
-    """A pickled scheduler comes back equal and runs the same."""
+    """A pickled scheduler comes back equal and runs the same.
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     _same_scheduler("pickles", scheduler, _pickled("pickles", scheduler), equal=True)

@@ -84,7 +84,18 @@ def _energies(v, masses) -> np.ndarray:
 
 def check_momentum_conserved(rule) -> None:
     """Flat space: ``m_i v_i + m_j v_j`` is the same after a collision, to ``1e-12`` of
-    ``m_i |v_i| + m_j |v_j|``."""
+    ``m_i |v_i| + m_j |v_j|``.
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     for label, t_i, t_j, v, masses in _samples(flat_only=True):
         after, _ = _collide_once("momentum conserved", rule, t_i, t_j, v, masses)
         m = np.ones(len(v)) if masses is None else masses
@@ -99,7 +110,18 @@ def check_momentum_conserved(rule) -> None:
 
 
 def check_energy_never_created(rule) -> None:
-    """No collision gives a pair more kinetic energy than it had (beyond ``1e-12`` of it)."""
+    """No collision gives a pair more kinetic energy than it had (beyond ``1e-12`` of it).
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     for label, t_i, t_j, v, masses in _samples():
         after, _ = _collide_once("energy never created", rule, t_i, t_j, v, masses)
         e0, e1 = _energies(v, masses), _energies(after, masses)
@@ -112,7 +134,18 @@ def check_energy_never_created(rule) -> None:
 
 def check_energy_conserved_if_elastic(rule) -> None:
     """A rule that says it is elastic keeps each pair's kinetic energy, to ``1e-12`` of it, in flat space
-    and on a curved surface alike. (Nothing to check for a rule that does not say so.)"""
+    and on a curved surface alike. (Nothing to check for a rule that does not say so.)
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     if not claims_elastic(rule):
         return
     for label, t_i, t_j, v, masses in _samples():
@@ -133,7 +166,18 @@ def _closing(t_i, t_j, v) -> np.ndarray:
 
 def check_separating_untouched(rule) -> None:
     """Balls that do not approach (``w <= 0``: separating, sliding past or at rest) keep their velocities
-    bit for bit, and the pick is no collision."""
+    bit for bit, and the pick is no collision.
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     for label, t_i, t_j, v, masses in _samples():
         v = v.copy()
         w = _closing(t_i, t_j, v)
@@ -152,7 +196,18 @@ def check_separating_untouched(rule) -> None:
 
 def check_swap_symmetric(rule) -> None:
     """Naming the two balls of a contact the other way round (``(j, i)`` with ``t_j, t_i``) gives the same
-    velocities, to ``1e-12`` of the pair's speeds."""
+    velocities, to ``1e-12`` of the pair's speeds.
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     for label, t_i, t_j, v, masses in _samples():
         after, _ = _collide_once("symmetric under swapping the balls", rule, t_i, t_j, v, masses)
         swapped, _ = _collide_once("symmetric under swapping the balls", rule, t_i, t_j, v, masses, swapped=True)
@@ -168,7 +223,18 @@ def check_swap_symmetric(rule) -> None:
 
 def check_restitution_law(rule) -> None:
     """A rule with an exact form (restitution ``r``) turns the closing speed ``w > 0`` of a collision into
-    ``-r w``, to ``1e-12`` of the pair's speeds. (Nothing to check for a rule without one.)"""
+    ``-r w``, to ``1e-12`` of the pair's speeds. (Nothing to check for a rule without one.)
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     r = rule.exact_restitution()
     if r is None:
         return
@@ -189,7 +255,18 @@ def check_exact_agrees(rule) -> None:
     float run's velocities: on a 3 x 4 half-plane with one boundary ball sent inward, after 3,000 steps
     on the same picks, every component within ``1e-12`` of the speed scale. (Collision counts may
     differ: the float run does not count rounding remnants, and below ``r = 1`` the exact one may go
-    on colliding ever more slowly.) (Nothing to check for a rule without an exact form.)"""
+    on colliding ever more slowly.) (Nothing to check for a rule without an exact form.)
+
+    Parameters
+    ----------
+    rule : CollisionRule
+        The rule checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     if rule.exact_restitution() is None:
         return
     g = HalfPlane(3, 4)

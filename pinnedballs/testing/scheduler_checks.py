@@ -105,7 +105,18 @@ def _differ(a: RunState, b: RunState) -> str:
 
 def check_scheduler_picks_in_range(scheduler) -> None:
     """Every pick names a contact, ``0 <= k < n_contacts``: 20,000 picks on the torus (a scheduler that
-    picks among live contacts: the contact of every collision of a run on the half-plane until frozen)."""
+    picks among live contacts: the contact of every collision of a run on the half-plane until frozen).
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     prop = "picks in range"
     g, _ = _torus()
     if _picks(prop, scheduler, g, _PICKS) is not None:
@@ -126,7 +137,18 @@ def check_scheduler_picks_in_range(scheduler) -> None:
 
 def check_scheduler_same_seed_same_run(scheduler) -> None:
     """The same seed gives the same picks and the same run, bit for bit: 20,000 picks, and 3,000 steps on
-    the torus (a scheduler that picks among live contacts: a run until frozen on the half-plane)."""
+    the torus (a scheduler that picks among live contacts: a run until frozen on the half-plane).
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     prop = "same seed, same run"
     g, _ = _torus()
     first, second = _picks(prop, scheduler, g, _PICKS), _picks(prop, scheduler, g, _PICKS)
@@ -141,7 +163,18 @@ def check_scheduler_same_seed_same_run(scheduler) -> None:
 
 def check_scheduler_split_run(scheduler) -> None:
     """A run split into calls ends on the state of one call, bit for bit: 3,000 steps on the torus as one
-    call and as 1,000 + 1,999 + 1; and the half-plane until frozen as one call and after 7 steps."""
+    call and as 1,000 + 1,999 + 1; and the half-plane until frozen as one call and after 7 steps.
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     prop = "a run split in two equals one run"
     cases = [(_torus, [("steps", _STEPS)], [("steps", 1000), ("steps", _STEPS - 1001), ("steps", 1)]),
              (_half_plane, [("frozen", 10**6)], [("steps", 7), ("frozen", 10**6)])]
@@ -155,7 +188,18 @@ def check_scheduler_split_run(scheduler) -> None:
 def check_scheduler_state_round_trip(scheduler) -> None:
     """`Simulation.get_state` then `set_state` on another simulation (other velocities, other seed)
     continues the run exactly: 1,500 + 1,500 steps on the torus; the scheduler accepts its own state
-    (`Scheduler.check_state`)."""
+    (`Scheduler.check_state`).
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     prop = "state round trip"
     sim = _run(prop, scheduler, _torus, SEED, ("steps", 1500))
     state = sim.get_state()
@@ -174,7 +218,18 @@ def check_scheduler_state_round_trip(scheduler) -> None:
 
 def check_scheduler_law(scheduler) -> None:
     """The law the scheduler claims (`Scheduler.law`; see the module's docstring for the tests and their
-    level). Nothing to check for a scheduler that claims none."""
+    level). Nothing to check for a scheduler that claims none.
+
+    Parameters
+    ----------
+    scheduler : Scheduler
+        The scheduler checked.
+
+    Raises
+    ------
+    AssertionError
+        Naming the property that does not hold and a small example.
+    """
     law = getattr(scheduler, "law", None)
     if law is None:
         return
