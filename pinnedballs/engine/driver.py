@@ -42,6 +42,7 @@ in, with any snapshot due at it that was not yet recorded.
 
 from __future__ import annotations
 
+import contextlib
 import time
 import weakref
 from collections.abc import Callable, Sequence
@@ -49,6 +50,7 @@ from collections.abc import Callable, Sequence
 from ..util.progress import Progress, shown
 from ..util.sigint import Deferred, deferred
 from .stop import Stop
+from .jit.failures import compiling
 from .triggers import Counts
 
 __all__ = ["CHUNK_SECONDS", "FIRST_CHUNK", "GROWTH", "CHUNK_STEPS", "CHUNK_PER_CONTACT", "NO_LIMIT", "Stop",
@@ -309,13 +311,16 @@ _compiled: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def _compile(engine, held: Deferred, collisions: int, until_frozen: bool) -> None:
     """The compiling call, ``engine.run(0, collisions, until_frozen)``: aside (`Deferred.aside`, a Ctrl-C
     meanwhile stops the run at once) the first time an engine makes it, here after (a thread's start costs
-    more than the call)."""
+    more than the call). numba's error compiling a user's rule or scheduler is raised as the one-line
+    `jit.failures.CompileFailure` naming it."""
     kind = _compiling_kind(engine, collisions, until_frozen)
     made = _compiled.setdefault(engine, set())
-    if kind in made or engine.device.gpu:  # a GPU's context belongs to the thread that made it
-        engine.run(0, collisions, until_frozen)
-        return
-    held.aside(engine.run, 0, collisions, until_frozen)
+    model = getattr(engine, "model", None)
+    with compiling(model) if model is not None else contextlib.nullcontext():
+        if kind in made or engine.device.gpu:  # a GPU's context belongs to the thread that made it
+            engine.run(0, collisions, until_frozen)
+            return
+        held.aside(engine.run, 0, collisions, until_frozen)
     made.add(kind)
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 from ..engine.driver import Writer, drive
 from ..engine.field.arithmetic import AUTO, auto_failure, until_proved
 from ..engine.field.fixed import UncertifiedDecision
+from ..engine.jit.failures import CompileFailure, compiling
 from ..engine.stop import Stop
 from ..results.format import DATA_DIR, RESULTS_NAME, Record, failed_run
 from ..results.load import Results, load
@@ -78,19 +79,19 @@ def execute(spec: RunSpec, out_dir: str | os.PathLike, *, force: bool = False, r
             log: Callable[[str], None] | None = None, device: str = "cpu") -> Path:
     """Run ``spec`` into the directory ``out_dir``; return the path of its ``results.h5``.
 
-    The spec is built once into what runs it (the simulation, its stop, the writer's trigger),
-    before anything is written: bad input fails first. A spec without a seed gets one drawn
-    (`RunSpec.seeded`), recorded with the run. A non-empty ``out_dir`` is refused (`InputError`)
-    unless ``force`` (which replaces our files) or ``resume``: that continues the run there from its
-    last checkpoint (the same spec; a finished run is left as it is), or starts it where none is yet
-    (a missing or empty ``out_dir``, or one a run killed before its first checkpoint left), telling
-    ``log`` so in one line; anything else is refused (`check_resumable`), and so is a run that failed where it
-    cannot go on (a decision certified arithmetic cannot make: the file says "failed", `ResultsWriter`), which
-    continuing would only fail again. A new run that fails before its
-    first step (a user's scheduler refused at its first pick) leaves nothing: what it wrote, and the
-    directories made for it, are removed (a run ``force`` replaced is gone). ``progress``: the run
-    driver's bar (True, False, or None: in a terminal or a notebook, once the run has taken 2 s;
-    `pinnedballs.util.progress`). ``status``: a callable told each stage (building, compiling, drawing).
+    The spec is built once into what runs it (the simulation, its stop, the writer's trigger), and what the run
+    compiles first compiled (`_compile`), before anything is written: bad input fails first, a rule or a scheduler
+    numba cannot compile included (a `UserCodeError` naming its factory). A spec without a seed gets one drawn
+    (`RunSpec.seeded`), recorded with the run. A non-empty ``out_dir`` is refused (`InputError`) unless ``force``
+    (which replaces our files) or ``resume``: that continues the run there from its last checkpoint (the same spec;
+    a finished run is left as it is), or starts it where none is yet (a missing or empty ``out_dir``, or one a run
+    killed before its first checkpoint left), telling ``log`` so in one line; anything else is refused
+    (`check_resumable`), and so is a run that failed where it cannot go on (a decision certified arithmetic cannot
+    make: the file says "failed", `ResultsWriter`), which continuing would only fail again. A new run that fails
+    before its first step (a user's scheduler refused at its first pick) leaves nothing: what it wrote, and the
+    directories made for it, are removed (a run ``force`` replaced is gone). ``progress``: the run driver's bar
+    (True, False, or None: in a terminal or a notebook, once the run has taken 2 s; `pinnedballs.util.progress`).
+    ``status``: a callable told each stage (building, compiling, drawing).
 
     SIGINT/SIGTERM (main thread) while the spec is built or a checkpoint read (a user's factory
     may run there) raise KeyboardInterrupt at once: nothing has been written. During the run they ask
@@ -153,6 +154,7 @@ def _execute(spec: RunSpec, out_dir: str | os.PathLike, attempt: tuple[int, int 
                 sim = (spec if attempt is None else spec.at_precisions(*attempt)).build(device=device)
             if spec.trajectory is not None:
                 gsd_layout(sim)  # a trajectory GSD's 32-bit floats cannot hold is refused before anything is written
+            _compile(spec, sim, stop, status)  # a rule numba cannot compile is refused before anything is written
             if starting is not None and log is not None:
                 status.clear()
                 log(f"--resume: {out} holds no run yet ({starting}): starting it")
@@ -170,6 +172,8 @@ def _execute(spec: RunSpec, out_dir: str | os.PathLike, attempt: tuple[int, int 
                     with signals.at_once():
                         sim = _resumed(spec, path, device)
                 if sim is not None:         # None: that run had finished
+                    if not fresh:
+                        _compile(spec, sim, stop, status)
                     _drive(sim, stop, [*_trajectory(spec, out, fresh), writer], progress, status,
                            signals.requested)
             except BaseException as exc:
@@ -279,9 +283,6 @@ def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | 
     has recorded a state before it is checkpointed), with the driver's progress; a stop requested by a
     signal raises `Interrupted` between chunks (the driver has the writers save the state first)."""
     writer = writers[-1]
-    status("compiling the loop (once: numba caches it on disk)")
-    sim.run(steps=0, until_frozen=stop.until_frozen, progress=False)  # compiles; changes no bit of the state
-    status.clear()
 
     def after_chunk(s: Simulation) -> None:
         if stop_requested():
@@ -293,6 +294,20 @@ def _drive(sim: Simulation, stop: Stop, writers: list[Writer], progress: bool | 
     finally:
         for other in writers[:-1]:
             other.close()
+
+
+def _compile(spec: RunSpec, sim: Simulation, stop: Stop, status) -> None:
+    """Compile what ``sim``'s run to ``stop`` runs first (the loop, and the count of live contacts its results
+    record), changing no bit of its state: a rule or a scheduler numba cannot compile is refused in the spec's
+    words (`RunSpec.not_compiled`: a user's names its factory), numba's error its cause."""
+    status("compiling the loop (once: numba caches it on disk)")
+    try:
+        sim.run(steps=0, until_frozen=stop.until_frozen, progress=False)  # the driver's compiling call
+        with compiling(sim.engine.model):
+            sim.approaching()
+    except CompileFailure as exc:
+        raise spec.not_compiled(exc) from exc.__cause__
+    status.clear()
 
 
 def _check_same_run(res: Results, spec: RunSpec) -> None:

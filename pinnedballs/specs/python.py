@@ -5,9 +5,10 @@ built; it returns the component: a `Geometry`, a `CollisionRule`, a `Scheduler`,
 the initial velocities an array ``(n_balls, dim)`` (it is called as ``factory(geometry, **args)``).
 **A spec that names Python code runs that code**: validate only specs you trust. Code of the user's
 that fails (its module as it is imported, the factory, or the component it made as the run is set
-up) raises `UserCodeError`, one line naming the slot, the factory and what the code did
-(``geometry.factory shapes:boom raised RuntimeError: boom``), its traceback kept as the cause; a
-``sys.exit`` there is such a failure too, and a KeyboardInterrupt goes on as one.
+up, numba's compile of it included: `not_compiled`) raises `UserCodeError`, one line naming the slot,
+the factory and what the code did (``geometry.factory shapes:boom raised RuntimeError: boom``), its
+traceback kept as the cause; a ``sys.exit`` there is such a failure too, and a KeyboardInterrupt goes
+on as one.
 
 A spec read back from a results file is validated with the context ``{IMPORT_FACTORIES: False}``:
 reading a run needs no user code (its geometry is stored), and runs none; only building a
@@ -38,7 +39,7 @@ from .errors import SpecError, UserCodeError, failure
 
 __all__ = ["PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",
            "ENTRY_POINT_GROUPS", "IMPORT_FACTORIES", "import_factory", "expand_entry_points", "component_failed",
-           "label"]
+           "not_compiled", "label"]
 
 #: spec slot -> entry-point group whose names are kinds of that slot
 ENTRY_POINT_GROUPS = {"geometry": "pinnedballs.geometries", "rule": "pinnedballs.rules",
@@ -175,6 +176,19 @@ def component_failed(exc: BaseException, components: dict[str, Any], specs: dict
     source = specs[slot]
     where = f"{slot}.factory {source.factory}" if isinstance(source, _PythonSpec) else slot
     return UserCodeError(where, f"made a {made} whose {method}() {failure(exc)}")
+
+
+def not_compiled(failure, specs: dict[str, Any]) -> SpecError:
+    """numba's refusal to compile a chain's rule or scheduler (``failure``, an
+    `pinnedballs.engine.jit.failures.CompileFailure` on its slot), in a spec's words: a user's component named by
+    the factory that made it (``specs[slot]``), as a `UserCodeError`: ``rule.factory mine:sticky made a Sticky that
+    numba cannot compile: <what numba said> (FILE:LINE)``; another's on its slot."""
+    source = specs.get(failure.field)
+    if not isinstance(source, _PythonSpec):
+        return SpecError(failure.field, failure.problem)
+    made = type(failure.component).__name__
+    return UserCodeError(f"{failure.field}.factory", f"{source.factory} made a {made} that numba cannot compile"
+                                                     f"{failure.detail}")
 
 
 def label(component) -> str:

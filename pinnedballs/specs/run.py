@@ -14,6 +14,7 @@ from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
 from ..engine.devices import Device, as_device
 from ..engine.field.arithmetic import AUTO, MAX_PRECISION, auto_precisions
+from ..engine.jit.failures import CompileFailure
 from ..engine.protocol import Refusal, Refused
 from ..engine.state import mass_array
 from ..geometry.base import Geometry
@@ -25,7 +26,7 @@ from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _loa
 from .errors import SpecError, UserCodeError, _dot, _models_of, _short, first_error
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
-from .python import ENTRY_POINT_GROUPS, IMPORT_FACTORIES, component_failed, expand_entry_points, label
+from .python import ENTRY_POINT_GROUPS, IMPORT_FACTORIES, component_failed, expand_entry_points, label, not_compiled
 from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
@@ -295,6 +296,8 @@ class RunSpec(_Spec):
                                       late_precision=late_precision, device=device)
                 except Refused as exc:
                     raise self.refused(exc.refusal) from None
+                except CompileFailure as exc:  # a GPU's check compiled the rule, for the CPU too
+                    raise self.not_compiled(exc) from exc.__cause__
                 except InputError:
                     raise  # the engine's own words, mapped to the spec's fields
                 except (Exception, SystemExit) as exc:  # a user's component failing in its own code
@@ -311,6 +314,11 @@ class RunSpec(_Spec):
                      "initial.path": getattr(self.initial, "path", None),
                      "masses": self.masses if isinstance(self.masses, str) else None}
             raise _in_file(exc, files[exc.path]) if files.get(exc.path) else exc from None
+
+    def not_compiled(self, failure: CompileFailure) -> SpecError:
+        """numba's refusal to compile this spec's rule or scheduler (`pinnedballs.engine.jit.failures.CompileFailure`)
+        in the spec's words: a user's component named by its factory (`python.not_compiled`)."""
+        return not_compiled(failure, {"rule": self.rule, "scheduler": self.scheduler})
 
     def refused(self, refusal: Refusal) -> SpecError:
         """The engine's `Refusal` of this spec as a `SpecError` on its field, in the spec's words: a scheduler it

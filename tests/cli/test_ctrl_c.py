@@ -22,6 +22,8 @@ import pytest
 from helpers import TORUS, assert_identical, reference, resume, spec, write
 
 from pinnedballs.results.load import load
+from pinnedballs.run.writers import ResultsWriter
+from pinnedballs.specs.run import load_spec
 
 pytestmark = pytest.mark.slow  # subprocesses, first compiles
 
@@ -131,22 +133,31 @@ def test_while_numba_compiles_a_check_as_the_simulation_is_built(tmp_path):
 
 
 def test_while_numba_compiles_the_loop_the_run_resumes_to_the_same_bits(tmp_path, ref):
-    """The loop compiles on the driver's thread for it, after the run wrote its first checkpoint (step 0):
-    the command ends at once, and ``--resume`` ends on the bits of an unbroken run."""
+    """The loop compiles on the driver's thread for it, before the run writes anything (a rule numba cannot
+    compile is refused with nothing written: issue 49, item 5): the command ends at once, the directory never
+    made, and ``--resume`` starts the run and ends on the bits of an unbroken run."""
     out = tmp_path / "out"
     code, err, seconds = program(tmp_path, "compile:run_to_limits", out)
-    assert (code, err) == (130, f"pinnedballs: interrupted while numba compiled; the checkpoint in {out} is "
-                                f"complete: continue with --resume\n")
+    assert (code, err) == (130, f"pinnedballs: interrupted while numba compiled, before the run wrote anything in "
+                                f"{out}\n")
     assert seconds < 5
-    assert load(out).steps == 0
+    assert not out.exists()
     assert resume(tmp_path / "s.json", out) == 0
     assert_identical(load(out), ref)
+
+
+def first_checkpoint(spec_path: Path, out: Path) -> None:
+    """What a run of ``spec_path`` killed after its first checkpoint leaves in ``out``: its results at step 0."""
+    spec = load_spec(spec_path)
+    writer = ResultsWriter(out, snapshots=spec.snapshots.build(), spec=spec)
+    writer.attach(spec.build())
+    writer.close()
 
 
 def test_while_numba_compiles_a_resumed_run(tmp_path, ref):
     """A resumed run's directory is left as it was."""
     out = tmp_path / "out"
-    program(tmp_path, "compile:run_to_limits", out)
+    first_checkpoint(write(tmp_path / "s.json", RUN), out)
     os.utime(out / "results.h5", ns=(0, 0))  # written before this command
     code, err, _ = program(tmp_path, "compile:run_to_limits", out, "--resume")
     assert (code, err) == (130, f"pinnedballs: interrupted while numba compiled, before the run went on; {out} is "

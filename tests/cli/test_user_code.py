@@ -293,3 +293,66 @@ def test_a_factory_that_never_returns_stops_at_once_on_a_signal(tmp_path, where,
     line = f"interrupted before the run wrote anything in {out}" if command == "run" else "interrupted"
     assert (child.returncode, err) == (130, f"pinnedballs: {line}\n")
     assert not out.exists()
+
+
+# ---------------------------------------------------------------- a rule numba cannot compile
+
+#: a user's rule numba cannot compile: a dict whose keys are of two types (issue 49, item 5)
+KEYED = '''
+import numpy as np
+from numba import njit
+import pinnedballs as pb
+from pinnedballs.rules import closing_speed, remnant_threshold
+
+@njit(inline="always")
+def collide_keyed(v, units, i, j, a, b, masses, params, dim, flat, write):
+    weights = {1: 2.0, "two": 3.0}
+    w = closing_speed(v, units, i, j, a, b, dim, flat)
+    return w > remnant_threshold(params) and weights[1] > 0.0
+
+class Keyed(pb.CollisionRule):
+    def kernel(self, equal_masses):
+        return collide_keyed, np.array([0.0])
+
+def keyed():
+    return Keyed()
+'''
+#: the first words of what numba says of it
+NUMBA_SAID = "No implementation of function Function(<built-in function setitem>) found for signature setitem("
+
+
+def keyed_rule(tmp_path: Path, **changes) -> tuple[Path, str]:
+    """A spec whose rule is `KEYED`'s, and the start of the one line that refuses it, and its end (the place)."""
+    name = user_module(tmp_path, KEYED)
+    line = 1 + KEYED.splitlines().index('    weights = {1: 2.0, "two": 3.0}')
+    spec_path = write(tmp_path / "s.json", spec(with_factory("rule", f"{name}:keyed"), **changes))
+    return spec_path, f"pinnedballs: error: rule.factory {name}:keyed made a Keyed that numba cannot compile", \
+        f" ({(tmp_path / f'{name}.py').resolve()}:{line})\n"
+
+
+@pytest.mark.slow
+def test_a_rule_numba_cannot_compile_is_one_line_and_writes_nothing(tmp_path):
+    """Before: exit 1, 122 lines of numba's, and an empty run directory left (a run --force replaced, gone)."""
+    spec_path, said, where = keyed_rule(tmp_path)
+    out = tmp_path / "made" / "out"
+    code, stdout, err = call(*COMMANDS["run"](spec_path, out))
+    assert (code, stdout, err.count("\n")) == (2, "", 1) and err.startswith(f"{said}: {NUMBA_SAID}"), err
+    assert err.endswith(where) and not (tmp_path / "made").exists()
+    done = tmp_path / "done"
+    assert call(*COMMANDS["run"](write(tmp_path / "torus.json", TORUS), done))[0] == 0
+    before = (done / "results.h5").read_bytes()
+    code, _, err = call(*COMMANDS["run"](spec_path, done), "--force", "--traceback")
+    assert code == 2 and err.endswith(f"{where}") and f"\n{said}: {NUMBA_SAID}" in err
+    assert "Failed in nopython mode pipeline" in err and err.count("\n") > 20  # numba's own words, whole
+    assert (done / "results.h5").read_bytes() == before and pb.load(done).status == "done"  # the run replaced stays
+
+
+@pytest.mark.slow
+@pytest.mark.cuda
+def test_a_rule_numba_cannot_compile_for_a_gpu_nor_the_cpu_says_so(tmp_path):
+    """``--device cuda`` (the simulator checks the rule as a GPU does): before, "numba-cuda cannot compile it ...;
+    device='cpu' runs it", which it does not."""
+    spec_path, said, where = keyed_rule(tmp_path, scheduler={"kind": "uniform_random_pair", "stream": "counter"})
+    code, _, err = call(*COMMANDS["run"](spec_path, tmp_path / "out"), "--device", "cuda")
+    assert (code, err.count("\n")) == (2, 1) and err.startswith(f"{said}, for a GPU or for the CPU: {NUMBA_SAID}")
+    assert err.endswith(where) and "device='cpu' runs it" not in err and not (tmp_path / "out").exists()

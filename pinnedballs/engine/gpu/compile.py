@@ -13,7 +13,8 @@ kernel for the device. Two things keep the GPU's bits the CPU's:
   functions (``exp``, ``log``, ``sin``, ``pow`` with a fractional exponent, ``hypot``, ...) are not libm's,
   and their code fuses products on purpose. So a rule whose device code, compiled without contraction,
   still holds a fused multiply-add would not give the CPU's bits: `check_rule` refuses it in one line,
-  as it refuses a rule numba-cuda cannot compile, before anything runs.
+  as it refuses a rule numba-cuda cannot compile (saying so where numba cannot compile it for the CPU
+  either), before anything runs; under the simulator too, compiled aside for a GPU (`aside`).
 
 Under numba-cuda's simulator (the tests' CPU stand-in for a GPU) kernels are Python: `device_function` gives
 a jitted function's plain-Python *twin* (`python_twin`), every jitted function it reaches replaced by its own
@@ -24,12 +25,10 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import inspect
 import re
 import threading
 import types
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
@@ -38,8 +37,10 @@ from ...util.errors import FieldError, described
 from ..closing import choose, choose_python, impulse_of, trial_form
 from ..field import limbs
 from ..jit.cache import code_names
+from ..jit.failures import CompileFailure, numba_errors, place, said
 
-__all__ = ["SIMULATED", "contraction_off", "device_function", "device_trial", "python_twin", "check_rule", "ptx"]
+__all__ = ["SIMULATED", "contraction_off", "device_function", "device_trial", "python_twin", "check_rule", "ptx",
+           "ROUNDING"]
 
 try:  # numba-cuda >= 0.2x keeps its own configuration
     from numba.cuda.core import config as _cuda_config
@@ -168,9 +169,16 @@ def _device_of(cc: tuple[int, int], dispatcher):
         dispatcher.get_current_device = asked
 
 
+#: a rule that calls a function a GPU rounds otherwise, in the words of a refusal
+ROUNDING = ("it calls a function (exp, log, sin, pow, hypot, ...) that a GPU computes with other roundings than "
+            "the CPU, so its bits would differ")
+
+
 @functools.cache
-def _refusal(collide: Callable, dim: int, flat: bool) -> str | None:
-    """Why the rule's trial cannot run on a GPU with the CPU's bits, in a few words, or None."""
+def _refusal(collide: Callable, dim: int, flat: bool) -> tuple[str, str, str] | None:
+    """Why the rule's trial cannot run on a GPU with the CPU's bits, or None: ``("rounding", "", "")`` (`ROUNDING`),
+    ``("gpu", said, where)`` (numba-cuda cannot compile it: numba's words and the place, `jit.failures`) or
+    ``("cpu", said, where)`` (numba cannot compile it for the CPU either)."""
     trial = trial_form(collide, dim, flat)
 
     def probe(v, units, masses, params, out):
@@ -183,50 +191,48 @@ def _refusal(collide: Callable, dim: int, flat: bool) -> str | None:
     try:
         code = ptx(probe, (a2, a2, a1, a1, a1))
     except Exception as exc:  # noqa: BLE001 - numba's errors have no common base; all are said in one line
-        return f"numba-cuda cannot compile it: {_first_line(exc)} ({_where(exc, collide)})"
+        own = impulse_of(collide) or collide  # a rule by its impulse: the impulse is the user's code
+        return _on_the_cpu(trial, own) or ("gpu", said(exc), place(exc, own))
     if _FMA.search(code):
-        return ("it calls a function (exp, log, sin, pow, hypot, ...) that a GPU computes with other roundings "
-                "than the CPU, so its bits would differ")
+        return "rounding", "", ""
     return None
 
 
-_ANSI = re.compile(r"\x1b\[[0-9;]*m")
-_OBJECT = re.compile(r"<(?:built-in )?function ([\w.]+) at 0x[0-9a-f]+>")
+def _on_the_cpu(trial: Callable, own: Callable) -> tuple[str, str, str] | None:
+    """``("cpu", said, where)`` when numba cannot compile the rule's ``trial`` for the CPU either (``own``: the
+    user's function, named where numba names no place), else None."""
+    from numba import njit
+    from numba import types as nt
 
+    @njit
+    def probe(v, units, masses, params, write, out):
+        hit, w = trial(v, units, masses, params, np.int64(0), np.int64(1), np.int64(0), np.int64(1), write)
+        out[0] = w if hit else 0.0
 
-def _first_line(exc: Exception) -> str:
-    """numba's message in one line: its first line that says what failed, without colours or addresses."""
-    for line in _ANSI.sub("", str(exc)).splitlines():
-        line = line.strip()
-        if line and not line.startswith(("Failed in", "During:", "-", "File")):
-            return _OBJECT.sub(r"\1", line).rstrip(".:")
-    return type(exc).__name__
-
-
-def _where(exc: Exception, collide: Callable) -> str:
-    """``FILE:LINE``: the innermost place numba's message names outside numba itself (the user's code),
-    else where the rule's impulse (or its whole ``collide``) is defined."""
-    import numba
-
-    inside = (str(Path(numba.__file__).resolve().parent), "numba_cuda")
-    places = [(f, n) for f, n in re.findall(r'File "([^"]+)", line (\d+)', _ANSI.sub("", str(exc)))
-              if not any(part in str(Path(f).resolve()) for part in inside)]
-    if places:
-        return f"{Path(places[-1][0]).resolve()}:{places[-1][1]}"
+    a2, a1 = nt.Array(nt.float64, 2, "C"), nt.Array(nt.float64, 1, "C")
     try:
-        own = impulse_of(collide) or collide  # a rule by its impulse: the impulse is the user's code
-        py = getattr(own, "py_func", own)
-        return f"{inspect.getsourcefile(py)}:{py.__code__.co_firstlineno}"
-    except TypeError:
-        return "its source unknown"
+        probe.compile((a2, a2, a1, a1, nt.boolean, a1))
+    except numba_errors() as exc:
+        return "cpu", said(exc), place(exc, own)
+    return None
 
 
 def check_rule(rule, collide: Callable, dim: int, flat: bool) -> None:
     """A `FieldError` on ``rule`` when ``collide`` (of ``rule``) cannot run on a GPU with the CPU's bits: numba-cuda
-    cannot compile it, or it calls a function the GPU rounds otherwise (module docstring). Compiles it for the
-    GPU once (no GPU needed); under the simulator nothing is compiled and nothing refused."""
+    cannot compile it, or it calls a function the GPU rounds otherwise (module docstring); a
+    `jit.failures.CompileFailure` when numba cannot compile it for the CPU either. Compiles it for the GPU once (no
+    GPU needed); under the simulator in a process of its own that compiles for a GPU (`aside.verdict`), so the
+    simulator refuses what a GPU refuses, in the same words."""
     if SIMULATED:
+        from .aside import verdict
+
+        found = verdict(collide, dim, flat)
+    else:
+        found = _refusal(collide, dim, flat)
+    if found is None:
         return
-    why = _refusal(collide, dim, flat)
-    if why is not None:
-        raise FieldError("rule", f"{described(rule)} cannot run on a GPU: {why}; device='cpu' runs it")
+    kind, numba_said, where = found
+    if kind == "cpu":
+        raise CompileFailure("rule", rule, numba_said, where, gpu=True)
+    why = ROUNDING if kind == "rounding" else f"numba-cuda cannot compile it: {numba_said} ({where})"
+    raise FieldError("rule", f"{described(rule)} cannot run on a GPU: {why}; device='cpu' runs it")

@@ -39,7 +39,8 @@ from numba.misc.appdirs import AppDirs
 
 from ..._version import __version__
 
-__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "code_names", "cache_root", "INLINED"]
+__all__ = ["jit_cached_if_possible", "njit_cached", "function_key", "source_key", "code_names", "cache_root",
+           "INLINED"]
 
 #: the options of a kernel compiled on its own and inlined by LLVM into every function that calls it
 #: (``forceinline``), never called from Python (no wrappers to build)
@@ -218,6 +219,19 @@ def function_key(f: Callable) -> bytes | None:
     for name, key in names:
         h.update(b"\0" + name.encode() + b"=" + key)
     return h.hexdigest().encode()
+
+
+def source_key(py_func: Callable) -> str | None:
+    """A hex digest of ``py_func`` and of every jitted function it reaches, as the disk cache knows them (their
+    names, bytecode, sources with the engine's files, and captured values: `function_key`); None where one of
+    them has no source to key (``exec`` of a string). What a verdict on a rule's code is kept under."""
+    parts = [py_func.__code__.co_code, *map(_constant, _cells(py_func))]
+    for f in [py_func, *reachable_functions(py_func)]:
+        key = function_key(f)
+        if key is None:
+            return None
+        parts += [f"{f.__module__}.{f.__qualname__}".encode(), f.__code__.co_code, key, *map(_constant, _cells(f))]
+    return hashlib.sha256(b"\0".join(parts)).hexdigest()
 
 
 def code_names(code: types.CodeType) -> set[str]:

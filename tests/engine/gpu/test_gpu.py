@@ -255,6 +255,30 @@ def test_a_rule_that_would_not_give_the_cpus_bits_is_refused_in_one_line():
     assert "user_rules.py:" in lines[3] and lines[3].endswith("; device='cpu' runs it")
 
 
+@pytest.mark.slow
+def test_the_simulator_refuses_what_a_gpu_refuses_in_its_words(tmp_path, monkeypatch):
+    """Issue 49, item 7: under the simulator a user's rule is compiled for a GPU aside (`engine.gpu.aside`: a process
+    without the simulator), so one calling ``exp``, and one numba-cuda cannot compile, are refused with the very line
+    a GPU's machine says (the child above, without the simulator); before, the simulator ran both. The verdicts
+    are kept on disk, and the next process asks for none."""
+    from pinnedballs.engine.gpu.aside import verdict
+
+    gpu = subprocess.run([sys.executable, "-c", _REFUSED], capture_output=True, text=True, cwd=ROOT, timeout=900,
+                         env={"NUMBA_ENABLE_CUDASIM": "0", "PATH": "/usr/bin:/bin", "HOME": str(ROOT)})
+    assert gpu.returncode == 0, gpu.stderr[-3000:]
+    said = gpu.stdout.splitlines()[2:]
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # a cold cache of verdicts: each rule asks a child
+    verdict.cache_clear()
+    g = pb.HalfPlane.from_size(20, 10)
+    for _ in range(2):  # asked, then read back
+        for rule, line in zip((user_rules.Exponential(), user_rules.Allocating()), said, strict=True):
+            with pytest.raises(FieldError) as refused:
+                pb.Simulation(g, single(g), rule=rule, scheduler=COUNTER, device="cuda", seed=1)
+            assert str(refused.value) == line
+        assert len(list((tmp_path / "gpu_rules").glob("*.json"))) == 2
+        verdict.cache_clear()
+
+
 @pytest.mark.parametrize("rule", [user_rules.Sticky(0.5), user_rules.Spring(0.25)])
 def test_a_users_rule_runs_on_the_gpu_with_the_cpus_bits(rule):
     """A rule written as docs/extending.md shows (whole, or by its impulse) on ``device="cuda"``: the kernels
