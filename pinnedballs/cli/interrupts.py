@@ -6,12 +6,13 @@ it stopped in (or, if this command never touched it, as it was).
 At any moment (issue 42): the package's ``__init__`` calls `util.startup.from_the_first_instant` before
 anything else in the command line, so a Ctrl-C while the package is imported (the first second or so) is one
 line, ``pinnedballs: interrupted``, and status 130, not Python's traceback of the import it landed in; and
-``python -m pinnedballs`` calls `exit_while_compiling` once the package is imported, so a Ctrl-C while numba
-compiles (seconds on a first run; numba cannot be interrupted safely) ends ``pinnedballs run`` at once, with one line
-saying what the run directory holds: every file of a run is written whole (`util.atomic`), its last checkpoint (from
-step 0, written as the run starts) is complete, and ``--resume`` continues from it. (Other commands, whose workers a
-process ended at once could leave behind, wait for the compile as before.) This module imports no more than the standard
-library and `util.startup` when it is loaded.
+``python -m pinnedballs`` calls `exit_while_compiling` (numba's compiles watched once ``run`` starts), so a Ctrl-C
+while numba compiles (seconds on a first run; numba cannot be interrupted safely) ends ``pinnedballs run`` at once,
+with one line saying what the run directory holds: every file of a run is written whole (`util.atomic`), its last
+checkpoint (from step 0, written as the run starts) is complete, and ``--resume`` continues from it; a new run
+compiles before it writes anything (`run.execute`). (Other commands, whose workers a process ended at once could
+leave behind, wait for the compile as before.) This module imports no more than the standard library and
+`util.startup` when it is loaded.
 """
 
 from __future__ import annotations
@@ -102,11 +103,14 @@ def sigint_ignored() -> Iterator[None]:
 
 
 def exit_while_compiling() -> None:
-    """From now on a Ctrl-C while numba compiles ends the command at once with one line and status 130
-    (`util.sigint.on_compile_interrupt`; module docstring). Imports numba: call it once the package is."""
-    from ..util.sigint import on_compile_interrupt
-
-    on_compile_interrupt(_end_while_compiling)
+    """From now on a Ctrl-C while numba compiles ends ``pinnedballs run`` at once with one line and status 130
+    (`util.sigint.on_compile_interrupt`; module docstring): the program's, called once. numba's compiles are
+    watched from when the command is known to be ``run`` (`running`): the other commands, which would decline
+    anyway, import no numba for it (``validate``, ``schema`` and ``info`` start in a second)."""
+    global _program
+    _program = True
+    if _running is not None:
+        _watch()
 
 
 def running(out: Path, resume: bool) -> None:
@@ -114,10 +118,20 @@ def running(out: Path, resume: bool) -> None:
     numba compiles may end at once (`exit_while_compiling`)."""
     global _running
     _running = (Path(out), bool(resume))
+    if _program:
+        _watch()
+
+
+def _watch() -> None:
+    from ..util.sigint import on_compile_interrupt  # numba
+
+    on_compile_interrupt(_end_while_compiling)
 
 
 #: ``(out, resume)`` of the ``run`` this command is (`running`), or None: another command
 _running: tuple[Path, bool] | None = None
+#: whether this process is the program, whose ``run`` a Ctrl-C while numba compiles ends at once
+_program = False
 
 
 def _end_while_compiling() -> bool:

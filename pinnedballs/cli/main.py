@@ -3,10 +3,14 @@ and turns every failure into one line on stderr and an exit status.
 
 Exit status: 0 done; 2 bad input (one line on stderr naming the field or file), a user's code
 that fails included (naming the factory; ``--traceback`` prints its traceback first); 1 anything
-else; 130 interrupted (Ctrl-C or SIGTERM; a run after a complete checkpoint).
+else (an engine that failed, `InternalError`, in one line, ``--traceback`` printing its traceback
+first; any other error with its traceback); 130 interrupted (Ctrl-C or SIGTERM; a run after a
+complete checkpoint).
 
-A float run until frozen whose count depends on its collision criterion (`engine.margin.MarginWarning`)
-says so once, as one line on stderr: ``pinnedballs: note: the closing margin is thin (...)``.
+A float run until frozen whose count depends on its collision criterion (`engine.margin.MarginWarning`, a
+`util.notes.Note`) says so once, as one line on stderr: ``pinnedballs: note: the closing margin is thin (...)``.
+This module imports no numba, scipy or h5py: each command imports what it needs (``schema``, ``validate`` and
+``info`` start in about a second).
 """
 
 from __future__ import annotations
@@ -24,10 +28,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from .._version import __version__
-from ..engine.margin import MarginWarning
-from ..run.execute import Interrupted
 from ..util import provenance
-from ..util.errors import InputError
+from ..util.errors import InputError, InternalError
+from ..util.notes import Note
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
 from .status import CLEAR, is_terminal
 from .study import study_command as _study  # noqa: F401 - registers ``pinnedballs study``
@@ -87,11 +90,18 @@ def _main(argv: list[str] | None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return EXIT_OK
     except Exception as exc:  # noqa: BLE001 - the catch-all of a command line
+        from ..run.execute import Interrupted  # here: a command that never runs a spec never imports it
+
         if isinstance(exc, Interrupted):
             _say(str(exc))
             return EXIT_INTERRUPTED
         if isinstance(exc, OSError) and exc.errno in _DISK_FULL:  # the last checkpoint is intact
             _say(f"error: {_one_line(exc)}; free some space, then continue a run with --resume")
+            return EXIT_ERROR
+        if isinstance(exc, InternalError):  # what failed, in its own words; the run is saved "failed"
+            if show_traceback:
+                traceback.print_exception(exc, file=sys.stderr)
+            _say(f"error: {_one_line(exc)}")
             return EXIT_ERROR
         traceback.print_exc(file=sys.stderr)
         _say(f"error: {type(exc).__name__}: {_one_line(exc)}")
@@ -140,16 +150,16 @@ def _user_modules(spec: str | None) -> Iterator[None]:
 
 @contextlib.contextmanager
 def _notes() -> Iterator[None]:
-    """While a command runs, a `MarginWarning` is said once, as one line ``pinnedballs: note: ...`` on
-    stderr (clearing a status line or progress bar first), instead of Python's warning with a file
-    and a line; later ones are left out. Other warnings are shown as Python shows them."""
+    """While a command runs, a `Note` (`engine.margin.MarginWarning`) is said once, as one line
+    ``pinnedballs: note: ...`` on stderr (clearing a status line or progress bar first), instead of Python's
+    warning with a file and a line; later ones are left out. Other warnings are shown as Python shows them."""
     said = []
     with warnings.catch_warnings():
-        warnings.simplefilter("always", MarginWarning)  # each simulation warns once; the command says it once
+        warnings.simplefilter("always", Note)  # each simulation warns once; the command says it once
         show = warnings.showwarning
 
         def note(message, category, filename, lineno, file=None, line=None):
-            if not issubclass(category, MarginWarning):
+            if not issubclass(category, Note):
                 show(message, category, filename, lineno, file, line)
             elif not said:
                 said.append(message)

@@ -47,10 +47,11 @@ import time
 import weakref
 from collections.abc import Callable, Sequence
 
+from ..util.errors import InternalError
 from ..util.progress import Progress, shown
 from ..util.sigint import Deferred, deferred
-from .stop import Stop
 from .jit.failures import compiling
+from .stop import Stop
 from .triggers import Counts
 
 __all__ = ["CHUNK_SECONDS", "FIRST_CHUNK", "GROWTH", "CHUNK_STEPS", "CHUNK_PER_CONTACT", "NO_LIMIT", "Stop",
@@ -170,6 +171,7 @@ def advance(sim, steps: int, collisions: int | None = None, until_frozen: bool =
     The engine's loop stops early only at the collision target or, with ``until_frozen``, at the
     freeze; a chunk that ends on its last step is checked afresh (`Simulation.is_frozen`) when the
     run would otherwise end there for its steps (`_loop`), or by the next chunk, which takes no step.
+    A loop that stops short otherwise broke the protocol: an `InternalError` (the run is saved "failed").
     """
     limit = NO_LIMIT if collisions is None else collisions
     taken = sim.engine.run(steps, limit, until_frozen)
@@ -177,8 +179,10 @@ def advance(sim, steps: int, collisions: int | None = None, until_frozen: bool =
     if short and until_frozen and sim.is_frozen():
         return True
     if short and (until_frozen or taken == 0):
-        raise RuntimeError(f"the engine's loop stopped at step {sim.steps:,}, {steps - taken:,} steps short of its "
-                           f"chunk, neither frozen nor at its collision target")
+        left = steps - taken
+        raise InternalError(f"the loop of engine {getattr(sim, 'engine_name', '')!r} stopped at step {sim.steps:,}, "
+                            f"{left:,} step{'' if left == 1 else 's'} short of its chunk, neither frozen nor at its "
+                            f"collision target (an internal failure)")
     return False
 
 

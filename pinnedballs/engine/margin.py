@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..util.notes import Note
 from .jit.cache import njit_cached
 
 __all__ = ["ClosingMargin", "MarginWarning", "new_margin", "merge_margin", "track", "collided_speed", "remnant_speed",
@@ -34,7 +35,7 @@ SMALLEST, LARGEST, NEAR_COLLISIONS, NEAR_REMNANTS = 0, 1, 2, 3
 NEAR = 1e4
 
 
-class MarginWarning(UserWarning):
+class MarginWarning(Note):
     """A float run's count depends on its collision criterion: picks came near the threshold.
 
     Said once, in one line about the caller's line, by a float run at the default resolution that ends frozen

@@ -16,10 +16,11 @@ A run stopped by Ctrl-C (KeyboardInterrupt) or by any other exception is saved a
 the writer checkpoints the state the simulation is in, with every snapshot due at it, marks
 the results "interrupted", releases the directory and lets the exception go on. A Ctrl-C
 during a checkpoint is held until the checkpoint is written (`held_signals`). A run stopped by a
-decision certified arithmetic cannot make (`UncertifiedDecision`) cannot go on: it is saved the same
-way at the last state the chain passed through, marked "failed", with the failure's words, step and
-bits and what to do instead (`failure`); its own error goes on, never one of saving it, and continuing
-it is refused.
+decision certified arithmetic cannot make (`UncertifiedDecision`), or by an engine that failed
+(`pinnedballs.util.errors.InternalError`: its loop stopped short of its chunk), cannot go on: it is saved
+the same way at the last state the chain passed through, marked "failed", with the failure's words, step
+(and bits) and what to do instead (`failure`); its own error goes on, never one of saving it, and
+continuing it is refused.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from ..results.rundir import BIRTH, DirLock, check_resumable, take_run_dir
 from ..results.store import ResultsStore
 from ..rules import DEFAULT_RESOLUTION
 from ..util import checks
-from ..util.errors import InputError
+from ..util.errors import InputError, InternalError
 from . import lineage
 
 __all__ = ["ResultsWriter", "OnSnapshot", "describe_run", "failure", "simulated"]
@@ -163,13 +164,13 @@ class ResultsWriter(Writer):
     def abort(self, sim, checked: Counts | None) -> None:
         """Checkpoint the state ``sim`` stopped in, marked "interrupted", with the snapshot due at it
         if the driver had not recorded it yet; release the directory (see the module's docstring).
-        The exception being handled is the one that stopped the run: an `UncertifiedDecision` marks the
-        state "failed" (`failure`)."""
+        The exception being handled is the one that stopped the run: an `UncertifiedDecision`, or an engine that
+        failed (`InternalError`), marks the state "failed" (`failure`)."""
         if not self._running:
             self.close()
             return
         stopping = sys.exc_info()[1]
-        failed = stopping if isinstance(stopping, UncertifiedDecision) else None
+        failed = stopping if isinstance(stopping, (UncertifiedDecision, InternalError)) else None
         broken = getattr(getattr(getattr(sim, "engine", None), "state", None), "broken", "")
         try:
             with held_signals():
@@ -291,10 +292,16 @@ class ResultsWriter(Writer):
 simulated = door.simulated  # whether a run on a device runs under numba-cuda's simulator
 
 
-def failure(exc: UncertifiedDecision, steps: int, spec=None) -> dict:
+def failure(exc: UncertifiedDecision | InternalError, steps: int, spec=None) -> dict:
     """What a results file keeps of a run that failed on ``exc`` at step ``steps`` (`results.format`): the
     error's words, the step, the bits, and what to do instead (``spec``: the run's `RunSpec`, None for a run
-    built in Python, which is told in Python's words)."""
+    built in Python, which is told in Python's words); of an engine that failed (`InternalError`), its words,
+    the step, and to run it again."""
+    if isinstance(exc, InternalError):
+        said = " ".join(str(exc).split())
+        again = "run it again (--force)" if spec is not None else "run it again"
+        return {"error": type(exc).__name__, "message": said, "decision": said, "steps": int(steps),
+                "remedy": f"{again}; one that fails the same way is a fault of pinnedballs, to report"}
     return {"error": type(exc).__name__, "message": " ".join(str(exc).split()),
             "decision": " ".join((exc.decision or str(exc)).split()), "steps": int(steps),
             "precision": int(exc.precision), "late_precision": int(exc.late_precision), "narrowed": bool(exc.narrowed),

@@ -8,7 +8,8 @@ raises `pinnedballs.specs.errors.SpecError`, a `FieldError` whose field is the s
 
 from __future__ import annotations
 
-__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "check_jitted", "described"]
+__all__ = ["InputError", "FieldError", "FieldValueError", "FieldTypeError", "InternalError", "check_jitted",
+           "described"]
 
 
 class InputError(ValueError):
@@ -62,6 +63,11 @@ class FieldTypeError(FieldError, TypeError):
         What is wrong.
     """
 
+
+class InternalError(RuntimeError):
+    """pinnedballs itself failed, not its input: an engine that broke the chunk protocol (its loop stopped short
+    of its chunk). A run saves its last state marked "failed" with the words (`pinnedballs.run.writers`); the
+    command line says them in one line and exits with status 1 (``--traceback`` prints the traceback too)."""
 
 
 def check_jitted(function, field: str, what: str):
