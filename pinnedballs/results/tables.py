@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..util.extras import need
 from .frames import Snapshots
 
 __all__ = ["rows", "to_pandas", "to_xarray", "component_names"]
@@ -70,7 +71,7 @@ def to_pandas(res):
     the last row), each recorded observable as scalar columns (``energy``, ``momentum_x``,
     ``momentum_y``, ``approaching``, ...), and ``frozen`` when ``approaching`` is recorded. A user's
     observable is NaN on the final row unless a snapshot was taken there."""
-    import pandas as pd
+    pd = need("pandas", "to_pandas", "pandas")
 
     columns, final = rows(res)
     dim = res.velocities.shape[1]
@@ -90,9 +91,8 @@ def to_xarray(res):
     ``(snapshot, component)``); ``positions (ball, coordinate)``; ``boundary_distance (ball)`` on a
     geometry with a boundary. Coordinates ``steps``, ``collisions`` and ``final`` along ``snapshot``;
     attributes: the results file, status, stop reason, frozen, seed."""
-    import dask.array as da
-    import xarray as xr
-    from dask import delayed
+    xr = need("xarray", "to_xarray", "xarray")
+    da, delayed = need("dask.array", "to_xarray", "xarray"), need("dask", "to_xarray", "xarray").delayed
 
     columns, final = rows(res)
     n, dim = res.velocities.shape

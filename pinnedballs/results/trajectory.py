@@ -37,10 +37,11 @@ from ..analysis.observables import boundary_rows
 from ..geometry.base import Geometry
 from ..util.atomic import written_atomically
 from ..util.errors import FieldError, InputError
+from ..util.extras import need
 from ..util.sums import kinetic_energy
 from .tables import rows
 
-__all__ = ["TRAJECTORY_NAME", "TYPES", "ORIGIN_LOG", "Layout", "Trajectory", "export"]
+__all__ = ["TRAJECTORY_NAME", "TYPES", "ORIGIN_LOG", "Layout", "Trajectory", "export", "gsd_hoomd"]
 
 #: the trajectory's name in a run directory
 TRAJECTORY_NAME = "trajectory.gsd"
@@ -107,9 +108,7 @@ class Layout:
     def frame(self, steps: int, velocities: np.ndarray, log: dict, first: bool):
         """A `gsd.hoomd.Frame` of the state after ``steps`` with ``velocities (n, dim)`` and the
         observables ``log`` (name -> value); ``first``: frame 0, which also carries the origin."""
-        import gsd.hoomd
-
-        f = gsd.hoomd.Frame()
+        f = gsd_hoomd().Frame()
         f.configuration.step = int(steps)
         f.configuration.dimensions = self.dimensions
         f.configuration.box = self.box
@@ -208,12 +207,16 @@ def _log_value(value) -> np.ndarray:
 # ---------------------------------------------------------------- files
 
 
+def gsd_hoomd():
+    """The module ``gsd.hoomd``; a `MissingExtra` naming the ``gsd`` extra without it."""
+    return need("gsd.hoomd", "a GSD trajectory", "gsd")
+
+
 def _open_gsd(path: Path, mode: str):
     """``gsd.hoomd.open(path, mode)``; an `InputError` naming ``path`` if it is not a readable GSD file."""
-    import gsd.hoomd
-
+    hoomd = gsd_hoomd()
     try:
-        return gsd.hoomd.open(str(path), mode)
+        return hoomd.open(str(path), mode)
     except (RuntimeError, OSError) as exc:
         raise InputError(f"{path}: not a readable GSD trajectory ({' '.join(str(exc).split())})") from None
 

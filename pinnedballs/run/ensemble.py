@@ -45,6 +45,7 @@ from ..specs.run import RunSpec
 from ..util import checks
 from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
+from ..util.extras import need
 from ..util.limits import check_memory
 from ..util.progress import Progress
 from . import executors, lineage, profiles
@@ -233,7 +234,7 @@ class EnsembleResult:
         """A `pandas.DataFrame`: with ``at`` (default the final state), a row per replica indexed by
         ``replica`` (a failed one has its ``error`` and no numbers); with ``at=None`` every row, indexed
         by ``(replica, at)``. ``frozen`` is a boolean column."""
-        import pandas as pd
+        pd = need("pandas", "to_pandas", "pandas")
 
         columns = self.columns if at is None else [c for c in self.columns if c != "at"]
         rows = self.rows if at is None else [r for r in self.rows if r.get(ERROR_COLUMN) or r.get("at") == at]

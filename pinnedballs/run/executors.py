@@ -52,6 +52,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ..util.errors import InputError
+from ..util.extras import need
 
 __all__ = ["in_process", "on_processes", "on_dask", "dask_client", "check_scheduler", "watch_parent", "WorkerDied",
            "MAX_DEATHS", "LOST_BESIDE_OTHERS", "MAX_GREETING", "CONNECT_TIMEOUT", "PARENT_POLL", "ORPHANED"]
@@ -293,8 +294,8 @@ def _submitted(client, jobs: dict, settle: Callable) -> None:
 
 def dask_client(address: str | None, cluster, option: str = "dask_address"):
     """``(client, owned)``: a Dask client for ``address`` or ``cluster`` (an `InputError` naming ``option``
-    if unreachable)."""
-    from dask.distributed import Client
+    if unreachable; a `MissingExtra` naming the ``dask`` extra without Dask)."""
+    Client = need("dask.distributed", "a Dask cluster", "dask").Client
     from distributed.comm.addressing import get_address_host_port
 
     if cluster is not None and isinstance(cluster, Client):
@@ -321,6 +322,7 @@ def check_scheduler(address: str, timeout: float, option: str = "dask_address") 
     """Raise an `InputError` naming ``option`` unless the ``tcp://`` server at ``address`` greets
     like a Dask scheduler within ``timeout`` seconds. A refused or unreachable address passes:
     `distributed.Client` retries it until its own timeout and reports it."""
+    need("distributed", "a Dask cluster", "dask")
     from distributed.comm.addressing import get_address_host_port, parse_address
 
     if parse_address(address)[0] != "tcp":

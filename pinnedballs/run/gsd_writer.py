@@ -22,7 +22,7 @@ from pathlib import Path
 from ..analysis import observables as named
 from ..engine.driver import Writer
 from ..engine.triggers import Counts
-from ..results.trajectory import Layout, Trajectory, check_speeds_fit
+from ..results.trajectory import Layout, Trajectory, check_speeds_fit, gsd_hoomd
 from .writers import _trigger
 
 __all__ = ["GSDWriter"]
@@ -30,7 +30,8 @@ __all__ = ["GSDWriter"]
 
 def layout(sim) -> Layout:
     """The `Layout` of ``sim``'s frames; a `FieldError` on ``trajectory`` if its geometry or speeds
-    do not fit a GSD file's 32-bit floats (`trajectory.check_speeds_fit`)."""
+    do not fit a GSD file's 32-bit floats (`trajectory.check_speeds_fit`); a `MissingExtra` without gsd."""
+    gsd_hoomd()
     check_speeds_fit(sim.velocities, sim.masses)
     return Layout.of(sim.geometry, sim.masses)
 
@@ -53,6 +54,7 @@ class GSDWriter(Writer):
                  hint: str = "pass force=True to replace it or resume=True to append to it"):
         if force and resume:
             raise ValueError("force, resume: give one of them, not both")
+        gsd_hoomd()  # where a user first asks for a trajectory: the extra named at once
         self.path = Path(path)
         self.trigger = _trigger(snapshots)
         if self.trigger is None:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..util.errors import InputError
+from ..util.extras import need
 from . import ensemble as ens
 from .ensemble_dir import is_ensemble_dir, load_ensemble
 
@@ -132,7 +133,7 @@ class StudyResult:
     def to_pandas(self, at: str | None = ens.FINAL):
         """A `pandas.DataFrame`, a row per replica of each point done (the module's docstring): with ``at`` (the
         final state by default) a row per replica, with ``at=None`` every row (snapshots too)."""
-        import pandas as pd
+        pd = need("pandas", "to_pandas", "pandas")
 
         frames = []
         for k, done in enumerate(self.done()):
@@ -151,7 +152,7 @@ class StudyResult:
         """A `pandas.DataFrame`, a row per point done: ``point``, ``job``, the varied paths, ``n_balls``,
         ``replicas`` (those with a row at ``at``), then ``<name>_mean``, ``<name>_sd`` and ``<name>_se`` of each
         observable (default: every numeric column of the ensembles' tables)."""
-        import pandas as pd
+        pd = need("pandas", "a study's summary, fit and figure", "pandas")
 
         rows = []
         for k, done in enumerate(self.done()):

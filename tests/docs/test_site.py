@@ -36,7 +36,8 @@ def test_every_extra_the_docs_advise_is_in_pyproject_and_installs_from_the_check
     for source in [*PAGES, *ROOT.glob("pinnedballs/**/*.py")]:
         for package, extra in re.findall(r"pip install \\?[\"']?([\w.-]*)\[(\w+)\]", text(source)):
             advised.append((source.name, package, extra))
-    assert {extra for _, _, extra in advised} == {"test", "docs", "movies", "cuda", "notebook"}
+    assert {extra for _, _, extra in advised} == {"test", "docs", "movies", "cuda", "notebook", "dask", "gsd", "pandas",
+                                                  "xarray"}
     for name, package, extra in advised:
         assert extra in extras, (name, extra)
         assert package == ".", f"{name}: pip install {package}[{extra}] (pinnedballs is installed from its checkout)"
