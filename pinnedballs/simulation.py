@@ -60,12 +60,9 @@ def _count(name: str, value) -> int:
 
 
 def _sparse_copy(v: np.ndarray) -> np.ndarray:
-    """A C-ordered copy of ``v`` that writes only the rows with a nonzero bit.
-
-    Rows never written stay on the operating system's shared zero page until a
-    collision writes them: a large lattice with one moving ball (the paper's
-    set-up) then reads velocities from cache instead of memory.
-    """
+    """A C-ordered copy of ``v`` writing only the rows with a nonzero bit: rows never written stay on the
+    operating system's shared zero page until a collision writes them, so a large lattice with one moving
+    ball (the paper's set-up) reads velocities from cache instead of memory."""
     out = np.zeros(v.shape, dtype=np.float64)
     rows = np.flatnonzero(v.view(np.uint64).any(axis=1))
     out[rows] = v[rows]
@@ -93,52 +90,83 @@ def check_velocities(geometry: Geometry, masses: np.ndarray, velocities) -> np.n
 class Simulation:
     """Pinned billiard balls on ``geometry``, run by ``scheduler`` under ``rule``.
 
-    velocities: ``(n_balls, dim)`` initial pseudo-velocities (copied).
-    masses: ``(n_balls,)`` positive masses, or None for all equal.
-    seed: int or ``numpy.random.SeedSequence``; seeds the simulation's one random stream. As in
-    numpy, None (the default) draws fresh entropy from the operating system, so two simulations
-    made alike without a seed are independent; `seed` records it (an int) to repeat the run.
-    A contact collides only if its closing speed exceeds ``threshold = resolution * V``
-    (`pinnedballs.rules.threshold`, ``V`` the largest speed the velocities given can give a ball of
-    the mean mass). The default resolution, ``4 * 2^-53`` (4 units in the last place of ``V``), sets
-    aside rounding remnants, which exact arithmetic shows are no approach; another resolution ``e``
-    in (0, 1) is a model of its own (counts ``N_e``). `closing_margin` says how near the threshold
-    the run's picks came; a float run at the default resolution that ends frozen (its count then the
-    count until frozen) with a thin margin says so once (`engine.margin.MarginWarning`).
+    Each step the scheduler picks a contact; if its balls approach, the rule collides them. `steps` counts
+    picks, `collisions` the picks that changed velocities. Same inputs and seed give bit-identical
+    velocities and counters, however the run is split into calls.
 
-    arithmetic: ``"float"`` (float64, the compiled loop) or ``"exact"``: the same chain, the same
-    picks from the same stream, with every velocity exact in the number field of the contact
-    normals (`pinnedballs.engine.field.rational`; ``velocities`` are then the exact values rounded, and
-    `exact_velocities` the values themselves). Exact runs need normals in a known field (the
-    triangular lattices: Q(sqrt 3); FCC: Q(sqrt 2); HCP: Q(sqrt 2, sqrt 3); chains: Q), the
-    built-in rules, and a scheduler that picks without a live set; with equal masses, elastic
-    collisions and flat dyadic normals (all but HCP) they run in fixed point at about the cost of
-    floats (`pinnedballs.engine.field.fixed`). ``"certified"``: that fixed-point chain at a fixed
-    ``precision`` (bits per coefficient, default 768), rounding allowed and every decision proved
-    equal to exact arithmetic's, so the counts and steps are the exact ones (`error_bound` bounds
-    how far the velocities are from exact arithmetic's); a decision it cannot prove stops the run
-    with `pinnedballs.engine.field.fixed.UncertifiedDecision` (a ValueError). ``late_precision`` (bits,
-    at most ``precision``; None: none): once the first wave has passed (no ball at rest, hardly any
-    still exact), the state is rounded to it, at a step that depends on the state alone, however the
-    run is split; ``precision`` is needed at the wave's front, and behind it the paper's half-plane
-    runs about twice as fast at 256 bits (`pinnedballs.engine.field.fixed`, docs/performance.md).
+    Parameters
+    ----------
+    geometry : Geometry
+        Where the balls sit and which of them touch.
+    velocities : array_like
+        ``(n_balls, dim)`` initial pseudo-velocities (copied).
+    rule : CollisionRule, optional
+        What a collision does; `Elastic` by default.
+    scheduler : Scheduler, optional
+        Which contact is tried next; `UniformRandomPair` by default.
+    masses : array_like or float, optional
+        ``(n_balls,)`` positive masses (one number: all alike), or None for all equal.
+    seed : int or numpy.random.SeedSequence, optional
+        Seeds the one random stream. As in numpy, None (the default) draws fresh entropy from the operating
+        system, so two simulations made alike without a seed are independent; `seed` records it (an int).
+    arithmetic : {"float", "exact", "certified"}
+        ``"float"``: float64, the compiled loop. ``"exact"``: the same chain and picks, every velocity exact
+        in the number field of the contact normals (`velocities` its values rounded, `exact_velocities` the
+        values); ``"certified"``: fixed point at ``precision`` bits, every decision proved equal to exact
+        arithmetic's, so the counts and steps are exact (`error_bound`). What each needs and what it costs:
+        docs/collisions.md.
+    resolution : float, optional
+        The criterion's ``e`` in (0, 1): a contact collides only if its closing speed exceeds ``threshold =
+        e V`` (`pinnedballs.rules.threshold`, ``V`` the largest speed the velocities given can give a ball of
+        the mean mass). None: ``4 * 2^-53`` (4 units in the last place of ``V``), which sets aside rounding
+        remnants, which exact arithmetic shows are no approach; another ``e`` is a model of its own (counts
+        ``N_e``). `closing_margin` says how near the threshold the picks came; a float run at the default
+        that ends frozen with a thin margin says so once (`engine.margin.MarginWarning`).
+    precision : int, optional
+        Certified arithmetic's bits per coefficient (default 768).
+    late_precision : int, optional
+        Certified arithmetic's bits (at most ``precision``; None: none) once the first wave has passed (no
+        ball at rest, hardly any still exact), at a step that depends on the state alone; behind the wave
+        the paper's half-plane runs about twice as fast at 256 bits (docs/collisions.md).
+    device : Device or {"cpu", "cuda"}
+        ``pb.CPU()`` (or ``"cpu"``, the default) or ``pb.CUDA()`` (``"cuda"``): an NVIDIA GPU (``python3 -m
+        pip install ".[cuda]"``) runs float arithmetic with any rule, a user's too, and certified arithmetic,
+        on ``UniformRandomPair(stream="counter")``, with the CPU's bits (docs/gpu.md). Its state stays on
+        the GPU between runs; reading `velocities` copies them back.
+    engine : str, optional
+        A registered engine's name (`pinnedballs.engine.engines()`) to force; None: the door chooses, by the
+        arithmetic and the device, what runs the chain (plain data: `engine`).
 
-    Each step the scheduler picks a contact; if its balls approach, the rule
-    collides them. ``steps`` counts picks, ``collisions`` the picks that changed
-    velocities. Same inputs and seed give bit-identical velocities and counters,
-    however the run is split into calls.
+    Attributes
+    ----------
+    seed : int or numpy.random.SeedSequence
+        The seed used (the entropy drawn when none was given).
+    resolution, threshold : float
+        The criterion's ``e`` and ``e V``.
+    engine_name : str
+        The registered engine running the chain.
+    collision_listeners : list
+        Told of every collision (`pinnedballs.CollisionLog` is one).
 
-    device: ``"cpu"`` (the default) or ``"cuda"``: the chain on an NVIDIA GPU (`pinnedballs.engine.gpu`;
-    ``python3 -m pip install ".[cuda]"`` from the checkout), for float arithmetic, any rule (a user's too:
-    the GPU compiles the rule's own functions) and ``UniformRandomPair(stream="counter")``, with the same
-    velocities, counters, stop step and margin as on the CPU; or certified arithmetic on that stream, with the
-    CPU's certified state bit for bit (`pinnedballs.engine.gpu.certified`). Its state stays on the GPU between
-    runs; reading `velocities` copies them back.
+    Raises
+    ------
+    FieldError
+        On the argument that is wrong (a `FieldTypeError` for one of another type, a scheduler of the old loop
+        protocol too), as ``geometry`` without sound contacts or ``velocities`` of another shape, not finite
+        or too fast for float64 (docs/model.md).
+    pinnedballs.engine.Refused
+        Where no engine runs the chain in this arithmetic on this device.
 
-    The chain is plain data: its `engine.chain.Model` (what it is) and `engine.chain.ChainState` (what
-    changes), which `engine` (the backend chosen here by the arithmetic and the device,
-    `pinnedballs.engine.backends`) takes and runs: the engine's compiled loops run the scheduler's selector,
-    exact arithmetic follows the same picks, and a GPU runs the counter stream.
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, seed=1)
+    >>> sim.run_until_frozen(max_steps=100_000), sim.steps, sim.collisions, round(sim.energy(), 12)
+    (True, 556, 50, 0.5)
     """
 
     def __init__(self, geometry: Geometry, velocities, rule: CollisionRule | None = None,
@@ -238,17 +266,41 @@ class Simulation:
             writers=None, progress: bool | None = None) -> int:
         """Pick ``steps`` more contacts, or run until ``collisions`` in total, whichever comes first.
 
-        With ``until_frozen`` (implied when only ``collisions`` is given, which a frozen
-        system could never reach) the run also stops right after the collision that
-        leaves no live contact (see `approaching`). Returns the number of steps taken.
-        ``writers`` (e.g. `ResultsWriter`) record the run, to the same final state.
-
         The run goes in chunks of about 0.2 s (`pinnedballs.engine.driver`), which change no bit.
-        Ctrl-C stops it at the end of its chunk with KeyboardInterrupt, the simulation whole:
-        continuing it gives the bits of a run never interrupted. ``progress``: a bar over the
-        steps (the collisions for a collision target; a count when running until frozen):
-        True shows it, False never, None where it helps (in a terminal or a notebook, once the run
-        has taken 2 s; `pinnedballs.util.progress`).
+
+        Parameters
+        ----------
+        steps, collisions : int, optional
+            More steps; collisions in total (one of the two at least).
+        until_frozen : bool
+            Also stop right after the collision that leaves no live contact (see `approaching`); implied when
+            only ``collisions`` is given, which a frozen system could never reach.
+        writers : list of Writer, optional
+            Record the run (e.g. `ResultsWriter`), to the same final state.
+        progress : bool or None
+            A bar over the steps (the collisions for a collision target; a count until frozen): True shows
+            it, False never, None where it helps (in a terminal or a notebook, once the run has taken 2 s).
+
+        Returns
+        -------
+        int
+            The steps taken.
+
+        Raises
+        ------
+        FieldError
+            On ``run`` without ``steps`` or ``collisions``, or on a count out of range.
+        KeyboardInterrupt
+            On Ctrl-C, at the end of its chunk, the simulation whole: going on gives the bits of one run.
+        pinnedballs.engine.field.fixed.UncertifiedDecision
+            A decision certified arithmetic cannot prove (a ValueError).
+
+        Examples
+        --------
+        >>> import pinnedballs as pb
+        >>> sim = pb.Simulation(pb.HalfPlane(rows=2, cols=2), [[0, 1.0], [0, 0], [0, 0], [0, 0]], seed=0)
+        >>> sim.run(collisions=1), sim.run(steps=10), sim.collisions, sim.is_frozen()
+        (3, 10, 2, True)
         """
         if steps is None and collisions is None:
             raise FieldError("run", "give steps= or collisions= (or use run_until_frozen)")
@@ -266,10 +318,27 @@ class Simulation:
         """Run until no contact approaches, for at most ``max_steps`` more steps.
 
         Stops right after the collision that freezes the system, so ``steps`` is the
-        exact step of the last collision. Returns True if frozen; False at the step cap, with a
-        one-line `FreezeWarning` where the system can never freeze (a torus: `docs/model.md`). Ctrl-C,
-        ``writers`` and ``progress`` as for `run` (the progress is a count of steps and collisions: the
-        end is unknown).
+        exact step of the last collision. Ctrl-C as for `run`.
+
+        Parameters
+        ----------
+        max_steps : int
+            The step cap.
+        writers : list of Writer, optional
+            As for `run`.
+        progress : bool or None
+            As for `run` (a count of steps and collisions: the end is unknown).
+
+        Returns
+        -------
+        bool
+            True if frozen; False at the step cap.
+
+        Warns
+        -----
+        FreezeWarning
+            One line, at the step cap, where the system can never freeze (a torus: `docs/model.md`).
+
         """
         stop = Stop(steps=min(self.steps + _count("max_steps", max_steps), NO_LIMIT), until_frozen=True)
         reason = drive(self, stop, check_writers(writers or ()), progress=progress)
@@ -282,11 +351,18 @@ class Simulation:
         return frozen
 
     def never_freezes(self) -> str | None:
-        """Why this system, not frozen, can never freeze, or None where that is not certain. Its contacts
-        all on closed rows (`Contacts.closed_rows`: a torus), frozen means every closing speed 0, while in
+        """Why this system, not frozen, can never freeze (docs/model.md: a torus never freezes).
+
+        Its contacts all on closed rows (`Contacts.closed_rows`), frozen means every closing speed 0, while in
         exact arithmetic each collision leaves its contact separating (any ``r > 0``); in float64 at the
-        default resolution, on a `Geometry.rigid` torus (frozen: one common velocity, the least energy
-        for the momentum), elastic collisions keep the energy above that."""
+        default resolution, on a `Geometry.rigid` torus, elastic collisions keep the energy above that of
+        the one common velocity that is frozen.
+
+        Returns
+        -------
+        str or None
+            The reason, or None where that is not certain.
+        """
         r = self.rule.exact_restitution()
         exact = self.arithmetic == "exact"
         if r is None or r <= 0 or not (exact or (r == 1.0 and self._default_resolution and self.geometry.rigid)):
@@ -301,28 +377,46 @@ class Simulation:
 
     # ------------------------------------------------------------ observables
     def approaching(self) -> int:
-        """Number of live contacts: those whose balls approach, so that picking one would
-        collide (0 means frozen). In float arithmetic a closing speed so small that the collision
-        would change no bit of any velocity, a remnant of rounding, does not count."""
+        """The number of live contacts (0: frozen): those whose balls approach, so that picking one would
+        collide. In float arithmetic a closing speed so small that the collision would change no bit of any
+        velocity, a remnant of rounding, does not count.
+
+        Returns
+        -------
+        int
+        """
         return self._engine.approaching()
 
     def is_frozen(self) -> bool:
-        """True when no contact is live, so no collision can ever happen again."""
+        """Whether no contact is live, so that no collision can ever happen again.
+
+        Returns
+        -------
+        bool
+        """
         return self._engine.is_frozen()
 
     def closing_margin(self) -> ClosingMargin:
-        """How near the collision criterion this run's picks came (`engine.margin.ClosingMargin`): the
-        smallest closing speed counted as a collision and the largest positive one set aside, in units
-        of ``threshold``, and the picks within a factor 10^4 of it on each side. In exact arithmetic
-        every sign is exact; the margin is then the float criterion's on the same picks, unknown (None)
-        until the exact engine keeps it."""
+        """How near the collision criterion this run's picks came. In exact arithmetic every sign is exact;
+        the margin is then the float criterion's on the same picks, unknown (None) until the exact engine keeps it.
+
+        Returns
+        -------
+        pinnedballs.engine.margin.ClosingMargin
+            The smallest closing speed counted as a collision and the largest positive one set aside, in
+            units of ``threshold``, and the picks within a factor 10^4 of it on each side.
+        """
         return ClosingMargin.of(self._engine.state.margin, self.threshold, self.resolution)
 
     def warn_if_thin(self, reason: str) -> None:
         """Say once, as a one-line `MarginWarning` about the caller's line, that this float run's count
-        depends on its criterion, where the count is the observable: a run that ended frozen (the stop
-        ``reason``). A run for its steps says nothing (on a torus, which never freezes, picks come near
-        the threshold in every long run); `closing_margin` tells it when asked."""
+        depends on its criterion, where the count is the observable: a run that ended frozen.
+
+        Parameters
+        ----------
+        reason : str
+            Why the run stopped (`Stop.reason`): only ``"frozen"`` may warn.
+        """
         if reason != "frozen" or not self.warns_thin_margin or self._field is not None or not self._default_resolution:
             return
         margin = self.closing_margin()
@@ -360,11 +454,21 @@ class Simulation:
         return float(margin[0] / self.threshold)
 
     def energy(self) -> float:
-        """Kinetic energy ``sum m |v|^2 / 2``."""
+        """The kinetic energy ``sum m |v|^2 / 2``.
+
+        Returns
+        -------
+        float
+        """
         return kinetic_energy(self._masses, self.velocities)
 
     def momentum(self) -> np.ndarray:
-        """``(dim,)`` total momentum ``sum m v`` (meaningful in flat space)."""
+        """The total momentum ``sum m v``, ``(dim,)`` (meaningful in flat space).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return momentum(self._masses, self.velocities)
 
     # ------------------------------------------------------------ state for checkpoints
@@ -372,15 +476,34 @@ class Simulation:
         """Everything that changes during a run, as copies: enough to resume bit for bit (the closing
         margin too: a float run's as ``margin``, a certified run's decisions' in ``certified``; none is kept
         in exact arithmetic). What the arithmetic keeps beyond the velocities is its engine's to say
-        (`engine.protocol.Backend.saved`)."""
+        (`engine.protocol.Backend.saved`).
+
+        Returns
+        -------
+        RunState
+        """
         st = self._engine.state
         return RunState(self.velocities.copy(), self.steps, self.collisions, st.rng.copy(), st.scheduler.copy(),
                         **self._engine.saved())
 
     def set_state(self, state: RunState) -> None:
-        """Restore a state from `get_state` (of a simulation with the same geometry, rule and
-        scheduler). Everything is checked before anything changes. A state without a margin (one
-        written before runs kept it) starts the margin afresh: it then covers the picks from here on."""
+        """Restore a state from `get_state` (of a simulation with the same geometry, rule and scheduler).
+
+        Everything is checked before anything changes. A state without a margin (one written before runs
+        kept it) starts the margin afresh: it then covers the picks from here on.
+
+        Parameters
+        ----------
+        state : RunState
+            The state.
+
+        Raises
+        ------
+        FieldTypeError
+            On ``state`` that is not a `RunState`.
+        FieldError
+            Naming the part that does not fit (``velocities``, ``rng_state``, ``margin``...).
+        """
         if not isinstance(state, RunState):
             raise FieldTypeError("state", f"must be a RunState (what get_state gives), got {type(state).__name__}")
         velocities = check_velocities(self.geometry, self._masses, state.velocities)

@@ -39,7 +39,9 @@ class MarginWarning(Note):
     """A float run's count depends on its collision criterion: picks came near the threshold.
 
     Said once, in one line about the caller's line, by a float run at the default resolution that ends frozen
-    with a thin closing margin (`Simulation.warn_if_thin`; the module's docstring says what thin is). The line
+    with a thin closing margin (`Simulation.warn_if_thin`; the module's docstring says what thin is), where the
+    count is the observable. A run for its steps says nothing (on a torus, which never freezes, picks come near
+    the threshold in every long run); `Simulation.closing_margin` tells it when asked. The line
     says what to do: count exactly with ``arithmetic="exact"`` (or ``"certified"``) on the same seed, or give
     ``resolution=`` to make the criterion part of the model (docs/collisions.md).
     """

@@ -38,7 +38,7 @@ EXAMPLED = ("Simulation", "HalfPlane", "FlatTorus", "GraphGeometry", "Sphere", "
             "explore_orders", "search_max_collisions", "ResultsWriter", "CollisionLog", "Stop", "AtSteps",
             "EverySteps", "AtCollisions", "EveryCollisions", "CPU", "CUDA", "testing.check_engine",
             "testing.check_geometry", "testing.check_rule", "testing.check_scheduler", "engine.engines",
-            "engine.choose", "Simulation.run", "Simulation.run_until_frozen")
+            "engine.choose", "Simulation.run")
 
 
 def _methods(cls: type, names: dict) -> dict:
@@ -103,7 +103,7 @@ def _members_shown() -> dict:
 
 PUBLIC = public()
 #: the modules whose docstrings are not numpydoc yet (issue 47, item 2), emptied room by room
-PENDING = ("pinnedballs.simulation", "pinnedballs.results", "pinnedballs.run")
+PENDING = ("pinnedballs.results", "pinnedballs.run")
 
 
 def _pending(obj) -> bool:
