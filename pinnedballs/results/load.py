@@ -39,27 +39,62 @@ __all__ = ["Results", "load", "open_checked", "read"]
 class Results:
     """A run read back from its results file (finished, or the last checkpoint of an unfinished one).
 
-    latest: the latest `RunState` (``velocities``, ``steps``, ``collisions``, ``rng_state``,
-    ``scheduler_state`` are its fields, as properties here too); stored: the `StoredGeometry`
-    the file holds (``positions (n, k)``, ``pairs (E, 2)``, ``t_i, t_j (E, d)`` are its arrays);
-    snapshots: the `Snapshot` ``(steps, collisions, velocities (n, d))`` of each snapshot, as a
-    sequence (`frames.Snapshots`) that reads a snapshot's velocities when it is taken (the run opens
-    at once, whatever its size); observables: dict of per-snapshot columns (``steps, collisions (F,)``
-    and the recorded observables).
-    spec: the `RunSpec`, or None for a run built in Python, which ``run`` describes
-    (``geometry``, ``rule``, ``scheduler``: each component's own spec, else ``{"class": ...}``).
-    closing_margin: how near its collision criterion the run's picks came, at the latest state
-    (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact or
-    certified arithmetic, or one begun before runs kept their margin). A certified run's margin is that
-    of its decisions (`smallest_exact_collision`).
-    device: where its last stretch ran, ``"cpu"`` or ``"cuda"`` (information: not part of the spec, and
-    no number depends on it); simulated: whether numba-cuda's simulator stood in for the GPU there.
-    failure: why a failed run (``status`` "failed") cannot go on, as the file keeps it (`format`:
-    ``message``, ``steps``, ``precision``, ``late_precision``, ``narrowed``, ``remedy``); None otherwise.
-    approaching: -1 where a failed run's live contacts could not be counted.
+    `load` makes it from what the file holds (`pinnedballs.results.format`). ``velocities``, ``steps``,
+    ``collisions``, ``rng_state`` and ``scheduler_state`` are the latest state's fields, as properties here
+    too; ``positions``, ``pairs``, ``t_i``, ``t_j`` and ``radius`` the stored geometry's.
 
-    Attributes
+    Parameters
     ----------
+    path : pathlib.Path
+        The results file.
+    spec : RunSpec or None
+        The run's spec, or None for a run built in Python, which ``run`` describes.
+    version : str
+        The pinnedballs version that wrote the file.
+    status : {"running", "done", "interrupted", "failed"}
+        Where the run stands (`complete`).
+    stop_reason : str
+        Why it stopped, as `Stop.reason` says it.
+    energy, momentum, approaching, frozen
+        The latest state's energy, ``(d,)`` momentum, live contacts (-1 where a failed run's live contacts
+        could not be counted) and whether it is frozen.
+    stored : StoredGeometry
+        The geometry the file holds (``positions (n, k)``, ``pairs (E, 2)``, ``t_i, t_j (E, d)`` are its arrays).
+    masses : numpy.ndarray or None
+        ``(n,)``; None for all equal.
+    initial_velocities, initial_energy
+        ``(n, d)`` and their energy.
+    snapshots : Snapshots
+        The `Snapshot` ``(steps, collisions, velocities (n, d))`` of each snapshot, as a sequence
+        (`frames.Snapshots`) that reads a snapshot's velocities when it is taken (the run opens at once,
+        whatever its size).
+    observables : dict of numpy.ndarray
+        Per-snapshot columns (``steps, collisions (F,)`` and the recorded observables).
+    elapsed_seconds : float
+        The run's time, over its lives.
+    checkpoints : int
+        The checkpoints written.
+    created, updated : str
+        When the file was made and last written.
+    latest : RunState
+        The latest state.
+    run : dict
+        What a run built in Python was built from (``geometry``, ``rule``, ``scheduler``: each component's own
+        spec, else ``{"class": ...}``).
+    format_version : int
+        Of the results format.
+    closing_margin : ClosingMargin or None
+        How near its collision criterion the run's picks came, at the latest state
+        (`pinnedballs.engine.margin.ClosingMargin`); None where the file keeps none (a run in exact or
+        certified arithmetic, or one begun before runs kept their margin). A certified run's margin is that
+        of its decisions (`smallest_exact_collision`).
+    device : {"cpu", "cuda"}
+        Where its last stretch ran (information: not part of the spec, and no number depends on it).
+    simulated : bool
+        Whether numba-cuda's simulator stood in for the GPU there.
+    failure : dict or None
+        Why a failed run (``status`` "failed") cannot go on, as the file keeps it (`format`: ``message``,
+        ``steps``, ``precision``, ``late_precision``, ``narrowed``, ``remedy``); None otherwise.
     provenance : list of dict
         How the run was made, one entry per life (the first run, then each resumed one, in order;
         `pinnedballs.util.provenance`): ``versions`` (pinnedballs, Python, numpy, numba, ...), ``command`` (the
@@ -68,6 +103,24 @@ class Results:
         and compute capability, ``"simulated"`` under numba-cuda's simulator), ``steps`` (``[first, last]`` of
         the life), ``started`` and ``ended`` (UTC, ISO 8601; ``ended`` at its last checkpoint). Empty for a file
         written before runs kept their provenance.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, seed=1)
+    >>> sim.run_until_frozen(100_000, writers=[pb.ResultsWriter("run", snapshots={"every_collisions": 10})])
+    True
+    >>> res = pb.load("run")
+    >>> res
+    Results('run/results.h5', done, steps=556, collisions=50, snapshots=5, frozen=True)
+    >>> [(s.steps, s.collisions) for s in res.snapshots][:2], res.kinds["geometry"]
+    ([(120, 10), (147, 20)], 'half_plane')
+    >>> res.simulation().is_frozen()
+    True
     """
 
     path: Path
@@ -161,6 +214,7 @@ class Results:
 
     @property
     def run_dir(self) -> Path:
+        """The run's directory (the results file's)."""
         return self.path.parent
 
     @property
@@ -193,17 +247,36 @@ class Results:
         return f"{STEP_ORDER_RULE}; run it again from {again}"
 
     def state(self) -> RunState:
-        """A copy of the latest state, for `Simulation.set_state`."""
+        """A copy of the latest state, for `Simulation.set_state`.
+
+        Returns
+        -------
+        RunState
+        """
         return self.latest.copy()
 
     def simulation(self, *, rule=None, scheduler=None, device: str = "cpu") -> Simulation:
-        """A `Simulation` at the latest state, ready to go on exactly where this run stopped, on ``device``
-        (``"cpu"`` or ``"cuda"``: the same bits on the counter stream, whatever device wrote the file).
+        """A `Simulation` at the latest state, ready to go on exactly where this run stopped.
 
-        A run built in Python with a rule or scheduler that has no spec needs them given. A run
-        whose spec names a user's factory (``"kind": "python"``) needs its module importable: an
-        `InputError` names the module and how otherwise. A run that cannot go on (`cannot_resume`) is an
-        `InputError` naming its directory and why.
+        Parameters
+        ----------
+        rule, scheduler : optional
+            A run built in Python with a rule or scheduler that has no spec needs them given.
+        device : Device or {"cpu", "cuda"}
+            Where it goes on: the same bits on the counter stream, whatever device wrote the file.
+
+        Returns
+        -------
+        Simulation
+
+        Raises
+        ------
+        InputError
+            Naming the module and how otherwise, where the spec names a user's factory (``"kind":
+            "python"``) whose module cannot be imported; naming its directory and why, for a run that cannot
+            go on (`cannot_resume`).
+        ValueError
+            Naming ``rule`` or ``scheduler``, for a run built in Python with one that has no spec, not given.
         """
         if self.cannot_resume:
             raise InputError(f"{self.run_dir}: {self.cannot_resume}")
@@ -240,19 +313,45 @@ class Results:
         return self.spec.at_precisions(certified.precision, certified.late_precision or None)
 
     def animate(self, out=None, fps: float = 4, max_frames: int | None = None) -> Path:
-        """A movie of this run's snapshots (default ``<run dir>/movie.gif``; at most ``max_frames`` frames, 300
-        by default); see `pinnedballs.plot.animation.animate`. Its path shows the movie when a notebook
-        displays it."""
+        """A movie of this run's snapshots (`pinnedballs.plot.animation.animate`).
+
+        Parameters
+        ----------
+        out : str or os.PathLike, optional
+            The movie's file (default ``<run dir>/movie.gif``).
+        fps : float
+            Frames a second.
+        max_frames : int, optional
+            At most this many frames (300 by default).
+
+        Returns
+        -------
+        pathlib.Path
+            The movie's path, which shows the movie when a notebook displays it.
+        """
         from ..plot.animation import animate
 
         return animate(self, out, fps, max_frames)
 
     def plot(self, what: str = "final", *, snapshot: int | None = None, ax=None):
-        """A figure of this run as ``pinnedballs plot`` draws it: ``what`` = ``"final"`` (the final state),
-        ``"initial"``, ``"snapshot"`` (number ``snapshot``), ``"snapshots"`` (the contact sheet),
-        ``"energy"`` (by distance from the boundary), ``"height"`` (flat 3-D), ``"histograms"`` (velocity
-        components) or ``"all"`` (a dict of every figure); into ``ax`` or a new figure. Returns the
-        matplotlib `Figure`; see `pinnedballs.plot.run.plot_results`."""
+        """A figure of this run as ``pinnedballs plot`` draws it (`pinnedballs.plot.run.plot_results`).
+
+        Parameters
+        ----------
+        what : str
+            ``"final"`` (the final state), ``"initial"``, ``"snapshot"`` (number ``snapshot``), ``"snapshots"``
+            (the contact sheet), ``"energy"`` (by distance from the boundary), ``"height"`` (flat 3-D),
+            ``"histograms"`` (velocity components) or ``"all"`` (a dict of every figure).
+        snapshot : int, optional
+            The snapshot ``"snapshot"`` draws.
+        ax : matplotlib.axes.Axes, optional
+            Draw into these axes; else a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure or dict
+            A dict of every figure for ``"all"``.
+        """
         from ..plot.run import plot_results
 
         return plot_results(self, what, snapshot=snapshot, ax=ax)
@@ -263,15 +362,26 @@ class Results:
         return results_html(self)
 
     def to_pandas(self):
-        """A `pandas.DataFrame`: one row per snapshot, the final state last, scalar columns
-        (``momentum_x``, ``momentum_y``, ...); see `pinnedballs.results.tables.to_pandas`."""
+        """The snapshots as a table (`pinnedballs.results.tables.to_pandas`).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per snapshot, the final state last, scalar columns (``momentum_x``, ``momentum_y``, ...).
+        """
         from .tables import to_pandas
 
         return to_pandas(self)
 
     def to_xarray(self):
-        """An `xarray.Dataset`: ``velocities (snapshot, ball, component)`` read lazily, the observables over
-        ``snapshot``, the final state last; see `pinnedballs.results.tables.to_xarray`."""
+        """The snapshots as labelled arrays (`pinnedballs.results.tables.to_xarray`).
+
+        Returns
+        -------
+        xarray.Dataset
+            ``velocities (snapshot, ball, component)`` read lazily, the observables over ``snapshot``, the
+            final state last.
+        """
         from .tables import to_xarray
 
         return to_xarray(self)
@@ -294,8 +404,41 @@ def _component(described: dict, slot, name: str):
 def load(path: str | os.PathLike) -> Results:
     """Read a results file, or ``DIR/results.h5`` given a run directory.
 
-    Raises FileNotFoundError if there is none, `ResultsError` (a ValueError) if the
-    file is not a pinnedballs results file or is damaged; both name the path.
+    Opening a run reads its index, not its arrays: a snapshot's velocities are read when asked for.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A results file or a run directory (``pinnedballs run``'s ``--out``, a `ResultsWriter`'s).
+
+    Returns
+    -------
+    Results
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is none, naming the path.
+    ResultsError
+        If the file is not a pinnedballs results file or is damaged (a ValueError), naming the path.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, seed=1)
+    >>> sim.run_until_frozen(100_000, writers=[pb.ResultsWriter("run", snapshots={"every_collisions": 10})])
+    True
+    >>> res = pb.load("run")
+    >>> res
+    Results('run/results.h5', done, steps=556, collisions=50, snapshots=5, frozen=True)
+    >>> [(s.steps, s.collisions) for s in res.snapshots][:2], res.kinds["geometry"]
+    ([(120, 10), (147, 20)], 'half_plane')
+    >>> res.simulation().is_frozen()
+    True
     """
     p = results_path(path)
     if not p.exists():

@@ -103,7 +103,7 @@ def _members_shown() -> dict:
 
 PUBLIC = public()
 #: the modules whose docstrings are not numpydoc yet (issue 47, item 2), emptied room by room
-PENDING = ("pinnedballs.results", "pinnedballs.run")
+PENDING = ("pinnedballs.run")
 
 
 def _pending(obj) -> bool:
