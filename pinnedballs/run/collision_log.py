@@ -41,8 +41,36 @@ SEGMENT_EVENTS = 1 << 20
 class CollisionLog(Writer):
     """Record ``(step, contact)`` of every collision into the index file ``path`` (see the module docstring).
 
-    force: replace a log already at ``path``; resume: continue it (the simulation must be at a
-    step the log has reached: a checkpoint of the same run).
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The index file (its segments go to ``<stem>.data/`` beside it).
+    force : bool
+        Replace a log already at ``path``.
+    resume : bool
+        Continue it (the simulation must be at a step the log has reached: a checkpoint of the same run).
+
+    Raises
+    ------
+    FieldError
+        On ``force`` with ``resume``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, seed=1)
+    >>> sim.run_until_frozen(100_000, writers=[pb.CollisionLog("events.h5")])
+    True
+    >>> ev = pb.CollisionLog.read("events.h5")
+    >>> len(ev["step"]), ev["step"][:3].tolist(), ev["complete_to"]
+    (50, [40, 80, 91], 556)
+    >>> again = pb.Simulation(g, v, scheduler=pb.Replay(ev["contact"]))
+    >>> again.run(steps=len(ev["contact"])), bool((again.velocities == sim.velocities).all())
+    (50, True)
     """
 
     def __init__(self, path: str | os.PathLike, *, force: bool = False, resume: bool = False):
@@ -57,6 +85,19 @@ class CollisionLog(Writer):
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> None:
+        """Open the log and listen to ``sim``'s collisions (`Writer.attach`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation run (at its start, or at a step the log has reached with ``resume``).
+
+        Raises
+        ------
+        InputError
+            Naming the file: a log already there (without ``force`` or ``resume``), a simulation past its
+            start (a new log would miss its collisions) or at a step the log has not reached.
+        """
         if self._sim is None:
             if not self._opened:
                 self._open(sim)
@@ -75,9 +116,25 @@ class CollisionLog(Writer):
             self._flush(self._sim.steps)
 
     def after_chunk(self, sim) -> None:
+        """Append what it heard as a segment (`Writer.after_chunk`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, between two chunks.
+        """
         self._flush(sim.steps)
 
     def finish(self, sim, reason: str) -> None:
+        """Append what it heard and stop listening (`Writer.finish`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at its stop.
+        reason : str
+            Why it stopped.
+        """
         self._flush(sim.steps)
         self.close()
 
@@ -88,13 +145,36 @@ class CollisionLog(Writer):
             self._sim = None
 
     def to_spec(self) -> dict:
+        """What this writer records, for the run's description.
+
+        Returns
+        -------
+        dict
+            ``{"collision_log": path}``.
+        """
         return {"collision_log": str(self.path)}
 
     # ------------------------------------------------------------ reading
     @staticmethod
     def read(path: str | os.PathLike) -> dict[str, np.ndarray]:
-        """``{"step": (C,) int64, "contact": (C,) int64}`` of a log, and ``"complete_to"``: the step
-        to which it holds every collision. An `InputError` naming the file if it is not one."""
+        """Read a log.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Its index file.
+
+        Returns
+        -------
+        dict
+            ``{"step": (C,) int64, "contact": (C,) int64}``, and ``"complete_to"``: the step to which it holds
+            every collision.
+
+        Raises
+        ------
+        InputError
+            Naming the file if it is not one, or is damaged.
+        """
         path = Path(path)
         try:
             with h5py.File(path, "r") as f:
@@ -174,6 +254,7 @@ class CollisionLog(Writer):
         write_bytes_atomic(self.data / name, h5_image(fill))
 
     def write_index(self) -> None:
+        """Replace the index ``path`` (the segments and the step the log is complete to), atomically."""
         rel = f"{self.data.name}/"
 
         def fill(f: h5py.File) -> None:

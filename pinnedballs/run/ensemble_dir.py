@@ -60,8 +60,40 @@ def _json(path: Path) -> dict:
 
 
 def load_ensemble(path: str | os.PathLike) -> EnsembleResult:
-    """The `EnsembleResult` in the ensemble directory ``path``: its rows (numbers as numbers), its
-    spec, the number of replicas and how it ran. An `InputError` naming the file if it is not one."""
+    """The `EnsembleResult` in an ensemble directory (``pinnedballs ensemble``'s, `EnsembleResult.save`'s).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The directory.
+
+    Returns
+    -------
+    EnsembleResult
+        Its rows (numbers as numbers, each row's energy profile put back), its spec, the number of replicas
+        and how it ran.
+
+    Raises
+    ------
+    InputError
+        Naming the file (and the row and column of a bad cell) where it is not one: no such directory, a
+        file missing or that does not parse, a table cut short.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.specs.run import parse_spec
+    >>> spec = parse_spec({"geometry": {"kind": "half_plane", "rows": 4, "cols": 6}, "seed": 1,
+    ...                    "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1],
+    ...                                "energy": 0.5},
+    ...                    "stop": {"frozen": True, "max_steps": 100000}})
+    >>> ens = pb.run_ensemble(spec, replicas=3, workers=1)
+    >>> [p.name for p in ens.save("ensemble", figures=False)]
+    ['replicas.csv', 'profiles.csv', 'summary.json', 'spec.json']
+    >>> back = pb.load_ensemble("ensemble")
+    >>> back.column("collisions").tolist(), back.rows == ens.rows
+    ([46.0, 52.0, 60.0], True)
+    """
     out = Path(path)
     if not out.is_dir():
         raise InputError(f"{out}: no such directory")

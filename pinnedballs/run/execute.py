@@ -235,15 +235,53 @@ def _withdraw(out: Path) -> None:
 
 def run_spec(spec: RunSpec | str | os.PathLike, out: str | os.PathLike, *, resume: bool = False, force: bool = False,
              progress: bool | None = None, figures: bool = True, device: str = "cpu") -> Results:
-    """Run a spec (a `RunSpec`, or the path of its JSON file) into the directory ``out``, as
-    ``pinnedballs run SPEC --out DIR`` does, and return its `Results`.
+    """Run a spec into a directory, as ``pinnedballs run SPEC --out DIR`` does, and return its `Results`.
 
-    The same driver and files as the command line (`execute`): ``resume`` continues the run in
-    ``out`` from its last checkpoint, ``force`` replaces a run there; ``progress``: a bar on stderr
-    (None: only when stderr is a terminal); ``figures``: draw the figures beside the results;
-    ``device``: ``"cpu"`` or ``"cuda"`` (`Simulation`). A bad
-    spec file raises `SpecError` (a ValueError) with the command line's one line, e.g.
-    ``geometry.lenght: unknown key; did you mean 'length'?``.
+    The same driver and files as the command line (`execute`): ``spec.json``, ``results.h5`` and
+    ``results.data/``, ``trajectory.gsd`` where the spec asks for one, the figures.
+
+    Parameters
+    ----------
+    spec : RunSpec or str or os.PathLike
+        A spec, or the path of its JSON file.
+    out : str or os.PathLike
+        The run directory.
+    resume : bool
+        Continue the run in ``out`` from its last checkpoint (or start it where none is yet).
+    force : bool
+        Replace a run there.
+    progress : bool or None
+        A bar on stderr (None: only when stderr is a terminal).
+    figures : bool
+        Draw the figures beside the results.
+    device : Device or {"cpu", "cuda"}
+        Where the chain runs (`Simulation`).
+
+    Returns
+    -------
+    Results
+
+    Raises
+    ------
+    SpecError
+        For a bad spec file, with the command line's one line (a ValueError), e.g. ``geometry.lenght: unknown
+        key; did you mean 'length'?``.
+    InputError
+        On ``out`` that holds something, without ``force`` or ``resume``; on ``force`` with ``resume``.
+
+    Examples
+    --------
+    >>> import json
+    >>> import pinnedballs as pb
+    >>> run = {"geometry": {"kind": "half_plane", "rows": 4, "cols": 6}, "seed": 1,
+    ...        "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 0.5},
+    ...        "stop": {"frozen": True, "max_steps": 100000}, "snapshots": {"every_collisions": 25}}
+    >>> with open("run.json", "w") as f:
+    ...     json.dump(run, f)
+    >>> pb.run_spec("run.json", "out", figures=False)
+    Results('out/results.h5', done, steps=556, collisions=50, snapshots=2, frozen=True)
+    >>> pb.run_spec("run.json", "out", resume=True, figures=False).steps  # done: left as it is
+    556
     """
     if not isinstance(spec, RunSpec):
         if not isinstance(spec, (str, os.PathLike)):

@@ -37,16 +37,48 @@ def layout(sim) -> Layout:
 
 
 class GSDWriter(Writer):
-    """Write a frame of a GSD trajectory at ``path`` each time ``snapshots`` fires.
+    """Write a frame of a GSD trajectory at ``path`` each time ``snapshots`` fires (the module's docstring).
 
-    snapshots: a `Trigger` or a dict like a spec's ``"snapshots"`` (``{"every_steps": 1000}``, ...).
-    observables: names from `pinnedballs.analysis.observables.OBSERVABLES` logged with each frame
-    (default: all built-ins). force: replace an existing file; resume: append to it, skipping the
-    frames it already holds (the simulation continues the run that wrote them). final: also write the
-    state each run stops in (its stop reached; not a kill) unless a frame was just taken there; pass
-    False when one run is split into several calls with this writer and the file must hold only the
-    trigger's frames (as the run in one call writes them). ``hint``: what an error about an existing
-    file advises.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The trajectory file.
+    snapshots : Trigger or dict
+        A `Trigger` or a dict like a spec's ``"snapshots"`` (``{"every_steps": 1000}``, ...).
+    observables : list of str, optional
+        Names from `pinnedballs.analysis.observables.OBSERVABLES` logged with each frame (default: all built-ins).
+    force : bool
+        Replace an existing file.
+    resume : bool
+        Append to it, skipping the frames it already holds (the simulation continues the run that wrote them).
+    final : bool
+        Also write the state each run stops in (its stop reached; not a kill) unless a frame was just taken
+        there; pass False when one run is split into several calls with this writer and the file must hold
+        only the trigger's frames (as the run in one call writes them).
+    hint : str
+        What an error about an existing file advises.
+
+    Raises
+    ------
+    ValueError
+        On ``force`` with ``resume``, or no ``snapshots``.
+    pinnedballs.util.extras.MissingExtra
+        Without gsd, naming the extra that installs it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import gsd.hoomd
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, seed=1)
+    >>> sim.run_until_frozen(100_000, writers=[pb.GSDWriter("traj.gsd", {"every_steps": 200})])
+    True
+    >>> with gsd.hoomd.open("traj.gsd") as frames:
+    ...     [int(f.configuration.step) for f in frames]
+    [200, 400, 556]
     """
 
     def __init__(self, path: str | os.PathLike, snapshots, observables=None, *, force: bool = False,
@@ -66,6 +98,23 @@ class GSDWriter(Writer):
         self._checked: Counts | None = None
 
     def attach(self, sim) -> Counts | None:
+        """Open the file: a new one, or appended to (`Writer.attach`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation run.
+
+        Returns
+        -------
+        tuple of int or None
+            The counts at which the trigger was already checked (a resumed run whose state is on disk), else None.
+
+        Raises
+        ------
+        FieldError
+            On ``trajectory``, where the geometry or the speeds do not fit a GSD file's 32-bit floats.
+        """
         resume = self.resume or self._started
         self.file = Trajectory.open(self.path, layout(sim), force=self.force and not resume, resume=resume,
                                     hint=self.hint)
@@ -77,11 +126,26 @@ class GSDWriter(Writer):
         return checked if checked == (sim.steps, sim.collisions) else None
 
     def write(self, sim) -> None:
+        """Append a frame of the current state (`Writer.write`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at the frame's count.
+        """
         self.file.append(sim.steps, sim.velocities, named.measure(sim, self.names))
 
     def finish(self, sim, reason: str) -> None:
         """The run reached its stop: its state is the last frame (``final``; `Trajectory.append` skips a
-        state already on disk)."""
+        state already on disk).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at its stop.
+        reason : str
+            Why it stopped.
+        """
         if self.final:
             self.write(sim)
         self._checked = (sim.steps, sim.collisions)

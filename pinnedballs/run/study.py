@@ -106,8 +106,22 @@ def run_study(study, out, *, workers: int | None = None, dask_address: str | Non
 
     Examples
     --------
-    >>> res = run_study("study.json", "DIR", workers=2)            # doctest: +SKIP
-    >>> res.summary()[["geometry.length", "n_balls", "collisions_mean", "collisions_se"]]  # doctest: +SKIP
+    >>> import pinnedballs as pb
+    >>> base = {"geometry": {"kind": "half_plane", "rows": 4, "cols": 6},
+    ...         "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 0.5},
+    ...         "stop": {"frozen": True, "max_steps": 100000}}
+    >>> study = {"base": base, "grid": {"geometry.cols": [6, 8]}, "replicas": 2, "seed": 0}
+    >>> st = pb.run_study(study, "study", workers=1)
+    >>> st, st.ran
+    (StudyResult(study: 2 of 2 points done, varying geometry.cols), [0, 1])
+    >>> st.to_pandas()[["geometry.cols", "replica", "collisions"]]
+       geometry.cols  replica  collisions
+    0              6        0          40
+    1              6        1          53
+    2              8        0          89
+    3              8        1          80
+    >>> pb.run_study(study, "study", workers=1, resume=True).ran   # nothing is missing
+    []
     """
     if status is None:
         from .execute import SILENT as status

@@ -59,13 +59,40 @@ def _json(path: Path) -> dict:
 
 
 def load_study(path: str | os.PathLike) -> StudyResult:
-    """The `StudyResult` in the study directory ``path`` (its points; their ensembles are read when used). An
-    `InputError` naming the file if it is not one.
+    """The `StudyResult` in a study directory (`run_study`'s, ``pinnedballs study``'s).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The directory.
+
+    Returns
+    -------
+    StudyResult
+        Its points; their ensembles are read when used.
+
+    Raises
+    ------
+    InputError
+        Naming the file if it is not one: no such directory, no ``points.json``, ``study.json`` and
+        ``.signac/``, or a file that does not parse.
 
     Examples
     --------
-    >>> res = load_study("DIR")                       # doctest: +SKIP
-    >>> res.fit("collisions", against="n_balls")["exponent"]   # doctest: +SKIP
+    >>> import pinnedballs as pb
+    >>> base = {"geometry": {"kind": "half_plane", "rows": 4, "cols": 6},
+    ...         "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1], "energy": 0.5},
+    ...         "stop": {"frozen": True, "max_steps": 100000}}
+    >>> study = {"base": base, "grid": {"geometry.cols": [6, 8]}, "replicas": 2, "seed": 0}
+    >>> pb.run_study(study, "study", workers=1)
+    StudyResult(study: 2 of 2 points done, varying geometry.cols)
+    >>> st = pb.load_study("study")
+    >>> st.summary(["collisions"])[["geometry.cols", "n_balls", "collisions_mean", "collisions_se"]]
+       geometry.cols  n_balls  collisions_mean  collisions_se
+    0              6       24             46.5            6.5
+    1              8       32             84.5            4.5
+    >>> round(st.fit("collisions", against="n_balls")["exponent"], 3)
+    2.076
     """
     out = Path(path)
     if not out.is_dir():
@@ -81,8 +108,22 @@ def load_study(path: str | os.PathLike) -> StudyResult:
 
 
 class StudyResult:
-    """A study directory: ``study`` (the study as run, JSON), ``points`` (each one's ``job``, ``overrides``,
-    ``replicas``, ``seed`` and ``n_balls``, in the study's order) and their ensembles, read when used."""
+    """A study directory and its points' ensembles, read when used (`load_study`, `run_study`).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The directory.
+    study : dict
+        The study as run, JSON.
+    points : list of dict
+        Each one's ``job``, ``overrides``, ``replicas``, ``seed`` and ``n_balls``, in the study's order.
+
+    Attributes
+    ----------
+    ran : list of int
+        The points `run_study` ran in the call that returned this (by place).
+    """
 
     def __init__(self, path: Path, study: dict, points: list[dict]):
         self.path, self.study, self.points = Path(path), study, points
@@ -96,15 +137,46 @@ class StudyResult:
         return list(dict.fromkeys(p for point in self.points for p in point["overrides"]))
 
     def job_dir(self, k: int) -> Path:
-        """The signac job directory of point ``k``."""
+        """The signac job directory of a point.
+
+        Parameters
+        ----------
+        k : int
+            The point's place in the study.
+
+        Returns
+        -------
+        pathlib.Path
+            ``path/workspace/<job id>``.
+        """
         return self.path / "workspace" / str(self.points[k]["job"])
 
     def done(self) -> list[bool]:
-        """For each point, whether its ensemble is whole in its job (looked at now)."""
+        """For each point, whether its ensemble is whole in its job (looked at now).
+
+        Returns
+        -------
+        list of bool
+        """
         return [is_ensemble_dir(self.job_dir(k) / ENSEMBLE_DIR) for k in range(len(self.points))]
 
     def ensemble(self, k: int) -> ens.EnsembleResult:
-        """The `EnsembleResult` of point ``k`` (read once); an `InputError` if it has not run yet."""
+        """The ensemble of a point (read once).
+
+        Parameters
+        ----------
+        k : int
+            The point's place in the study.
+
+        Returns
+        -------
+        EnsembleResult
+
+        Raises
+        ------
+        InputError
+            If it has not run yet, naming the point.
+        """
         if k not in self._ensembles:
             where = self.job_dir(k) / ENSEMBLE_DIR
             if not is_ensemble_dir(where):
@@ -131,8 +203,17 @@ class StudyResult:
 
     # ------------------------------------------------------------ tables
     def to_pandas(self, at: str | None = ens.FINAL):
-        """A `pandas.DataFrame`, a row per replica of each point done (the module's docstring): with ``at`` (the
-        final state by default) a row per replica, with ``at=None`` every row (snapshots too)."""
+        """The table of the points done, a row per replica of each (its columns: the module's docstring).
+
+        Parameters
+        ----------
+        at : str or None
+            A stage (the final state by default): a row per replica; None: every row (snapshots too).
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
         pd = need("pandas", "to_pandas", "pandas")
 
         frames = []
@@ -149,9 +230,21 @@ class StudyResult:
         return pd.concat(frames, ignore_index=True)
 
     def summary(self, observables: list[str] | None = None, at: str = ens.FINAL):
-        """A `pandas.DataFrame`, a row per point done: ``point``, ``job``, the varied paths, ``n_balls``,
-        ``replicas`` (those with a row at ``at``), then ``<name>_mean``, ``<name>_sd`` and ``<name>_se`` of each
-        observable (default: every numeric column of the ensembles' tables)."""
+        """The observables' means and errors, a row per point done.
+
+        Parameters
+        ----------
+        observables : list of str, optional
+            Default: every numeric column of the ensembles' tables.
+        at : str
+            The stage (the final state by default).
+
+        Returns
+        -------
+        pandas.DataFrame
+            ``point``, ``job``, the varied paths, ``n_balls``, ``replicas`` (those with a row at ``at``), then
+            ``<name>_mean``, ``<name>_sd`` and ``<name>_se`` of each observable.
+        """
         pd = need("pandas", "a study's summary, fit and figure", "pandas")
 
         rows = []
@@ -168,10 +261,30 @@ class StudyResult:
         return pd.DataFrame(rows)
 
     def fit(self, observable: str = "collisions", against: str = "n_balls", where: dict | None = None) -> dict:
-        """The power law ``mean ~ C x^a`` of ``observable`` against ``against`` (``"n_balls"`` or a varied path)
-        over the points done (those ``where`` holds for: ``{path: value}``), weighted by the standard errors
-        (`run.reproduction.fit.fit_exponent`), with the local exponents between consecutive values
-        (`run.reproduction.fit.local_exponents`); ``x``, ``mean`` and ``se``: the points fitted, by ``x``."""
+        """The power law ``mean ~ C x^a`` of an observable over the points done, weighted by the standard errors.
+
+        Parameters
+        ----------
+        observable : str
+            A column of the study's tables.
+        against : str
+            ``"n_balls"`` or a varied path.
+        where : dict, optional
+            ``{path: value}``: only the points it holds for.
+
+        Returns
+        -------
+        dict
+            `run.reproduction.fit.fit_exponent`'s (``exponent``, ``exponent_se``, ``prefactor``, ...), the local
+            exponents between consecutive values (`run.reproduction.fit.local_exponents`), and ``x``, ``mean``
+            and ``se``: the points fitted, by ``x``.
+
+        Raises
+        ------
+        InputError
+            On ``against`` (neither ``n_balls`` nor a varied path, values that are not numbers, or one value at
+            several points), ``observable`` or ``where``, or where the fit fails.
+        """
         from .reproduction.fit import fit_exponent, local_exponents
 
         x, mean, se = self._series(observable, against, where)
@@ -209,12 +322,37 @@ class StudyResult:
     # ------------------------------------------------------------ figures
     def plot(self, observable: str = "collisions", against: str = "n_balls", *, by: list[str] | None = None,
              fit: bool | None = None, log: bool | None = None, ax=None, path=None):
-        """``observable`` (mean ± standard error over each point's replicas, final state) against ``against``
-        (``"n_balls"`` or a varied path), a series for each value of the paths ``by`` (default: those varied that
-        do not move with ``against``: its zip partners; for ``n_balls`` the zip's paths when it varies the
-        geometry, else the geometry's); ``fit``: each series' power law (`fit`) drawn with its exponent (None:
-        against ``n_balls``, where it can be fitted); ``log``: log-log axes (None: where fitted). A matplotlib
-        Figure (saved as a PNG at ``path`` if given)."""
+        """A figure of an observable (mean ± standard error over each point's replicas, final state) against
+        ``against``.
+
+        Parameters
+        ----------
+        observable : str
+            A column of the study's tables.
+        against : str
+            ``"n_balls"`` or a varied path.
+        by : list of str, optional
+            A series for each value of these paths (default: those varied that do not move with ``against``:
+            its zip partners; for ``n_balls`` the zip's paths when it varies the geometry, else the geometry's).
+        fit : bool or None
+            Each series' power law (`fit`) drawn with its exponent (None: against ``n_balls``, where it can be
+            fitted).
+        log : bool or None
+            Log-log axes (None: where fitted).
+        ax : matplotlib.axes.Axes, optional
+            Draw into these axes; else a new figure.
+        path : str or os.PathLike, optional
+            Also save it there as a PNG.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        InputError
+            Where no point has run yet, or on ``by``, ``against`` or a fit asked for that fails.
+        """
         from ..plot.study import study_figure
 
         series = []

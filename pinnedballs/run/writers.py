@@ -83,15 +83,52 @@ def _trigger(snapshots) -> Trigger | None:
 class ResultsWriter(Writer):
     """Record a run into the directory ``out_dir`` (see the module's docstring).
 
-    snapshots: a `Trigger`, a dict like a spec's ``"snapshots"`` (``{"at_steps": [...]}``,
-    ``{"every_collisions": 100}``, ...), or None for no snapshots.
-    checkpoint_seconds: wall time between checkpoints (0: after every chunk).
-    observables: names from `pinnedballs.analysis.observables.OBSERVABLES` recorded with each snapshot (default: all
-    built-ins).
-    force: replace a run already in ``out_dir``; resume: append to it (the simulation must be at
-    its latest state, as ``pb.load(out_dir).simulation()`` gives it).
     The writer holds an exclusive lock on ``out_dir`` (`pinnedballs.results.rundir.DirLock`) from the
-    start of a run to its stop (or `close`); lock: one the caller holds instead.
+    start of a run to its stop (or `close`).
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        The run directory.
+    snapshots : Trigger or dict or None
+        A `Trigger`, a dict like a spec's ``"snapshots"`` (``{"at_steps": [...]}``, ``{"every_collisions":
+        100}``, ...), or None for no snapshots.
+    checkpoint_seconds : float
+        Wall time between checkpoints (0: after every chunk).
+    observables : list of str, optional
+        Names from `pinnedballs.analysis.observables.OBSERVABLES` recorded with each snapshot (default: all
+        built-ins; a spec's, with ``spec``).
+    force : bool
+        Replace a run already in ``out_dir``.
+    resume : bool
+        Append to it (the simulation must be at its latest state, as ``pb.load(out_dir).simulation()`` gives it).
+    spec : RunSpec, optional
+        The spec the run was built from, recorded with it (``pinnedballs run`` gives it).
+    lock : optional
+        A lock on ``out_dir`` the caller holds instead.
+
+    Raises
+    ------
+    ValueError
+        On ``force`` with ``resume``, ``checkpoint_seconds`` below 0 (a `FieldError`), a ``snapshots`` dict that
+        is no spec's (a `SpecError`) or an unknown observable; a TypeError for ``snapshots`` of another type.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pinnedballs as pb
+    >>> g = pb.HalfPlane(rows=4, cols=6)
+    >>> v = np.zeros((g.n_balls, 2))
+    >>> v[g.boundary_center()] = [0.0, 1.0]
+    >>> sim = pb.Simulation(g, v, seed=1)
+    >>> sim.run(steps=200, writers=[pb.ResultsWriter("run", snapshots={"every_steps": 100})])
+    200
+    >>> more = pb.load("run").simulation()
+    >>> more.run_until_frozen(100_000, writers=[pb.ResultsWriter("run", {"every_steps": 100}, resume=True)])
+    True
+    >>> res = pb.load("run")
+    >>> res.complete, res.steps, [s.steps for s in res.snapshots][:3]
+    (True, 556, [100, 200, 300])
     """
 
     def __init__(self, out_dir: str | os.PathLike, snapshots=None, checkpoint_seconds: float = 60.0,
@@ -120,13 +157,35 @@ class ResultsWriter(Writer):
         return self.out_dir / RESULTS_NAME
 
     def to_spec(self) -> dict:
-        """What this writer records, in a run spec's words: ``snapshots`` (None if its trigger has
-        no spec), ``checkpoint`` and ``observables``."""
+        """What this writer records, in a run spec's words.
+
+        Returns
+        -------
+        dict
+            ``snapshots`` (None if its trigger has no spec), ``checkpoint`` and ``observables``.
+        """
         return {"snapshots": None if self.trigger is None else self.trigger.to_spec(),
                 "checkpoint": {"every_seconds": self.every}, "observables": list(self.names[2:])}
 
     # ------------------------------------------------------------ the driver's calls
     def attach(self, sim) -> Counts | None:
+        """Take the directory and open the results (`Writer.attach`): a new run's, or the one to resume.
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation run.
+
+        Returns
+        -------
+        tuple of int or None
+            The counts at which the trigger was already checked, else None.
+
+        Raises
+        ------
+        InputError
+            On ``out_dir``: not empty without ``force`` or ``resume``, held by another run, or nothing to resume.
+        """
         if self.resume and self.store is None and self._own_lock:  # else the caller checked
             check_resumable(self.out_dir, "out_dir", start=False,
                             hint="check the path, or pass resume=False to start one")
@@ -147,16 +206,39 @@ class ResultsWriter(Writer):
         return self._checked
 
     def write(self, sim) -> None:
+        """Keep a snapshot, written at the next checkpoint (`Writer.write`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at the snapshot's count.
+        """
         record = Record.of(sim, self.names)
         self.pending.append(record)
         if time.monotonic() - self._last >= min(self.every, WRITE_COST_RATIO * self._cost):
             self._checkpoint(record)
 
     def after_chunk(self, sim) -> None:
+        """Checkpoint when ``checkpoint_seconds`` have passed (`Writer.after_chunk`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, between two chunks.
+        """
         if time.monotonic() - self._last >= self.every and self._saved != (sim.steps, sim.collisions):
             self.checkpoint(sim)
 
     def finish(self, sim, reason: str) -> None:
+        """Write the final state, marked "done", and release the directory (`Writer.finish`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, at its stop.
+        reason : str
+            Why it stopped (`Stop.reason`).
+        """
         self._checked = (sim.steps, sim.collisions)
         self._checkpoint(Record.of(sim, self.names), status="done", reason=reason)
         self._stopped()
@@ -164,8 +246,17 @@ class ResultsWriter(Writer):
     def abort(self, sim, checked: Counts | None) -> None:
         """Checkpoint the state ``sim`` stopped in, marked "interrupted", with the snapshot due at it
         if the driver had not recorded it yet; release the directory (see the module's docstring).
+
         The exception being handled is the one that stopped the run: an `UncertifiedDecision`, or an engine that
-        failed (`InternalError`), marks the state "failed" (`failure`)."""
+        failed (`InternalError`), marks the state "failed" (`failure`).
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation, as the exception left it.
+        checked : tuple of int or None
+            The counts at which the driver last finished checking the trigger (None: never).
+        """
         if not self._running:
             self.close()
             return
@@ -233,11 +324,23 @@ class ResultsWriter(Writer):
 
     # ------------------------------------------------------------ checkpoints
     def elapsed(self) -> float:
-        """Wall seconds spent in runs recorded here, over every session."""
+        """The wall time spent in runs recorded here, over every session.
+
+        Returns
+        -------
+        float
+            Seconds.
+        """
         return self._elapsed0 + time.monotonic() - self._start
 
     def checkpoint(self, sim) -> None:
-        """Write the pending snapshots and ``sim``'s state now."""
+        """Write the pending snapshots and ``sim``'s state now.
+
+        Parameters
+        ----------
+        sim : Simulation
+            The simulation recorded.
+        """
         self._checked = (sim.steps, sim.collisions)
         self._checkpoint(Record.of(sim, self.names))
 
