@@ -12,6 +12,9 @@ snapshot and stored as one column (``(F,)`` for a number, ``(F, *shape)`` for an
 built-ins: ``steps``, ``collisions`` (the counters, always recorded); ``energy``; ``momentum``
 ``(dim,)`` (meaningful in flat space); ``approaching`` (the number of live contacts, 0: frozen).
 Add your own with `register_observable` (``fn(sim) -> number or array``, which must not change ``sim``).
+
+Loading this module loads no engine and no scipy (a spec's observables are checked by name alone); each
+function imports what it measures with.
 """
 
 from __future__ import annotations
@@ -19,15 +22,15 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from scipy import stats
 
-from ..engine.state import mass_array
-from ..geometry.base import Geometry
 from ..geometry.rows import boundary_rows
 from ..util.sums import dot, momentum
+
+if TYPE_CHECKING:
+    from ..geometry.base import Geometry
 
 __all__ = [
     "energy_per_ball", "total_energy", "total_momentum",
@@ -53,6 +56,13 @@ def _array(name: str, value, ndim: int) -> np.ndarray:
         shape = "(n_balls, dim)" if ndim == 2 else "(n,)"
         raise ValueError(f"{name}: must have shape {shape}, got {a.shape}")
     return a
+
+
+def _masses(masses, n: int) -> np.ndarray:
+    """``(n,)`` masses from None, a number or an array, checked as the engine does (`engine.state.mass_array`)."""
+    from ..engine.state import mass_array
+
+    return mass_array(masses, n)
 
 
 def _velocities(velocities) -> np.ndarray:
@@ -103,7 +113,7 @@ def _pearson(a: np.ndarray, b: np.ndarray) -> float:
 def energy_per_ball(velocities, masses=None) -> np.ndarray:
     """``(n_balls,)`` kinetic energy ``m |v|^2 / 2`` of each ball."""
     v = _velocities(velocities)
-    return 0.5 * mass_array(masses, len(v)) * np.einsum("ij,ij->i", v, v)
+    return 0.5 * _masses(masses, len(v)) * np.einsum("ij,ij->i", v, v)
 
 
 def total_energy(velocities, masses=None) -> float:
@@ -114,7 +124,7 @@ def total_energy(velocities, masses=None) -> float:
 def total_momentum(velocities, masses=None) -> np.ndarray:
     """``(dim,)`` momentum ``sum m v`` (meaningful in flat space only)."""
     v = _velocities(velocities)
-    return momentum(mass_array(masses, len(v)), v)
+    return momentum(_masses(masses, len(v)), v)
 
 
 # ---------------------------------------------------------------- energy against distance from the boundary
@@ -238,6 +248,8 @@ def ad_critical_5pct(n: int) -> float:
 
 
 def _ad_statistic(x: np.ndarray) -> float:
+    from scipy import stats
+
     try:  # scipy >= 1.17 asks for a p-value method; the statistic is the same
         return float(stats.anderson(x, dist="norm", method="interpolate").statistic)
     except TypeError:
@@ -260,6 +272,8 @@ def normality_tests(values) -> dict[str, float]:
     mean, std = float(x.mean()), float(x.std())
     if not std > 0:
         raise ValueError("values: all equal, so no normal distribution can be fitted")
+    from scipy import stats
+
     ks = stats.kstest(x, "norm", args=(mean, std))
     return {
         "n": float(len(x)), "mean": mean, "std": std,
@@ -327,13 +341,15 @@ def summary(velocities, geometry: Geometry, masses=None) -> dict[str, float]:
     geometry with a ``boundary``, ``boundary_share`` and ``boundary_outward_fraction``
     (share of the boundary row's energy moving along ``boundary.outward``).
     """
+    from ..geometry.base import Geometry
+
     if not isinstance(geometry, Geometry):
         raise TypeError(f"geometry: must be a pinnedballs Geometry, got {type(geometry).__name__}")
     v = _velocities(velocities)
     if v.shape != (geometry.n_balls, geometry.dim):
         raise ValueError(f"velocities: must have shape (n_balls, dim) = {(geometry.n_balls, geometry.dim)}, "
                          f"got {v.shape}")
-    m = mass_array(masses, len(v))
+    m = _masses(masses, len(v))
     c = geometry.contacts
     contacts = (c.pairs, c.t_i, c.t_j)
     out = {"energy": total_energy(v, m)}

@@ -1,5 +1,6 @@
 """The subcommands of ``pinnedballs``: each is one function ``(args) -> int`` registered with
-`subcommand`, which names it, gives its help and its arguments; `main.main` finds it in `COMMANDS`."""
+`subcommand`, which names it, gives its help and its arguments; `main.main` finds it in `COMMANDS`.
+Each imports what it needs inside it: loading this module loads no engine (``schema`` needs none)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..engine import door
 from ..engine.devices import DEVICE_NAMES
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
@@ -515,6 +515,7 @@ def reproduce_command(args) -> int:
 
     with Status(show=False if args.quiet else None) as status:
         status("loading the reproduction")
+        from ..engine import door
         from ..results.rundir import check_out_dir
         from ..run import reproduction
         from ..run.ensemble import check_count

@@ -1,16 +1,19 @@
-"""Geometry specs: one per kind, each with a ``build()`` that returns the `Geometry`."""
+"""Geometry specs: one per kind, each with a ``build()`` that returns the `Geometry` (imported there: a spec is
+validated, and its schema written, without the geometries' modules)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..geometry import FCC, HCP, FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 from .base import FilePath, Positive, _fields, _in_file, _load_npy, _Spec, engine_errors
 from .errors import SpecError
 from .python import IMPORT_FACTORIES, PythonGeometrySpec
+
+if TYPE_CHECKING:
+    from ..geometry import FlatTorus, Geometry, GraphGeometry, HalfPlane, HyperbolicPlane, Sphere
 
 __all__ = ["FlatTorusSpec", "HalfPlaneSpec", "GraphPositionsSpec", "SphereSpec", "HyperbolicPlaneSpec", "FCCSpec",
            "HCPSpec", "GeometrySpec", "geometry_from_stored", "parse_geometry"]
@@ -26,6 +29,8 @@ class FlatTorusSpec(_Spec):
     radius: Positive = 1.0
 
     def build(self) -> FlatTorus:
+        from ..geometry.lattices import FlatTorus
+
         with engine_errors("geometry", _fields("geometry", "rows", "cols", "radius")):
             return FlatTorus(self.rows, self.cols, self.radius)
 
@@ -51,6 +56,8 @@ class HalfPlaneSpec(_Spec):
         return self
 
     def build(self) -> HalfPlane:
+        from ..geometry.lattices import HalfPlane
+
         with engine_errors("geometry", _fields("geometry", "rows", "cols", "length", "depth", "radius", "orientation")):
             if self.rows is not None:
                 return HalfPlane(self.rows, self.cols, self.radius, orientation=self.orientation)
@@ -73,6 +80,8 @@ class GraphPositionsSpec(_Spec):
 
     def build_from(self, positions: np.ndarray) -> GraphGeometry:
         """The geometry of ``positions`` ``(n_balls, d)`` (already loaded) with this spec's radius."""
+        from ..geometry.graph import GraphGeometry
+
         with engine_errors("geometry", _fields("geometry", "positions", "radius", "rtol")):
             return GraphGeometry.from_positions(positions, radius=self.radius, rtol=self.rtol)
 
@@ -92,6 +101,8 @@ class SphereSpec(_Spec):
         return self
 
     def build(self) -> Sphere:
+        from ..geometry.sphere import Sphere
+
         if self.points is None:
             with engine_errors("geometry", _fields("geometry", "frequency", "radius")):
                 return Sphere.geodesic(self.frequency, self.radius)
@@ -102,6 +113,8 @@ class SphereSpec(_Spec):
 
     def build_from(self, positions: np.ndarray) -> Sphere:
         """The geometry at ``positions (n, 3)`` (already loaded; the stored ones for a recorded run)."""
+        from ..geometry.sphere import Sphere
+
         if self.points is None:
             return self.build()
         with engine_errors("geometry", {"points": "geometry.points", "radius": "geometry.radius"}):
@@ -117,6 +130,8 @@ class HyperbolicPlaneSpec(_Spec):
     radius: Positive = 1.0
 
     def build(self) -> HyperbolicPlane:
+        from ..geometry.hyperbolic import HyperbolicPlane
+
         with engine_errors("geometry", _fields("geometry", "q", "layers", "radius")):
             return HyperbolicPlane(self.q, self.layers, self.radius)
 
@@ -137,23 +152,25 @@ class _PackingSpec(_Spec):
         return value
 
     def build(self) -> Geometry:
+        from ..geometry import packings
+
         periodic = self.periodic if isinstance(self.periodic, bool) else tuple(self.periodic)
         with engine_errors("geometry", _fields("geometry", "nx", "ny", "nz", "periodic", "radius")):
-            return self._geometry(self.nx, self.ny, self.nz, periodic=periodic, radius=self.radius)
+            return getattr(packings, self._geometry)(self.nx, self.ny, self.nz, periodic=periodic, radius=self.radius)
 
 
 class FCCSpec(_PackingSpec):
     """Face-centred cubic packing of ``nx x ny x nz`` cells (`FCC`); ``periodic`` a bool or [x, y, z]."""
 
     kind: Literal["fcc"] = "fcc"
-    _geometry = FCC
+    _geometry = "FCC"  # of `geometry.packings`
 
 
 class HCPSpec(_PackingSpec):
     """Hexagonal close packing of ``nx x ny x nz`` cells (`HCP`); ``periodic`` a bool or [x, y, z]."""
 
     kind: Literal["hcp"] = "hcp"
-    _geometry = HCP
+    _geometry = "HCP"
 
 
 GeometrySpec = Annotated[FlatTorusSpec | HalfPlaneSpec | GraphPositionsSpec | SphereSpec | HyperbolicPlaneSpec | FCCSpec

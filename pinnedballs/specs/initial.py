@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..geometry.base import Geometry
 from ..util.errors import FieldError
 from ..util.limits import check_speeds
 from ..util.sums import kinetic_energy, momentum
 from .base import FilePath, _load_npy, _Spec
 from .errors import SpecError
 from .python import PythonInitialSpec
+
+if TYPE_CHECKING:
+    from ..geometry.base import Geometry
 
 __all__ = ["SingleBallSpec", "GaussianSpec", "FromFileSpec", "InitialSpec", "INIT_STREAM_KEY"]
 

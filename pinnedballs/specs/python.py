@@ -26,16 +26,18 @@ import importlib
 import importlib.metadata
 import traceback
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import ValidationInfo, field_validator
 
-from ..geometry.base import Geometry
-from ..rules import CollisionRule
-from ..schedulers.base import Scheduler
 from .base import _Spec
 from .errors import SpecError, UserCodeError, failure
+
+if TYPE_CHECKING:  # the component classes, imported when one is built: a spec is validated without them
+    from ..geometry.base import Geometry
+    from ..rules import CollisionRule
+    from ..schedulers.base import Scheduler
 
 __all__ = ["PythonGeometrySpec", "PythonInitialSpec", "PythonRuleSpec", "PythonSchedulerSpec",
            "ENTRY_POINT_GROUPS", "IMPORT_FACTORIES", "import_factory", "expand_entry_points", "component_failed",
@@ -120,6 +122,8 @@ class PythonGeometrySpec(_PythonSpec):
     """A geometry made by the user's ``factory(**args)``."""
 
     def build(self) -> Geometry:
+        from ..geometry.base import Geometry
+
         return self._check("geometry", self._call("geometry"), Geometry)
 
 
@@ -149,6 +153,8 @@ class PythonRuleSpec(_PythonSpec):
     """A collision rule made by the user's ``factory(**args)``."""
 
     def build(self) -> CollisionRule:
+        from ..rules import CollisionRule
+
         return self._check("rule", self._call("rule"), CollisionRule)
 
 
@@ -156,6 +162,8 @@ class PythonSchedulerSpec(_PythonSpec):
     """A scheduler made by the user's ``factory(**args)``."""
 
     def build(self) -> Scheduler:
+        from ..schedulers.base import Scheduler
+
         return self._check("scheduler", self._call("scheduler"), Scheduler)
 
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field
 
-from ..rules import CollisionRule, Elastic, Restitution
 from .base import _Spec, engine_errors
 from .python import PythonRuleSpec
+
+if TYPE_CHECKING:  # built when asked: a spec is validated (its schema written) without the engine
+    from ..rules import CollisionRule
 
 __all__ = ["ElasticSpec", "RestitutionSpec", "RuleSpec"]
 
@@ -20,6 +22,8 @@ class ElasticSpec(_Spec):
     kind: Literal["elastic"] = "elastic"
 
     def build(self) -> CollisionRule:
+        from ..rules import Elastic
+
         return Elastic()
 
 
@@ -30,6 +34,8 @@ class RestitutionSpec(_Spec):
     r: float
 
     def build(self) -> CollisionRule:
+        from ..rules import Restitution
+
         with engine_errors("rule", {"r": "rule.r"}):
             return Restitution(self.r)
 

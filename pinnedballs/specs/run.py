@@ -1,11 +1,16 @@
-"""`RunSpec`: a whole run as data; reading it from JSON (`parse_spec`, `load_spec`); `describe`."""
+"""`RunSpec`: a whole run as data; reading it from JSON (`parse_spec`, `load_spec`); `describe`.
+
+Loading this module loads no engine, numba or scipy: a spec is read, validated and its schema written with
+pydantic and its models (``pinnedballs schema`` starts in about a second); building it (`RunSpec.build`)
+imports what runs it.
+"""
 
 from __future__ import annotations
 
 import json
 import os
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, PrivateAttr, ValidationError, field_validator, model_validator
@@ -13,13 +18,7 @@ from pydantic import AfterValidator, BaseModel, PrivateAttr, ValidationError, fi
 from ..analysis.observables import DEFAULT as DEFAULT_OBSERVABLES
 from ..analysis.observables import OBSERVABLES
 from ..engine.devices import Device, as_device
-from ..engine.field.arithmetic import AUTO, MAX_PRECISION, auto_precisions
 from ..engine.jit.failures import CompileFailure
-from ..engine.protocol import Refusal, Refused
-from ..engine.state import mass_array
-from ..geometry.base import Geometry
-from ..rules import check_resolution
-from ..simulation import Simulation
 from ..util.errors import FieldError, InputError
 from ..util.limits import check_memory
 from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
@@ -31,7 +30,16 @@ from .rule import ElasticSpec, RuleSpec
 from .scheduler import SchedulerSpec, UniformRandomPairSpec
 from .stop import CheckpointSpec, SnapshotsSpec, StopSpec
 
+if TYPE_CHECKING:
+    from ..engine.protocol import Refusal
+    from ..geometry.base import Geometry
+    from ..simulation import Simulation
+
 __all__ = ["RunSpec", "parse_spec", "load_spec", "stored_spec", "describe"]
+
+#: the ``precision`` that lets certified arithmetic find its bits (`pinnedballs.engine.field.arithmetic.AUTO`, as
+#: the field's ``Literal["auto"]`` states it)
+AUTO = "auto"
 
 
 MassesField = Positive | FilePath
@@ -152,6 +160,8 @@ class RunSpec(_Spec):
     @field_validator("resolution", mode="before")
     @classmethod
     def _resolution(cls, value: Any) -> Any:
+        from ..rules import check_resolution
+
         try:
             return None if value is None else check_resolution(value)  # the engine's words
         except FieldError as exc:
@@ -168,6 +178,8 @@ class RunSpec(_Spec):
         if self.precision == AUTO and self.arithmetic != "certified":
             raise ValueError(f"precision: \"auto\" lets certified arithmetic find its bits; this run's arithmetic "
                              f"is {self.arithmetic!r}")
+        from ..engine.field.arithmetic import MAX_PRECISION
+
         late = self.late_precision
         if self.precision == AUTO and late is not None and not 64 <= late <= MAX_PRECISION:
             raise ValueError(f"late_precision: must be whole bits in [64, {MAX_PRECISION}], got {late}")
@@ -181,6 +193,8 @@ class RunSpec(_Spec):
         """``(precision, late_precision)`` the run is built at: the spec's, or an ``"auto"`` spec's first
         attempt (`pinnedballs.engine.field.arithmetic.auto_precisions`)."""
         if self.precision == AUTO:
+            from ..engine.field.arithmetic import auto_precisions
+
             return auto_precisions(self.late_precision)
         return self.precision, self.late_precision
 
@@ -268,6 +282,8 @@ class RunSpec(_Spec):
             self.seed_sequence() if seed is None else np.random.SeedSequence(seed)
         geometry = self.geometry.build() if geometry is None else geometry
         masses = self.build_masses(geometry.n_balls)
+        from ..engine.state import mass_array
+
         with engine_errors("", {"masses": "masses"}):
             masses_all = mass_array(masses, geometry.n_balls)
         velocities = self.initial.build(geometry, masses_all, seq)
@@ -282,6 +298,9 @@ class RunSpec(_Spec):
         if self.resolution is not None and self.arithmetic != "float":  # as the precision outside certified arithmetic
             raise SpecError("resolution", f"is the collision criterion of float arithmetic; this run's is "
                                           f"{self.arithmetic!r}")
+        from ..engine.protocol import Refused
+        from ..simulation import Simulation
+
         rule, scheduler = self.rule.build(), self.scheduler.build()
         precision, late_precision = self.precisions()
         try:

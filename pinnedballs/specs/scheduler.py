@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field
 
-from ..schedulers.base import Scheduler
-from ..schedulers.colored_sweep import ColoredSweep
-from ..schedulers.rejection_free import RejectionFree
-from ..schedulers.simple import RandomSweep, Sweep, UniformRandomPair
 from .base import _Spec
 from .python import PythonSchedulerSpec
+
+if TYPE_CHECKING:  # built when asked: a spec is validated (its schema written) without the engine
+    from ..schedulers.base import Scheduler
 
 __all__ = ["UniformRandomPairSpec", "SweepSpec", "RandomSweepSpec", "RejectionFreeSpec", "ColoredSweepSpec",
            "SchedulerSpec"]
@@ -28,6 +27,8 @@ class UniformRandomPairSpec(_Spec):
     stream: Literal["xoshiro", "counter"] = "xoshiro"
 
     def build(self) -> Scheduler:
+        from ..schedulers.simple import UniformRandomPair
+
         return UniformRandomPair(threads=self.threads, stream=self.stream)
 
 
@@ -37,6 +38,8 @@ class SweepSpec(_Spec):
     kind: Literal["sweep"] = "sweep"
 
     def build(self) -> Scheduler:
+        from ..schedulers.simple import Sweep
+
         return Sweep()
 
 
@@ -46,6 +49,8 @@ class RandomSweepSpec(_Spec):
     kind: Literal["random_sweep"] = "random_sweep"
 
     def build(self) -> Scheduler:
+        from ..schedulers.simple import RandomSweep
+
         return RandomSweep()
 
 
@@ -55,6 +60,8 @@ class RejectionFreeSpec(_Spec):
     kind: Literal["rejection_free"] = "rejection_free"
 
     def build(self) -> Scheduler:
+        from ..schedulers.rejection_free import RejectionFree
+
         return RejectionFree()
 
 
@@ -67,6 +74,8 @@ class ColoredSweepSpec(_Spec):
     threads: Annotated[int, Field(ge=1)] | None = None
 
     def build(self) -> Scheduler:
+        from ..schedulers.colored_sweep import ColoredSweep
+
         return ColoredSweep(shuffle=self.shuffle, threads=self.threads)
 
 
