@@ -12,8 +12,8 @@ from __future__ import annotations
 import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
 
 from ..engine.rows import row_pattern
@@ -21,6 +21,9 @@ from ..util import checks
 from ..util.errors import FieldError
 from .checks import LENGTH_RTOL, raw_tables
 from .pictures import display
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 __all__ = ["Contacts", "Geometry", "Boundary", "tangent_contacts", "VIEWS", "LENGTHS", "checked_radius"]
 
@@ -417,6 +420,8 @@ class Geometry(ABC):
         >>> bool((again.contacts.pairs == g.contacts.pairs).all()), again.n_contacts
         (True, 36)
         """
+        import networkx as nx  # here: a lattice is built, checked and run without it
+
         g = nx.Graph(dim=self.dim, view=self.view)
         frames = self.frames() if self.curved else None
         if self.curved and self.metric is not None:  # how the contact checks measure directions on it
