@@ -176,7 +176,7 @@ def plot(args: argparse.Namespace) -> int:
     from ..run.execute import write_figures
 
     if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
-        from ..run.ensemble import write_figures as ensemble_figures
+        from ..run.ensemble_files import write_figures as ensemble_figures
 
         paths = ensemble_figures(load_ensemble(args.dir), args.dir)
         print("\n".join(map(str, paths)) if paths else f"{args.dir}: no correlation to draw; no figures written")
@@ -438,13 +438,12 @@ def _ensemble(args, status, began: float) -> int:
         ERROR_COLUMN,
         SPEC_NAME,
         _check_replicas_memory,
-        _remove_old_outputs,
         check_count,
         ensemble_plan,
         replica_seed,
         run_ensemble,
-        write_outputs,
     )
+    from ..run.ensemble_files import remove_old_outputs, write_outputs
     from ..run.executors import dask_client
     from ..specs.run import load_spec
     from ..util.errors import InputError
@@ -480,7 +479,7 @@ def _ensemble(args, status, began: float) -> int:
                 client.close()
         status("writing the tables and histograms")
         if args.force and out.is_dir():
-            _remove_old_outputs(out)
+            remove_old_outputs(out)
         write_outputs(result, out)
         status.clear()
     for row in result.failures:  # its rows depend on the spec and its index only: it can be run alone

@@ -1,5 +1,5 @@
 """An ensemble directory read back: `load_ensemble` gives the `EnsembleResult` that
-``pinnedballs ensemble`` (or `write_outputs`) wrote, and `describe` the few lines
+``pinnedballs ensemble`` (or `ensemble_files.write_outputs`) wrote, and `describe` the few lines
 ``pinnedballs info`` prints of it.
 
 The directory holds ``replicas.csv`` (a row per replica and snapshot, and one for each final
@@ -21,7 +21,8 @@ import numpy as np
 from ..specs.run import stored_spec
 from ..util import provenance
 from ..util.errors import InputError
-from .ensemble import ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult, read_table
+from .ensemble import ERROR_COLUMN, FINAL, KEY_COLUMNS, SPEC_NAME, SUMMARY_NAME, TABLE_NAME, EnsembleResult
+from .ensemble_files import read_table
 from .profiles import PROFILE, read_profiles
 
 __all__ = ["load_ensemble", "is_ensemble_dir", "describe"]

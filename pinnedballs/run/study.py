@@ -11,7 +11,7 @@ project (Adorf et al., Comput. Mater. Sci. 146, 220, 2018)::
       workspace/<job id>/  one job a point, its id the hash of its state point (`StudyPoint.state_point`: the
         signac_statepoint.json   point's overrides, nested by path, and the base spec's digest); its document
         signac_job_document.json holds its replicas, seed and number of balls
-        ensemble/          the point's ensemble directory (`run.ensemble.write_outputs`: replicas.csv, ...)
+        ensemble/          the point's ensemble directory (`run.ensemble_files.write_outputs`: replicas.csv, ...)
 
 so that ``signac find geometry.length 20``, ``signac view`` and ``signac.get_project(DIR).to_dataframe()`` work on
 it, and signac-flow, row or signac-dashboard can take it on. The points run one after another, each one's replicas
@@ -43,6 +43,7 @@ from ..util.atomic import write_text_atomic
 from ..util.errors import InputError
 from ..util.progress import Progress
 from . import ensemble as ens
+from . import ensemble_files as ens_files
 from . import executors
 from .ensemble_dir import is_ensemble_dir, load_ensemble
 from .study_dir import ENSEMBLE_DIR, PARTIAL_DIR, POINTS_NAME, STUDY_NAME, StudyResult, is_study_dir, load_study
@@ -245,5 +246,5 @@ def _run_point(point: StudyPoint, job_dir: Path, *, progress, **where) -> None:
     if partial.exists():  # what a kill left as it wrote
         shutil.rmtree(partial)
     result = ens.run_ensemble(point.spec, point.replicas, progress=progress, **where)
-    ens.write_outputs(result, partial, figures=False)
+    ens_files.write_outputs(result, partial, figures=False)
     os.replace(partial, final)

@@ -18,6 +18,7 @@ import tempfile
 from pathlib import Path
 
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import ensemble_files as ens_files
 from pinnedballs.run import reproduction as rp
 from pinnedballs.run.reproduction import extended as ext
 
@@ -33,7 +34,7 @@ def tables(out: Path) -> dict:
 
     def ensemble(name, spec, replicas, **kwargs):
         res = ens.run_ensemble(spec, replicas, workers=1, **kwargs)
-        ens.write_outputs(res, out / name, figures=False)
+        ens_files.write_outputs(res, out / name, figures=False)
         digests[name] = {f: hashlib.sha256((out / name / f).read_bytes()).hexdigest() for f in FILES}
         return res
 

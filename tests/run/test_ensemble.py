@@ -15,6 +15,7 @@ from pinnedballs.analysis import observables as obs
 from pinnedballs.cli import main as cli
 from pinnedballs.engine.margin import MarginWarning
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import ensemble_files as ens_files
 from pinnedballs.run.reproduction import torus_row
 from pinnedballs.specs import parse_spec
 from pinnedballs.util.errors import InputError
@@ -43,7 +44,7 @@ def fail_at_two(spec, index, seed):
 
 
 def table_bytes(result, tmp_path, name):
-    return ens.write_table(result, tmp_path / f"{name}.csv").read_bytes()
+    return ens_files.write_table(result, tmp_path / f"{name}.csv").read_bytes()
 
 
 # ---------------------------------------------------------------- seeds and rows
@@ -145,7 +146,7 @@ def test_the_ensemble_command_says_it_in_one_line(tmp_path):
     assert done.returncode == 0 and done.stdout == ""
     assert done.stderr.startswith("pinnedballs: note: the closing margin is thin in 3 of 3 replicas (")
     assert done.stderr.count("\n") == 1 and done.stderr.endswith("on the same seed\n")
-    rows = ens.read_table(tmp_path / "e" / ens.TABLE_NAME)
+    rows = ens_files.read_table(tmp_path / "e" / ens.TABLE_NAME)
     assert [(r["near_collisions"], r["near_remnants"]) for r in rows] == [("1", "0")] * 3
     assert all(float(r["smallest_collision"]) == pytest.approx(64 / (4 * math.sqrt(2)), rel=1e-13) for r in rows)
 
@@ -165,12 +166,12 @@ def test_tables_are_bit_identical_in_process_on_local_processes_and_on_dask(clus
         assert one.rows == two.rows == dask.rows
         csv = table_bytes(one, tmp_path, f"{name}1")
         assert csv == table_bytes(two, tmp_path, f"{name}2") == table_bytes(dask, tmp_path, f"{name}d")
-        assert len(ens.read_table(tmp_path / f"{name}1.csv")) == 12
+        assert len(ens_files.read_table(tmp_path / f"{name}1.csv")) == 12
 
 
 def test_csv_holds_the_exact_floats(tmp_path):
     result = ens.run_ensemble(parse_spec(TORUS), 2, workers=1)
-    rows = ens.read_table(ens.write_table(result, tmp_path / "t.csv"))
+    rows = ens_files.read_table(ens_files.write_table(result, tmp_path / "t.csv"))
     for row, back in zip(result.rows, rows):
         assert float(back["line_of_centres_correlation"]) == row["line_of_centres_correlation"]
         assert float(back["energy"]) == row["energy"]
@@ -291,7 +292,7 @@ def test_cli_tiny_ensemble_exits_0_and_writes_table_summary_and_figures(tmp_path
     assert cli.main(["ensemble", str(write_spec(tmp_path)), "--replicas", "3", "--workers", "1",
                      "--out", str(out), "--quiet"]) == 0
     assert capsys.readouterr().out == ""
-    rows = ens.read_table(out / ens.TABLE_NAME)
+    rows = ens_files.read_table(out / ens.TABLE_NAME)
     assert [(r["replica"], r["at"]) for r in rows] == [(str(k), at) for k in range(3) for at in ("steps=5000", "final")]
     summary = json.loads((out / ens.SUMMARY_NAME).read_text())
     assert (summary["replicas"], summary["succeeded"], summary["failed"]) == (3, 3, [])
@@ -301,7 +302,7 @@ def test_cli_tiny_ensemble_exits_0_and_writes_table_summary_and_figures(tmp_path
     # --force writes again into it
     assert cli.main(["ensemble", str(write_spec(tmp_path)), "--replicas", "2", "--workers", "1",
                      "--out", str(out), "--quiet", "--force"]) == 0
-    assert len(ens.read_table(out / ens.TABLE_NAME)) == 4
+    assert len(ens_files.read_table(out / ens.TABLE_NAME)) == 4
 
 
 def test_cli_failed_replica_exits_1_after_writing_the_others(tmp_path, capsys, monkeypatch):
@@ -318,7 +319,7 @@ def test_cli_failed_replica_exits_1_after_writing_the_others(tmp_path, capsys, m
                      "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     assert "replica 2 (seed entropy 3, spawn key [2]) failed: RuntimeError: boom at replica 2" in err
-    rows = ens.read_table(out / ens.TABLE_NAME)
+    rows = ens_files.read_table(out / ens.TABLE_NAME)
     assert [r["replica"] for r in rows] == ["0", "0", "1", "1", "2", "3", "3"]
     assert rows[4] == {"replica": "2", "seed_entropy": "3", "spawn_key": "[2]",
                        "error": "RuntimeError: boom at replica 2"}

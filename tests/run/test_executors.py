@@ -20,6 +20,7 @@ from helpers import pickled_by_value
 
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import ensemble_files as ens_files
 from pinnedballs.run import executors
 from pinnedballs.specs import parse_spec
 
@@ -129,8 +130,8 @@ def test_the_command_line_names_the_replica_and_how_to_run_it_alone(tmp_path, ca
         f"pinnedballs: replica 2 (seed entropy 3, spawn key [2]) failed: WorkerDied: the process running it died "
         f"{executors.MAX_DEATHS} times (killed, or out of memory?); rerun it alone with pinnedballs.run.ensemble."
         f"run_replica(pinnedballs.specs.load_spec({str(spec)!r}), 2), which gives the rows it would have had\n")
-    assert [r["replica"] for r in ens.read_table(tmp_path / "out" / ens.TABLE_NAME)] == ["0", "0", "1", "1", "2", "3",
-                                                                                          "3"]
+    assert [r["replica"] for r in ens_files.read_table(tmp_path / "out" / ens.TABLE_NAME)] == \
+        ["0", "0", "1", "1", "2", "3", "3"]
 
 
 _REAL_REPLICA = ens.run_replica
@@ -215,7 +216,7 @@ def test_the_command_outlives_an_idle_worker_killed_from_outside(tmp_path):
             child.communicate()
     assert (child.returncode, err) == (0, "")
     expected = tmp_path / "undisturbed.csv"
-    ens.write_table(ens.run_ensemble(parse_spec(SHORT), 2, workers=1, progress=False), expected)
+    ens_files.write_table(ens.run_ensemble(parse_spec(SHORT), 2, workers=1, progress=False), expected)
     assert (out / ens.TABLE_NAME).read_bytes() == expected.read_bytes()
 
 

@@ -10,6 +10,7 @@ from matplotlib.image import imread
 
 from pinnedballs.analysis import observables as obs
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import ensemble_files as ens_files
 from pinnedballs.run import profiles
 from pinnedballs.run.ensemble_dir import load_ensemble
 from pinnedballs.specs import parse_spec
@@ -29,7 +30,7 @@ def test_each_row_keeps_its_profile_a_partition_of_the_energy_apart_from_the_col
 
 def test_the_profiles_are_written_beside_the_table_and_read_back_bit_for_bit(tmp_path):
     result = ens.run_ensemble(parse_spec(HALF_PLANE), 3, workers=1)
-    written = ens.write_outputs(result, tmp_path / "e")
+    written = ens_files.write_outputs(result, tmp_path / "e")
     assert tmp_path / "e" / profiles.PROFILES_NAME in written
     back = load_ensemble(tmp_path / "e")
     assert back.rows == result.rows
@@ -41,7 +42,7 @@ def test_the_profiles_are_written_beside_the_table_and_read_back_bit_for_bit(tmp
 
 def test_the_mean_profile_is_drawn_where_the_geometry_has_a_boundary_only(tmp_path):
     result = ens.run_ensemble(parse_spec(HALF_PLANE), 4, workers=1)
-    (final,) = [p for p in ens.write_figures(result, tmp_path) if p.name == "energy_by_distance_final.png"]
+    (final,) = [p for p in ens_files.write_figures(result, tmp_path) if p.name == "energy_by_distance_final.png"]
     assert imread(final).shape[2] in (3, 4)
     mean, n = profiles.mean_profiles(result.rows, ens.ERROR_COLUMN)["final"]
     shares = np.array([r[profiles.PROFILE] for r in result.rows if r["at"] == "final"])
@@ -52,5 +53,5 @@ def test_the_mean_profile_is_drawn_where_the_geometry_has_a_boundary_only(tmp_pa
     ax = energy_bars(centres, mean).axes[0]
     assert [bar.get_height() for bar in ax.patches] == mean.tolist()
     torus = ens.run_ensemble(parse_spec(TORUS), 2, workers=1)
-    assert not [p for p in ens.write_outputs(torus, tmp_path / "t") if "energy" in p.name or "profiles" in p.name]
+    assert not [p for p in ens_files.write_outputs(torus, tmp_path / "t") if "energy" in p.name or "profiles" in p.name]
     assert not (tmp_path / "t" / profiles.PROFILES_NAME).exists()

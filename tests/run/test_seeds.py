@@ -12,6 +12,7 @@ from helpers import TORUS, assert_identical, call, reference, resume, spec, writ
 from pinnedballs.engine import driver
 from pinnedballs.results.load import load
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import ensemble_files as ens_files
 from pinnedballs.run import execute as runner
 from pinnedballs.specs import parse_spec
 
@@ -82,11 +83,11 @@ def test_an_ensemble_without_a_seed_draws_one_for_all_its_replicas(tmp_path):
     assert all(isinstance(s, int) and 0 <= s < 2**63 for s in seeds) and seeds[0] != seeds[1]
     for name, seed, summary in zip(("a", "b"), seeds, summaries):
         assert json.loads((tmp_path / name / ens.SPEC_NAME).read_text())["seed"] == seed == summary["spec"]["seed"]
-        rows = ens.read_table(tmp_path / name / ens.TABLE_NAME)
+        rows = ens_files.read_table(tmp_path / name / ens.TABLE_NAME)
         assert {row["seed_entropy"] for row in rows} == {str(seed)}  # one seed, replica k its child k
     # the recorded spec repeats the ensemble bit for bit
     again = ens.run_ensemble(parse_spec(json.loads((tmp_path / "a" / ens.SPEC_NAME).read_text())), 3, workers=1)
-    ens.write_table(again, tmp_path / "again.csv")
+    ens_files.write_table(again, tmp_path / "again.csv")
     assert (tmp_path / "again.csv").read_text() == (tmp_path / "a" / ens.TABLE_NAME).read_text()
 
 

@@ -197,6 +197,7 @@ CHILD = """
 import os, signal, sys
 from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
+from pinnedballs.run import ensemble_files as ens_files
 where, at, calls = os.environ["KILL_IN"], int(os.environ["KILL_AT"]), [0]
 def killing(original, before):
     def call(*args, **kwargs):
@@ -211,7 +212,7 @@ def killing(original, before):
 if where == "running":    # the point's replicas running
     ens.run_ensemble = killing(ens.run_ensemble, True)
 elif where == "written":  # its ensemble written whole, not yet renamed
-    ens.write_outputs = killing(ens.write_outputs, False)
+    ens_files.write_outputs = killing(ens_files.write_outputs, False)
 elif where == "starting":  # the signac project made, the study's record being written
     from pinnedballs.run import study
     study.write_text_atomic = killing(study.write_text_atomic, True)

@@ -17,6 +17,7 @@ from ...results.rundir import DirLock, check_out_dir
 from ...specs.run import RunSpec
 from ...util.atomic import write_text_atomic
 from .. import ensemble as ens
+from .. import ensemble_files as ens_files
 from .checks import Check, _half_plane_checks, _torus_checks, _torus_stage
 from .extended.plan import EXTENDED_FULL, EXTENDED_GPU, EXTENDED_QUICK, ExtendedPlan, check_extended_plan
 from .extended.report import extended_section
@@ -127,7 +128,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
             say_t(f"ensemble {name}: {replicas} replicas{' on the GPU' if on_gpu else ''}")
             where = {"device": device} if on_gpu else {"workers": workers}
             result = ens.run_ensemble(spec, replicas, progress=progress, **where, **kwargs)
-            ens.write_outputs(result, out / "ensembles" / name, figures=False)
+            ens_files.write_outputs(result, out / "ensembles" / name, figures=False)
             failures.extend({"ensemble": name, **row} for row in result.failures)
             return result
 
@@ -189,7 +190,7 @@ def reproduce(out, plan: Plan | None = None, *, quick: bool = False, force: bool
         results["wall_seconds"] = wall
         results["failures"] = failures
         results["checks"] = [dataclasses.asdict(c) for c in checks]
-        write_text_atomic(out / "results.json", json.dumps(ens.json_safe(_plain(results)), indent=2) + "\n")
+        write_text_atomic(out / "results.json", json.dumps(ens_files.json_safe(_plain(results)), indent=2) + "\n")
         report = out / REPORT_NAME
         text = _report(plan, quick, checks, results, geom, trun.sim.geometry, lattice_run.sim.geometry, failures, wall)
         if xplan is not None:
