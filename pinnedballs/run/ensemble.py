@@ -171,13 +171,22 @@ def _attempt(task: Task, spec: RunSpec, index: int, seed: np.random.SeedSequence
 
 @dataclass(frozen=True)
 class EnsembleResult:
-    """The rows of an ensemble, ordered by replica then time, and how it ran.
+    """The rows of an ensemble, ordered by replica then time, and how it ran (`run_ensemble`, `load_ensemble`).
 
-    ``rows``: dicts with `KEY_COLUMNS`, observables and, for a failed replica, only
-    ``replica``, ``seed_entropy``, ``spawn_key`` and `ERROR_COLUMN`.
-
-    Attributes
+    Parameters
     ----------
+    spec : RunSpec
+        The spec every replica ran, seeded.
+    replicas : int
+        How many.
+    rows : list of dict
+        Dicts with `KEY_COLUMNS` (and `MARGIN_COLUMNS` where the run keeps its margin) and observables, one per
+        snapshot of each replica and one for its final state (the module's docstring); for a failed replica,
+        only ``replica``, ``seed_entropy``, ``spawn_key`` and `ERROR_COLUMN`.
+    where : str
+        Where it ran (``"in-process"``, ``"2 local processes"``, ``"dask tcp://..."``, ``"GPU"``...).
+    wall_seconds : float
+        The replicas' time.
     provenance : dict or None
         How the ensemble was made (`pinnedballs.util.provenance`, as a run's `Results.provenance` entry):
         ``versions``, ``command`` (the command line or the Python call), ``argv``, ``host``, ``platform``, ``cpu``,
@@ -205,8 +214,14 @@ class EnsembleResult:
         return [*seen, ERROR_COLUMN]
 
     def thin(self) -> list[dict]:
-        """The final rows of the replicas whose closing margin is thin: a collision closed within a factor
-        `engine.margin.NEAR` of the threshold, so their counts depend on the criterion."""
+        """The final rows of the replicas whose closing margin is thin.
+
+        Returns
+        -------
+        list of dict
+            Those where a collision closed within a factor `engine.margin.NEAR` of the threshold, so their
+            counts depend on the criterion.
+        """
         return [row for row in self.rows if not row.get(ERROR_COLUMN) and row["at"] == FINAL
                 and row.get("near_collisions", 0) > 0]
 
@@ -216,20 +231,48 @@ class EnsembleResult:
         return [row for row in self.rows if row.get(ERROR_COLUMN)]
 
     def stages(self) -> list[str]:
-        """The ``at`` labels present: snapshots in time order, then `FINAL`."""
+        """The ``at`` labels present.
+
+        Returns
+        -------
+        list of str
+            Snapshots in time order (``"steps=N"``, ``"collisions=N"``), then `FINAL`.
+        """
         labels = dict.fromkeys(row["at"] for row in self.rows if not row.get(ERROR_COLUMN))
         snaps = sorted((a for a in labels if a != FINAL), key=lambda a: int(a.partition("=")[2]))
         return snaps + ([FINAL] if FINAL in labels else [])
 
     def column(self, name: str, at: str = FINAL) -> np.ndarray:
-        """``(n,)`` float values of column ``name`` at ``at`` over the replicas that have it, by replica."""
+        """A column's values over the replicas that have it, by replica.
+
+        Parameters
+        ----------
+        name : str
+            One of `columns`.
+        at : str
+            One of `stages` (the final state by default).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n,) float64``.
+        """
         return np.array([float(row[name]) for row in self.rows
                          if not row.get(ERROR_COLUMN) and row["at"] == at and name in row], dtype=np.float64)
 
     def to_pandas(self, at: str | None = FINAL):
-        """A `pandas.DataFrame`: with ``at`` (default the final state), a row per replica indexed by
-        ``replica`` (a failed one has its ``error`` and no numbers); with ``at=None`` every row, indexed
-        by ``(replica, at)``. ``frozen`` is a boolean column."""
+        """The rows as a table; ``frozen`` is a boolean column.
+
+        Parameters
+        ----------
+        at : str or None
+            A stage (default the final state): a row per replica indexed by ``replica`` (a failed one has its
+            ``error`` and no numbers); None: every row, indexed by ``(replica, at)``.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
         pd = need("pandas", "to_pandas", "pandas")
 
         columns = self.columns if at is None else [c for c in self.columns if c != "at"]
@@ -241,8 +284,21 @@ class EnsembleResult:
         return df.set_index(["replica", "at"] if at is None else "replica")
 
     def save(self, out_dir, figures: bool = True) -> list[Path]:
-        """Write ``replicas.csv``, ``summary.json``, ``spec.json`` and (if ``figures``) the correlation
-        histograms into ``out_dir`` (created), as `pinnedballs ensemble` does; their paths."""
+        """Write the ensemble's directory, as `pinnedballs ensemble` does (`ensemble_files.write_outputs`).
+
+        Parameters
+        ----------
+        out_dir : str or os.PathLike
+            Created.
+        figures : bool
+            Also the figures: the correlation histograms over replicas (and, with a boundary, the mean energy
+            profile).
+
+        Returns
+        -------
+        list of pathlib.Path
+            ``replicas.csv``, ``summary.json``, ``spec.json`` (``profiles.csv`` with a boundary), the figures.
+        """
         from .ensemble_files import write_outputs
 
         return write_outputs(self, out_dir, figures=figures)
@@ -259,7 +315,13 @@ class EnsembleResult:
                 f"{self.replicas - failed} done, {failed} failed; {len(self.rows)} rows; {self.where}{seconds})")
 
     def statistics(self) -> dict[str, dict[str, dict[str, float]]]:
-        """``{at: {column: {n, mean, std, min, max}}}`` of every numeric column (``std`` with ``ddof=1``)."""
+        """The statistics of every numeric column at every stage.
+
+        Returns
+        -------
+        dict
+            ``{at: {column: {n, mean, std, min, max}}}`` (``std`` with ``ddof=1``).
+        """
         skip = {"replica", "seed_entropy", "spawn_key", "at", "stop_reason", ERROR_COLUMN}
         out: dict[str, dict[str, dict[str, float]]] = {}
         for at in self.stages():
@@ -294,31 +356,71 @@ def run_ensemble(spec: RunSpec, replicas: int, *, workers: int | None = None, da
                  device: str = "cpu") -> EnsembleResult:
     """Run ``replicas`` independent replicas of ``spec``; see the module docstring for seeds and rows.
 
-    Where: ``workers`` local processes (default ``os.cpu_count()``; 1 runs in this
-    process); or the Dask scheduler at ``dask_address``; or ``cluster`` (a Dask
-    cluster or ``Client``). ``progress``: a bar over the replicas (True, False, or None:
-    in a terminal or a notebook, once the ensemble has taken 2 s; `pinnedballs.util.progress`).
-    ``task(spec, index, seed) -> rows`` replaces `run_replica` (e.g.
-    ``functools.partial(run_replica, observe=f)``); it must be picklable to run elsewhere.
-    Raises `InputError` on bad arguments. Local processes are forked, except after this process
-    has run numba's threads (a `ColoredSweep`, a chain on >= 65,536 contacts), which a forked child
-    cannot run again: they then start from a fork server, so a script must keep its top level under
-    ``if __name__ == "__main__":``, as with any multiprocessing start method but fork.
+    Parameters
+    ----------
+    spec : RunSpec
+        The run every replica makes (a spec without a seed gets one drawn: `RunSpec.seeded`).
+    replicas : int
+        How many, at least 1.
+    workers : int, optional
+        Local processes (default ``os.cpu_count()``; 1 runs in this process). They are forked, except after this
+        process has run numba's threads (a `ColoredSweep`, a chain on >= 65,536 contacts), which a forked child
+        cannot run again: they then start from a fork server, so a script must keep its top level under
+        ``if __name__ == "__main__":``, as with any multiprocessing start method but fork.
+    dask_address : str, optional
+        The Dask scheduler to run on instead.
+    cluster : optional
+        A Dask cluster or ``Client`` to run on instead.
+    progress : bool or None
+        A bar over the replicas (True, False, or None: in a terminal or a notebook, once the ensemble has taken
+        2 s; `pinnedballs.util.progress`).
+    task : callable, optional
+        ``task(spec, index, seed) -> rows`` replaces `run_replica` (e.g. ``functools.partial(run_replica,
+        observe=f)``); it must be picklable to run elsewhere.
+    device : Device or {"cpu", "cuda"}
+        ``"cuda"``: on an NVIDIA GPU (`run.ensemble_gpu`): small systems one replica a GPU thread, large ones one
+        after another on the whole GPU; the same rows as on the CPU for the same seeds. It runs specs a GPU runs
+        (float arithmetic, ``UniformRandomPair(stream="counter")``, any rule that compiles for one), with the
+        built-in task: in this process (``workers`` does not apply), or, with ``dask_address`` or ``cluster``, on
+        the GPUs of a Dask cluster whose workers each own one (dask-cuda's ``LocalCUDACluster`` on one machine,
+        or a cluster's GPU nodes: docs/gpu.md), the replicas in groups of at most `ensemble_gpu.WORKER_GROUP`, a
+        group a job; a group whose worker is lost runs again elsewhere. A certified spec on ``"cuda"`` runs its
+        replicas one at a time on this process's GPU, with any task (every simulation it builds from the spec is
+        built there: `RunSpec.on_device`), the CPU's rows; not on a cluster.
 
-    ``device="cuda"``: on an NVIDIA GPU (`run.ensemble_gpu`): small systems one replica a GPU thread,
-    large ones one after another on the whole GPU; the same rows as on the CPU for the same seeds. It
-    runs specs a GPU runs (float arithmetic, ``UniformRandomPair(stream="counter")``, any rule that compiles
-    for one), with the built-in task: in this process (``workers`` does not apply), or, with ``dask_address``
-    or ``cluster``, on the GPUs of a Dask cluster whose workers each own one (dask-cuda's
-    ``LocalCUDACluster`` on one machine, or a cluster's GPU nodes: docs/gpu.md), the replicas in groups of at
-    most `ensemble_gpu.WORKER_GROUP`, a group a job; a group whose worker is lost runs again elsewhere.
-    A certified spec on ``"cuda"`` runs its replicas one at a time on this process's GPU, with any task (every
-    simulation it builds from a spec is built there: `specs.run.BUILD_DEVICE`), the CPU's rows; not on a cluster.
+    Returns
+    -------
+    EnsembleResult
 
-    Ctrl-C stops it within a second or so and raises KeyboardInterrupt; the replicas done so far
-    are discarded (each can be run again alone, `run_replica`, to the same rows). Local processes are
-    killed at once; on Dask the jobs not finished are cancelled (one already running on a worker runs
-    to its end there: Dask cannot stop it).
+    Raises
+    ------
+    InputError
+        On bad arguments: ``spec`` not a `RunSpec`, more than one of ``workers``, ``dask_address`` and
+        ``cluster``, a task a GPU does not run.
+    SpecError
+        On ``device``, where no engine runs the spec's replicas there (in the spec's words).
+    KeyboardInterrupt
+        On Ctrl-C, within a second or so; the replicas done so far are discarded (each can be run again alone,
+        `run_replica`, to the same rows). Local processes are killed at once; on Dask the jobs not finished are
+        cancelled (one already running on a worker runs to its end there: Dask cannot stop it).
+
+    Warns
+    -----
+    MarginWarning
+        Once, not once per replica: a float ensemble at the default resolution that runs until frozen (its
+        counts the observable), in which any replica's margin is thin.
+
+    Examples
+    --------
+    >>> import pinnedballs as pb
+    >>> from pinnedballs.specs.run import parse_spec
+    >>> spec = parse_spec({"geometry": {"kind": "half_plane", "rows": 4, "cols": 6}, "seed": 1,
+    ...                    "initial": {"kind": "single_ball", "ball": "boundary_center", "direction": [0, 1],
+    ...                                "energy": 0.5},
+    ...                    "stop": {"frozen": True, "max_steps": 100000}})
+    >>> ens = pb.run_ensemble(spec, replicas=3, workers=1)
+    >>> ens.stages(), ens.column("collisions").tolist(), bool(ens.to_pandas()["frozen"].all())
+    (['final'], [46.0, 52.0, 60.0], True)
     """
     if not isinstance(spec, RunSpec):
         raise InputError(f"spec: must be a RunSpec, got {type(spec).__name__}")

@@ -102,31 +102,18 @@ def _members_shown() -> dict:
 
 
 PUBLIC = public()
-#: the modules whose docstrings are not numpydoc yet (issue 47, item 2): run/ensemble.py holds 591 of its 600 lines,
-#: and EnsembleResult's and run_ensemble's sections need about 85 more. Their tests are strict xfails: one that
-#: passes fails, so that the module leaves this list the day it is converted
-PENDING = ("pinnedballs.run.ensemble",)
-
-
-def _pending(obj, request) -> None:
-    """Mark the test of ``obj`` a strict xfail where its module is `PENDING`."""
-    module = obj if inspect.ismodule(obj) else inspect.getmodule(getattr(obj, "fget", obj))
-    if any(module.__name__ == p or module.__name__.startswith(p + ".") for p in PENDING):
-        request.applymarker(pytest.mark.xfail(strict=True, reason=f"{module.__name__} is not numpydoc yet"))
 
 
 @pytest.mark.parametrize("name", sorted(PUBLIC))
-def test_every_public_callable_has_numpydoc_parameters_and_returns(name, request):
-    _pending(PUBLIC[name], request)
+def test_every_public_callable_has_numpydoc_parameters_and_returns(name):
     errors = [f"{code} ({REFUSED[code]}): {message}" for code, message in validate(name)["errors"] if code in REFUSED]
     assert not errors, f"{name}: " + "; ".join(errors)
 
 
 @pytest.mark.parametrize("name", EXAMPLED)
-def test_the_main_names_have_examples(name, request):
+def test_the_main_names_have_examples(name):
     full = f"pinnedballs.{name}"
     assert full in PUBLIC, f"{full} is not a public callable"
-    _pending(PUBLIC[full], request)
     assert "EX01" not in {code for code, _ in validate(full)["errors"]}, f"{full} has no Examples section"
 
 
@@ -143,7 +130,7 @@ def _on_the_api_page() -> dict:
 
 
 def _doctests() -> dict:
-    """``{name: (object, doctest)}`` of every public docstring with examples: the callables, their classes'
+    """``{name: doctest}`` of every public docstring with examples: the callables, their classes'
     properties, and what the API page shows (the modules' own docstrings, and the names for extensions)."""
     finder = doctest.DocTestFinder(recurse=False)
     objects = dict(PUBLIC)
@@ -157,7 +144,7 @@ def _doctests() -> dict:
         module = obj if inspect.ismodule(obj) else inspect.getmodule(getattr(obj, "fget", obj))
         for test in finder.find(obj, name, module=module, globs={}):
             if test.examples:
-                tests[name] = obj, test
+                tests[name] = test
     return tests
 
 
@@ -166,15 +153,14 @@ DOCTESTS = _doctests()
 
 @pytest.mark.slow  # about 70 examples' runs: some 6 s with numba's cache warm, minutes on an empty one
 @pytest.mark.parametrize("name", sorted(DOCTESTS))
-def test_the_examples_run(name, tmp_path, monkeypatch, request):
+def test_the_examples_run(name, tmp_path, monkeypatch):
     """Each docstring's examples give what they show, in a fresh directory (what they write stays there), the
     observables they register forgotten after them."""
     from pinnedballs.analysis.observables import OBSERVABLES
 
     monkeypatch.chdir(tmp_path)
     registered = dict(OBSERVABLES)
-    obj, test = DOCTESTS[name]
-    _pending(obj, request)
+    test = DOCTESTS[name]
     test.globs = {"__name__": f"doctest_{name.replace('.', '_')}"}
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     report = []
