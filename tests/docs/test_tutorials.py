@@ -76,8 +76,9 @@ def printed(outs: list[dict]) -> str:
     return "".join(_without_bars(o) for o in outs if o.get("output_type") == "stream")
 
 
-#: a tqdm bar's meter: "[00:01<00:02, 3.4 steps/s]" or, the end unknown, "[00:01, 3.4 steps/s]"
-_BAR = re.compile(r"\[\d+:\d\d(?::\d\d)?[<,]")
+#: a tqdm bar's meter: "[00:01<00:02, 3.4 steps/s]", the end unknown "[00:01, 3.4 steps/s]", or before anything
+#: has run "[00:00]" (no rate yet: `util.progress`)
+_BAR = re.compile(r"\[\d+:\d\d(?::\d\d)?[<,\]]")
 #: the kind of output a widget is (tqdm's bar, when ipywidgets is installed)
 WIDGET = "application/vnd.jupyter.widget-view+json"
 
