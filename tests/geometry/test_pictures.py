@@ -22,13 +22,14 @@ def test_the_pictures_come_from_the_display_installed(monkeypatch):
     drawn = []
     shown = types.SimpleNamespace(
         state_picture=lambda geometry: lambda v, title=None, ax=None: drawn.append((geometry, v.sum(), title)),
+        simulation_figure=lambda sim, what, ax=None, title=None: drawn.append((sim.geometry, what, title)),
         geometry_png=lambda obj: b"geometry", simulation_png=lambda obj: b"simulation",
         geometry_html=lambda obj, png: f"<{png.decode()}>", simulation_html=lambda obj, png: f"<{png.decode()}>",
         mimebundle=display.mimebundle)
     monkeypatch.setattr(pictures, "_installed", shown)
     g.plot(title="rest")
     sim.plot()
-    assert drawn == [(g, 0.0, "rest"), (g, 32.0, "after 0 steps, 0 collisions")]
+    assert drawn == [(g, 0.0, "rest"), (g, "state", None)]   # the simulation's kinds of figure: its state first
     assert (g._repr_png_(), g._repr_html_(), sim._repr_png_(), sim._repr_html_()) == \
         (b"geometry", "<geometry>", b"simulation", "<simulation>")
     assert sim._repr_mimebundle_() == {"text/html": "<simulation>", "image/png": b"simulation"}
