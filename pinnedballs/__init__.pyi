@@ -61,3 +61,4 @@ from .specs.study import load_study_spec as load_study_spec
 from .util.errors import FieldError as FieldError
 from .util.errors import FieldTypeError as FieldTypeError
 from .util.errors import InputError as InputError
+from .util.errors import InternalError as InternalError
