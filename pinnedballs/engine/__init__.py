@@ -27,8 +27,4 @@ when first used.
 
 import lazy_loader as _lazy
 
-__getattr__, __dir__, __all__ = _lazy.attach(__name__, submod_attrs={
-    "door": ["engines", "register", "unregister", "find", "choose", "check"],
-    "protocol": ["Engine", "Refusal", "Refused", "Backend"],
-    "devices": ["Device", "CPU", "CUDA", "as_device"],
-})
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)  # the names: __init__.pyi
