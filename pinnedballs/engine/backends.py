@@ -24,13 +24,9 @@ import numpy as np
 from ..util.errors import FieldError
 from .chain import LIVE, NO_LIMIT, ChainState, LiveSet, Model, incidence
 from .protocol import Backend
-from .sequential.loops import (
-    FREEZE_CHUNK_MIN,
-    FREEZE_CHUNK_PER_CONTACT,
-    LOOKAHEAD_BYTES,
-    NO_PATTERN,
-    loops,
-)
+from .sequential.choice import described, loop_setting, new_tune
+from .sequential.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT, NO_PATTERN, loops
+from .sequential.sizes import LoopChoice
 from .threads.regions import MIN_PARALLEL_CONTACTS, TUNED_SEGMENT, ParallelChain, bands_pay
 from .threads.tuning import most_threads
 
@@ -39,6 +35,8 @@ __all__ = ["LoopBackend", "DeviceBackend", "LOG_CAPACITY"]
 #: collisions a logging loop records before handing them to the listeners
 LOG_CAPACITY = 1 << 16
 _NO_LOG = np.empty((0, 2), dtype=np.int64)
+#: the settings that force the table loop (`engine.sequential.choice.LOOP_SETTINGS`)
+_TABLES = ("tables", "branch", "branch_free", "threshold")
 
 
 class LoopBackend(Backend):
@@ -52,6 +50,16 @@ class LoopBackend(Backend):
         s, g = model.selector, model.geometry
         self.loops = loops(model.collide, s.select, s.begin, s.changed, s.skips, g.dim, g.contacts.flat)
         self.own_steps = None if s.steps is None or not own_loop else s.steps(model.collide, g.dim, g.contacts.flat)
+        #: ``PINNEDBALLS_LOOP`` as it was when the chain was built (`engine.sequential.choice.loop_setting`)
+        self.setting = loop_setting()
+        #: how the table loop runs its blocks, and what it measured of them on this CPU (`choice.new_tune`)
+        self.tune = new_tune(self.setting)
+        c = g.contacts
+        #: which limited loop runs this system (`engine.sequential.sizes.LoopChoice`): the tables where they fit in
+        #: cache, the tables prefetched or the lattice's row pattern where they do not, and between, the faster of
+        #: two timed on the run's own steps
+        self._choice = LoopChoice(self.loops, s.skips, c.pairs.nbytes + c.ends.nbytes + state.velocities.nbytes,
+                                  None if self.setting in _TABLES else g.row_pattern, self.setting)
         self._live = None  # the LiveSet, built when a tracked run first needs it
         self._parallel = None if parallel else False  # the threaded chain, built when a run first asks (False: none)
         self._own_ran = False  # whether the scheduler's own loop (`own_steps`) has run
@@ -83,13 +91,18 @@ class LoopBackend(Backend):
         if plain and self.own_steps is not None:
             self._own_ran = True
             return self.own_steps(*chain, *tables, max_steps)
-        limited, pattern = self.limited(logged=False)
         parallel = self.parallel_chain()
         if parallel is not None:
+            limited, pattern = self.limited(logged=False)
             return parallel.run(chain, pattern, limited, self._any_live, *tables, max_steps, max_collisions,
-                                until_frozen, TUNED_SEGMENT if plain else self.freeze_chunk())
-        return limited(*chain, pattern, *tables, max_steps, max_collisions, until_frozen,
-                       max_steps if plain else self.freeze_chunk(), np.empty_like(self.state.scheduler), _NO_LOG)
+                                until_frozen, TUNED_SEGMENT if plain else self.freeze_chunk(), self.tune)
+        saved = np.empty_like(self.state.scheduler)
+
+        def call(limited, pattern, steps: int) -> int:
+            return limited(*chain, pattern, *tables, steps, max_collisions, until_frozen,
+                           steps if plain else self.freeze_chunk(), saved, _NO_LOG, self.tune)
+
+        return self.choice().run(call, max_steps)
 
     def approaching(self) -> int:
         flags = np.empty(self.model.geometry.n_contacts, dtype=np.uint8)
@@ -98,17 +111,26 @@ class LoopBackend(Backend):
     def resources(self) -> dict:
         """``{"kind": "cpu", "threads": k}``: the threads of the threaded chain or of the scheduler's own loop
         where one has run (else 1); where a `ThreadTuner` chose the count, the count it ran most on, and
-        ``"tuned"``: ``{count: share of the work}`` (`ThreadTuner.shares`)."""
+        ``"tuned"``: ``{count: share of the work}`` (`ThreadTuner.shares`); ``"loop"``: which limited loop ran and
+        what chose it (`sizes.LoopChoice.described`), and where the table loop ran, how its blocks were chosen and
+        the share of its picks run without a branch (`choice.described`); ``"setting"``: ``PINNEDBALLS_LOOP`` where
+        it forced a choice."""
         threads, tuner = 1, None
         if self._parallel:  # built by a run, and run by it: on its threads, or as its tuner chose
             threads, tuner = self._parallel.threads, self._parallel.tuner
         elif self._own_ran:
             threads, tuner = self.model.threads or most_threads(), getattr(self.own_steps, "tuner", None)
         shares = tuner.shares() if tuner is not None else {}
-        if not shares:
-            return {"kind": "cpu", "threads": threads}
-        return {"kind": "cpu", "threads": max(shares, key=shares.get),
-                "tuned": {str(count): share for count, share in shares.items()}}
+        said = {"kind": "cpu", "threads": threads}
+        if shares:
+            said = {"kind": "cpu", "threads": max(shares, key=shares.get),
+                    "tuned": {str(count): share for count, share in shares.items()}}
+        loop = {**(self._choice.described() if self._choice.ran else {}), **described(self.tune)}
+        if loop:
+            said["loop"] = loop
+        if self.setting != "auto":
+            said["setting"] = f"PINNEDBALLS_LOOP={self.setting}"
+        return said
 
     # ------------------------------------------------------------ the loops
     def parallel_chain(self):
@@ -135,18 +157,15 @@ class LoopBackend(Backend):
                 self._parallel = built if built is not None else False
         return self._parallel or None
 
+    def choice(self) -> LoopChoice:
+        """Which limited loop runs this system (`engine.sequential.sizes.LoopChoice`)."""
+        return self._choice
+
     def limited(self, logged: bool):
-        """``(loop, pattern)``: the limited loop for this system's size, and the row pattern it reads
-        (`engine.rows`): the tables when they fit in cache, the tables prefetched, or the lattice's row
-        pattern prefetched when the tables do not."""
-        loops_, s, g = self.loops, self.model.selector, self.model.geometry
-        c = g.contacts
-        if c.pairs.nbytes + c.ends.nbytes + self.state.velocities.nbytes <= LOOKAHEAD_BYTES or s.skips:
-            return (loops_.limited_logged if logged else loops_.limited), NO_PATTERN
-        pattern = g.row_pattern
-        if pattern is None:
-            return (loops_.limited_prefetched_logged if logged else loops_.limited_prefetched), NO_PATTERN
-        return (loops_.limited_rows_logged if logged else loops_.limited_rows), pattern
+        """``(loop, pattern)``: the limited loop running this system now (`choice`), and the row pattern it reads
+        (`engine.rows`)."""
+        choice = self.choice()
+        return choice.loop(choice.name, logged)
 
     def freeze_chunk(self) -> int:
         """Steps between two scans for the freeze in an untracked loop (`engine.sequential.loops`)."""
@@ -174,7 +193,7 @@ class LoopBackend(Backend):
             else:
                 limited, pattern = self.limited(logged=True)
                 taken += limited(*chain, pattern, *tables, max_steps - taken, max_collisions, until_frozen,
-                                 self.freeze_chunk(), np.empty_like(st.scheduler), log)
+                                 self.freeze_chunk(), np.empty_like(st.scheduler), log, self.tune)
             made = st.collisions - before
             if made:
                 self.tell(log[:made, 0].copy(), log[:made, 1].copy())

@@ -369,14 +369,15 @@ class ColoredSweep(Scheduler):
 
 
 def _threaded_steps(collide: Callable, dim: int, flat: bool, shuffle: bool, threads: int | None) -> Callable:
-    """`sweep_steps` on ``threads`` of numba's threads; None: a run of at least 4 segments of
-    `TUNED_SEGMENT` steps in segments, each on the count a `ThreadTuner` chooses (the same bits)."""
+    """`sweep_steps` on ``threads`` of numba's threads; None: in segments of at most `TUNED_SEGMENT` steps, each
+    on the count a `ThreadTuner` chooses (the same bits), the tuner kept from call to call (a run's calls are
+    short: on a busy machine, untuned, they ran on every thread)."""
     loop = sweep_steps(collide, dim, flat, shuffle)
     tuner = ThreadTuner() if threads is None else None
 
     def steps(*args):
         *chain, max_steps = args
-        if tuner is None or len(tuner.candidates) == 1 or max_steps < 4 * TUNED_SEGMENT:
+        if tuner is None or len(tuner.candidates) == 1 or max_steps <= 0:  # no steps: compiles, on any count
             with using(threads):
                 return loop(*args)
         done = 0

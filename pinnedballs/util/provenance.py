@@ -34,8 +34,8 @@ import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-__all__ = ["PACKAGES", "entry", "versions", "cpu", "now", "command", "command_line", "python_call", "script",
-           "problem", "lines"]
+__all__ = ["PACKAGES", "entry", "versions", "cpu", "cpu_line", "now", "command", "command_line", "python_call",
+           "script", "problem", "lines"]
 
 #: the packages whose versions every entry records (where installed)
 PACKAGES = ("numpy", "numba", "llvmlite", "h5py")
@@ -76,6 +76,19 @@ def cpu() -> dict:
     flags = set((info.get("flags") or info.get("Features") or "").split())
     out["flags"] = [f for f in VECTOR_FLAGS if f in flags]
     return out
+
+
+def cpu_line(info: dict | None = None) -> str:
+    """The CPU in one line, as a benchmark prints it beside its figures: ``"CPU: AMD EPYC (family 26 model 2), 2
+    cores, L2 2 MiB a core, sse4_2 avx avx2 fma avx512f avx512vl"`` (``info``: `cpu`'s dict; None: this one)."""
+    c = cpu() if info is None else info
+    raw = _cpuinfo() if info is None else {}
+    model = c.get("model", "unknown")
+    if raw.get("cpu family") and raw.get("model"):
+        model += f" (family {raw['cpu family']} model {raw['model']})"
+    l2 = c.get("l2_cache")
+    size = "L2 unknown" if l2 is None else f"L2 {l2 >> 20} MiB a core" if l2 >= 1 << 20 else f"L2 {l2 >> 10} KiB a core"
+    return f"CPU: {model}, {c.get('cores')} cores, {size}, {' '.join(c.get('flags') or ['no vector flags read'])}"
 
 
 def _cpuinfo() -> dict[str, str]:
@@ -230,6 +243,25 @@ def _when(stamp: str) -> str:
     return stamp.replace("T", " ").replace("Z", " UTC")
 
 
+#: the limited loops in words, and what chose them (`engine.sequential.sizes`, `engine.sequential.choice`)
+_LOOPS = {"tables": "the table loop", "prefetched": "the prefetched table loop", "rows": "the row-pattern loop"}
+_CHOSEN = {"size": "by its size", "measured": "timed on this CPU", "threshold": "by the share of collisions",
+           "forced": "forced"}
+
+
+def _loop(loop: dict) -> str:
+    """``"the table loop (by its size), 87% of its picks without a branch (timed on this CPU)"``."""
+    name = loop.get("name")
+    said = _LOOPS.get(name, f"the {name} loop") if isinstance(name, str) else "the table loop"
+    if isinstance(loop.get("by"), str):
+        said += f" ({_CHOSEN.get(loop['by'], loop['by'])})"
+    if isinstance(loop.get("branch_free"), (int, float)):
+        said += f", {float(loop['branch_free']):.0%} of its picks without a branch"
+        if isinstance(loop.get("blocks"), str):
+            said += f" ({_CHOSEN.get(loop['blocks'], loop['blocks'])})"
+    return said
+
+
 def _device(item: dict) -> str:
     """``"CPU: AMD EPYC (2 cores, AVX2), 2 threads"``, or the GPU's name and compute capability."""
     c, d = item.get("cpu") or {}, item["device"]
@@ -247,6 +279,10 @@ def _device(item: dict) -> str:
         tuned = d.get("tuned")
         if isinstance(tuned, dict) and len(tuned) > 1:
             said += " (chosen by the tuner: " + ", ".join(f"{k} on {float(s):.0%}" for k, s in tuned.items()) + ")"
+    if isinstance(d.get("loop"), dict) and d["loop"]:
+        said += "; " + _loop(d["loop"])
+    if isinstance(d.get("setting"), str) and d["setting"] not in said:
+        said += f" ({d['setting']})"
     for key in ("workers", "dask"):
         if key in d:
             said += f"; {key} {d[key]}"

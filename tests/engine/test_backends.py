@@ -8,6 +8,7 @@ import pytest
 
 import pinnedballs as pb
 from pinnedballs.engine.chain import NO_LIMIT
+from pinnedballs.engine.jit.intrinsics import TICKS
 from pinnedballs.engine.threads.tuning import most_threads
 from pinnedballs.schedulers import colored_sweep
 
@@ -18,10 +19,17 @@ def _sim(scheduler, **options) -> pb.Simulation:
                          **options)
 
 
-def test_the_sequential_loop_runs_on_one_thread():
+def test_the_sequential_loop_runs_on_one_thread_and_says_which_loop():
+    """A small torus: the table loop, chosen by its size, its blocks with a branch or without as their costs (or,
+    where the CPU cannot time them, the share of collisions) chose (`engine.sequential.choice`)."""
     sim = _sim(pb.UniformRandomPair())
     sim.run(steps=2000)
-    assert sim.engine.resources() == {"kind": "cpu", "threads": 1}
+    said = sim.engine.resources()
+    loop = said.pop("loop")
+    assert said == {"kind": "cpu", "threads": 1}
+    assert loop["name"] == "tables" and loop["by"] == "size"
+    assert loop["blocks"] == ("measured" if TICKS else "threshold")
+    assert 0.0 <= loop["branch_free"] <= 1.0
 
 
 @pytest.mark.slow  # compiles the sweep's threaded loop (seconds on an empty cache)
@@ -32,7 +40,9 @@ def test_a_sweep_of_plain_steps_runs_on_its_threads_and_one_until_frozen_on_one(
     assert sim.engine.resources() == {"kind": "cpu", "threads": most_threads()}
     frozen = _sim(pb.ColoredSweep(threads=most_threads()))
     frozen.run(steps=2000, until_frozen=True)  # the engine's sequential loop, which watches for the freeze
-    assert frozen.engine.resources() == {"kind": "cpu", "threads": 1}
+    said = frozen.engine.resources()
+    assert {k: said[k] for k in ("kind", "threads")} == {"kind": "cpu", "threads": 1}
+    assert said["loop"]["name"] == "tables"
 
 
 @pytest.mark.slow  # compiles the sweep's threaded loop (seconds on an empty cache)

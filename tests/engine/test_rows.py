@@ -9,6 +9,7 @@ import pinnedballs as pb
 from pinnedballs.engine.chain import NO_LIMIT
 from pinnedballs.engine.margin import new_margin
 from pinnedballs.engine.rows import decode, row_pattern
+from pinnedballs.engine.sequential.choice import new_tune
 from pinnedballs.engine.sequential.loops import NO_PATTERN
 from pinnedballs.engine.streams.xoshiro import seed_state
 from pinnedballs.rules import collide_elastic, collide_masses
@@ -55,7 +56,8 @@ def _limited(loop, geometry, v, pattern, masses, params, seed, steps, collisions
     rng, counters, margin = seed_state(seed), np.zeros(4, np.int64), new_margin()
     chunk = steps if collisions == NO_LIMIT and not until_frozen else 4096
     loop(v, c.pairs, c.ends, c.units, masses, params, pattern, np.zeros(1, np.int64), np.zeros(0, np.int64), rng,
-         counters, margin, steps, collisions, until_frozen, chunk, np.zeros(1, np.int64), np.empty((0, 2), np.int64))
+         counters, margin, steps, collisions, until_frozen, chunk, np.zeros(1, np.int64), np.empty((0, 2), np.int64),
+         new_tune())
     return v, rng, counters, margin
 
 

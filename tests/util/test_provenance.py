@@ -146,3 +146,17 @@ def test_lines_say_the_latest_life_and_how_many_came_before():
     assert provenance.lines([_entry(device={"kind": "cuda", "gpu": "simulated"})])[1] == \
         "ran on:      GPU: simulated (numba-cuda's simulator on the CPU: AMD EPYC (2 cores, AVX2))"
     assert provenance.lines([]) == ["made by:     not recorded (written before outputs kept their provenance)"]
+
+
+def test_lines_say_which_loop_ran_and_what_chose_it():
+    """What `engine.backends.LoopBackend.resources` records of the loop (`engine.sequential.sizes`, `.choice`)."""
+    timed = _entry(device={"kind": "cpu", "threads": 1, "loop": {"name": "tables", "by": "measured",
+                                                                  "shares": {"tables": 0.9, "rows": 0.1},
+                                                                  "blocks": "measured", "branch_free": 0.8704}})
+    assert provenance.lines([timed])[1] == ("ran on:      CPU: AMD EPYC (2 cores, AVX2), 1 thread; the table loop "
+                                            "(timed on this CPU), 87% of its picks without a branch (timed on this "
+                                            "CPU)")
+    forced = _entry(device={"kind": "cpu", "threads": 1, "loop": {"name": "rows", "by": "PINNEDBALLS_LOOP=rows"},
+                            "setting": "PINNEDBALLS_LOOP=rows"})
+    assert provenance.lines([forced])[1] == ("ran on:      CPU: AMD EPYC (2 cores, AVX2), 1 thread; the row-pattern "
+                                             "loop (PINNEDBALLS_LOOP=rows)")

@@ -21,7 +21,8 @@ from numba.core import cgutils
 from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 
-__all__ = ["fixed_width", "prefetch", "atomic_load", "atomic_store", "atomic_add", "atomic_cas", "pause", "give_way"]
+__all__ = ["fixed_width", "prefetch", "atomic_load", "atomic_store", "atomic_add", "atomic_cas", "pause", "give_way",
+           "ticks", "TICKS"]
 
 
 @intrinsic
@@ -216,3 +217,37 @@ atomic_cas = _atomic_cas_python if config.DISABLE_JIT else _atomic_cas_intrinsic
 pause = _pause_python if config.DISABLE_JIT else _pause_intrinsic
 #: ``give_way()``: the operating system may run another thread on this core now (``sched_yield``)
 give_way = _pause_python if config.DISABLE_JIT else _give_way_intrinsic
+
+
+# ---------------------------------------------------------------- the clock a loop reads
+#
+# A loop that chooses between two ways of running its blocks (`engine.sequential.choice`) times them on the
+# CPU that runs it: x86's time-stamp counter (``rdtsc``, LLVM's ``llvm.readcyclecounter``: tens of cycles,
+# no system call). Elsewhere LLVM may read a counter the operating system forbids (Arm's PMCCNTR_EL0 traps),
+# so there `ticks` is 0 and `TICKS` False: a loop then does not time itself.
+
+#: whether `ticks` counts (x86-64: the time-stamp counter)
+TICKS = platform.machine().lower() in ("x86_64", "amd64")
+
+
+@intrinsic
+def _ticks_intrinsic(typingctx):
+    def codegen(context, builder, signature, args):
+        if not TICKS:
+            return ir.Constant(ir.IntType(64), 0)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.IntType(64), []),
+                                            "llvm.readcyclecounter")
+        return builder.call(fn, [])
+
+    return types.int64(), codegen
+
+
+def _ticks_python():
+    """Without the JIT: nanoseconds of `time.perf_counter_ns` (a clock, as the counter is)."""
+    import time
+
+    return time.perf_counter_ns()
+
+
+#: ``ticks() -> int64``: the time-stamp counter (cycles at a constant rate) where `TICKS`, else 0
+ticks = _ticks_python if config.DISABLE_JIT else _ticks_intrinsic

@@ -21,11 +21,12 @@ a *step* is a pick, a *collision* a pick that changed velocities.
   restored to the start of the chunk and its picks replayed up to that collision.
   Where ``limited`` reads the tables (they fit in cache), for a rule written by its impulse and a selector
   of one step a pick, it runs its chunks in blocks of `BLOCK` steps, each one with a branch on every pick's
-  collision or, after a block that collided on `BRANCH_FREE_PERCENT` of its picks or more, without one
-  (`free_trial_kernel`): on a lattice in equilibrium about half the picks collide, and a branch on them is
-  mispredicted nearly as often; where few picks collide (a half-plane near its freeze) the branch is right
-  nearly always and costs less than computing every collision (docs/performance.md). The same bits either
-  way (`tests/engine/sequential/test_branch_free.py`).
+  collision or without one (`free_trial_kernel`), whichever its blocks have measured the cheaper on this CPU
+  at the share of collisions of the block before (`engine.sequential.choice`: on a lattice in equilibrium
+  about half the picks collide and a branch on them is mispredicted nearly as often, yet on some CPUs the
+  branch still wins; where few picks collide, a half-plane near its freeze, it is right nearly always).
+  ``tune`` keeps what it measured between calls. The same bits either way
+  (`tests/engine/sequential/test_branch_free.py`).
 * ``tracked`` keeps the live set up to date after every collision (``flags``, their count, and the
   selector told of every change): for a selector that picks among live contacts (`RejectionFree`).
 
@@ -62,11 +63,12 @@ from ..chain import COLLISIONS, LAST, LIVE, STEPS
 from ..closing import WRITE, branch_free_form, choose, closing_speed, compiled_form
 from ..harness import limits_loop
 from ..jit.cache import jit_cached_if_possible, njit_cached
-from ..jit.intrinsics import prefetch
+from ..jit.intrinsics import prefetch, ticks
 from ..margin import LARGEST, NEAR, NEAR_COLLISIONS, NEAR_REMNANTS, SMALLEST, track
 from ..rows import decode
 from ..selector import NO_AUX, Selector, no_begin, no_change, pick_selector  # the selector protocol, re-exported
 from ..streams.xoshiro import load, store
+from .choice import BLOCK, BRANCH_FREE_PERCENT, PREVIOUS, next_free  # the first two re-exported
 from .start import fixed_rows, limited_prepare  # re-exported
 
 __all__ = ["Selector", "Loops", "loops", "pick_selector", "selector_picks", "contact_kernels", "live_kernel",
@@ -83,7 +85,8 @@ _RING = 32  # ring buffer of drawn picks: a power of two > LOOKAHEAD, ROWS_AHEAD
 #: the row pattern a loop that reads the tables is handed (`engine.rows`; never decoded)
 NO_PATTERN = (np.zeros(1, dtype=np.int64), np.int64(1), np.int64(1), np.int64(1), 1.0)
 
-#: above this many bytes of tables and velocities the loops prefetch (they no longer fit in cache)
+#: above this many bytes of tables and velocities the loops prefetch (they no longer fit in cache), where the
+#: CPU's L2 cache cannot be read, and where a run has not yet timed its loops (`engine.sequential.sizes`)
 LOOKAHEAD_BYTES = 4 << 20
 
 #: an untracked chunk is at least this many steps ...
@@ -94,22 +97,18 @@ FREEZE_CHUNK_PER_CONTACT = 4
 #: ``counters[LIVE]`` when no loop counted the live contacts
 UNKNOWN = -1
 
-#: the table loop runs its steps in blocks of this many, each with a branch on every pick's collision or
-#: without (`free_trial_kernel`), as the block before collided on fewer or more than ...
-BLOCK = 256
-#: ... this percentage of its picks (chosen by measurement: benchmarks/bench_torus.py --regimes)
-BRANCH_FREE_PERCENT = 30
-
 
 class Loops(NamedTuple):
     """The compiled loops of one (rule, selector, dim, flat); see the module docstring.
 
     limited, limited_prefetched, limited_rows(v, pairs, ends, units, masses, params, pattern, state, aux,
                                               rng_words, counters, margin, max_steps, max_collisions,
-                                              until_frozen, chunk, saved, log)
+                                              until_frozen, chunk, saved, log, tune)
         ``pattern``: the row pattern (`engine.rows`; `NO_PATTERN` for the first two); ``chunk``: steps
-        between scans for the freeze; ``saved``: scratch as long as ``state``; plain steps are
-        ``max_collisions = NO_LIMIT``, ``until_frozen = False``, ``chunk = max_steps``;
+        between scans for the freeze; ``saved``: scratch as long as ``state``; ``tune``: how the table
+        loop chooses its blocks, and what it measured (`engine.sequential.choice.new_tune`; the others
+        ignore it); plain steps are ``max_collisions = NO_LIMIT``, ``until_frozen = False``,
+        ``chunk = max_steps``;
     tracked(v, pairs, ends, units, masses, params, state, aux, rng_words, counters, margin,
             max_steps, max_collisions, until_frozen, ptr, inc, flags, log)
         ``counters[LIVE]`` and ``flags`` must hold the live contacts of ``v`` on entry;
@@ -287,12 +286,10 @@ def selector_replay(select: Callable) -> Callable:
 
 @functools.cache
 def loops(collide: Callable, select: Callable, begin: Callable, changed: Callable, skips: bool, dim: int,
-          flat: bool, branch_free_percent: int = BRANCH_FREE_PERCENT) -> Loops:
+          flat: bool) -> Loops:
     """The compiled `Loops` for one rule's ``collide``, one selector's functions (see `Selector`),
-    ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact).
-
-    ``branch_free_percent``: a block of the table loop collided on at least this percentage of its picks
-    runs the next one without a branch (0: every block but the first, above 100: none; the same bits)."""
+    ``dim`` and ``flat`` (every ``t_j == -t_i``, so the loops read one unit vector per contact). How the
+    table loop runs its blocks is chosen at run time, by its ``tune`` (`engine.sequential.choice`)."""
     attempt, refresh = contact_kernels(collide, dim, flat)
     _, any_live = live_kernel(collide, dim, flat)
     tried = trial_kernel(collide, dim, flat)
@@ -300,9 +297,9 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     picks = selector_picks(select, begin)
     replay = selector_replay(select)
     shaped = fixed_rows(dim)
-    SKIPS, PERCENT = skips, int(branch_free_percent)
-    #: the table loop may run blocks without a branch: a rule given by its impulse, one step a pick, a rate that can pay
-    FREE = tried_free is not None and not skips and PERCENT <= 100
+    SKIPS = skips
+    #: the table loop may run blocks without a branch: a rule given by its impulse, one step a pick
+    FREE = tried_free is not None and not skips
 
     # The chunks: each is the harness's ``advance(data, carry, count, left, taken, collisions)`` of one loop
     # (`make_limited` says ``data`` and ``carry``), written for it, so numba inlines one level less.
@@ -340,12 +337,12 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
     @njit(inline="always")
     def chunk_blocks(data, carry, count, collisions_left, before, collisions):
         """`chunk` without a log for a selector of one step a pick, in blocks of `BLOCK` steps: a block tries
-        its picks with ``tried`` (a branch on each collision) or, after a block that collided on
-        `BRANCH_FREE_PERCENT` of its picks or more, with ``tried_free`` (no branch: about half the picks of a
-        lattice in equilibrium collide, and a branch on them is mispredicted about as often). The same bits,
-        counts and margin either way. ``free`` (in ``carry``): how the first block runs; the choice for the
-        next comes back in it."""
+        its picks with ``tried`` (a branch on each collision) or with ``tried_free`` (no branch), as
+        `choice.next_free` chose after the block before, from their costs timed on this CPU (``tune``). The same
+        bits, counts and margin either way. ``free`` (in ``carry``): how the first block runs; the choice for
+        the next comes back in it."""
         v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau, _ = data[:16]
+        tune = data[19]
         rng, m, at_last, free = carry
         taken, made, last = 0, 0, -1
         smallest, largest, near_hits, near_rest = m
@@ -354,6 +351,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         near_up = np.nextafter(NEAR * tau, np.inf)  # w <= NEAR * tau exactly when w < near_up
         rule_tau = params[params.shape[0] - 1]  # read once: after each pick's writes to `v` it would be read again
         done = False
+        tune[PREVIOUS] = 0.0  # no block before this chunk's first to compare it with (a scan ran between)
+        clock = ticks()
         while taken < count and not done:
             size = min(BLOCK, count - taken)
             start = made
@@ -399,7 +398,9 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
                             break
             settled = last
             taken += size
-            free = (made - start) * 100 >= PERCENT * size
+            now = ticks()
+            free = next_free(tune, free, made - start, size, now - clock)
+            clock = now
         return taken, made, last, (rng, (smallest, largest, near_hits, near_rest), at_last, free)
 
     def prefetched_chunk(LOG):
@@ -489,7 +490,8 @@ def loops(collide: Callable, select: Callable, begin: Callable, changed: Callabl
         """MODE 0: the tables; 1: the tables, prefetched; 2: the row pattern, prefetched. The run to the
         limits is `engine.harness`'s, compiled here with ``data`` and ``carry`` as tuples:
         ``data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, first, tau,
-        flags)``, ``carry = (rng, margin, margin's remnant side as of the last collision, branch-free next)``."""
+        flags, rng_words, counters, margin, tune)``, ``carry = (rng, margin, margin's remnant side as of the last
+        collision, branch-free next)``."""
         AHEAD = MODE > 0
         BLOCKS = MODE == 0 and FREE and not LOG  # the tables in blocks, some without a branch (`chunk_blocks`)
 

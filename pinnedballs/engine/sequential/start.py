@@ -37,7 +37,7 @@ def fixed_rows(dim: int) -> Callable:
 @functools.cache
 def limited_prepare(begin: Callable, dim: int, LOG: bool) -> Callable:
     """``prepare(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
-    max_steps, max_collisions, until_frozen, chunk, saved, log)``: a limited loop's start (`engine.harness`'s
+    max_steps, max_collisions, until_frozen, chunk, saved, log, tune)``: a limited loop's start (`engine.harness`'s
     ``prepare``: ``data`` and ``carry`` as `loops`' ``make_limited`` says), compiled on its own and inlined by
     LLVM. It reads no rule: one for every rule of a selector, ``dim`` and ``LOG``, cached on disk, so a new
     rule's loops do not compile it again."""
@@ -45,7 +45,7 @@ def limited_prepare(begin: Callable, dim: int, LOG: bool) -> Callable:
 
     @jit_cached_if_possible(**INLINED)
     def prepare(v, pairs, ends, units, masses, params, pattern, state, aux, rng_words, counters, margin,
-                max_steps, max_collisions, until_frozen, chunk_steps, saved, log):
+                max_steps, max_collisions, until_frozen, chunk_steps, saved, log, tune):
         v, pairs, ends, units = shaped(v, pairs, ends, units)
         n, rng = pairs.shape[0], load(rng_words)
         m = (margin[SMALLEST], margin[LARGEST], margin[NEAR_COLLISIONS], margin[NEAR_REMNANTS])
@@ -55,7 +55,7 @@ def limited_prepare(begin: Callable, dim: int, LOG: bool) -> Callable:
         if LOG:  # no more collisions in this call than the log holds
             max_collisions = min(max_collisions, collisions + log.shape[0])
         data = (v, pairs, ends, units, masses, params, pattern, state, aux, n, saved, log, base, collisions,
-                params[params.shape[0] - 1], flags, rng_words, counters, margin)
+                params[params.shape[0] - 1], flags, rng_words, counters, margin, tune)
         free = False  # the first block of the table loop has a branch (`chunk_blocks`)
         return data, (rng, m, (m[1], m[3]), free), collisions, max_steps, max_collisions, until_frozen, chunk_steps
 

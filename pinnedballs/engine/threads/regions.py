@@ -42,18 +42,18 @@ from collections.abc import Callable
 import numpy as np
 from numba import prange
 
-from ..chain import COLLISIONS, LAST, LIVE, STEPS
+from ..chain import COLLISIONS, LAST, STEPS
 from ..closing import trial_form
-from ..harness import limits_loop
 from ..jit.cache import INLINED, jit_cached_if_possible, njit_cached
 from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from ..margin import merge_margin, track
 from ..rows import decode
 from ..streams.jump import jump, jump_polynomial
 from ..streams.xoshiro import load, next_uint64, store
-from .tuning import TUNED_SEGMENT, ThreadTuner
+from .stretches import tuned_blocks, tuned_limits
+from .tuning import TUNED_SEGMENT, ThreadTuner, thread_counts
 
-__all__ = ["ParallelChain", "counted_trial", "run_in_chunks", "tuned_blocks", "region_cuts", "bands_pay",
+__all__ = ["ParallelChain", "counted_trial", "region_cuts", "bands_pay",
            "parallel_blocks", "WORDS", "MAX_CROSSING_SHARE", "MAX_BAND_SHARE", "MIN_PARALLEL_CONTACTS", "TUNED_SEGMENT"]
 
 #: words of the stream each thread turns into picks per block
@@ -453,7 +453,7 @@ class ParallelChain:
         #: `contact_windows` (None: one window holds every contact: each is decoded when drawn)
         self.windows = np.array([[0, 0, 1 << 62]] * len(cuts), dtype=np.int64) if windows is None else windows
         #: chooses, stretch by stretch, between all threads and one (None: always all)
-        self.tuner = ThreadTuner((threads, 1)) if tuned else None
+        self.tuner = ThreadTuner(thread_counts(threads)) if tuned else None
         self.poly = jump_polynomial(words)
         p = threads
         self.scratch = (np.empty((p, p + 1, words, 3), dtype=np.int64),  # recs: (k, i << 32 | j, position)
@@ -503,69 +503,7 @@ class ParallelChain:
         return int(picks)
 
     def run(self, chain, pattern, limited, any_live, state, aux, rng, counters, margin, max_steps: int,
-            max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
-        """What the sequential ``limited`` loop does for these limits, bit for bit (`run_in_chunks`)."""
-        return run_in_chunks(self._whole, self.block, chain, pattern, limited, any_live, state, aux, rng, counters,
-                             margin, max_steps, max_collisions, until_frozen, chunk_steps)
-
-
-def tuned_blocks(tuner: ThreadTuner | None, block: int, count: int, sequential: Callable, threaded: Callable) -> int:
-    """``count`` blocks of ``block`` steps: ``threaded(blocks)`` on all threads or, where ``tuner`` finds one
-    thread faster, ``sequential(steps)`` (the same picks), in the segments the tuner takes (a trial is
-    shorter); None: always all threads. The steps taken."""
-    if tuner is None:
-        return threaded(count)
-    taken = []
-
-    def segment(blocks):
-        taken.append(sequential(blocks * block) if tuner.choose() == 1 else threaded(blocks))
-
-    left = count
-    while left > 0:
-        left -= tuner.run(segment, left)
-    return sum(taken)
-
-
-def run_in_chunks(whole: Callable, block: int, chain, pattern, limited, any_live, state, aux, rng, counters, margin,
-                  max_steps: int, max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
-    """What the sequential ``limited`` loop (with ``pattern``) does for these limits, bit for bit, for a
-    threaded chain whose ``whole(chain, pattern, rng, counters, margin, count, sequential)`` runs ``count``
-    blocks of ``block`` steps (`ParallelChain`, `engine.threads.reservations.ReservationChain`), within the limits of
-    `engine.harness`: chunks of ``chunk_steps`` steps, each as whole blocks on the threads (never more than the
-    collisions left could hold) and its rest on ``limited``, the freeze scanned (``any_live``) after a chunk
-    with a collision, and the chunk that froze run again on one thread from its start to its last collision,
-    so the margin too ends there. Returns the steps taken."""
-    saved = np.empty_like(state)
-
-    def sequential(steps: int) -> int:
-        return limited(*chain, pattern, state, aux, rng, counters, margin, steps, max_collisions, False, steps,
-                       saved, _NO_LOG)
-
-    def mark(data, carry, count, left):
-        return rng.copy(), state.copy(), counters.copy(), margin.copy(), chain.v.copy() if until_frozen else None
-
-    def advance(data, carry, count, left, taken, collisions):
-        start_steps, start_collisions = int(counters[STEPS]), int(counters[COLLISIONS])
-        blocks = min(count, left) // block
-        done = whole(chain, pattern, rng, counters, margin, blocks, sequential) if blocks > 0 else 0
-        if done < count and counters[COLLISIONS] < max_collisions:
-            done += sequential(count - done)
-        made = int(counters[COLLISIONS]) - start_collisions
-        return done, made, int(counters[LAST]) - start_steps - 1 if made else -1, carry
-
-    def live(data, carry):
-        return any_live(*chain)
-
-    def settle(data, start, carry, used, count, frozen):
-        if frozen:  # once per run: the chunk again on one thread from its start to its last collision
-            rng[:], state[:], counters[:], margin[:], chain.v[:] = start
-            sequential(used)
-        return carry
-
-    taken, _, frozen, _, _ = limits_loop(mark, advance, live, settle)(None, None, int(counters[COLLISIONS]), max_steps,
-                                                                     max_collisions, until_frozen, chunk_steps)
-    counters[LIVE] = 0 if frozen else -1
-    return taken
-
-
-_NO_LOG = np.empty((0, 2), dtype=np.int64)
+            max_collisions: int, until_frozen: bool, chunk_steps: int, tune: np.ndarray | None = None) -> int:
+        """What the sequential ``limited`` loop does for these limits, bit for bit (`tuned_run` of `run_in_chunks`)."""
+        return tuned_limits(self.tuner, self._whole, self.block, chain, pattern, limited, any_live, state, aux, rng,
+                            counters, margin, max_steps, max_collisions, until_frozen, chunk_steps, tune)

@@ -66,8 +66,9 @@ from ..jit.cache import jit_cached_if_possible, njit_cached
 from ..jit.intrinsics import atomic_add, atomic_cas, atomic_load, atomic_store, fixed_width, give_way, pause, prefetch
 from ..margin import merge_margin
 from ..streams.philox import block, counter_pick, lemire
-from .regions import counted_trial, run_in_chunks, tuned_blocks
-from .tuning import ThreadTuner
+from .regions import counted_trial
+from .stretches import tuned_blocks, tuned_limits
+from .tuning import ThreadTuner, thread_counts
 
 __all__ = ["ReservationChain", "reservation_batches", "range_bounds", "batch_size", "row_contact", "MIN_BATCH",
            "MAX_BATCH", "MAX_CROSSING_SHARE", "BALLS_PER_WORD", "BATCH_PER_THREAD", "CROSSING"]
@@ -414,7 +415,7 @@ class ReservationChain:
         #: the range of each word of 64 balls, and of each contact (`CROSSING`: two)
         self.owners = (owner, np.where(ends[:, 0] == ends[:, 1], ends[:, 0], CROSSING).astype(np.uint8))
         #: chooses, stretch by stretch, between all threads and one (None: always all)
-        self.tuner = ThreadTuner((threads, 1)) if tuned else None
+        self.tuner = ThreadTuner(thread_counts(threads)) if tuned else None
         self.scratch = (np.empty(size, np.int64),  # rec: the contact of each pick
                         np.empty((p, p, -(-size // p)), np.int32),  # lists: segment t's picks on range r
                         np.zeros((p, p), np.int64),  # counts
@@ -437,7 +438,7 @@ class ReservationChain:
         return cls(reservation_batches(collide, dim, flat, rows), pairs, bounds, n_balls, threads, size, tuned)
 
     def _whole(self, chain, pattern, rng, counters, margin, count: int, sequential: Callable) -> int:
-        """``count`` batches (`parallel.tuned_blocks`); the steps taken."""
+        """``count`` batches (`stretches.tuned_blocks`); the steps taken."""
         return tuned_blocks(self.tuner, self.batch, count, sequential,
                             lambda batches: self._batches(chain, pattern, rng, counters, margin, batches))
 
@@ -459,9 +460,9 @@ class ReservationChain:
         return steps
 
     def run(self, chain, pattern, limited, any_live, state, aux, rng, counters, margin, max_steps: int,
-            max_collisions: int, until_frozen: bool, chunk_steps: int) -> int:
-        """What the sequential ``limited`` loop does for these limits, bit for bit (`parallel.run_in_chunks`:
+            max_collisions: int, until_frozen: bool, chunk_steps: int, tune: np.ndarray | None = None) -> int:
+        """What the sequential ``limited`` loop does for these limits, bit for bit (`stretches.tuned_limits`:
         whole batches on the threads, the rest and the freeze on one)."""
-        return run_in_chunks(self._whole, self.batch, chain, pattern, limited, any_live, state, aux, rng, counters,
-                             margin, max_steps, max_collisions, until_frozen, chunk_steps)
+        return tuned_limits(self.tuner, self._whole, self.batch, chain, pattern, limited, any_live, state, aux, rng,
+                            counters, margin, max_steps, max_collisions, until_frozen, chunk_steps, tune)
 

@@ -14,8 +14,12 @@ set it before any parallel numba code runs in the process).
 
 Sleeping at the barrier gives the core to the other process, so beside one busy process 2
 threads still use about one core and only match 1 thread. A long run therefore lets `ThreadTuner`
-choose, as HOOMD-blue's autotuner chooses block sizes: it times a short segment on each thread count
-now and then and runs the rest on the faster. The bits never depend on the count.
+choose (`engine.tuner.Tuner`, as HOOMD-blue's autotuner chooses block sizes): it times about 10 ms of the
+run's own work on each thread count now and then (rounds further apart as the same count keeps winning, and
+never so often that the trials cost more than 1 % of the run) and runs the rest on the fastest, more
+threads only where they run at least 1.3 times faster than one: two threads busy cost two cores' seconds.
+Where one thread wins, the threaded chains hand the sequential loop whole stretches, until the next round
+(`engine.threads.stretches`). The bits never depend on the count.
 
 How many threads: ``NUMBA_NUM_THREADS`` (default: every core) caps them for the process and must
 be set before Python starts; `ColoredSweep(threads=k)` fixes the count for its runs (no tuning).
@@ -25,11 +29,12 @@ from __future__ import annotations
 
 import contextlib
 import os
-import time
+from collections.abc import Callable
 
 from ...util.errors import FieldError
+from ..tuner import Tuner
 
-__all__ = ["WAIT_POLICY", "ThreadTuner", "most_threads", "using", "TUNED_SEGMENT"]
+__all__ = ["WAIT_POLICY", "ThreadTuner", "thread_counts", "most_threads", "using", "TUNED_SEGMENT"]
 
 #: steps of one segment of a long run whose thread count `ThreadTuner` chooses (about 20-40 ms)
 TUNED_SEGMENT = 1 << 23
@@ -71,80 +76,29 @@ def using(threads: int | None):
         numba.set_num_threads(before)
 
 
-class ThreadTuner:
-    """Chooses how many threads each segment of a long parallel run uses: it times every segment,
-    runs on the count with the best rate, and every ``period`` segments tries each other count once
-    more, on a segment `TRIAL_SHARE` times shorter (so a count that loses costs little to try). The
-    period starts at `PERIOD` and doubles (to `MAX_PERIOD`) each time the same count wins again, so a
-    settled choice pays for few trials; a change of winner resets it. The running count's rate is
-    always fresh: if the machine gets busy and it drops below another count's latest rate, the tuner
-    moves to that count at once.
+def thread_counts(threads: int) -> tuple[int, ...]:
+    """The thread counts a `ThreadTuner` tries for a chain built for ``threads``: one, half of them (from 4 on:
+    a machine's other work, or its memory, may make fewer run faster), all."""
+    return (1,) + ((threads // 2,) if threads >= 4 else ()) + ((threads,) if threads > 1 else ())
 
-    The first segment on each count is not timed, only run (a trial's share of the units): it may compile
-    or load the count's loops and start numba's threads. Nor is a trial shorter than `MIN_TRIAL_SECONDS`
-    kept. Both once made the threads' first trial, a single batch of a run's first small chunk, look
-    slower than one thread's, so that a run on idle cores stayed on one until its next trial, hundreds of
-    millions of steps later (`benchmarks/results/measurements.md`).
 
-    ``candidates``: the thread counts to try (default: `most_threads` and 1).
+class ThreadTuner(Tuner):
+    """How many threads each stretch of a long parallel run uses (`Tuner`), by the wall clock (what a user waits
+    for); more threads than the fewest must run at least `PAYS` times faster to be chosen: two threads hold two
+    cores, and a count that gains less is not worth its CPU seconds (nor the risk that a noisy trial chose it).
+    The bits never depend on the count.
+
+    ``candidates``: the thread counts to try, in order (default: `thread_counts` of `most_threads`); ``clock``: seconds.
     """
 
-    #: segments between two trials of the other counts, at first and after a change of winner
-    PERIOD = 24
-    #: the longest such interval (about 10 s of `TUNED_SEGMENT` segments)
-    MAX_PERIOD = 384
-    #: a trial (a count without a fresh rate) runs this many times fewer units than it is offered
-    TRIAL_SHARE = 8
-    #: a segment shorter than this (seconds) says little of its count's rate (a parallel call's start, a
-    #: threads' wake-up): a trial that short is not kept, and the count is tried again on the next offer
-    MIN_TRIAL_SECONDS = 0.01
+    #: more threads must run at least this many times faster than the fewest to be chosen
+    PAYS = 1.3
 
-    def __init__(self, candidates: tuple[int, ...] | None = None):
-        most = most_threads()
-        self.candidates = candidates or ((most, 1) if most > 1 else (1,))
-        self.rates: dict[int, float] = {}  # the latest units per second on each count
-        self.since = 0  # segments since the latest trial
-        self.period = self.PERIOD
-        self.winner: int | None = None  # the best count at the latest trial
-        self.warm: set[int] = set()  # the counts that ran a first, untimed segment
-        self.ran: dict[int, int] = {}  # the units run on each count so far (`shares`)
+    def __init__(self, candidates: tuple[int, ...] | None = None, clock: Callable[[], float] | None = None):
+        super().__init__(candidates or thread_counts(most_threads()), clock)
 
-    def choose(self) -> int:
-        """The thread count for the next segment: an untimed candidate, else the fastest."""
-        for count in self.candidates:
-            if count not in self.rates:
-                return count
-        return max(self.rates, key=self.rates.get)
+    def pays(self, count: int) -> float:
+        return 1.0 if count == min(self.candidates) else self.PAYS
 
-    def shares(self) -> dict[int, float]:
-        """``{count: share}``: the share of the units run so far that each count ran (what the tuner chose,
-        recorded with a run's provenance, `util.provenance`); empty before the first segment."""
-        total = sum(self.ran.values())
-        return {count: self.ran[count] / total for count in sorted(self.ran, reverse=True)} if total else {}
-
-    def run(self, segment, units: int) -> int:
-        """``segment(n)`` on the chosen count, timed, for ``n = units`` (``units >= 1``: steps, blocks,
-        whatever ``segment`` counts, the same for every call) or, on a trial, ``max(1, units //
-        TRIAL_SHARE)``; returns ``n``: the caller offers the rest again."""
-        count = self.choose()
-        n = units if count in self.rates else max(1, units // self.TRIAL_SHARE)
-        self.ran[count] = self.ran.get(count, 0) + n
-        if count not in self.warm:  # its first segment: run, not timed (class docstring)
-            with using(count):
-                segment(n)
-            self.warm.add(count)
-            return n
-        start = time.perf_counter()
-        with using(count):
-            segment(n)
-        elapsed = time.perf_counter() - start
-        if count not in self.rates and elapsed < self.MIN_TRIAL_SECONDS:
-            return n  # too short to judge by: tried again on the next offer
-        self.rates[count] = n / max(elapsed, 1e-9)
-        self.since += 1
-        if self.since >= self.period and len(self.rates) == len(self.candidates):
-            best = self.choose()
-            self.period = min(2 * self.period, self.MAX_PERIOD) if best == self.winner else self.PERIOD
-            self.winner, self.since = best, 0
-            self.rates = {best: self.rates[best]}  # the others are tried again
-        return n
+    def within(self, count: int):
+        return using(count)

@@ -10,6 +10,7 @@ import pinnedballs as pb
 from pinnedballs.engine.chain import NO_LIMIT
 from pinnedballs.engine.jit.intrinsics import fixed_width
 from pinnedballs.engine.margin import new_margin
+from pinnedballs.engine.sequential.choice import new_tune
 from pinnedballs.engine.sequential.loops import NO_AUX, NO_PATTERN
 from pinnedballs.rules import collide_elastic
 from pinnedballs.schedulers.simple import pick_uniform
@@ -50,5 +51,5 @@ def test_loop_refuses_tables_of_another_row_length():
     with pytest.raises(ValueError, match="^the loop's tables do not have the row lengths it was built for$"):
         loops.limited(v3, c.pairs, c.ends, c.units, np.ones(geom.n_balls), np.array([1.0]), NO_PATTERN,
                       np.zeros(1, dtype=np.int64), NO_AUX, rng, counters, new_margin(), 10, NO_LIMIT, False, 10,
-                      np.zeros(1, dtype=np.int64), np.empty((0, 2), dtype=np.int64))
+                      np.zeros(1, dtype=np.int64), np.empty((0, 2), dtype=np.int64), new_tune())
     assert counters.tolist() == [0, 0, 0, 0]

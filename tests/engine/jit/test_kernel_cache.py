@@ -94,6 +94,7 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
         from pinnedballs.engine.chain import NO_LIMIT
         from pinnedballs.engine.sequential.loops import NO_PATTERN, loops as make_loops, pick_selector
         from pinnedballs.engine.margin import new_margin
+        from pinnedballs.engine.sequential.choice import new_tune
         from pinnedballs.engine.streams.xoshiro import seed_state
         from pinnedballs.schedulers.simple import pick_sweep
         import myrule
@@ -106,7 +107,7 @@ def test_a_helper_in_another_module_is_part_of_the_key(tmp_path, monkeypatch):
         counters = np.zeros(4, np.int64)
         k(v, g.contacts.pairs, g.contacts.ends, g.contacts.units, np.ones(2), np.array([1.0, 0.0]), NO_PATTERN,
           np.zeros(1, np.int64), np.zeros(0, np.int64), seed_state(0), counters, new_margin(), 1, NO_LIMIT, False, 1,
-          np.zeros(1, np.int64), np.empty((0, 2), np.int64))
+          np.zeros(1, np.int64), np.empty((0, 2), np.int64), new_tune())
         print(repr(key), v[:, 0].tolist())
     """)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))

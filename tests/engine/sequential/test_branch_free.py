@@ -3,7 +3,9 @@
 loop with one: velocities (to the sign of a zero), counters, the random stream, the scheduler's state and the closing
 margin, however a run stops.
 
-``branch_free_percent=0`` runs every block but the first without a branch, ``101`` none (the loop as it was).
+``PINNEDBALLS_LOOP`` forces each way (`engine.sequential.choice`): ``branch_free`` runs every block but the first
+without a branch, ``branch`` none (the loop as it was), ``threshold`` as the block before collided, and the default
+(``auto``) as their costs, timed on this CPU, choose: all four give the same bits.
 """
 
 from __future__ import annotations
@@ -18,34 +20,41 @@ from helpers import chain, icosahedron_sphere, tangent_velocities, thin_torus
 from numba import njit
 
 import pinnedballs as pb
-from pinnedballs.engine import backends
 from pinnedballs.engine.closing import WRITE, branch_free_form, choose, compiled_form
-from pinnedballs.engine.sequential import loops as engine_loops
+from pinnedballs.engine.jit.intrinsics import TICKS
+from pinnedballs.engine.sequential.choice import PICKS, POLICY, THRESHOLD, TUNED
 from pinnedballs.rules import collide_elastic, collide_equal, collide_masses
 
-ALWAYS, NEVER = 0, 101
+#: the ways of running the table loop's blocks (``PINNEDBALLS_LOOP``); the first is the reference
+WAYS = ("branch", "branch_free", "threshold", "auto")
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a).view(np.uint64)
 
 
-def _run(monkeypatch, percent: int, make, calls) -> tuple:
-    """The state after ``calls(sim)`` on ``make()`` built with loops of ``branch_free_percent=percent``."""
+def _run(monkeypatch, way: str, make, calls) -> tuple:
+    """The state after ``calls(sim)`` on ``make()`` built under ``PINNEDBALLS_LOOP=way``, and its loop's ``tune``."""
     with monkeypatch.context() as m:
-        m.setattr(backends, "loops", functools.partial(engine_loops.loops, branch_free_percent=percent))
+        m.setenv("PINNEDBALLS_LOOP", way)
         sim = make()
     results = calls(sim)
     return (_bits(sim.velocities), sim.steps, sim.collisions, sim.engine.state.counters.copy(),
-            sim.engine.state.rng.copy(), sim.engine.state.scheduler.copy(), _bits(sim.engine.state.margin), results)
+            sim.engine.state.rng.copy(), sim.engine.state.scheduler.copy(), _bits(sim.engine.state.margin),
+            results), sim.engine.tune
 
 
 def _same(monkeypatch, make, calls) -> tuple:
-    a = _run(monkeypatch, ALWAYS, make, calls)
-    b = _run(monkeypatch, NEVER, make, calls)
-    for x, y in zip(a, b):
-        assert np.array_equal(x, y), (x, y)
-    return a
+    """The state of every way (`WAYS`), equal; returns the first's. The default (``auto``) times both ways where
+    the CPU's counter counts (its first blocks try each), and keeps the former threshold where it does not."""
+    first, _ = _run(monkeypatch, WAYS[0], make, calls)
+    for way in WAYS[1:]:
+        other, tune = _run(monkeypatch, way, make, calls)
+        for x, y in zip(first, other):
+            assert np.array_equal(x, y), (way, x, y)
+        if way == "auto":
+            assert tune[POLICY] == (TUNED if TICKS else THRESHOLD)
+    return first
 
 
 def _gaussian(geom, seed=1):
@@ -68,6 +77,8 @@ def test_the_paper_chain_on_a_torus(monkeypatch):
 
     state = _same(monkeypatch, lambda: pb.Simulation(g, v, seed=3), calls)
     assert state[2] > 2000  # collided on about half its picks: the blocks without a branch ran
+    _, tune = _run(monkeypatch, "auto", lambda: pb.Simulation(g, v, seed=3), calls)
+    assert tune[PICKS] > 0 and tune[PICKS + 1] > 0  # the default ran blocks both ways (a call's first has a branch)
 
 
 def test_a_thin_margin(monkeypatch):

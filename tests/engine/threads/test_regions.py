@@ -10,6 +10,7 @@ import pinnedballs as pb
 from pinnedballs.engine.chain import COUNTERS, NO_LIMIT
 from pinnedballs.engine.margin import new_margin
 from pinnedballs.engine.rows import row_pattern
+from pinnedballs.engine.sequential.choice import new_tune
 from pinnedballs.engine.sequential.loops import NO_PATTERN, live_kernel
 from pinnedballs.engine.streams.jump import jump, jump_polynomial
 from pinnedballs.engine.streams.xoshiro import load, next_uint64, seed_state
@@ -86,7 +87,7 @@ def _sequential(geometry, v, masses, params, pattern, loops, kwargs, seed):
     chunk = steps if plain else max(4096, 4 * len(c))
     taken = limited(v, c.pairs, c.ends, c.units, masses, params, pattern, np.zeros(1, np.int64), np.zeros(0, np.int64),
                     rng, counters, margin, steps, collisions, frozen, chunk, np.zeros(1, np.int64),
-                    np.empty((0, 2), np.int64))
+                    np.empty((0, 2), np.int64), new_tune())
     return taken, v, rng, counters, margin
 
 

@@ -9,6 +9,7 @@ import pinnedballs as pb
 from pinnedballs.engine.chain import COUNTERS, LIVE, NO_LIMIT, Chain
 from pinnedballs.engine.margin import new_margin
 from pinnedballs.engine.rows import decode, row_pattern
+from pinnedballs.engine.sequential.choice import new_tune
 from pinnedballs.engine.sequential.loops import NO_PATTERN, live_kernel, loops
 from pinnedballs.engine.streams.philox import counter_stream
 from pinnedballs.engine.streams.xoshiro import seed_state
@@ -70,7 +71,7 @@ def _sequential(system, kwargs, seed=9, pattern=NO_PATTERN):
     limited, aux = _loop(system, pattern)
     steps, collisions, frozen, chunk = _limits(system, kwargs)
     taken = limited(*chain, pattern, np.zeros(1, np.int64), aux, rng, counters, margin, steps, collisions, frozen,
-                    chunk, np.zeros(1, np.int64), np.empty((0, 2), np.int64))
+                    chunk, np.zeros(1, np.int64), np.empty((0, 2), np.int64), new_tune())
     return taken, chain.v, rng, counters, margin
 
 

@@ -49,109 +49,20 @@ def test_more_threads_than_numba_has_is_refused():
 
 
 class _Clock:
-    """A fake ``time.perf_counter`` whose segments take ``seconds[count]`` per 100 units on ``count``
-    threads; ``units`` lists what each segment was handed."""
+    """A fake clock whose segments take ``seconds[count]`` per 100 units on ``count`` threads (read from numba's
+    count, which `_pretend_using` sets); ``units`` and ``counts`` list what each segment was handed."""
 
     def __init__(self, seconds):
-        self.now, self.seconds, self.count, self.units = 0.0, seconds, None, []
+        self.now, self.seconds, self.count, self.units, self.counts = 0.0, seconds, None, [], []
 
     def __call__(self):
         return self.now
 
-    def segment(self, steps):
+    def segment(self, units):
         self.count = numba.get_num_threads()
-        self.now += self.seconds[self.count] * steps / 100
-        self.units.append(steps)
-
-
-def warmed(tuner: ThreadTuner) -> ThreadTuner:
-    """``tuner`` past the first, untimed segment of each of its counts."""
-    tuner.warm.update(tuner.candidates)
-    return tuner
-
-
-def _tune(tuner, clock, segments: int) -> list[int]:
-    used = []
-    for _ in range(segments):
-        tuner.run(clock.segment, 100)
-        used.append(clock.count)
-    return used
-
-
-def test_tuner_times_each_count_then_runs_on_the_faster_and_tries_again(monkeypatch):
-    clock = _Clock({2: 1.0, 1: 3.0})
-    monkeypatch.setattr(threads.time, "perf_counter", clock)
-    monkeypatch.setattr(threads, "using", _pretend_using(clock))
-    tuner = warmed(ThreadTuner(candidates=(2, 1)))
-    p = ThreadTuner.PERIOD
-    used = _tune(tuner, clock, p)
-    assert used == [2, 1] + [2] * (p - 2)  # timed both, then the faster until the period ends
-    assert clock.units == [100 // ThreadTuner.TRIAL_SHARE] * 2 + [100] * (p - 2)  # trials are short
-    assert tuner.rates == {2: 100.0} and tuner.winner == 2 and tuner.period == p
-    used = _tune(tuner, clock, p)
-    assert used == [1] + [2] * (p - 1)  # 1 thread tried once more, then 2; 2 won again: a longer period
-    assert tuner.period == 2 * p
-    assert _tune(tuner, clock, 2 * p) == [1] + [2] * (2 * p - 1)
-
-
-def test_a_trial_runs_a_share_of_the_units_and_says_how_many(monkeypatch):
-    """A count without a fresh rate runs ``units // TRIAL_SHARE`` (at least 1), the winner all it is
-    offered; `run` returns what it ran, so a caller offering the rest again runs every unit once."""
-    clock = _Clock({2: 1.0, 1: 3.0})
-    monkeypatch.setattr(threads.time, "perf_counter", clock)
-    monkeypatch.setattr(threads, "using", _pretend_using(clock))
-    tuner = warmed(ThreadTuner(candidates=(2, 1)))
-    left, ran = 1000, []
-    while left > 0:
-        ran.append(tuner.run(clock.segment, left))
-        left -= ran[-1]
-    share = ThreadTuner.TRIAL_SHARE
-    assert ran == clock.units == [1000 // share, (1000 - 1000 // share) // share,
-                                  1000 - 1000 // share - (1000 - 1000 // share) // share]
-    assert tuner.run(clock.segment, 3) == 3  # the winner's rate is fresh: no trial
-    tuner.rates.pop(1)
-    assert tuner.choose() == 1 and tuner.run(clock.segment, 3) == 1  # a trial of fewer units than the share
-
-
-def test_tuner_backs_off_to_its_longest_period_and_resets_on_a_new_winner(monkeypatch):
-    clock = _Clock({2: 1.0, 1: 3.0})
-    monkeypatch.setattr(threads.time, "perf_counter", clock)
-    monkeypatch.setattr(threads, "using", _pretend_using(clock))
-    tuner = warmed(ThreadTuner(candidates=(2, 1)))
-    used = _tune(tuner, clock, 4000)
-    assert tuner.period == ThreadTuner.MAX_PERIOD
-    assert used.count(1) <= 1 + 4000 // ThreadTuner.PERIOD  # few trials of the slower count
-    assert used[-ThreadTuner.MAX_PERIOD // 2:].count(1) <= 1
-    clock.seconds = {2: 5.0, 1: 3.0}  # the machine got busy: 1 thread is faster now
-    used = _tune(tuner, clock, 3)
-    assert used[1:] == [1, 1]  # the running count's fresh rate fell below 1 thread's: moved at once
-    while tuner.since:  # to the end of this period
-        _tune(tuner, clock, 1)
-    assert tuner.winner == 1 and tuner.period == ThreadTuner.PERIOD  # a new winner: short periods again
-
-
-def test_the_first_segment_on_each_count_is_run_not_timed(monkeypatch):
-    """A count's first segment may compile or load its loops (seconds, on a first run) and start numba's
-    threads: timed, it made 2 threads lose to 1 on an idle 2-core machine, where they are 1.28x faster."""
-    clock = _Clock({2: 1.0, 1: 3.0})
-    monkeypatch.setattr(threads.time, "perf_counter", clock)
-    monkeypatch.setattr(threads, "using", _pretend_using(clock))
-    tuner = ThreadTuner(candidates=(2, 1))
-    first, seen = clock.segment, set()
-
-    def compiling(steps):  # the first call on 2 threads compiles: 100 s more
-        first(steps)
-        if clock.count not in seen:
-            seen.add(clock.count)
-            clock.now += 100.0 if clock.count == 2 else 0.0
-
-    used = []
-    for _ in range(6):
-        tuner.run(compiling, 100)
-        used.append(clock.count)
-    assert used == [2, 2, 1, 1, 2, 2]  # each count run once untimed, then tried; 2 threads won
-    assert clock.units[:4] == [100 // ThreadTuner.TRIAL_SHARE] * 4 and clock.units[4:] == [100, 100]
-    assert tuner.rates == pytest.approx({2: 100.0, 1: 100 / 3})
+        self.now += self.seconds[self.count] * units / 100
+        self.units.append(units)
+        self.counts.append(self.count)
 
 
 def _pretend_using(clock):
@@ -170,6 +81,101 @@ def _pretend_using(clock):
     return using
 
 
+def _tuner(monkeypatch, seconds) -> tuple[ThreadTuner, _Clock]:
+    clock = _Clock(seconds)
+    monkeypatch.setattr(threads, "using", _pretend_using(clock))
+    return ThreadTuner(candidates=(1, 2), clock=clock), clock
+
+
+def _offer(tuner, clock, units: int, until: float) -> None:
+    """Offer ``units`` at a time until the clock reads ``until`` seconds."""
+    while clock.now < until:
+        tuner.run(clock.segment, units)
+
+
+def test_each_count_runs_once_untimed_then_a_trial_then_the_best(monkeypatch):
+    """A count's first segment may compile or load its loops and start numba's threads (seconds, on a first
+    run): it is run, not timed. Then each count's trial (about TRIAL_SECONDS of work), then the faster."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.003, 2: 0.001})  # 2 threads 3x faster; 100 units in 3 ms on one
+    first = clock.segment
+
+    def compiling(units):  # the first segment on 2 threads compiles: 100 s more
+        first(units)
+        if clock.counts.count(2) == 1 and clock.count == 2:
+            clock.now += 100.0
+
+    while tuner.rounds == 0:
+        tuner.run(compiling, 100)
+    for _ in range(3):
+        tuner.run(compiling, 100)
+    assert clock.counts[:2] == [1, 1] and clock.units[0] == 100 // ThreadTuner.TRIAL_SHARE  # 1: untimed, trial
+    assert tuner.rates[1] == pytest.approx(100 / 0.003)
+    assert tuner.rates[2] == pytest.approx(100 / 0.001)  # the compile left out
+    assert tuner.winner == 2 and clock.counts[-3:] == [2, 2, 2] and clock.units[-1] == 100
+    assert len(clock.counts) < 30  # each trial about TRIAL_SECONDS of work (10 ms: 10 offers on 2 threads)
+
+
+def test_short_trial_segments_add_up(monkeypatch):
+    """A trial offered fewer units than TRIAL_SECONDS takes (a chunk's rest) keeps its units and seconds until
+    together they last long enough: it is never thrown away and tried again from nothing."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.002, 2: 0.004})
+    for _ in range(2):  # each count's untimed segment
+        tuner.run(clock.segment, 2)
+    while 2 not in tuner.rates:
+        tuner.run(clock.segment, 2)  # 2 units: 0.04 ms on one thread, 0.08 on two
+    assert tuner.rates[2] == pytest.approx(100 / 0.004)
+    two = [u for u, c in zip(clock.units, clock.counts) if c == 2]
+    assert len(two) > 100 and sum(two[1:]) * 0.004 / 100 == pytest.approx(ThreadTuner.TRIAL_SECONDS, rel=0.01)
+
+
+@pytest.mark.parametrize("faster, chosen", [(1.2, 1), (1.5, 2)])
+def test_more_threads_must_pay(monkeypatch, faster, chosen):
+    """Two threads hold two cores: they are chosen only where they run at least PAYS times faster than one."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.003, 2: 0.003 / faster})
+    _offer(tuner, clock, 100, 0.5)
+    assert tuner.best() == chosen and clock.counts[-1] == chosen
+
+
+def test_trials_come_again_later_and_later_and_cost_little(monkeypatch):
+    """A round of trials again after INTERVAL seconds, twice as long each time the same count wins, back to
+    INTERVAL on a new winner; a slower count's trials cost at most BUDGET of the run (a second of work at
+    least between rounds)."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.001, 2: 0.004})  # 2 threads 4x slower: one wins
+    _offer(tuner, clock, 100, 200.0)
+    assert tuner.winner == 1 and tuner.interval == ThreadTuner.MAX_INTERVAL
+    two = sum(u for u, c in zip(clock.units, clock.counts) if c == 2) * 0.004 / 100  # seconds on 2 threads
+    assert two * 0.75 <= ThreadTuner.BUDGET * clock.now  # the trials' loss (3/4 of their time) within the budget
+    rounds = tuner.rounds
+    clock.seconds = {1: 0.001, 2: 0.0001}  # the machine's other work ended: now 2 threads are 10x faster
+    _offer(tuner, clock, 100, 240.0)
+    assert tuner.rounds > rounds and tuner.winner == 2 and clock.counts[-1] == 2
+    assert tuner.interval < ThreadTuner.MAX_INTERVAL  # a new winner: short intervals again
+
+
+def test_the_running_count_moves_at_once_when_it_slows(monkeypatch):
+    """The running count's rate is kept fresh: if the machine gets busy and it falls below another's latest,
+    the tuner moves to that count at once, without waiting for the next round."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.003, 2: 0.001})
+    _offer(tuner, clock, 100, 0.5)
+    assert clock.counts[-1] == 2
+    clock.seconds = {1: 0.003, 2: 0.01}  # a busy process took a core: 2 threads now 3x slower than one
+    before = len(clock.counts)
+    _offer(tuner, clock, 100, 0.6)
+    assert clock.counts[before:before + 3].count(2) <= 2 and clock.counts[-1] == 1
+
+
+def test_a_stretch_on_one_thread_lasts_until_the_next_round(monkeypatch):
+    """`ThreadTuner.stretch`: once one thread has won a round, how long a caller may run it without asking."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.001, 2: 0.004})
+    assert tuner.stretch() == (1, 0.0)  # no rates yet: ask segment by segment
+    while tuner.rounds == 0:
+        tuner.run(clock.segment, 100)
+    count, seconds = tuner.stretch()
+    assert count == 1 and seconds == pytest.approx(tuner.due - clock.now) and seconds >= ThreadTuner.INTERVAL * 0.99
+    clock.now = tuner.due
+    assert tuner.stretch() == (2, 0.0)  # the next round: 2 threads are tried again
+
+
 def test_one_candidate_means_no_timing():
     tuner = ThreadTuner(candidates=(1,))
     assert [tuner.choose() for _ in range(3)] == [1, 1, 1]
@@ -177,13 +183,19 @@ def test_one_candidate_means_no_timing():
 
 def test_shares_are_the_work_each_count_ran(monkeypatch):
     """What a run's provenance records of the tuner's choice (`ThreadTuner.shares`): of the units it was handed,
-    the share each count ran, the untimed first segments and the short trials included."""
-    clock = _Clock({2: 1.0, 1: 3.0})
-    monkeypatch.setattr(threads.time, "perf_counter", clock)
-    monkeypatch.setattr(threads, "using", _pretend_using(clock))
-    tuner = ThreadTuner(candidates=(2, 1))
+    the share each count ran, the untimed first segments, the trials and the stretches noted included."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.003, 2: 0.001})
     assert tuner.shares() == {}
-    used = _tune(tuner, clock, 3 * ThreadTuner.PERIOD)
-    on = {count: sum(u for u, c in zip(clock.units, used) if c == count) for count in (2, 1)}
-    assert tuner.shares() == {2: on[2] / sum(clock.units), 1: on[1] / sum(clock.units)}
+    _offer(tuner, clock, 100, 1.0)
+    tuner.note(1, 50)
+    on = {count: sum(u for u, c in zip(clock.units, clock.counts) if c == count) for count in (2, 1)}
+    on[1] += 50
+    total = on[1] + on[2]
+    assert tuner.shares() == pytest.approx({2: on[2] / total, 1: on[1] / total})
     assert list(tuner.shares()) == [2, 1] and tuner.shares()[2] > 0.9  # 2 threads won: nearly all the work
+
+
+def test_the_counts_tried_are_one_half_and_all():
+    """A chain built for k threads tries 1 and k, and from 4 on k // 2 (the machine's other work may leave fewer
+    cores than numba was given)."""
+    assert [threads.thread_counts(k) for k in (1, 2, 3, 16)] == [(1,), (1, 2), (1, 3), (1, 8, 16)]
