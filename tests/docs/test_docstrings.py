@@ -151,7 +151,7 @@ def _doctests() -> dict:
 DOCTESTS = _doctests()
 
 
-@pytest.mark.slow  # about 70 examples' runs: some 6 s with numba's cache warm, minutes on an empty one
+@pytest.mark.slow  # 73 docstrings' examples: about 3 s with numba's cache warm, minutes on an empty one
 @pytest.mark.parametrize("name", sorted(DOCTESTS))
 def test_the_examples_run(name, tmp_path, monkeypatch):
     """Each docstring's examples give what they show, in a fresh directory (what they write stays there), the
