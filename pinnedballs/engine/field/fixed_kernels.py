@@ -286,8 +286,13 @@ def _round_off(state, tables, step, line, rho0, rho1):
     ``2^-(S + e)``) added to the sum behind ``G``, batched: the first collision of a batch of ``K`` steps folds
     the sums of the batches before (`fold`); ``G`` is then fixed for the batch, and the collision's ``|rho|``
     is added to exact integer sums, so that neither depends on the order the batch's collisions are made in
-    (a GPU's, by reservations)."""
-    batch = step // state.bound[0]
+    (a GPU's, by reservations). ``K`` > 0 always (the chain refuses a state without a batch: `fixed.FixedChain`);
+    the guard first, as the loop had it before (it drops the division's check for zero and its raise; the forms
+    without it ran slower: `benchmarks/results/measurements.md`)."""
+    K = state.bound[0]
+    if K <= 0:
+        return
+    batch = step // K
     if batch != state.bound[1]:
         fold(state.acc, state.rho, state.bound, batch, tables.emax, tables.rmax, tables.root[2])
     shift = np.uint64(tables.emax - tables.e[line])
