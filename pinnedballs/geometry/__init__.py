@@ -7,21 +7,11 @@ Every geometry knows its spec (`Geometry.to_spec`), its boundary and how it is d
 `pictures`: the drawings `pinnedballs.plot` hands down). `simulation`: the `Simulation` of balls on a
 geometry, run by a scheduler under a rule, below the specs, results and analysis that use it.
 
-Each name is imported from its module when first used (`lazy_loader`, as the package's own front door): a
+Each name is imported from its module when first used (`lazy_loader` over ``__init__.pyi``, as the package's own
+front door): a
 module that needs one module of the room (`rows`, the rows of a lattice by distance) loads that one alone.
 """
 
 import lazy_loader as _lazy
 
-__getattr__, __dir__, _ = _lazy.attach(__name__, submodules=[
-    "base", "checks", "graph", "hyperbolic", "lattices", "packings", "pictures", "rows", "sphere"], submod_attrs={
-    "base": ["Contacts", "Geometry", "Boundary", "VIEWS"],
-    "graph": ["GraphGeometry", "StoredGeometry"],
-    "hyperbolic": ["HyperbolicPlane"],
-    "lattices": ["FlatTorus", "HalfPlane"],
-    "packings": ["FCC", "HCP"],
-    "sphere": ["Sphere"],
-})
-
-__all__ = ["Contacts", "Geometry", "Boundary", "VIEWS", "FlatTorus", "HalfPlane", "GraphGeometry", "StoredGeometry",
-           "Sphere", "HyperbolicPlane", "FCC", "HCP"]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)  # the names: __init__.pyi

@@ -45,23 +45,23 @@ from ..util.extras import need
 from ..util.limits import check_memory
 from ..util.progress import Progress
 from . import executors, lineage, profiles
+from .ensemble_files import (
+    CORRELATIONS,
+    ERROR_COLUMN,
+    FIGURES_DIR,
+    FINAL,
+    KEY_COLUMNS,
+    MARGIN_COLUMNS,
+    SPEC_NAME,
+    SUMMARY_NAME,
+    TABLE_NAME,
+    write_outputs,
+)
 
 __all__ = ["EnsembleResult", "run_ensemble", "ensemble_plan", "run_replica", "replica_row", "replica_seed", "state_row",
            "margin_columns", "KEY_COLUMNS", "MARGIN_COLUMNS", "ERROR_COLUMN", "FINAL", "CORRELATIONS", "TABLE_NAME",
            "SUMMARY_NAME", "SPEC_NAME", "FIGURES_DIR"]
 
-TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json", "spec.json", "figures"
-#: the first columns of every row; observables follow, then `ERROR_COLUMN`
-KEY_COLUMNS = ("replica", "seed_entropy", "spawn_key", "at", "steps", "collisions", "frozen", "stop_reason")
-#: the closing margin of a row's state, after `KEY_COLUMNS` (`margin_columns`)
-MARGIN_COLUMNS = ("smallest_collision", "largest_remnant", "near_collisions", "near_remnants")
-ERROR_COLUMN = "error"
-#: the ``at`` of a replica's final state (snapshots are ``"steps=N"`` or ``"collisions=N"``)
-FINAL = "final"
-#: correlation columns drawn as histograms over replicas (bin width 0.02 on [-1, 1])
-CORRELATIONS = {"line_of_centres_correlation": "line-of-centres correlation of (u, u') over contacts",
-                "xy_correlation": "correlation of the x- and y-components over balls"}
-CORRELATION_BIN_WIDTH = 0.02
 
 #: ``task(spec, index, seed) -> rows`` of one replica; module-level (it is pickled to workers)
 Task = Callable[[RunSpec, int, np.random.SeedSequence], list[dict]]
@@ -299,8 +299,6 @@ class EnsembleResult:
         list of pathlib.Path
             ``replicas.csv``, ``summary.json``, ``spec.json`` (``profiles.csv`` with a boundary), the figures.
         """
-        from .ensemble_files import write_outputs
-
         return write_outputs(self, out_dir, figures=figures)
 
     def _repr_html_(self) -> str:  # notebooks: replicas, where, and the final states' counts as a table

@@ -17,19 +17,23 @@ import numpy as np
 from .._version import __version__
 from ..util.atomic import write_text_atomic
 from . import profiles
-from .ensemble import (
-    CORRELATION_BIN_WIDTH,
-    CORRELATIONS,
-    ERROR_COLUMN,
-    FIGURES_DIR,
-    FINAL,
-    SPEC_NAME,
-    SUMMARY_NAME,
-    TABLE_NAME,
-    EnsembleResult,
-)
 
-__all__ = ["write_outputs", "write_figures", "write_table", "read_table", "json_safe", "remove_old_outputs"]
+__all__ = ["write_outputs", "write_figures", "write_table", "read_table", "json_safe", "remove_old_outputs",
+           "TABLE_NAME", "SUMMARY_NAME", "SPEC_NAME", "FIGURES_DIR", "KEY_COLUMNS", "MARGIN_COLUMNS", "ERROR_COLUMN",
+           "FINAL", "CORRELATIONS", "CORRELATION_BIN_WIDTH"]
+
+TABLE_NAME, SUMMARY_NAME, SPEC_NAME, FIGURES_DIR = "replicas.csv", "summary.json", "spec.json", "figures"
+#: the first columns of every row; observables follow, then `ERROR_COLUMN`
+KEY_COLUMNS = ("replica", "seed_entropy", "spawn_key", "at", "steps", "collisions", "frozen", "stop_reason")
+#: the closing margin of a row's state, after `KEY_COLUMNS` (`margin_columns`)
+MARGIN_COLUMNS = ("smallest_collision", "largest_remnant", "near_collisions", "near_remnants")
+ERROR_COLUMN = "error"
+#: the ``at`` of a replica's final state (snapshots are ``"steps=N"`` or ``"collisions=N"``)
+FINAL = "final"
+#: correlation columns drawn as histograms over replicas (bin width 0.02 on [-1, 1])
+CORRELATIONS = {"line_of_centres_correlation": "line-of-centres correlation of (u, u') over contacts",
+                "xy_correlation": "correlation of the x- and y-components over balls"}
+CORRELATION_BIN_WIDTH = 0.02
 
 
 
@@ -44,7 +48,7 @@ def _cell(value) -> str:
     return str(value)
 
 
-def write_table(result: EnsembleResult, path) -> Path:
+def write_table(result, path) -> Path:
     """Write ``result.rows`` as CSV at ``path`` (missing cells empty), atomically."""
     path, text = Path(path), io.StringIO()
     columns = result.columns
@@ -76,7 +80,7 @@ def _slug(at: str) -> str:
     return at.replace("=", "_")
 
 
-def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list[Path]:
+def write_outputs(result, out_dir, figures: bool = True) -> list[Path]:
     """Write ``replicas.csv``, ``summary.json``, ``spec.json`` and (if ``figures``)
     ``figures/<correlation>_<at>.png`` into ``out_dir`` (created); return the paths."""
     out = Path(out_dir)
@@ -106,7 +110,7 @@ def write_outputs(result: EnsembleResult, out_dir, figures: bool = True) -> list
     return written
 
 
-def write_figures(result: EnsembleResult, out_dir) -> list[Path]:
+def write_figures(result, out_dir) -> list[Path]:
     """Write ``figures/<correlation>_<at>.png`` (the correlations over replicas at each stage) into
     ``out_dir``, first removing those an earlier ensemble left; return their paths."""
     from ..plot.figures import correlation_histogram

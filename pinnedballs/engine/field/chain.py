@@ -16,7 +16,7 @@ from gmpy2 import mpq
 
 from .numbers import FieldNumber
 
-__all__ = ["FieldChain", "filtered_sign", "FILTER", "BLOCK"]
+__all__ = ["exchange", "FieldChain", "filtered_sign", "FILTER", "BLOCK"]
 
 #: picks drawn at a time from the compiled selector
 BLOCK = 1 << 14
@@ -38,6 +38,12 @@ def filtered_sign(ti, tj, vi, vj, dim: int) -> tuple[int, float]:
         size += abs(x) + abs(y)
     band = FILTER * _U * size
     return (1 if w > band else -1 if w < -band else 0), size
+
+def exchange(m_i, m_j) -> tuple:
+    """The paper's elastic exchange of equal masses as an exact linear form: ``a_i = a_j = 1`` (what the
+    fixed-point chain runs; `pinnedballs.rules.CollisionRule.exact_kick`)."""
+    return type(m_i)(1), type(m_j)(1)
+
 
 class FieldChain:
     """What every chain in the number field of ``geometry``'s contact normals shares: the field and

@@ -59,7 +59,7 @@ from gmpy2 import mpq
 from ...util.errors import FieldError
 from ..sequential.loops import FREEZE_CHUNK_MIN, FREEZE_CHUNK_PER_CONTACT
 from ..streams.philox import CounterPicks
-from .chain import FieldChain
+from .chain import FieldChain, exchange
 from .fixed_kernels import (
     DONE,
     DUE,
@@ -250,12 +250,6 @@ class CPUPicks:
         exact = ~(np.any(state.B, axis=1) | np.any(state.Pp, axis=1))
         long = np.any(state.X[exact, ..., :P - late_P] != 0, axis=(1, 2, 3))
         return int(np.count_nonzero(long)) <= state.X.shape[0] // 1000
-
-
-def exchange(m_i, m_j) -> tuple:
-    """The paper's elastic exchange of equal masses as an exact linear form: ``a_i = a_j = 1`` (what the
-    fixed-point chain runs; `pinnedballs.rules.CollisionRule.exact_kick`)."""
-    return type(m_i)(1), type(m_j)(1)
 
 
 class FixedChain(FieldChain):
