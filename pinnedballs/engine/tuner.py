@@ -19,9 +19,9 @@ class Tuner:
     run's own work (units per second of ``clock``).
 
     * **The first round.** Each candidate runs a first segment untimed (it may compile or load its loops and
-      start numba's threads), then a *trial*: segments of about `TRIAL_SECONDS` of work at the running rate,
-      timed until together they have lasted that long (a short segment is not thrown away: its units and
-      seconds add up). Then the best runs.
+      start numba's threads), then a *trial*: segments timed until together they have lasted `TRIAL_SECONDS`
+      (a short segment is not thrown away: its units and seconds add up), the first of them short (an eighth
+      of that at the fastest rate known), the next sized by the rate the trial has shown. Then the best runs.
     * **The best** is the fastest, its rate divided by `pays` (a candidate that costs more than the others,
       as more threads do, must gain more). The running candidate's rate is kept fresh (the mean of its latest
       and its previous); if the machine gets busy and it falls below another's, the tuner moves to that one
@@ -49,7 +49,8 @@ class Tuner:
         self.candidates = tuple(candidates)
         self.clock = clock or time.perf_counter
         self.rates: dict[int, float] = {}  # units per second: the running count's fresh, the others' latest
-        self.pending: dict[int, tuple[int, float]] = {}  # a trial's units and seconds so far
+        self.pending: dict = {}  # a trial's units and seconds so far
+        self.trials: dict = {}  # the seconds of each candidate's latest trial
         self.warm: set[int] = set()  # the counts that ran a first, untimed segment
         self.ran: dict[int, int] = {}  # the units run on each count so far (`shares`)
         self.interval = self.INTERVAL
@@ -102,13 +103,15 @@ class Tuner:
         self.ran[count] = self.ran.get(count, 0) + units
 
     def _trial_units(self, count: int, units: int) -> int:
-        """Units for a trial of ``count``: what is left of `TRIAL_SECONDS` at the rate its trial has shown so far,
-        else at the fastest rate known, else `TRIAL_SHARE` of ``units``; at most ``units``."""
+        """Units for a segment of ``count``'s trial (or its first, untimed segment): what is left of `TRIAL_SECONDS`
+        at the rate its trial has shown so far; before it has shown one, `TRIAL_SHARE` times less, at the fastest
+        rate known (a count 50 times slower, as two threads beside busy processes can be, then costs a few
+        milliseconds, not half a second), else `TRIAL_SHARE` of ``units``; at most ``units``."""
         done, took = self.pending.get(count, (0, 0.0))
         if took > 0:
             rate, seconds = done / took, self.TRIAL_SECONDS - took
         elif self.rates:
-            rate, seconds = max(self.rates.values()), self.TRIAL_SECONDS
+            rate, seconds = max(self.rates.values()), self.TRIAL_SECONDS / self.TRIAL_SHARE
         else:
             return max(1, units // self.TRIAL_SHARE)
         return int(min(units, max(1, round(rate * seconds))))
@@ -138,15 +141,16 @@ class Tuner:
                 self.pending[count] = (done, took)
             else:
                 self.pending.pop(count, None)
-                self.rates[count] = done / took
+                self.rates[count], self.trials[count] = done / took, took
                 if len(self.rates) == len(self.candidates):
-                    self._round_done(took)
+                    self._round_done()
         return n
 
-    def _round_done(self, took: float) -> None:
+    def _round_done(self) -> None:
         """A round of trials is complete: the winner, and when the next round begins."""
         best = self.best()
         self.interval = min(2 * self.interval, self.MAX_INTERVAL) if best == self.winner else self.INTERVAL
         self.winner, self.rounds = best, self.rounds + 1
-        lost = sum(max(0.0, 1.0 - self._score(c) / self._score(best)) for c in self.rates if c != best) * took
+        lost = sum(max(0.0, 1.0 - self._score(c) / self._score(best)) * self.trials.get(c, 0.0)
+                   for c in self.rates if c != best)
         self.due = self.clock() + max(self.interval, lost / self.BUDGET)
