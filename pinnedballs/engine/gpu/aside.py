@@ -44,7 +44,8 @@ from numba.cuda.cudadrv import nvvm
 
 impulse, collide, dim, flat = pickle.loads(sys.stdin.buffer.read())
 if SIMULATED or not nvvm.is_available():
-    print(json.dumps({"unchecked": "numba-cuda's NVVM is not installed (python3 -m pip install 'numba-cuda[cu13]')"}))
+    print(json.dumps({"unchecked": "numba-cuda's NVVM is not installed "
+                                   "(python3 -m pip install \".[cuda]\" in the checkout)"}))
 else:
     collide = impulse_rule(impulse) if impulse is not None else collide
     print(json.dumps({"verdict": _refusal(collide, dim, flat)}))
