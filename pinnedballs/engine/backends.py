@@ -59,7 +59,7 @@ class LoopBackend(Backend):
         #: cache, the tables prefetched or the lattice's row pattern where they do not, and between, the faster of
         #: two timed on the run's own steps
         self._choice = LoopChoice(self.loops, s.skips, c.pairs.nbytes + c.ends.nbytes + state.velocities.nbytes,
-                                  None if self.setting in _TABLES else g.row_pattern, self.setting)
+                                  lambda: None if self.setting in _TABLES else g.row_pattern, self.setting)
         self._live = None  # the LiveSet, built when a tracked run first needs it
         self._parallel = None if parallel else False  # the threaded chain, built when a run first asks (False: none)
         self._own_ran = False  # whether the scheduler's own loop (`own_steps`) has run

@@ -54,7 +54,10 @@ def test_a_command_line_run_records_its_command_and_info_says_it(tmp_path):
     (entry,) = pb.load(out).provenance
     _assert_this_process(entry)
     assert entry["command"] == shlex.join(["pinnedballs", *argv])
-    assert entry["device"] == {"kind": "cpu", "threads": 1}  # 48 contacts: the sequential loop
+    device = entry["device"]  # 48 contacts: the sequential table loop, chosen by its size
+    assert (device["kind"], device["threads"]) == ("cpu", 1) and set(device) == {"kind", "threads", "loop"}
+    assert (device["loop"]["name"], device["loop"]["by"]) == ("tables", "size")
+    assert 0 <= device["loop"]["branch_free"] <= 1 and device["loop"]["blocks"] == "measured"
     assert entry["steps"] == [0, 1000]
     code, stdout, _ = call("info", out)
     assert code == 0
@@ -65,7 +68,8 @@ def test_a_command_line_run_records_its_command_and_info_says_it(tmp_path):
         f"host:        {entry['host']}; started {entry['started'].replace('T', ' ').replace('Z', ' UTC')}, ended "
         f"{entry['ended'].replace('T', ' ').replace('Z', ' UTC')}"]
     assert lines([entry])[1].startswith(f"ran on:      CPU: {entry['cpu']['model']} ({entry['cpu']['cores']} cores")
-    assert lines([entry])[1].endswith(", 1 thread")
+    assert lines([entry])[1].endswith(f", 1 thread; the table loop (by its size), {device['loop']['branch_free']:.0%} "
+                                      "of its picks without a branch (timed on this CPU)")
 
 
 def test_run_spec_records_the_python_call(tmp_path):

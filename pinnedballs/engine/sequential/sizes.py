@@ -44,28 +44,60 @@ def l2_bytes() -> int | None:
 
 class LoopChoice:
     """The limited loop of one chain (module docstring): ``loops`` (`Loops`), the selector's ``skips``, the
-    contact tables' and velocities' ``nbytes``, the geometry's row ``pattern`` (None: none) and the ``setting``
-    (`choice.loop_setting`). ``candidates``: the loops it may run, in the order they are first tried."""
+    contact tables' and velocities' ``nbytes``, ``pattern()`` the geometry's row pattern (None: none; asked only
+    where a loop reading it may run) and the ``setting`` (`choice.loop_setting`)."""
 
-    def __init__(self, loops, skips: bool, nbytes: int, pattern, setting: str):
-        self.loops, self.pattern, self.setting = loops, pattern, setting
-        far = "rows" if pattern is not None else "prefetched"
-        l2 = l2_bytes()
-        if skips:  # a selector that jumps over picks: the table loop (the others draw one step a pick)
-            self.candidates, self.by = ("tables",), "the scheduler"
-        elif setting in _FORCED:
-            if _FORCED[setting] == "rows" and pattern is None:
+    def __init__(self, loops, skips: bool, nbytes: int, pattern: Callable[[], tuple | None], setting: str):
+        self.loops, self.setting, self._skips, self._nbytes, self._pattern = loops, setting, skips, nbytes, pattern
+        self.ran = False  # whether a step ran through `run`
+        if setting == "rows":  # refused at once where it cannot run
+            self._decided()
+
+    @property
+    def pattern(self) -> tuple | None:
+        """The geometry's row pattern (`engine.rows`), None where it has none: built on first need (for a large
+        lattice its temporaries are several times the tables, so a `Simulation` built and not run pays none)."""
+        if callable(self._pattern):
+            self._pattern = self._pattern()
+        return self._pattern
+
+    @functools.cached_property
+    def _decision(self) -> tuple[tuple[str, ...], str, Tuner | None]:
+        """``(candidates, by, tuner)``, decided on first need (class docstring)."""
+        setting, nbytes, l2 = self.setting, self._nbytes, l2_bytes()
+        if self._skips:  # a selector that jumps over picks: the table loop (the others draw one step a pick)
+            return ("tables",), "the scheduler", None
+        if setting in _FORCED:
+            if _FORCED[setting] == "rows" and self.pattern is None:
                 raise FieldError("PINNEDBALLS_LOOP", "'rows' reads a lattice's row pattern, and this geometry has "
                                                      "none (a lattice of 16,384 balls or more has one)")
-            self.candidates, self.by = (_FORCED[setting],), f"PINNEDBALLS_LOOP={setting}"
-        elif l2 is None or not LOW * l2 < nbytes < HIGH * l2:
-            near = nbytes <= (LOOKAHEAD_BYTES if l2 is None else LOW * l2)
-            self.candidates, self.by = ("tables" if near else far,), "size"
-        else:
-            self.candidates = ("tables", far) if nbytes <= LOOKAHEAD_BYTES else (far, "tables")
-            self.by = "measured"
-        self.tuner = Tuner(self.candidates, clock=time.thread_time) if len(self.candidates) > 1 else None
-        self.ran = False  # whether a step ran through `run`
+            return (_FORCED[setting],), f"PINNEDBALLS_LOOP={setting}", None
+        near = nbytes <= (LOOKAHEAD_BYTES if l2 is None else LOW * l2)
+        if l2 is None or not LOW * l2 < nbytes < HIGH * l2:
+            return ("tables" if near else self._far(),), "size", None
+        both = ("tables", self._far()) if nbytes <= LOOKAHEAD_BYTES else (self._far(), "tables")
+        return both, "measured", Tuner(both, clock=time.thread_time)
+
+    def _decided(self) -> None:
+        self._decision  # noqa: B018 (decides, or refuses)
+
+    def _far(self) -> str:
+        return "rows" if self.pattern is not None else "prefetched"
+
+    @property
+    def candidates(self) -> tuple[str, ...]:
+        """The loops it may run, in the order they are first tried."""
+        return self._decision[0]
+
+    @property
+    def by(self) -> str:
+        """What chose them: "size", "measured", "the scheduler" or "PINNEDBALLS_LOOP=..."."""
+        return self._decision[1]
+
+    @property
+    def tuner(self) -> Tuner | None:
+        """The `Tuner` timing two candidates, None where there is one."""
+        return self._decision[2]
 
     def loop(self, name: str, logged: bool = False) -> tuple[Callable, tuple]:
         """``(loop, pattern)``: the limited loop ``name`` (`choice.LOOPS`) and the row pattern it reads."""
