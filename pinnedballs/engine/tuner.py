@@ -18,7 +18,8 @@ class Tuner:
     (thread counts, `ThreadTuner`; loops, `engine.backends.LoopBackend`), from their rates measured on the
     run's own work (units per second of ``clock``).
 
-    * **The first round.** Each candidate runs a first segment untimed (it may compile or load its loops and
+    * **The first round**, after `DEFER` seconds of the first candidate alone (a run shorter than that pays
+      for no trial of the others). Each candidate runs a first segment untimed (it may compile or load its loops and
       start numba's threads), then a *trial*: segments timed until together they have lasted `TRIAL_SECONDS`
       (a short segment is not thrown away: its units and seconds add up), the first of them short (an eighth
       of that at the fastest rate known), the next sized by the rate the trial has shown. Then the best runs.
@@ -44,6 +45,8 @@ class Tuner:
     INTERVAL, MAX_INTERVAL = 1.0, 32.0
     #: the share of a run's time trials may lose to a slower count
     BUDGET = 0.01
+    #: the first candidate runs alone for this many seconds before the others are tried (0: none)
+    DEFER = 0.0
 
     def __init__(self, candidates: tuple, clock: Callable[[], float] | None = None):
         self.candidates = tuple(candidates)
@@ -57,7 +60,8 @@ class Tuner:
         self.winner: int | None = None  # the best count at the latest round of trials
         self.due: float | None = None  # when the next round of trials begins (None: once the first is done)
         self.rounds = 0  # rounds of trials done
-        self.current: int | None = None  # the count of the segment `run` is running
+        self.current = None  # the candidate of the segment `run` is running
+        self.started: float | None = None  # when the first segment was chosen
 
     def pays(self, candidate) -> float:
         """How many times faster than the others ``candidate`` must run to be chosen (1: none)."""
@@ -74,9 +78,15 @@ class Tuner:
         """The best of the counts with a rate (class docstring)."""
         return max(self.rates, key=self._score)
 
-    def choose(self) -> int:
-        """The thread count for the next segment: a count without a rate (a trial), else the best."""
-        if self.due is not None and self.clock() >= self.due and len(self.rates) > 1:
+    def choose(self):
+        """The candidate for the next segment: the first alone for the first `DEFER` seconds, then a candidate
+        without a rate (a trial), else the best."""
+        now = self.clock()
+        if self.started is None:
+            self.started = now
+        if now < self.started + self.DEFER:
+            return self.candidates[0]
+        if self.due is not None and now >= self.due and len(self.rates) > 1:
             keep = self.best()  # a new round: the others are tried again
             self.rates, self.due = {keep: self.rates[keep]}, None
         for count in self.candidates:
@@ -88,6 +98,9 @@ class Tuner:
         """``(count, seconds)``: the count to run now and how long it may run before the tuner wants to be asked
         again (0: at once, a trial is under way or due)."""
         count = self.choose()
+        deferred = self.started + self.DEFER - self.clock()
+        if deferred > 0 and count in self.rates:
+            return count, deferred
         if len(self.rates) < len(self.candidates) or self.due is None:
             return count, 0.0
         return count, max(0.0, self.due - self.clock())

@@ -88,11 +88,16 @@ class ThreadTuner(Tuner):
     cores, and a count that gains less is not worth its CPU seconds (nor the risk that a noisy trial chose it).
     The bits never depend on the count.
 
-    ``candidates``: the thread counts to try, in order (default: `thread_counts` of `most_threads`); ``clock``: seconds.
+    ``candidates``: the thread counts to try, the fewest first (default: `thread_counts` of `most_threads`);
+    ``clock``: seconds.
     """
 
     #: more threads must run at least this many times faster than the fewest to be chosen
     PAYS = 1.3
+    #: one thread alone for the first second: a trial of two threads beside a busy process costs tens of
+    #: milliseconds (each of its barriers waits for a thread the operating system has not yet run), a third of
+    #: a 0.2 s run; a longer run tries them after a second
+    DEFER = 1.0
 
     def __init__(self, candidates: tuple[int, ...] | None = None, clock: Callable[[], float] | None = None):
         super().__init__(candidates or thread_counts(most_threads()), clock)

@@ -81,9 +81,11 @@ def _pretend_using(clock):
     return using
 
 
-def _tuner(monkeypatch, seconds) -> tuple[ThreadTuner, _Clock]:
+def _tuner(monkeypatch, seconds, defer: float = 0.0) -> tuple[ThreadTuner, _Clock]:
+    """A tuner of 1 and 2 threads on the fake clock; ``defer``: its `ThreadTuner.DEFER` (0: trials from the start)."""
     clock = _Clock(seconds)
     monkeypatch.setattr(threads, "using", _pretend_using(clock))
+    monkeypatch.setattr(ThreadTuner, "DEFER", defer)
     return ThreadTuner(candidates=(1, 2), clock=clock), clock
 
 
@@ -174,6 +176,18 @@ def test_a_stretch_on_one_thread_lasts_until_the_next_round(monkeypatch):
     assert count == 1 and seconds == pytest.approx(tuner.due - clock.now) and seconds >= ThreadTuner.INTERVAL * 0.99
     clock.now = tuner.due
     assert tuner.stretch() == (2, 0.0)  # the next round: 2 threads are tried again
+
+
+def test_one_thread_runs_alone_for_the_first_second(monkeypatch):
+    """A trial of two threads beside a busy process costs tens of milliseconds: a run shorter than DEFER seconds
+    pays for none; after it, a round of trials, and two threads win where they pay."""
+    tuner, clock = _tuner(monkeypatch, {1: 0.003, 2: 0.001}, defer=ThreadTuner.DEFER)
+    _offer(tuner, clock, 100, 0.5)
+    assert set(clock.counts) == {1} and 1 in tuner.rates
+    count, seconds = tuner.stretch()
+    assert count == 1 and seconds == pytest.approx(ThreadTuner.DEFER - clock.now)  # one thread until then
+    _offer(tuner, clock, 100, ThreadTuner.DEFER + 0.5)
+    assert tuner.rounds == 1 and tuner.winner == 2 and clock.counts[-1] == 2
 
 
 def test_one_candidate_means_no_timing():
