@@ -3,7 +3,7 @@
 Runs UniformRandomPair + Elastic on a periodic triangular lattice (the paper's
 torus, one moving ball with energy 100; on 1000x1000 also Gaussian velocities, equilibrium)
 and, in the same run, the plain C loop
-``../shared/bench/reference.sh`` on the same sizes. Each measurement runs in its
+``benchmarks/c/reference.sh`` on the same sizes. Each measurement runs in its
 own process, so compile time and peak RSS belong to that measurement alone.
 
     python benchmarks/bench_chain.py                # 38x38 (50M steps), 1000x1000 single and Gaussian (200M)
@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT.parent / "shared" / "bench" / "reference.sh"
+REFERENCE = ROOT / "benchmarks" / "c" / "reference.sh"
 
 _CHILD = r"""
 import json, resource, sys, time

@@ -2,7 +2,7 @@
 
 The 1000x1000 torus at equilibrium (i.i.d. Gaussian velocities): ColoredSweep's
 speed with NUMBA_NUM_THREADS=1 and 2 (same bits, tested), UniformRandomPair's, and
-the C yardstick ``../shared/bench/reference.sh 1000 1000 N gaussian`` (the
+the C yardstick ``benchmarks/c/reference.sh 1000 1000 N gaussian`` (the
 paper's chain in C in that regime) in the same run. Then the wall time of 1e9
 collisions (the paper's "billions of collisions over millions of bodies") with
 ColoredSweep on 2 threads and with UniformRandomPair, each running whole step
@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT.parent / "shared" / "bench" / "reference.sh"
+REFERENCE = ROOT / "benchmarks" / "c" / "reference.sh"
 
 _CHILD = r"""
 import json, sys, time

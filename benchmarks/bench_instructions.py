@@ -4,7 +4,7 @@ Seconds are noisy on a shared machine; instruction counts repeat exactly. Runs
 UniformRandomPair + Elastic on the 38x38 torus (one ball of energy 100, seed 1)
 under ``valgrind --tool=callgrind``, collecting only around ``sim.run(steps=N)``
 (callgrind's client requests, through a tiny C library loaded with ctypes), and
-the C loop ``../shared/bench/ref_kernel.c`` at N and at 1,000 steps (the
+the C loop ``benchmarks/c/ref_kernel.c`` at N and at 1,000 steps (the
 difference is the loop alone). Needs valgrind, its headers and a C compiler.
 
     python benchmarks/bench_instructions.py             # N = 2,000,000 (about a minute)
@@ -29,7 +29,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-C_SOURCE = ROOT.parent / "shared" / "bench" / "ref_kernel.c"
+C_SOURCE = ROOT / "benchmarks" / "c" / "ref_kernel.c"
 
 _CONTROL = r"""
 #include <valgrind/callgrind.h>

@@ -3,7 +3,7 @@
 Both run the paper's set-up (one boundary ball moving into the others, energy 100)
 until no contact approaches; same law of steps and collisions, so the numbers of
 steps and collisions agree in distribution, and the wall times compare the loops.
-The C yardstick (``../shared/bench/reference.sh``, the paper's chain on the 38x38
+The C yardstick (``benchmarks/c/reference.sh``, the paper's chain on the 38x38
 torus) runs in the same session, to say how busy the machine was. Each
 measurement runs in a fresh process, after compiling on a tiny half-plane.
 
@@ -26,7 +26,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT.parent / "shared" / "bench" / "reference.sh"
+REFERENCE = ROOT / "benchmarks" / "c" / "reference.sh"
 
 _CHILD = r"""
 import json, sys, time

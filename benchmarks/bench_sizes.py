@@ -110,8 +110,8 @@ TORUS_SIDES = ["24x21", "190x190", "380x380", "760x760", "1520x1520"]
 
 
 def reference(size: str, steps: int) -> float:
-    """ns per step of the C yardstick (`../shared/bench/reference.sh`, Gaussian state) on the torus ``size``."""
-    script = ROOT.parent / "shared" / "bench" / "reference.sh"
+    """ns per step of the C yardstick (`benchmarks/c/reference.sh`, Gaussian state) on the torus ``size``."""
+    script = ROOT / "benchmarks" / "c" / "reference.sh"
     if not script.exists():
         return float("nan")
     rows, cols = size.split("x")

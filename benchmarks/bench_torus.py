@@ -2,7 +2,7 @@
 
 UniformRandomPair + Elastic on the 38x38 flat torus (one moving ball of energy 100, seed 1, as
 `bench_chain.py` and docs/performance.md) and, in turns with it, the plain C loop
-``../shared/bench/reference.sh ROWS COLS STEPS`` (xoshiro256**, the same lattice). The machine
+``benchmarks/c/reference.sh ROWS COLS STEPS`` (xoshiro256**, the same lattice). The machine
 may be loaded: every contestant runs in its own fresh process, the contestants take turns round
 after round (C, ours, C, ours, ...), and each one's best (smallest ns per step) is kept; the ratio
 is C's best ns per step over ours (above 1: faster than C). Per-round ratios (ours against the C run
@@ -46,7 +46,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT.parent / "shared" / "bench" / "reference.sh"
+REFERENCE = ROOT / "benchmarks" / "c" / "reference.sh"
 
 _CHILD = r"""
 import json, sys, time
@@ -190,7 +190,7 @@ def run_ours(tree: Path, rows: int, cols: int, steps: int, start: str = "single"
 def reference_binary() -> str:
     """The C yardstick's program, built by ``reference.sh`` (which builds it when its source is newer)."""
     subprocess.run(["bash", str(REFERENCE), "4", "4", "1"], capture_output=True, check=True)
-    return str(Path(os.environ.get("TMPDIR", "/tmp")) / "pinnedballs-ref-kernel")
+    return str(Path(os.environ.get("TMPDIR", "/tmp")) / "pinnedballs-yardstick")
 
 
 def run_reference(binary: str, rows: int, cols: int, steps: int, start: str = "single") -> dict:
