@@ -5,7 +5,9 @@ become a writable directory (a dangling symlink, a regular file on the way, a re
 file system, a directory without write permission). `DirLock` is an exclusive OS lock
 (``flock``) on ``DIR/.pinnedballs.lock``: one run, ensemble or reproduction at a time
 writes into a directory. The kernel drops the lock when its process dies, so a killed
-run never blocks its own ``--resume``; the lock file a killed run leaves is harmless.
+run never blocks its own ``--resume``; the lock file a killed run leaves is harmless. A forked child (a
+pool's worker) closes its copy of the lock at once: an ``flock`` lives while any process holds its file
+open, so a worker still dying after its parent's ``kill -9`` would otherwise keep the directory locked.
 `made_for` removes again the directories a refused command made for its output (``a/``, ``a/b/`` of
 ``--out a/b/out``): nothing written means none.
 """
@@ -17,6 +19,7 @@ import errno
 import fcntl
 import os
 import re
+import weakref
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -79,9 +82,27 @@ def made_for(out: str | os.PathLike) -> Iterator[None]:
         raise
 
 
+#: the locks this process holds (a forked child closes its copies: `_forked`)
+_HELD: weakref.WeakSet = weakref.WeakSet()
+
+
+def _forked() -> None:
+    """In a forked child: close the copies of the parent's locks, which stay the parent's alone."""
+    for lock in list(_HELD):
+        if lock._file is not None:
+            with contextlib.suppress(OSError):
+                lock._file.close()  # this process's descriptor: the lock is released by an unlock or by the
+            lock._file = None  # last descriptor's close, so the parent's stays (nothing is left to flush)
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forked)
+
+
 class DirLock:
     """An exclusive lock on the directory ``out`` (created if missing), held until `release`
-    or the death of the process. ``option`` names the directory in errors."""
+    or the death of the process (not of a child it forks). ``option`` names the directory in errors."""
 
     def __init__(self, out: str | os.PathLike, option: str = "--out"):
         self.dir, self.option = Path(out), option
@@ -123,6 +144,7 @@ class DirLock:
         except OSError as exc:
             raise _fail(self.option, self.dir, exc.strerror or str(exc)) from None
         self._file = f
+        _HELD.add(self)
         return self
 
     def release(self) -> None:
@@ -135,6 +157,7 @@ class DirLock:
             pass
         self._file.close()
         self._file = None
+        _HELD.discard(self)
 
     def __enter__(self) -> DirLock:
         return self.acquire()

@@ -225,6 +225,51 @@ def test_python_writers_take_the_lock_and_release_it_at_the_stop(tmp_path):
     assert sim.steps == 20
 
 
+FORKS_AND_DIES = """
+import os, signal, sys, time
+from pinnedballs.results.rundir import DirLock
+lock = DirLock(sys.argv[1]).acquire()
+child = os.fork()
+if child == 0:  # a pool's worker, still at work when its parent is killed (not holding the parent's pipes)
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 1), os.dup2(null, 2)
+    time.sleep(30)
+    os._exit(0)
+print(child, flush=True)
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def test_a_child_outliving_its_killed_parent_does_not_hold_the_directory(tmp_path):
+    """A worker forked while the lock was held and still alive after its parent's ``kill -9``: the directory
+    is free at once (an ``flock`` lives while any process holds the file open; a forked child closes its copy),
+    so a ``--resume`` right after the kill is not refused as "in use"."""
+    out = tmp_path / "out"
+    parent = subprocess.run([sys.executable, "-c", FORKS_AND_DIES, str(out)], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=60)
+    child = int(parent.stdout)
+    try:
+        assert parent.returncode == -signal.SIGKILL
+        os.kill(child, 0)  # alive
+        with DirLock(out):
+            pass
+    finally:
+        os.kill(child, signal.SIGKILL)
+
+
+def test_a_forked_child_cannot_release_its_parents_lock(tmp_path):
+    """A child's copy is closed, not released: the parent still holds the directory after the child exits."""
+    out = tmp_path / "out"
+    with DirLock(out):
+        pid = os.fork()
+        if pid == 0:
+            os._exit(0)
+        os.waitpid(pid, 0)
+        with pytest.raises(InputError, match="in use by another run"):
+            DirLock(out).acquire()
+        assert (out / LOCK_NAME).exists()
+
+
 # ---------------------------------------------------------------- a refused command leaves no parents
 
 
