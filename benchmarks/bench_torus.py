@@ -65,7 +65,8 @@ t0, c0 = time.perf_counter(), time.process_time()
 sim.run(steps=steps - 1)
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 print(json.dumps(dict(ns=wall / (steps - 1) * 1e9, cpu_ns=cpu / (steps - 1) * 1e9, collisions=sim.collisions,
-                      energy=repr(sim.energy()), file=pb.__file__, device=sim.engine.resources())))
+                      energy=repr(sim.energy()), file=pb.__file__,
+                      device=getattr(sim.engine, "resources", dict)())))  # a --tree before 1.0 may not say
 """
 
 

@@ -95,8 +95,7 @@ class LoopBackend(Backend):
         if parallel is not None:
             limited, pattern = self.limited(logged=False)
             return parallel.run(chain, pattern, limited, self._any_live, *tables, max_steps, max_collisions,
-                                until_frozen, TUNED_SEGMENT if plain else self.freeze_chunk(), self.tune,
-                                self._choice)
+                                until_frozen, TUNED_SEGMENT if plain else self.freeze_chunk(), self.tune)
         saved = np.empty_like(self.state.scheduler)
 
         def call(limited, pattern, steps: int) -> int:
