@@ -68,8 +68,9 @@ warnings.simplefilter("ignore")
 w, c = time.perf_counter(), time.process_time()
 run()
 wall, cpu = time.perf_counter() - w, time.process_time() - c
-print(json.dumps(dict(wall=wall, cpu=cpu, steps=sim.steps, collisions=sim.collisions, engine=sim.engine_name,
-                      device=sim.engine.resources(), file=pb.__file__)))
+print(json.dumps(dict(wall=wall, cpu=cpu, steps=sim.steps, collisions=sim.collisions,
+                      engine=getattr(sim, "engine_name", "?"),  # a --tree before 1.0 may not say
+                      device=getattr(sim.engine, "resources", dict)(), file=pb.__file__)))
 """
 
 

@@ -92,10 +92,11 @@ class LoopBackend(Backend):
             self._own_ran = True
             return self.own_steps(*chain, *tables, max_steps)
         parallel = self.parallel_chain()
-        if parallel is not None:
-            limited, pattern = self.limited(logged=False)
+        if parallel is not None:  # its blocks read the pattern they were built for; its stretches on one
+            limited, pattern = self._parallel_loop  # thread run the loop `choice` chooses
             return parallel.run(chain, pattern, limited, self._any_live, *tables, max_steps, max_collisions,
-                                until_frozen, TUNED_SEGMENT if plain else self.freeze_chunk(), self.tune)
+                                until_frozen, TUNED_SEGMENT if plain else self.freeze_chunk(), self.tune,
+                                self._choice)
         saved = np.empty_like(self.state.scheduler)
 
         def call(limited, pattern, steps: int) -> int:
@@ -143,7 +144,10 @@ class LoopBackend(Backend):
             m, s = self.model, self.model.selector
             g, c = m.geometry, m.geometry.contacts
             threads = most_threads() if m.threads is None else m.threads
-            rows = self.limited(logged=False)[1] is not NO_PATTERN
+            #: the loop and row pattern the threaded blocks are built for (``rows``: they decode contacts from
+            #: the pattern), kept for the chain's life: `choice` may later prefer a loop reading no pattern
+            self._parallel_loop = self.limited(logged=False)
+            rows = self._parallel_loop[1] is not NO_PATTERN
             if threads > 1 and len(c) >= MIN_PARALLEL_CONTACTS and not s.tracks:
                 built = None
                 if s.uniform and bands_pay(c.pairs, g.n_balls, threads):

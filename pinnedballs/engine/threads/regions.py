@@ -503,7 +503,9 @@ class ParallelChain:
         return int(picks)
 
     def run(self, chain, pattern, limited, any_live, state, aux, rng, counters, margin, max_steps: int,
-            max_collisions: int, until_frozen: bool, chunk_steps: int, tune: np.ndarray | None = None) -> int:
+            max_collisions: int, until_frozen: bool, chunk_steps: int, tune: np.ndarray | None = None,
+            choice=None) -> int:
         """What the sequential ``limited`` loop does for these limits, bit for bit (`tuned_run` of `run_in_chunks`)."""
         return tuned_limits(self.tuner, self._whole, self.block, chain, pattern, limited, any_live, state, aux, rng,
-                            counters, margin, max_steps, max_collisions, until_frozen, chunk_steps, tune)
+                            counters, margin, max_steps, max_collisions, until_frozen, chunk_steps, tune,
+                            choice)

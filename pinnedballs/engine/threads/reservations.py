@@ -460,9 +460,11 @@ class ReservationChain:
         return steps
 
     def run(self, chain, pattern, limited, any_live, state, aux, rng, counters, margin, max_steps: int,
-            max_collisions: int, until_frozen: bool, chunk_steps: int, tune: np.ndarray | None = None) -> int:
+            max_collisions: int, until_frozen: bool, chunk_steps: int, tune: np.ndarray | None = None,
+            choice=None) -> int:
         """What the sequential ``limited`` loop does for these limits, bit for bit (`stretches.tuned_limits`:
         whole batches on the threads, the rest and the freeze on one)."""
         return tuned_limits(self.tuner, self._whole, self.batch, chain, pattern, limited, any_live, state, aux, rng,
-                            counters, margin, max_steps, max_collisions, until_frozen, chunk_steps, tune)
+                            counters, margin, max_steps, max_collisions, until_frozen, chunk_steps, tune,
+                            choice)
 

@@ -120,20 +120,26 @@ def run_in_chunks(whole: Callable, block: int, chain, pattern, limited, any_live
 
 def tuned_limits(tuner: ThreadTuner | None, whole: Callable, block: int, chain, pattern, limited, any_live, state,
                  aux, rng, counters, margin, max_steps: int, max_collisions: int, until_frozen: bool, chunk_steps: int,
-                 tune: np.ndarray | None = None) -> int:
+                 tune: np.ndarray | None = None, choice=None) -> int:
     """`run_in_chunks` in the stretches of `tuned_run`: a stretch settled on one thread runs ``limited`` whole
-    (its own chunks, freeze scans and rewinds, compiled); the steps taken. (Not `sizes.LoopChoice`'s timed
-    alternation of loops: a threaded chain's blocks after a stretch of the row-pattern and table loops in turns
-    crashed a 1000x500 half-plane to frozen.)"""
+    (its own chunks, freeze scans and rewinds, compiled) or, given ``choice`` (`engine.sequential.sizes.LoopChoice`),
+    the loop it chooses for the system's size; the steps taken. The threaded chunks keep ``limited`` and
+    ``pattern``, the loop and row pattern their blocks were built for (blocks built to decode a row pattern
+    and handed none read outside it)."""
     tune = new_tune() if tune is None else tune
 
     def threaded(steps: int) -> int:
         return run_in_chunks(whole, block, chain, pattern, limited, any_live, state, aux, rng, counters, margin, steps,
                              max_collisions, until_frozen, chunk_steps, tune)
 
+    saved = np.empty_like(state)
+
+    def call(loop, loop_pattern, steps: int) -> int:
+        return loop(*chain, loop_pattern, state, aux, rng, counters, margin, steps, max_collisions, until_frozen,
+                    chunk_steps, saved, _NO_LOG, tune)
+
     def sequential(steps: int) -> int:
-        return limited(*chain, pattern, state, aux, rng, counters, margin, steps, max_collisions, until_frozen,
-                       chunk_steps, np.empty_like(state), _NO_LOG, tune)
+        return call(limited, pattern, steps) if choice is None else choice.run(call, steps)
 
     return tuned_run(tuner, block, threaded, sequential, max_steps, chunk_steps)
 

@@ -217,3 +217,34 @@ def test_a_contact_filed_by_its_index_is_in_its_region_and_far_from_every_cut(th
     assert np.array_equal(filed[~decoded], region[~decoded, 0])
     shuffled = pairs[np.random.default_rng(0).permutation(len(pairs))]
     assert all(_by_index(contact_windows(shuffled, cuts, band), np.int64(k))[1] for k in range(0, len(pairs), 97))
+
+
+def test_threaded_blocks_keep_the_row_pattern_they_were_built_for(monkeypatch):
+    """A half-plane whose limited loop is timed, row-pattern loop first (the system put between 1 and 16 times
+    a CPU's L2 and beyond the lookahead's reach): its threaded blocks are built to decode the row pattern. Once
+    the timing prefers the table loop (which reads no pattern), the threaded blocks still get theirs (handed
+    none, they read outside it: a 1000x500 half-plane to frozen died of a segmentation fault), and the run ends
+    on the bits of one thread."""
+    from pinnedballs.engine.sequential import sizes
+
+    monkeypatch.delenv("PINNEDBALLS_LOOP", raising=False)
+    monkeypatch.setattr(sizes, "l2_bytes", lambda: 512 << 10)
+    monkeypatch.setattr(sizes, "LOOKAHEAD_BYTES", 512 << 10)
+    g = pb.HalfPlane.from_size(400.0, 200.0)  # 23,000 balls, 68,371 contacts: regions pay on two threads
+    v = np.random.default_rng(1).normal(size=(g.n_balls, 2))
+
+    def run(threads: int) -> tuple:
+        sim = pb.Simulation(g, v, seed=3, scheduler=pb.UniformRandomPair(threads=threads))
+        sim.run(steps=200_000)
+        choice = sim.engine.choice()
+        assert choice.candidates == ("rows", "tables") and choice.by == "measured"
+        if threads > 1:
+            assert sim.engine.parallel_chain() is not None and sim.engine._parallel_loop[1] is not NO_PATTERN
+        choice.tuner.rates.update(rows=1.0, tables=1e12)  # the table loop measured the faster from now on
+        choice.tuner.due = float("inf")
+        assert choice.name == "tables"
+        sim.run(steps=500_000)
+        sim.run_until_frozen(max_steps=300_000)
+        return sim.velocities.tobytes(), sim.steps, sim.collisions, sim.engine.state.rng.tolist()
+
+    assert run(2) == run(1)
