@@ -11,13 +11,13 @@ from .util.startup import from_the_first_instant
 
 from_the_first_instant()  # before anything heavy is imported
 
-from .cli import interrupts  # noqa: E402 - after the Ctrl-C handler
+from .run.cli import interrupts  # noqa: E402 - after the Ctrl-C handler
 
 
 def command_line() -> int:
     """The program (the ``pinnedballs`` script's too): a Ctrl-C while numba compiles ends it at once, then
     `cli.main.main`."""
-    from .cli.main import main
+    from .run.cli.main import main
 
     interrupts.exit_while_compiling()
     return main()

@@ -19,8 +19,8 @@ import numpy as np
 from hypothesis import settings
 
 import pinnedballs as pb
-from pinnedballs.cli.main import main
 from pinnedballs.results.load import load
+from pinnedballs.run.cli.main import main
 from pinnedballs.run.execute import execute
 from pinnedballs.specs.run import parse_spec
 

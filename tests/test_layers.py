@@ -15,7 +15,7 @@ import pytest
 import pinnedballs
 
 ROOT = Path(__file__).resolve().parents[2]
-FRONT_ENDS = {"pinnedballs.cli", "pinnedballs.__main__", "pinnedballs.run.reproduction"}
+FRONT_ENDS = {"pinnedballs.run.cli", "pinnedballs.__main__", "pinnedballs.run.reproduction"}
 
 
 def loaded_after(code: str) -> set[str]:
@@ -30,7 +30,7 @@ def test_import_pinnedballs_loads_its_face_alone_and_a_name_loads_no_front_end()
     assert loaded_after("import pinnedballs") == {"pinnedballs"}
     loaded = loaded_after("import pinnedballs as pb\npb.ResultsWriter, pb.Simulation, pb.run_spec")
     assert not {m for m in loaded
-                if m in FRONT_ENDS or m.startswith(("pinnedballs.run.reproduction.", "pinnedballs.cli."))}
+                if m in FRONT_ENDS or m.startswith(("pinnedballs.run.reproduction.", "pinnedballs.run.cli."))}
     assert {"pinnedballs.run.writers", "pinnedballs.engine.driver", "pinnedballs.engine.triggers"} <= loaded
 
 
@@ -38,10 +38,10 @@ def test_import_pinnedballs_loads_its_face_alone_and_a_name_loads_no_front_end()
 def test_no_library_module_imports_the_command_line():
     library = sorted(m.name for m in pkgutil.walk_packages(pinnedballs.__path__, "pinnedballs.")
                      if m.name not in FRONT_ENDS
-                     and not m.name.startswith(("pinnedballs.run.reproduction", "pinnedballs.cli")))
+                     and not m.name.startswith(("pinnedballs.run.reproduction", "pinnedballs.run.cli")))
     assert "pinnedballs.specs.run" in library and "pinnedballs.run.ensemble" in library
     loaded = loaded_after("\n".join(f"import {m}" for m in library))
-    assert not {m for m in loaded if m.startswith("pinnedballs.cli")}
+    assert not {m for m in loaded if m.startswith("pinnedballs.run.cli")}
 
 
 def _room_imports() -> dict[str, set[str]]:

@@ -11,5 +11,5 @@ __all__ = ["Note"]
 
 
 class Note(UserWarning):
-    """A warning the command line says once, in one line (`pinnedballs.cli.main`): what a run's result depends
+    """A warning the command line says once, in one line (`pinnedballs.run.cli.main`): what a run's result depends
     on, and what to do about it."""

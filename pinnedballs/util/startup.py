@@ -4,7 +4,7 @@ import it landed in. The program's ``__main__`` calls `from_the_first_instant` b
 (numpy, numba, h5py: the first second or so), so only the standard library may be imported here.
 
 A Ctrl-C inside the command line's ``main._main`` raises KeyboardInterrupt as Python's handler does,
-which ``main`` turns into its own line (`pinnedballs.cli.interrupts`)."""
+which ``main`` turns into its own line (`pinnedballs.run.cli.interrupts`)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ __all__ = ["from_the_first_instant", "end_at_once", "EXIT_INTERRUPTED"]
 EXIT_INTERRUPTED = 130
 #: the command line's ``main._main``, found on the stack of a Ctrl-C that came while it runs (its file, not
 #: an import: this module is loaded before the package's others)
-_MAIN = os.path.join(os.path.dirname(os.path.dirname(os.path.realpath(__file__))), "cli", "main.py")
+_MAIN = os.path.join(os.path.dirname(os.path.dirname(os.path.realpath(__file__))), "run", "cli", "main.py")
 
 
 def from_the_first_instant() -> None:

@@ -14,8 +14,8 @@ import pinnedballs as pb
 import pinnedballs.engine as engine
 import pinnedballs.testing as testing
 import pinnedballs.testing.strategies as strategies
-from pinnedballs.cli.commands import EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK
-from pinnedballs.cli.main import _parser
+from pinnedballs.run.cli.commands import EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK
+from pinnedballs.run.cli.main import _parser
 from pinnedballs.specs.run import RunSpec
 from pinnedballs.specs.study import StudySpec
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from helpers import HALF_PLANE, call, spec, write
 
-from pinnedballs.cli.commands import COMMANDS
 from pinnedballs.plot.animation import MP4_MISSING
+from pinnedballs.run.cli.commands import COMMANDS
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]

@@ -93,7 +93,7 @@ def test_the_pages_mark_a_run_as_the_writer_does(page):
 
 
 def test_the_gpu_page_says_certified_replicas_on_a_cluster_are_refused_as_the_code_does():
-    """`run.ensemble.ensemble_plan` refuses a certified ensemble on a Dask cluster's GPUs (tests/cli/
+    """`run.ensemble.ensemble_plan` refuses a certified ensemble on a Dask cluster's GPUs (tests/run/cli/
     test_device_refusals.py); the page said in one place that it is refused and in another that it runs on
     the cluster's CPUs."""
     about = [x for x in sentences("gpu.md") if "certified" in x and re.search(r"Dask cluster", x)]

@@ -481,7 +481,7 @@ def test_boundary_center_works_for_any_geometry_with_a_boundary():
     ({"kind": "half_plane", "rows": 3, "cols": 3, "orientation": "diagonal"}, "geometry.orientation: input should be"),
 ])
 def test_bad_geometry_specs_exit_2_with_one_line(tmp_path, capsys, geometry, message):
-    from pinnedballs.cli import main as cli
+    from pinnedballs.run.cli import main as cli
 
     path = tmp_path / "spec.json"
     import json
@@ -515,7 +515,7 @@ def test_summary_uses_the_boundary_capability():
 def test_results_rebuild_the_geometry_and_plot_says_what_it_wrote(tmp_path, capsys, geometry):
     import json
 
-    from pinnedballs.cli import main as cli
+    from pinnedballs.run.cli import main as cli
 
     np.save(tmp_path / "points.npy", _random_sphere(40))
     dim = 3 if geometry["kind"] == "hcp" else 2
@@ -540,7 +540,7 @@ def test_plot_lists_the_figures_of_a_one_dimensional_chain(tmp_path, capsys):
     """Changed by issue 11: a 1-D chain now gets figures (it got none, and plot said so)."""
     import json
 
-    from pinnedballs.cli import main as cli
+    from pinnedballs.run.cli import main as cli
 
     np.save(tmp_path / "chain.npy", np.arange(5.0)[:, None] * 2)
     spec = {"geometry": {"kind": "graph_positions", "positions": "chain.npy"},

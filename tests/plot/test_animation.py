@@ -12,9 +12,9 @@ from matplotlib.quiver import Quiver
 from PIL import Image
 
 import pinnedballs as pb
-from pinnedballs.cli import main as cli
 from pinnedballs.plot import animation
 from pinnedballs.plot import run as plot_run
+from pinnedballs.run.cli import main as cli
 
 
 def record(tmp_path, geometry, every=300, steps=1_500, name="run"):

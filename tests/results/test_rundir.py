@@ -77,7 +77,7 @@ def test_a_python_writer_into_a_read_only_directory_names_out_dir(tmp_path):
 CHILD_AS_NOBODY = """
 import os, sys, warnings
 os.umask(0)  # the kernels' cache directories root makes on import stay writable for uid
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.run import ensemble
 from pinnedballs.util import atomic as io
 from pinnedballs.run import reproduction
@@ -138,7 +138,7 @@ def test_output_in_an_unwritable_directory_is_refused(command, kernels_nobody_ma
 
 STOP_AT_FIRST_CHECKPOINT = """
 import os, signal, sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.engine import driver
 from pinnedballs.util import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0

@@ -12,10 +12,10 @@ from helpers import pickled_by_value, thin_spec, write
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as obs
-from pinnedballs.cli import main as cli
 from pinnedballs.engine.margin import MarginWarning
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import ensemble_files as ens_files
+from pinnedballs.run.cli import main as cli
 from pinnedballs.run.reproduction import torus_row
 from pinnedballs.specs import parse_spec
 from pinnedballs.util.errors import InputError

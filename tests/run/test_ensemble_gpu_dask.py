@@ -97,7 +97,7 @@ def test_the_command_line_runs_an_ensemble_on_the_clusters_gpus(gpu_cluster, tmp
     with ``--device cuda`` is refused in one line, status 2, and nothing is written."""
     import json
 
-    from pinnedballs.cli.main import main
+    from pinnedballs.run.cli.main import main
 
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps(GPU_SPEC))

@@ -18,10 +18,10 @@ from pathlib import Path
 import pytest
 from helpers import pickled_by_value
 
-from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import ensemble_files as ens_files
 from pinnedballs.run import executors
+from pinnedballs.run.cli import main as cli
 from pinnedballs.specs import parse_spec
 
 pytestmark = pytest.mark.slow  # clusters, processes killed
@@ -150,7 +150,7 @@ def _dying_replica(spec, index, seed=None):
 DRIVER = """
 import os, sys, time
 from pathlib import Path
-from pinnedballs.cli.main import main
+from pinnedballs.run.cli.main import main
 from pinnedballs.run import ensemble as ens
 
 signals, real = Path(sys.argv[1]), ens.run_replica

@@ -20,7 +20,7 @@ import pytest
 from helpers import TORUS, assert_identical, reference, resume, spec, write
 
 import pinnedballs as pb
-from pinnedballs.cli.main import main
+from pinnedballs.run.cli.main import main
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 
@@ -56,7 +56,7 @@ if budget:  # no small file system to fill: binary writes fail once the budget i
         f = real_open(file, mode, *args, **kwargs)
         return Full(f) if "w" in mode and "b" in mode else f
     builtins.open = open_
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 sys.exit(cli.main(sys.argv[1:]))
 """
 

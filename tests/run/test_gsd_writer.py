@@ -144,7 +144,7 @@ def test_a_trajectory_at_listed_steps_must_end_before_the_stop(tmp_path):
 
 CHILD = """
 import sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.engine import driver
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0  # many small chunks, a checkpoint after each
 sys.exit(cli.main(sys.argv[1:]))

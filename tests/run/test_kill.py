@@ -33,7 +33,7 @@ RUN = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gaussi
 
 CHILD = """
 import os, signal, sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.engine import driver
 from pinnedballs.util import atomic as io
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0

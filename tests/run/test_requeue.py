@@ -147,7 +147,7 @@ LONG = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gauss
 
 CHILD = """
 import sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.engine import driver
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
 sys.exit(cli.main(sys.argv[1:]))

@@ -33,7 +33,7 @@ LONG = spec(TORUS, geometry__rows=8, geometry__cols=8, initial={"kind": "gaussia
 
 CHILD = """
 import sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.engine import driver
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0  # many small chunks, a checkpoint after each
 sys.exit(cli.main(sys.argv[1:]))

@@ -195,7 +195,7 @@ def test_ctrl_c_keeps_the_points_done_and_resume_finishes_the_table(tmp_path, mo
 
 CHILD = """
 import os, signal, sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import ensemble_files as ens_files
 where, at, calls = os.environ["KILL_IN"], int(os.environ["KILL_AT"]), [0]

@@ -14,11 +14,11 @@ from helpers import HALF_PLANE, TORUS, spec, write
 
 import pinnedballs as pb
 from pinnedballs.analysis import observables as observe
-from pinnedballs.cli import main as cli
 from pinnedballs.engine import driver
 from pinnedballs.results.load import load
 from pinnedballs.results.store import ResultsStore
 from pinnedballs.run import execute as runner
+from pinnedballs.run.cli import main as cli
 from pinnedballs.specs import parse_spec
 
 DATA = Path(__file__).resolve().parents[1] / "data"

@@ -14,7 +14,7 @@ import pytest
 from helpers import write
 
 import pinnedballs as pb
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.specs import parse_spec
 
 CHAIN = {

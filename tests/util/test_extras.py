@@ -19,7 +19,7 @@ import contextlib, io, json, sys
 for name in sys.argv[1].split(","):
     sys.modules[name] = None
 import pinnedballs as pb
-from pinnedballs.cli.main import main
+from pinnedballs.run.cli.main import main
 
 said = {}
 

@@ -1,6 +1,6 @@
 """The command line's Ctrl-C handler (`pinnedballs.util.startup`) is the program's: ``python -m pinnedballs``
 and the ``pinnedballs`` script set it up in ``__main__``; importing the library leaves Python's handler
-(tests/cli/test_ctrl_c.py sends the Ctrl-Cs)."""
+(tests/run/cli/test_ctrl_c.py sends the Ctrl-Cs)."""
 
 from __future__ import annotations
 

@@ -16,7 +16,7 @@ Single runs (the pictures) use ``seed`` itself; ensembles use replicas ``0..N-1`
 One module per idea: `plan` (what is run: the plan and the paper's set-ups), `run`
 (running it: `reproduce`), `checks` (the paper's statements against our numbers),
 `figures` and `report`; beyond the paper, `extended` (the studies of ``--extended``, a module each,
-and their report) and `fit`. The command ``pinnedballs reproduce`` lives in `pinnedballs.cli`.
+and their report) and `fit`. The command ``pinnedballs reproduce`` lives in `pinnedballs.run.cli`.
 """
 
 from .checks import Check

@@ -90,7 +90,7 @@ def test_a_margin_a_certified_state_cannot_hold_is_refused(tmp_path):
 def test_info_says_a_certified_runs_smallest_collision(tmp_path, whole, capsys):
     """``pinnedballs info`` on a certified run: its signs proved exact, and its smallest collision in thresholds of
     the float criterion (unknown for a file written before it was kept)."""
-    from pinnedballs.cli.main import main
+    from pinnedballs.run.cli.main import main
 
     split_run(tmp_path / "r")
     assert main(["info", str(tmp_path / "r")]) == 0

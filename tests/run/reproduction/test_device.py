@@ -9,9 +9,9 @@ import json
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.cli import main as cli
 from pinnedballs.run import ensemble as ens
 from pinnedballs.run import reproduction as rp
+from pinnedballs.run.cli import main as cli
 from pinnedballs.run.reproduction import extended as ext
 from pinnedballs.util.errors import InputError
 

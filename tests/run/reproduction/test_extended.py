@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.cli import main as cli
 from pinnedballs.run import reproduction as rp
+from pinnedballs.run.cli import main as cli
 from pinnedballs.run.reproduction import extended as ext
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import pinnedballs as pb
-from pinnedballs.cli import main as cli
 from pinnedballs.run import reproduction as rp
+from pinnedballs.run.cli import main as cli
 from pinnedballs.util.errors import InputError
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these

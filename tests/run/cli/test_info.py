@@ -14,8 +14,8 @@ import pytest
 from helpers import HALF_PLANE, ROOT, TORUS, call, chain, spec, thin_spec, write
 
 import pinnedballs as pb
-from pinnedballs.cli.commands import _duration
 from pinnedballs.results.rundir import LOCK_NAME, DirLock
+from pinnedballs.run.cli.commands import _duration
 
 
 @pytest.mark.parametrize("seconds,text", [(0.0052913, "5.29 ms"), (0.0208, "20.8 ms"), (0.9996, "1 s"),

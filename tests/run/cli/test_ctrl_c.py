@@ -27,7 +27,7 @@ from pinnedballs.specs.run import load_spec
 
 pytestmark = pytest.mark.slow  # subprocesses, first compiles
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 RUN = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gaussian", "energy": 100.0},
            stop={"steps": 6_000}, snapshots={"every_steps": 1000}, checkpoint={"every_seconds": 0}, seed=21)
@@ -108,7 +108,7 @@ def ref(tmp_path_factory):
 def test_while_the_command_line_imports(tmp_path):
     """Once ``python -m pinnedballs`` runs its first line: before, a Ctrl-C among the imports printed a
     KeyboardInterrupt traceback of 13 to 27 lines and ended the program by the signal (status -2)."""
-    code, err, seconds = program(tmp_path, "import:pinnedballs.cli.main", tmp_path / "out")
+    code, err, seconds = program(tmp_path, "import:pinnedballs.run.cli.main", tmp_path / "out")
     assert (code, err) == (130, "pinnedballs: interrupted\n")
     assert seconds < 5  # at once: a loaded machine's process exit
     assert not (tmp_path / "out").exists()

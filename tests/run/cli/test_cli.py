@@ -16,7 +16,7 @@ from helpers import HALF_PLANE, THIN, TORUS, assert_input_error, call, spec, thi
 
 import pinnedballs as pb
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 # ---------------------------------------------------------------- bad input: exit 2, one line, no files

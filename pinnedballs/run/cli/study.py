@@ -23,8 +23,8 @@ __all__ = ["study_command"]
 def study_command(args) -> int:
     """Exit 0, 1 if a replica failed (its point's ensemble is written with its error row), 2 on bad input (nothing
     written), 130 when interrupted (the points done are kept: ``--resume`` goes on)."""
-    from ..run.ensemble import check_count
-    from ..util.errors import InputError
+    from ...util.errors import InputError
+    from ..ensemble import check_count
     from .status import Status
 
     if args.workers is not None:
@@ -57,9 +57,9 @@ def study_command(args) -> int:
 
 
 def _study(args, status):
-    from ..run.executors import dask_client
-    from ..run.study import run_study
-    from ..specs.study import load_study_spec
+    from ...specs.study import load_study_spec
+    from ..executors import dask_client
+    from ..study import run_study
 
     study = load_study_spec(args.spec)
     client = None
@@ -75,7 +75,7 @@ def _study(args, status):
 
 def _interrupted(out: Path) -> str:
     """What an interrupted study leaves in ``out``, in one line."""
-    from ..run.study_dir import is_study_dir, load_study
+    from ..study_dir import is_study_dir, load_study
 
     if not is_study_dir(out):
         return f"interrupted before the study wrote anything in {out}"

@@ -20,7 +20,7 @@ from pinnedballs.results.load import load
 
 pytestmark = pytest.mark.slow  # subprocesses
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 RUN = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gaussian", "energy": 100.0},
            stop={"steps": 6_000}, snapshots={"every_steps": 250}, checkpoint={"every_seconds": 0}, seed=21)
@@ -29,7 +29,7 @@ RUN = spec(TORUS, geometry__rows=10, geometry__cols=10, initial={"kind": "gaussi
 #: just before or just after the final checkpoint (the one that says "done") is written
 CHILD = """
 import os, signal, sys
-from pinnedballs.cli import main as cli
+from pinnedballs.run.cli import main as cli
 from pinnedballs.engine import driver
 from pinnedballs.results import store
 driver.CHUNK_STEPS, driver.CHUNK_PER_CONTACT = 500, 0
@@ -117,7 +117,7 @@ def test_a_ctrl_c_turned_into_another_exception_is_still_a_ctrl_c(tmp_path, monk
     from helpers import call
 
     import pinnedballs.run.execute as execute
-    from pinnedballs.cli.interrupts import interrupted_by
+    from pinnedballs.run.cli.interrupts import interrupted_by
 
     def interrupted_import(*args, **kwargs):
         try:
@@ -135,7 +135,7 @@ def test_a_run_without_figures_never_imports_matplotlib(tmp_path):
     """A second Ctrl-C can land anywhere in a run; a run that draws nothing gives it no
     matplotlib import to land in (and starts 0.5-1 s sooner)."""
     spec_path = write(tmp_path / "s.json", RUN)
-    code = ("import sys; from pinnedballs.cli import main as cli; "
+    code = ("import sys; from pinnedballs.run.cli import main as cli; "
             f"code = cli.main(['run', {str(spec_path)!r}, '--out', {str(tmp_path / 'out')!r}, '--quiet', "
             "'--no-figures']); print(code, 'matplotlib' in sys.modules)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,

@@ -19,7 +19,7 @@ from helpers import TORUS, call, spec, write
 import pinnedballs as pb
 from pinnedballs.specs import parse_spec
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 #: a user's module: factories that fail in every way, usable in any slot (initial gets the geometry first)
 FAILING = '''

@@ -27,10 +27,10 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
-from .._version import __version__
-from ..util import provenance
-from ..util.errors import InputError, InternalError
-from ..util.notes import Note
+from ..._version import __version__
+from ...util import provenance
+from ...util.errors import InputError, InternalError
+from ...util.notes import Note
 from .commands import COMMANDS, EXIT_ERROR, EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, PROG, UsageError
 from .status import CLEAR, is_terminal
 from .study import study_command as _study  # noqa: F401 - registers ``pinnedballs study``
@@ -90,7 +90,7 @@ def _main(argv: list[str] | None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return EXIT_OK
     except Exception as exc:  # noqa: BLE001 - the catch-all of a command line
-        from ..run.execute import Interrupted  # here: a command that never runs a spec never imports it
+        from ..execute import Interrupted  # here: a command that never runs a spec never imports it
 
         if isinstance(exc, Interrupted):
             _say(str(exc))

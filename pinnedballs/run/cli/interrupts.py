@@ -26,7 +26,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..util.startup import EXIT_INTERRUPTED, end_at_once
+from ...util.startup import EXIT_INTERRUPTED, end_at_once
 
 __all__ = ["fingerprint", "exit_status", "interrupted_by", "sigint_ignored", "exit_while_compiling", "running",
            "EXIT_OK", "EXIT_INTERRUPTED"]
@@ -53,8 +53,8 @@ def exit_status(out: Path, before: tuple | None, new_run: bool, figures: bool) -
     before: the `fingerprint` of its results file when the command began; new_run: the command was
     to start a run (not ``--resume``), so a finished run it never touched is not its own; figures:
     the command was to draw them."""
-    from ..results.format import ResultsError
-    from ..results.load import load
+    from ...results.format import ResultsError
+    from ...results.load import load
 
     touched = fingerprint(out) != before
     try:
@@ -123,7 +123,7 @@ def running(out: Path, resume: bool) -> None:
 
 
 def _watch() -> None:
-    from ..util.sigint import on_compile_interrupt  # numba
+    from ...util.sigint import on_compile_interrupt  # numba
 
     on_compile_interrupt(_end_while_compiling)
 

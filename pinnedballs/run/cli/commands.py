@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..engine.devices import DEVICE_NAMES
+from ...engine.devices import DEVICE_NAMES
 
 __all__ = ["COMMANDS", "subcommand", "arg", "UsageError", "EXIT_OK", "EXIT_ERROR", "EXIT_INPUT", "EXIT_INTERRUPTED"]
 
@@ -77,7 +77,7 @@ DEVICE = arg("--device", choices=tuple(DEVICE_NAMES), default="cpu",
 def run(args: argparse.Namespace) -> int:
     """``pinnedballs run``; a Ctrl-C or SIGTERM gives the exit status the results file agrees with
     (`interrupts.exit_status`)."""
-    from ..run.execute import Interrupted
+    from ..execute import Interrupted
     from .interrupts import exit_status, fingerprint, interrupted_by, running, sigint_ignored
 
     if args.force and args.resume:
@@ -97,13 +97,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..run.execute import execute
+    from ..execute import execute
     from .status import Status
 
     with Status(show=False if args.quiet else None) as status:
         status("reading the spec")
-        from ..specs.run import load_spec
-        from ..util.compiling import CompileClock
+        from ...specs.run import load_spec
+        from ...util.compiling import CompileClock
 
         spec = load_spec(args.spec)
         with CompileClock() as clock:  # the geometry's checks, the loop: what numba compiled, and kept
@@ -112,7 +112,7 @@ def _run(args: argparse.Namespace) -> int:
                            log=lambda message: print(f"{PROG}: {message}", file=sys.stderr, flush=True),
                            device=args.device)
     if not args.quiet:
-        from ..results.load import load
+        from ...results.load import load
 
         res = load(path)
         reason = res.stop_reason or res.status
@@ -134,7 +134,7 @@ def _say_compiled(clock, status) -> None:
 @subcommand("validate", "check a spec, and that it builds; print a one-line summary",
             arg("spec", metavar="SPEC.json", help="the run spec"), TRACEBACK)
 def validate(args: argparse.Namespace) -> int:
-    from ..specs.run import describe, load_spec
+    from ...specs.run import describe, load_spec
 
     spec = load_spec(args.spec)
     print(f"ok: {describe(spec, spec.build())}")
@@ -145,11 +145,11 @@ def validate(args: argparse.Namespace) -> int:
             arg("--study", action="store_true", help="the schema of study specs (pinnedballs study) instead"))
 def schema(args: argparse.Namespace) -> int:
     if args.study:
-        from ..specs.study import study_schema
+        from ...specs.study import study_schema
 
         print(json.dumps(study_schema(), indent=2))
         return EXIT_OK
-    from ..specs.run import RunSpec
+    from ...specs.run import RunSpec
 
     print(json.dumps(RunSpec.model_json_schema(), indent=2))
     return EXIT_OK
@@ -164,19 +164,19 @@ def schema(args: argparse.Namespace) -> int:
             arg("--against", default="n_balls", help="a study's: against n_balls (the default; log-log, with the "
                                                      "fit) or a path the study varies"))
 def plot(args: argparse.Namespace) -> int:
-    from ..run.study_dir import is_study_dir, load_study
+    from ..study_dir import is_study_dir, load_study
 
     if is_study_dir(args.dir):  # the observable against the parameter, mean ± se by point (StudyResult.plot)
         path = Path(args.dir) / "figures" / f"{args.observable}_against_{args.against}.png"
         load_study(args.dir).plot(args.observable, args.against, path=path)
         print(path)
         return EXIT_OK
-    from ..results.load import load
-    from ..run.ensemble_dir import is_ensemble_dir, load_ensemble
-    from ..run.execute import write_figures
+    from ...results.load import load
+    from ..ensemble_dir import is_ensemble_dir, load_ensemble
+    from ..execute import write_figures
 
     if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
-        from ..run.ensemble_files import write_figures as ensemble_figures
+        from ..ensemble_files import write_figures as ensemble_figures
 
         paths = ensemble_figures(load_ensemble(args.dir), args.dir)
         print("\n".join(map(str, paths)) if paths else f"{args.dir}: no correlation to draw; no figures written")
@@ -197,8 +197,8 @@ def plot(args: argparse.Namespace) -> int:
 def animate(args: argparse.Namespace) -> int:
     import warnings
 
-    from ..results.load import load
-    from ..util.errors import FieldError
+    from ...results.load import load
+    from ...util.errors import FieldError
 
     res = load(args.dir)
     try:
@@ -220,10 +220,10 @@ def animate(args: argparse.Namespace) -> int:
             arg("out", metavar="OUT.gsd", help="the trajectory to write: one frame per snapshot"),
             arg("--force", action="store_true", help="replace OUT.gsd if it exists"))
 def export(args: argparse.Namespace) -> int:
-    from ..results.load import load
-    from ..results.tables import rows
-    from ..results.trajectory import check_output
-    from ..results.trajectory import export as write_gsd
+    from ...results.load import load
+    from ...results.tables import rows
+    from ...results.trajectory import check_output
+    from ...results.trajectory import export as write_gsd
 
     check_output(args.out, force=args.force, hint="use --force to replace it")  # before reading the run
     res = load(args.dir)
@@ -237,15 +237,15 @@ def export(args: argparse.Namespace) -> int:
 @subcommand("info", "summarise a results file, an ensemble directory or a study directory (its points done)",
             arg("dir", metavar="DIR", help="a run directory (or its results.h5), an ensemble's or a study's directory"))
 def info(args: argparse.Namespace) -> int:
-    from ..run import study_dir
+    from .. import study_dir
 
     if study_dir.is_study_dir(args.dir):
         print("\n".join(study_dir.describe(study_dir.load_study(args.dir), Path(args.dir))))
         return EXIT_OK
-    from ..results.load import load
-    from ..results.remains import lost_index
-    from ..run.ensemble_dir import describe, is_ensemble_dir, load_ensemble
-    from ..util.provenance import lines as provenance_lines
+    from ...results.load import load
+    from ...results.remains import lost_index
+    from ...util.provenance import lines as provenance_lines
+    from ..ensemble_dir import describe, is_ensemble_dir, load_ensemble
 
     if is_ensemble_dir(args.dir) and not (Path(args.dir) / "results.h5").exists():
         print("\n".join(describe(load_ensemble(args.dir), Path(args.dir))))
@@ -301,8 +301,8 @@ def _margin(res) -> list[str]:
         if arithmetic == "exact":
             return [f"margin:      none kept ({arithmetic} arithmetic: every closing speed's sign is exact)"]
         return ["margin:      unknown (this run began before runs kept their closing margin)"]
-    from ..engine.margin import NEAR
-    from ..rules import DEFAULT_RESOLUTION
+    from ...engine.margin import NEAR
+    from ...rules import DEFAULT_RESOLUTION
 
     low = "no collision yet" if m.smallest_collision is None else \
         f"smallest collision {m.smallest_collision:.3g} thresholds"
@@ -357,7 +357,7 @@ def _arithmetic(res) -> list[str]:
 
 def _bits(spec, certified) -> str:
     """The bits a certified run ran at through its first wave and behind it, where it narrowed or found them."""
-    from ..engine.field.arithmetic import AUTO
+    from ...engine.field.arithmetic import AUTO
 
     auto = spec is not None and spec.precision == AUTO and certified.precision
     if not (certified.late_precision or auto):
@@ -373,7 +373,7 @@ def _status(res) -> str:
     if res.complete:
         return f"done ({res.stop_reason})"
     if res.failure is not None:
-        from ..results.format import failed_run
+        from ...results.format import failed_run
 
         remedy = res.failure.get("remedy")
         return f"{failed_run(res.failure)}; it cannot go on" + (f": {remedy}" if isinstance(remedy, str) else "")
@@ -382,7 +382,7 @@ def _status(res) -> str:
     how = "--resume" if res.spec is not None else "pb.load(DIR).simulation()"
     if res.status == "interrupted":
         return f"interrupted (continue with {how})"
-    from ..results.rundir import holder
+    from ...results.rundir import holder
 
     pid = holder(res.run_dir)
     if pid is not None:
@@ -433,8 +433,10 @@ def ensemble_command(args) -> int:
 
 
 def _ensemble(args, status, began: float) -> int:
-    from ..results.rundir import DirLock, check_out_dir, made_for
-    from ..run.ensemble import (
+    from ...results.rundir import DirLock, check_out_dir, made_for
+    from ...specs.run import load_spec
+    from ...util.errors import InputError
+    from ..ensemble import (
         ERROR_COLUMN,
         SPEC_NAME,
         _check_replicas_memory,
@@ -443,10 +445,8 @@ def _ensemble(args, status, began: float) -> int:
         replica_seed,
         run_ensemble,
     )
-    from ..run.ensemble_files import remove_old_outputs, write_outputs
-    from ..run.executors import dask_client
-    from ..specs.run import load_spec
-    from ..util.errors import InputError
+    from ..ensemble_files import remove_old_outputs, write_outputs
+    from ..executors import dask_client
 
     replicas = check_count("--replicas", args.replicas)
     _check_replicas_memory(replicas, "--replicas")
@@ -514,10 +514,10 @@ def reproduce_command(args) -> int:
 
     with Status(show=False if args.quiet else None) as status:
         status("loading the reproduction")
-        from ..engine import door
-        from ..results.rundir import check_out_dir
-        from ..run import reproduction
-        from ..run.ensemble import check_count
+        from ...engine import door
+        from ...results.rundir import check_out_dir
+        from .. import reproduction
+        from ..ensemble import check_count
 
         if args.workers is not None:
             check_count("--workers", args.workers)
@@ -546,7 +546,7 @@ def _naming_notes(stage: list[str]) -> Iterator[None]:
     that ran when it came (``stage[0]``: "half-plane 200x100: single run"), so that it names its run."""
     import warnings
 
-    from ..engine.margin import MarginWarning
+    from ...engine.margin import MarginWarning
 
     with warnings.catch_warnings():  # keeps the filters; puts the outer showwarning back after
         outer = warnings.showwarning

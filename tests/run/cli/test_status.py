@@ -19,12 +19,12 @@ from pathlib import Path
 import pytest
 from helpers import TORUS, spec, write
 
-from pinnedballs.cli import main as cli
-from pinnedballs.cli import status
+from pinnedballs.run.cli import main as cli
+from pinnedballs.run.cli import status
 
 pytestmark = pytest.mark.slow  # subprocesses, full runs: the full suite (CI) runs these
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 LIMIT_SECONDS = 240  # a bound on a hung child, not a measurement
 
 

@@ -10,7 +10,7 @@ import pytest
 from helpers import HALF_PLANE, TORUS, call, spec, write
 
 import pinnedballs as pb
-from pinnedballs.cli.commands import _duration
+from pinnedballs.run.cli.commands import _duration
 from pinnedballs.specs import parse_spec
 
 CERTIFIED = spec(HALF_PLANE, geometry={"kind": "half_plane", "length": 30, "depth": 15}, arithmetic="certified",

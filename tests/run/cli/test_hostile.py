@@ -23,7 +23,7 @@ from pinnedballs.specs import SpecError, engine_errors, parse_spec
 from pinnedballs.util import limits
 from pinnedballs.util.errors import FieldError, FieldTypeError, InputError
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def run_refused(tmp_path: Path, spec_path: Path, *words: str) -> None:
@@ -357,7 +357,7 @@ def _ensemble_cli(tmp_path: Path, address: str, timeout: float) -> tuple[int, st
     """``pinnedballs ensemble --dask ADDRESS`` in a subprocess with a connect timeout of ``timeout`` s;
     the subprocess itself is killed after 60 s, so a hang fails the test instead of stalling it."""
     spec_path = write(tmp_path / "s.json", TORUS)
-    code = ("import sys; from pinnedballs.cli.main import main; from pinnedballs.run import executors; "
+    code = ("import sys; from pinnedballs.run.cli.main import main; from pinnedballs.run import executors; "
             f"executors.CONNECT_TIMEOUT = {timeout}; sys.exit(main(sys.argv[1:]))")
     proc = subprocess.run([sys.executable, "-c", code, "ensemble", str(spec_path), "--replicas", "2",
                            "--out", str(tmp_path / "out"), "--dask", address],
