@@ -62,6 +62,7 @@ class LoopBackend(Backend):
                                   lambda: None if self.setting in _TABLES else g.row_pattern, self.setting)
         self._live = None  # the LiveSet, built when a tracked run first needs it
         self._parallel = None if parallel else False  # the threaded chain, built when a run first asks (False: none)
+        self._parallel_loop = None  # ``(loop, pattern)`` the threaded chain's blocks are built for (`parallel_chain`)
         self._own_ran = False  # whether the scheduler's own loop (`own_steps`) has run
 
     def tables(self) -> tuple:
@@ -144,8 +145,8 @@ class LoopBackend(Backend):
             m, s = self.model, self.model.selector
             g, c = m.geometry, m.geometry.contacts
             threads = most_threads() if m.threads is None else m.threads
-            #: the loop and row pattern the threaded blocks are built for (``rows``: they decode contacts from
-            #: the pattern), kept for the chain's life: `choice` may later prefer a loop reading no pattern
+            # built for the loop chosen now (``rows``: the blocks decode contacts from its pattern), kept for the
+            # chain's life: `choice` may later prefer a loop reading no pattern
             self._parallel_loop = self.limited(logged=False)
             rows = self._parallel_loop[1] is not NO_PATTERN
             if threads > 1 and len(c) >= MIN_PARALLEL_CONTACTS and not s.tracks:

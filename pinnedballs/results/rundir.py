@@ -89,11 +89,7 @@ _HELD: weakref.WeakSet = weakref.WeakSet()
 def _forked() -> None:
     """In a forked child: close the copies of the parent's locks, which stay the parent's alone."""
     for lock in list(_HELD):
-        if lock._file is not None:
-            with contextlib.suppress(OSError):
-                lock._file.close()  # this process's descriptor: the lock is released by an unlock or by the
-            lock._file = None  # last descriptor's close, so the parent's stays (nothing is left to flush)
-    _HELD.clear()
+        lock.forget()
 
 
 if hasattr(os, "register_at_fork"):
@@ -146,6 +142,15 @@ class DirLock:
         self._file = f
         _HELD.add(self)
         return self
+
+    def forget(self) -> None:
+        """Close this process's copy of a held lock without releasing it (a forked child's copy: an ``flock`` is
+        dropped by an unlock or by its last descriptor's close, so the process that took it keeps it)."""
+        if self._file is not None:
+            with contextlib.suppress(OSError):
+                self._file.close()  # the pid was flushed when it was written: nothing is left to write
+        self._file = None
+        _HELD.discard(self)
 
     def release(self) -> None:
         """Remove the lock file and drop the lock (a no-op if not held)."""
