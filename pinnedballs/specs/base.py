@@ -33,6 +33,11 @@ class _Spec(BaseModel):
 _NOT_TEXT = "not valid UTF-8 text (a lone surrogate, or bytes that are not UTF-8)"
 
 
+def draw_seed() -> int:
+    """A seed for a spec that has none: 63 bits (as a spec holds) from fresh entropy."""
+    return int(np.random.SeedSequence().generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
 def _is_text(value: str) -> bool:
     """True if ``value`` encodes as UTF-8 (no lone surrogates), so files and HDF5 can hold it."""
     try:

@@ -21,7 +21,19 @@ from ..engine.devices import Device, as_device
 from ..engine.jit.failures import CompileFailure
 from ..util.errors import FieldError, InputError
 from ..util.limits import check_memory
-from .base import _NOT_TEXT, Count, FilePath, Positive, _in_file, _is_text, _load_npy, _short_text, _Spec, engine_errors
+from .base import (
+    _NOT_TEXT,
+    Count,
+    FilePath,
+    Positive,
+    _in_file,
+    _is_text,
+    _load_npy,
+    _short_text,
+    _Spec,
+    draw_seed,
+    engine_errors,
+)
 from .errors import SpecError, UserCodeError, _dot, _models_of, _short, first_error
 from .geometry import GeometrySpec
 from .initial import FromFileSpec, InitialSpec
@@ -222,7 +234,7 @@ class RunSpec(_Spec):
         """This spec, with a seed: its own, or one drawn from fresh entropy (63 bits, as a spec holds)."""
         if self.seed is not None:
             return self
-        drawn = int(np.random.SeedSequence().generate_state(1, np.uint64)[0] >> np.uint64(1))
+        drawn = draw_seed()
         return self.model_copy(update={"seed": drawn})
 
     # ------------------------------------------------------------ building

@@ -53,7 +53,7 @@ from pydantic import BaseModel, Field, PrivateAttr, ValidationError, ValidationI
 
 from ..util.errors import FieldError, InputError
 from ..util.limits import check_memory
-from .base import _resolve_path, _Spec
+from .base import _resolve_path, _Spec, draw_seed
 from .errors import SpecError, UserCodeError, _short, first_error
 from .run import _JSON_BYTES_PER_CHAR, RunSpec, _check_tree, _join, _parse_int, load_spec, parse_spec
 
@@ -304,7 +304,7 @@ class StudySpec(_Spec):
         """
         if self.seed is not None or self.seeds == "as_spec":
             return self
-        drawn = int(np.random.SeedSequence().generate_state(1, np.uint64)[0] >> np.uint64(1))
+        drawn = draw_seed()
         return self.model_copy(update={"seed": drawn})  # its private base directory with it
 
     def overrides(self) -> list[dict[str, Any]]:
