@@ -49,6 +49,8 @@ UP = 1.0 + 2.0 ** -50
 SQRT2_UP = math.sqrt(2.0) * UP
 _U = 2.0 ** -53
 _SMALLEST = 5e-324
+#: 2^e for every e whose power is a normal float, at ``e + 1022``: `_ldexp`'s one product
+_POW2 = np.ldexp(1.0, np.arange(-1022, 1024))
 
 #: how `run_picks` ends: the picks ran out (or ``collisions_left`` was reached); the run froze;
 #: a collision needs a wider state (exact policy); a pick, or a count of the live contacts, could
@@ -58,6 +60,8 @@ DONE, FROZEN, WIDEN, UNCERTIFIED, UNCOUNTED, DUE = 0, 1, 2, 3, 4, 5
 #: how many picks ahead `run_picks` fetches a pick's contact, its balls' shadows, and (when the
 #: float filter does not rule it out) their coefficients and bounds (measured: bench_exact.py)
 AHEAD_CONTACT, AHEAD_ROWS, AHEAD_BALLS = 24, 12, 6
+#: the rows of `run_picks`' ring of the float filter's decisions made ahead (more than ``AHEAD_BALLS``)
+RING = 8
 
 kernel = njit_cached(_nrt=False)
 inlined = njit_cached(_nrt=False, inline="always")
@@ -107,6 +111,15 @@ class Scratch(NamedTuple):
 
 
 @inlined
+def _ldexp(x, e):
+    """``math.ldexp(x, e)``, bit for bit, without its call into the C library where ``2^e`` is a normal float: then
+    one product by it, rounded once as ldexp rounds (to nearest, into the subnormals too)."""
+    if -1022 <= e <= 1023:
+        return x * _POW2[e + 1022]
+    return math.ldexp(x, e)
+
+
+@inlined
 def _closing(tables, X, i, j, line, W):
     """``W = (V_i - V_j) . u_l`` exactly, at scale ``S + e[l]``."""
     for c in range(W.shape[0]):
@@ -122,14 +135,14 @@ def _normal(W, root):
         return f0, 4.0 * _U * abs(f0) + TINY, e0
     f1, e1 = scaled_float(W[1])
     E = max(e0, e1)
-    a, b = math.ldexp(f0, int(e0 - E)), math.ldexp(f1, int(e1 - E))
+    a, b = _ldexp(f0, int(e0 - E)), _ldexp(f1, int(e1 - E))
     return a + b * root[1], 9.0 * _U * (abs(a) + abs(b) * root[1]) + TINY, E
 
 
 @inlined
 def _absolute(x, E):
     """``x 2^E`` as a float, 0 only when ``x`` is (an underflow keeps the sign and the smallest size)."""
-    y = math.ldexp(x, int(E))
+    y = _ldexp(x, int(E))
     return y if y != 0.0 or x == 0.0 else math.copysign(_SMALLEST, x)
 
 
@@ -137,7 +150,7 @@ def _absolute(x, E):
 def _beyond(x, err, E, e, beta):
     """1 when ``x 2^E`` (within ``err 2^E``) certainly exceeds ``beta 2^e``, 0 when it certainly lies
     below ``-beta 2^e``, -1 when neither: the bound is scaled to ``2^E`` (rounded up, at least ``TINY``)."""
-    bound = max(math.ldexp(beta, int(e - E)), TINY)
+    bound = max(_ldexp(beta, int(e - E)), TINY)
     if x - err > bound:
         return 1
     if x + err < -bound:
@@ -179,6 +192,12 @@ def _decide(k, tables, state, scale, certify, scratch, info):
     ``computed``: ``scratch.W`` holds ``(V_i - V_j) . u_l`` in fixed point; ``x``: the closing speed
     in floats (0 exactly when it is 0, NaN when both balls are at rest)."""
     decision, line, s, x = _filter(tables, state.rows, k)
+    return _settle(k, decision, line, s, x, tables, state, scale, certify, scratch, info)
+
+
+@inlined
+def _settle(k, decision, line, s, x, tables, state, scale, certify, scratch, info):
+    """`_decide` after the float filter's ``(decision, line, s, x)`` on contact ``k``."""
     if decision < 2:
         return decision, False, x
     i, j = tables.pairs[k, 0], tables.pairs[k, 1]
@@ -220,7 +239,7 @@ def _shadow(X, b, T, root, rows):
 def _band(bmax, scale):
     """A largest bound in units of ``2^-scale`` as the float filter reads it: absolute, rounded up
     (an underflow loses less than the filter's ``TINY``)."""
-    return math.ldexp(bmax, -int(scale)) * UP
+    return _ldexp(bmax, -int(scale)) * UP
 
 
 @kernel
@@ -316,7 +335,7 @@ def _collide(k, tables, state, scale, certify, scratch, step):
         rho0 = shift_round(W[0], W[0], bits)
         rho1 = shift_round(W[1], W[1], bits) if m == 2 else np.int64(0)
         if rho0 != 0 or rho1 != 0:
-            r = math.ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[line]))  # units of 2^-S
+            r = _ldexp((abs(rho0) + abs(rho1) * root[2] * UP) * UP, int(-tables.e[line]))  # units of 2^-S
     for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
         for c in range(m):
             exchange(X[i, d, c], X[j, d, c], W, tables.kterms[line, d, c], tables.kcount[line, d, c])
@@ -342,9 +361,12 @@ def count_live(tables, state, scale, certify, scratch, info):
 
 
 @inlined
-def _ahead(tables, state, certify, picks, t):
-    """Cache hints for the picks after ``t`` (no effect on any value): their contacts, their balls'
-    shadows, and the coefficients and bounds of balls the float filter does not rule out."""
+def _ahead(tables, state, certify, picks, t, flat, ring):
+    """Cache hints for the picks after ``t``: their contacts, their balls' shadows, and the coefficients and
+    bounds of balls the float filter does not rule out (``flat``: the coefficients ``state.X`` as one axis,
+    reshaped once a call of `run_picks`, not once a pick). The filter's ``(decision, line, s, x)`` on pick
+    ``t + AHEAD_BALLS`` is kept in ``ring``'s row ``(t + AHEAD_BALLS) % RING``, for the pick itself to use when
+    no collision changes a shadow in between (`_filtered`)."""
     n, pairs, rows = picks.shape[0], tables.pairs, state.rows
     if t + AHEAD_CONTACT < n:
         prefetch(pairs, picks[t + AHEAD_CONTACT])
@@ -355,9 +377,12 @@ def _ahead(tables, state, certify, picks, t):
         prefetch(rows, pairs[k, 1])
     if t + AHEAD_BALLS < n:
         k = picks[t + AHEAD_BALLS]
-        if _filter(tables, rows, k)[0] > 0:  # live or undecided
+        decision, line, s, x = _filter(tables, rows, k)
+        slot = ring[(t + AHEAD_BALLS) % RING]
+        slot[0], slot[1], slot[2], slot[3] = decision, line, s, x
+        if decision > 0:  # live or undecided
             X = state.X
-            flat, size = X.reshape(-1), X.shape[1] * X.shape[2] * X.shape[3]
+            size = X.shape[1] * X.shape[2] * X.shape[3]
             for b in (pairs[k, 0], pairs[k, 1]):
                 for q in range(0, size, 8):  # a cache line of limbs at a time, and the last
                     prefetch(flat, b * size + q)
@@ -365,6 +390,17 @@ def _ahead(tables, state, certify, picks, t):
                 if certify:
                     prefetch(state.B, b)
                     prefetch(state.Pp, b)
+
+
+@inlined
+def _filtered(tables, rows, picks, t, ring, since):
+    """The float filter on pick ``t``: as `_ahead` kept it when it was made at pick ``t - AHEAD_BALLS >= since``
+    (``since``: the pick after the last collision, or this call's first pick), otherwise anew; the same
+    ``(decision, line, s, x)`` either way (the filter reads the shadows, which only a collision changes)."""
+    if t - AHEAD_BALLS >= since:
+        slot = ring[t % RING]
+        return np.int64(slot[0]), np.int64(slot[1]), slot[2], slot[3]
+    return _filter(tables, rows, picks[t])
 
 
 @inlined
@@ -377,7 +413,6 @@ def _due(first, t, every, checked):
     return (due + every if due == checked else due) - first
 
 
-@kernel
 def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog, scratch, info,
               margin, at_last, first, every):
     """Try ``picks[t:]`` in turn: ``(how it ended, picks used)``; ``margin`` gathers the smallest
@@ -394,18 +429,29 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
     ``t`` picks cannot be; DUE: with ``every > 0``, the step ``first + t`` of pick ``t`` is a multiple
     of ``every`` other than ``prog[5]``: a check is due before it (call again from it).
     """
+    return _run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog,
+                      scratch, info, margin, at_last, first, every, np.empty((RING, 4)))
+
+
+@kernel
+def _run_picks(tables, state, scale, certify, picks, t, collisions_left, until_frozen, chunk, at, prog, scratch, info,
+               margin, at_last, first, every, ring):
+    """`run_picks`' loop; ``ring (RING, 4)``: scratch for the float filter's decisions made ahead (`_ahead`)."""
     made, last, fresh, countdown = prog[0], prog[1], prog[2], prog[4]
     n = picks.shape[0]
     status = DONE
     due = _due(first, t, every, prog[5])  # one division a call, not one a pick
     inside = 0
+    flat = state.X.reshape(-1)
+    since = t  # the filter's decisions made ahead from here on still hold (no collision since)
     while t < n:
         if t == due:
             status = DUE
             break
-        _ahead(tables, state, certify, picks, t)
+        _ahead(tables, state, certify, picks, t, flat, ring)
         k = picks[t]
-        decision, computed, x = _decide(k, tables, state, scale, certify, scratch, info)
+        decision, line, s, x = _filtered(tables, state.rows, picks, t, ring, since)
+        decision, computed, x = _settle(k, decision, line, s, x, tables, state, scale, certify, scratch, info)
         if decision < 0:
             status = UNCERTIFIED
             break
@@ -425,7 +471,7 @@ def run_picks(tables, state, scale, certify, picks, t, collisions_left, until_fr
                 status = WIDEN
                 break
             at[made] = t
-            made, last, fresh = made + 1, t, 1
+            made, last, fresh, since = made + 1, t, 1, t + 1
             at_last[0], at_last[1] = margin[1], margin[2]
             prog[3] = -1
         t += 1

@@ -27,9 +27,9 @@ from numba.extending import intrinsic
 
 from ..jit.cache import njit_cached
 
-__all__ = ["mac", "mac_top", "next_limb", "diff_combination", "exchange", "add_to", "sub_into", "addmul", "negate_into",
-           "shift_round", "low_bits", "is_zero", "sign", "scaled_float", "to_float", "compare_squares", "field_sign",
-           "to_limbs", "from_limbs"]
+__all__ = ["mac", "mac_top", "mac_diff", "next_limb", "diff_combination", "exchange", "add_to", "sub_into", "addmul",
+           "negate_into", "shift_round", "low_bits", "is_zero", "sign", "scaled_float", "to_float", "compare_squares",
+           "field_sign", "to_limbs", "from_limbs"]
 
 _0, _1 = np.uint64(0), np.uint64(1)
 _LOW32, _32, _63, _64 = np.uint64(0xFFFFFFFF), np.uint64(32), np.uint64(63), np.uint64(64)
@@ -64,6 +64,16 @@ def _mac_codegen(signed: bool):
     return codegen
 
 
+def _mac_diff_codegen(context, builder, signature, args):
+    i128 = ir.IntType(128)
+    hi, lo, x, y, c = args
+    acc = builder.or_(builder.shl(builder.sext(hi, i128), ir.Constant(i128, 64)), builder.zext(lo, i128))
+    diff = builder.sub(builder.zext(x, i128), builder.zext(y, i128))  # within 2^64 either way: one product
+    acc = builder.add(acc, builder.mul(builder.sext(c, i128), diff))
+    out_hi = builder.trunc(builder.ashr(acc, ir.Constant(i128, 64)), ir.IntType(64))
+    return cgutils.make_anonymous_struct(builder, [out_hi, builder.trunc(acc, ir.IntType(64))])
+
+
 @intrinsic
 def _mac_intrinsic(typingctx, hi, lo, x, c):
     sig = types.Tuple((types.int64, types.uint64))(types.int64, types.uint64, types.uint64, types.int64)
@@ -74,6 +84,12 @@ def _mac_intrinsic(typingctx, hi, lo, x, c):
 def _mac_top_intrinsic(typingctx, hi, lo, x, c):
     sig = types.Tuple((types.int64, types.uint64))(types.int64, types.uint64, types.uint64, types.int64)
     return sig, _mac_codegen(True)
+
+
+@intrinsic
+def _mac_diff_intrinsic(typingctx, hi, lo, x, y, c):
+    sig = types.Tuple((types.int64, types.uint64))(types.int64, types.uint64, types.uint64, types.uint64, types.int64)
+    return sig, _mac_diff_codegen
 
 
 def _split(acc: int) -> tuple:
@@ -90,10 +106,17 @@ def _mac_top_python(hi, lo, x, c):
     return _split((int(hi) << 64) + int(lo) + int(c) * (x - (1 << 64) if x >> 63 else x))
 
 
+def _mac_diff_python(hi, lo, x, y, c):
+    return _split((int(hi) << 64) + int(lo) + int(c) * (int(x) - int(y)))
+
+
 #: ``mac(hi, lo, x, c) -> (hi, lo)``: the accumulator plus ``c x``, the limb ``x`` read unsigned;
 #: ``mac_top``: the same with ``x`` read signed (the top limb of a two's complement number)
 mac = _mac_python if config.DISABLE_JIT else _mac_intrinsic
 mac_top = _mac_top_python if config.DISABLE_JIT else _mac_top_intrinsic
+#: ``mac_diff(hi, lo, x, y, c) -> (hi, lo)``: the accumulator plus ``c (x - y)``, the limbs read unsigned (one
+#: product where ``mac`` twice takes two)
+mac_diff = _mac_diff_python if config.DISABLE_JIT else _mac_diff_intrinsic
 
 
 def _next_limb_python(hi, lo):
@@ -113,46 +136,37 @@ next_limb = _next_limb_python if config.DISABLE_JIT else _next_limb_jit
 @inlined
 def diff_combination(out, xi, xj, terms, count):
     """``out = sum_t f_t (xi[d_t, s_t] - xj[d_t, s_t])`` over ``t < count``, ``terms[t] = (d_t, s_t, f_t)``;
-    ``xi, xj``: ``(dim, m, P)`` numbers, ``out``: ``(P,)``. One pass, the terms gathered limb by limb."""
-    n = out.shape[0]
+    ``xi, xj``: ``(dim, m, P)`` numbers, ``out``: ``(P,)``. One pass, the terms gathered limb by limb, one product
+    a term and limb (the top limb's low 64 bits are the same read signed or not)."""
     hi, lo = np.int64(0), _0
-    for k in range(n - 1):
+    for k in range(out.shape[0]):
         for t in range(count):
-            d, s, f = terms[t, 0], terms[t, 1], terms[t, 2]
-            hi, lo = mac(hi, lo, xi[d, s, k], f)
-            hi, lo = mac(hi, lo, xj[d, s, k], -f)
+            d, s = terms[t, 0], terms[t, 1]
+            hi, lo = mac_diff(hi, lo, xi[d, s, k], xj[d, s, k], terms[t, 2])
         out[k] = lo
         hi, lo = next_limb(hi, lo)
-    for t in range(count):
-        d, s, f = terms[t, 0], terms[t, 1], terms[t, 2]
-        hi, lo = mac_top(hi, lo, xi[d, s, n - 1], f)
-        hi, lo = mac_top(hi, lo, xj[d, s, n - 1], -f)
-    out[n - 1] = lo
 
 
 @inlined
 def exchange(xi, xj, om, terms, count):
     """``xi -= K``, ``xj += K`` for ``K = sum_t f_t om[s_t]`` over ``t < count``, ``terms[t] = (s_t, f_t)``;
-    ``xi, xj``: ``(P,)``, ``om``: ``(m, P)``. One pass, two accumulators."""
+    ``xi, xj``: ``(P,)``, ``om``: ``(m, P)``. One pass: ``K``'s limb gathered once, then taken from one number and
+    added to the other (three accumulators; the top limb's low 64 bits are the same read signed or not)."""
+    if count == 0:  # K = 0 (a line across this component)
+        return
     n = xi.shape[0]
-    hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0
-    for k in range(n - 1):
-        hi, lo = mac(hi, lo, xi[k], 1)
-        hj, lj = mac(hj, lj, xj[k], 1)
+    hk, lk, hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0, np.int64(0), _0
+    for k in range(n):
         for t in range(count):
-            w, f = om[terms[t, 0], k], terms[t, 1]
-            hi, lo = mac(hi, lo, w, -f)
-            hj, lj = mac(hj, lj, w, f)
+            hk, lk = mac(hk, lk, om[terms[t, 0], k], terms[t, 1])
+        hi, lo = mac(hi, lo, xi[k], 1)
+        hi, lo = mac(hi, lo, lk, -1)
+        hj, lj = mac(hj, lj, xj[k], 1)
+        hj, lj = mac(hj, lj, lk, 1)
         xi[k], xj[k] = lo, lj
+        hk, lk = next_limb(hk, lk)
         hi, lo = next_limb(hi, lo)
         hj, lj = next_limb(hj, lj)
-    hi, lo = mac_top(hi, lo, xi[n - 1], 1)
-    hj, lj = mac_top(hj, lj, xj[n - 1], 1)
-    for t in range(count):
-        w, f = om[terms[t, 0], n - 1], terms[t, 1]
-        hi, lo = mac_top(hi, lo, w, -f)
-        hj, lj = mac_top(hj, lj, w, f)
-    xi[n - 1], xj[n - 1] = lo, lj
 
 
 @inlined

@@ -90,7 +90,8 @@ def contraction_off():
 #: jitted callables that are no Python functions (numba intrinsics, and functions built on them), and what their
 #: twins call instead
 _INTRINSICS = {choose: choose_python, limbs._mac_intrinsic: limbs._mac_python,
-               limbs._mac_top_intrinsic: limbs._mac_top_python, limbs._next_limb_jit: limbs._next_limb_python}
+               limbs._mac_top_intrinsic: limbs._mac_top_python, limbs._mac_diff_intrinsic: limbs._mac_diff_python,
+               limbs._next_limb_jit: limbs._next_limb_python}
 
 
 def device_function(f: Callable) -> Callable:

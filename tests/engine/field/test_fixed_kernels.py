@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import pinnedballs as pb
 from pinnedballs.engine.field.fixed import FixedChain, bound_batch, lines_of
-from pinnedballs.engine.field.fixed_kernels import SQRT2_UP, UP, cap, fold, unfolded
+from pinnedballs.engine.field.fixed_kernels import SQRT2_UP, UP, _ldexp, cap, fold, unfolded
 
 
 def rounds(picks: np.ndarray, pairs: np.ndarray) -> np.ndarray:
@@ -80,3 +80,15 @@ def test_a_fold_bounds_the_exact_sums_from_above(r0, r1, base, emax, d):
     assert Fraction(acc[0]) >= low and not rho.any() and bound[1] == 7
     assert acc[1] == cap(acc[0], 512.0) and Fraction(acc[1]) >= Fraction(math.sqrt(2) * (1 - 2.0**-52)) * (
         Fraction(acc[0]) + 512) and SQRT2_UP > math.sqrt(2)
+
+
+@settings(max_examples=500, deadline=None)
+@given(x=st.one_of(st.floats(allow_nan=False, allow_infinity=False), st.sampled_from([5e-324, -2.2250738585072014e-308,
+                                                                                      1.0, 1.5, 2.0**-60])),
+       e=st.integers(-1200, 1200))
+def test_the_loops_ldexp_is_the_c_librarys_bit_for_bit(x, e):
+    """One product by a power of two where that power is a normal float, the library's call elsewhere: the same
+    float in every range, the subnormal results (rounded once, to nearest) and the overflows included."""
+    with np.errstate(over="ignore"):
+        library = np.ldexp(np.float64(x), e)  # the C library's, overflowing to infinity as the loop's does
+    assert np.float64(_ldexp(x, e)).tobytes() == library.tobytes()

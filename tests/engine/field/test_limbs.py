@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from fractions import Fraction
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -161,3 +162,19 @@ def test_an_exchange_moves_the_same_combination_out_of_one_number_and_into_the_o
     limbs.exchange(a, b, limbs.to_limbs(om, P), terms, count)
     k = sum(f * om[s] for s, f in list(zip((1, 0), fs))[:count])
     assert (val(a), val(b)) == (wrap(xi - k), wrap(xj + k))
+
+
+@numba.njit
+def _mac_diff(hi, lo, x, y, c):
+    return limbs.mac_diff(hi, lo, x, y, c)
+
+
+@settings(max_examples=300, deadline=None)
+@given(acc=st.integers(-(2**120), 2**120), x=st.integers(0, 2**64 - 1), y=st.integers(0, 2**64 - 1), c=small)
+def test_a_product_of_a_difference_of_limbs_gathers_as_integers_do(acc, x, y, c):
+    """``mac_diff``: the 128-bit accumulator plus ``c (x - y)`` with one product, as its plain-Python twin."""
+    hi, lo = np.int64(acc >> 64), np.uint64(acc & (2**64 - 1))  # the accumulator: hi 2^64 + lo
+    got = _mac_diff(hi, lo, np.uint64(x), np.uint64(y), np.int64(c))
+    twin = limbs._mac_diff_python(hi, lo, np.uint64(x), np.uint64(y), np.int64(c))
+    total = (int(hi) << 64) + int(lo) + c * (x - y)
+    assert (int(got[0]), int(got[1])) == (int(twin[0]), int(twin[1])) == (total >> 64, total & (2**64 - 1))
