@@ -18,6 +18,12 @@ why: a certified decision it cannot prove (the step and contact), or a time limi
     python benchmarks/bench_exact.py --limit 1800                      # CPU seconds before giving up
     python benchmarks/bench_exact.py --json runs.json                  # every row also as JSON (for
                                                                        # docs/figures/make_exactness_figure.py)
+    python benchmarks/bench_exact.py --tree /tmp/old                   # another copy of the package (a
+                                                                       # directory holding pinnedballs/), in turns
+
+The children import the package from the directory they run in (this checkout, or each ``--tree``: a
+``PYTHONPATH`` would not do, as ``python -c`` puts its working directory first). The CPU's model, L2 cache
+and vector extensions are printed first.
 """
 
 from __future__ import annotations
@@ -90,10 +96,11 @@ print(json.dumps(out))
 """
 
 
-def measure(size: str, seed: int, spec: str, limit: float) -> dict:
+def measure(size: str, seed: int, spec: str, limit: float, tree: Path = ROOT) -> dict:
+    """One run in its own process, importing the package held in ``tree``."""
     length, depth = size.split("x")
     done = subprocess.run([sys.executable, "-c", _CHILD, length, depth, str(seed), spec, str(limit)],
-                          capture_output=True, text=True, cwd=ROOT)
+                          capture_output=True, text=True, cwd=tree)
     if done.returncode != 0:
         return {"outcome": "failed: "
                            f"{done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}"}
@@ -133,17 +140,28 @@ def main() -> None:
                              "LATE), or float@E (the float criterion with resolution E: the counts N_e)")
     parser.add_argument("--limit", type=float, default=1800.0, help="CPU seconds a run may take (default 30 min)")
     parser.add_argument("--json", type=Path, help="also write every row to this file, as JSON")
+    parser.add_argument("--tree", type=Path, action="append", default=[],
+                        help="another copy of the package (a directory holding pinnedballs/), run after this one")
     args = parser.parse_args()
+    trees = [ROOT, *(t.resolve() for t in args.tree)]
+    for tree in trees:
+        if not (tree / "pinnedballs" / "__init__.py").is_file():
+            parser.error(f"--tree {tree}: holds no pinnedballs/__init__.py")
+    sys.path.insert(0, str(ROOT))
+    from pinnedballs.util.provenance import cpu_line
+    print(cpu_line())
     rows = []
     print(f"{'size':>9} {'arithmetic':>14} {'CPU':>11} {'/float':>8} {'collisions':>13} {'steps':>15} {'peak':>11}")
     for size in args.sizes:
         for seed in args.seeds:
-            floats = None
-            for spec in args.arithmetics:
-                r = measure(size, seed, spec, args.limit)
-                floats = r if spec == "float" else floats  # the ratios are to the default criterion's run
-                print(row(f"{size}/{seed}" if len(args.seeds) > 1 else size, spec, r, floats), flush=True)
-                rows.append({"size": size, "seed": seed, "arithmetic": spec, **r})
+            for tree in trees:
+                floats = None
+                for spec in args.arithmetics:
+                    r = measure(size, seed, spec, args.limit, tree)
+                    floats = r if spec == "float" else floats  # the ratios are to the default criterion's run
+                    name = f"{size}/{seed}" if len(args.seeds) > 1 else size
+                    print(row(name, spec, r, floats) + (f"  [{tree}]" if len(trees) > 1 else ""), flush=True)
+                    rows.append({"size": size, "seed": seed, "arithmetic": spec, "tree": str(tree), **r})
                 if args.json is not None:
                     args.json.write_text(json.dumps(rows, indent=1))
 
