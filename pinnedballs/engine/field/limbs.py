@@ -137,8 +137,25 @@ next_limb = _next_limb_python if config.DISABLE_JIT else _next_limb_jit
 def diff_combination(out, xi, xj, terms, count):
     """``out = sum_t f_t (xi[d_t, s_t] - xj[d_t, s_t])`` over ``t < count``, ``terms[t] = (d_t, s_t, f_t)``;
     ``xi, xj``: ``(dim, m, P)`` numbers, ``out``: ``(P,)``. One pass, the terms gathered limb by limb, one product
-    a term and limb (the top limb's low 64 bits are the same read signed or not)."""
+    a term and limb (the top limb's low 64 bits are the same read signed or not); one or two terms (the usual)
+    with their numbers and factors read once, not once a limb."""
     hi, lo = np.int64(0), _0
+    if count == 1:
+        a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
+        for k in range(out.shape[0]):
+            hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
+            out[k] = lo
+            hi, lo = next_limb(hi, lo)
+        return
+    if count == 2:
+        a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
+        c, d, fc = xi[terms[1, 0], terms[1, 1]], xj[terms[1, 0], terms[1, 1]], terms[1, 2]
+        for k in range(out.shape[0]):
+            hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
+            hi, lo = mac_diff(hi, lo, c[k], d[k], fc)
+            out[k] = lo
+            hi, lo = next_limb(hi, lo)
+        return
     for k in range(out.shape[0]):
         for t in range(count):
             d, s = terms[t, 0], terms[t, 1]
@@ -151,22 +168,51 @@ def diff_combination(out, xi, xj, terms, count):
 def exchange(xi, xj, om, terms, count):
     """``xi -= K``, ``xj += K`` for ``K = sum_t f_t om[s_t]`` over ``t < count``, ``terms[t] = (s_t, f_t)``;
     ``xi, xj``: ``(P,)``, ``om``: ``(m, P)``. One pass: ``K``'s limb gathered once, then taken from one number and
-    added to the other (three accumulators; the top limb's low 64 bits are the same read signed or not)."""
+    added to the other (three accumulators; the top limb's low 64 bits are the same read signed or not); one or
+    two terms (the usual) with their numbers and factors read once, not once a limb."""
     if count == 0:  # K = 0 (a line across this component)
         return
-    n = xi.shape[0]
     hk, lk, hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0, np.int64(0), _0
-    for k in range(n):
+    if count == 1:
+        a, fa = om[terms[0, 0]], terms[0, 1]
+        for k in range(xi.shape[0]):
+            hk, lk = mac(hk, lk, a[k], fa)
+            hi, lo = _moved(hi, lo, xi[k], lk, -1)
+            hj, lj = _moved(hj, lj, xj[k], lk, 1)
+            xi[k], xj[k] = lo, lj
+            hk, lk = next_limb(hk, lk)
+            hi, lo = next_limb(hi, lo)
+            hj, lj = next_limb(hj, lj)
+        return
+    if count == 2:
+        a, fa, b, fb = om[terms[0, 0]], terms[0, 1], om[terms[1, 0]], terms[1, 1]
+        for k in range(xi.shape[0]):
+            hk, lk = mac(hk, lk, a[k], fa)
+            hk, lk = mac(hk, lk, b[k], fb)
+            hi, lo = _moved(hi, lo, xi[k], lk, -1)
+            hj, lj = _moved(hj, lj, xj[k], lk, 1)
+            xi[k], xj[k] = lo, lj
+            hk, lk = next_limb(hk, lk)
+            hi, lo = next_limb(hi, lo)
+            hj, lj = next_limb(hj, lj)
+        return
+    for k in range(xi.shape[0]):
         for t in range(count):
             hk, lk = mac(hk, lk, om[terms[t, 0], k], terms[t, 1])
-        hi, lo = mac(hi, lo, xi[k], 1)
-        hi, lo = mac(hi, lo, lk, -1)
-        hj, lj = mac(hj, lj, xj[k], 1)
-        hj, lj = mac(hj, lj, lk, 1)
+        hi, lo = _moved(hi, lo, xi[k], lk, -1)
+        hj, lj = _moved(hj, lj, xj[k], lk, 1)
         xi[k], xj[k] = lo, lj
         hk, lk = next_limb(hk, lk)
         hi, lo = next_limb(hi, lo)
         hj, lj = next_limb(hj, lj)
+
+
+@inlined
+def _moved(hi, lo, x, lk, sign):
+    """The accumulator ``(hi, lo)`` of ``x -+ K`` after limb ``x`` of the number and ``lk`` of ``K`` (``sign`` -1
+    or 1)."""
+    hi, lo = mac(hi, lo, x, 1)
+    return mac(hi, lo, lk, sign)
 
 
 @inlined
