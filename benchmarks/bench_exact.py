@@ -18,8 +18,9 @@ why: a certified decision it cannot prove (the step and contact), or a time limi
     python benchmarks/bench_exact.py --limit 1800                      # CPU seconds before giving up
     python benchmarks/bench_exact.py --json runs.json                  # every row also as JSON (for
                                                                        # docs/figures/make_exactness_figure.py)
-    python benchmarks/bench_exact.py --tree /tmp/old                   # another copy of the package (a
-                                                                       # directory holding pinnedballs/), in turns
+    python benchmarks/bench_exact.py --tree /tmp/old --rounds 3        # another copy of the package (a
+                                                                       # directory holding pinnedballs/), in turns,
+                                                                       # and the medians of 3 rounds
 
 The children import the package from the directory they run in (this checkout, or each ``--tree``: a
 ``PYTHONPATH`` would not do, as ``python -c`` puts its working directory first). The CPU's model, L2 cache
@@ -30,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -141,7 +143,9 @@ def main() -> None:
     parser.add_argument("--limit", type=float, default=1800.0, help="CPU seconds a run may take (default 30 min)")
     parser.add_argument("--json", type=Path, help="also write every row to this file, as JSON")
     parser.add_argument("--tree", type=Path, action="append", default=[],
-                        help="another copy of the package (a directory holding pinnedballs/), run after this one")
+                        help="another copy of the package (a directory holding pinnedballs/), in turns with this one")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="run everything this many times, the trees in turns, and print the medians")
     args = parser.parse_args()
     trees = [ROOT, *(t.resolve() for t in args.tree)]
     for tree in trees:
@@ -154,16 +158,31 @@ def main() -> None:
     print(f"{'size':>9} {'arithmetic':>14} {'CPU':>11} {'/float':>8} {'collisions':>13} {'steps':>15} {'peak':>11}")
     for size in args.sizes:
         for seed in args.seeds:
-            for tree in trees:
-                floats = None
-                for spec in args.arithmetics:
-                    r = measure(size, seed, spec, args.limit, tree)
-                    floats = r if spec == "float" else floats  # the ratios are to the default criterion's run
-                    name = f"{size}/{seed}" if len(args.seeds) > 1 else size
-                    print(row(name, spec, r, floats) + (f"  [{tree}]" if len(trees) > 1 else ""), flush=True)
-                    rows.append({"size": size, "seed": seed, "arithmetic": spec, "tree": str(tree), **r})
-                if args.json is not None:
-                    args.json.write_text(json.dumps(rows, indent=1))
+            for _ in range(args.rounds):
+                for tree in trees:
+                    floats = None
+                    for spec in args.arithmetics:
+                        r = measure(size, seed, spec, args.limit, tree)
+                        floats = r if spec == "float" else floats  # the ratios are to the default criterion's run
+                        name = f"{size}/{seed}" if len(args.seeds) > 1 else size
+                        print(row(name, spec, r, floats) + (f"  [{tree}]" if len(trees) > 1 else ""), flush=True)
+                        rows.append({"size": size, "seed": seed, "arithmetic": spec, "tree": str(tree), **r})
+                    if args.json is not None:
+                        args.json.write_text(json.dumps(rows, indent=1))
+    if args.rounds > 1:
+        print_medians(rows)
+
+
+def print_medians(rows: list[dict]) -> None:
+    """The median CPU seconds of each size, seed, tree and arithmetic over the rounds, and its spread."""
+    print("\nmedians over the rounds (min-max):")
+    runs: dict[tuple, list[float]] = {}
+    for r in rows:
+        if "seconds" in r:
+            runs.setdefault((r["size"], r["seed"], r["tree"], r["arithmetic"]), []).append(r["seconds"])
+    for (size, seed, tree, spec), seconds in runs.items():
+        median, spread = statistics.median(seconds), f"{min(seconds):.3f}-{max(seconds):.3f}, {len(seconds)} runs"
+        print(f"{size:>9}/{seed} {spec:>14} {median:9.3f} s  ({spread})  [{tree}]")
 
 
 if __name__ == "__main__":
