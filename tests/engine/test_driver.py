@@ -147,8 +147,10 @@ np.savez(out, velocities=st.velocities, counts=[st.steps, st.collisions], rng=st
          scheduler=st.scheduler_state, interrupted=interrupted[0] if interrupted else -1, **extra)
 """
 
-#: the steps of each run: 1.5 to 2.5 s on a quiet machine (a signal within 0.5 s finds it running)
-RUNS = {"torus": 150_000_000, "until frozen": 150_000_000, "exact": 500_000, "log": 40_000_000}
+#: the steps of each run: 1.5 to 2.5 s on a quiet machine (a signal within 0.5 s finds it running). The exact run
+#: widens as it goes (810 limbs at a million steps), so its time grows faster than its steps: 1.2 million took
+#: 2.0 s on the 2-core machine in 2026-12 (500,000 took 0.44 s once its limb loops were tuned: too short)
+RUNS = {"torus": 150_000_000, "until frozen": 150_000_000, "exact": 1_200_000, "log": 40_000_000}
 
 
 def child_run(tmp_path: Path, kind: str, signals: list[float] | None):
