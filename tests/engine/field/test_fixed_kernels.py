@@ -13,7 +13,18 @@ from hypothesis import strategies as st
 
 import pinnedballs as pb
 from pinnedballs.engine.field.fixed import FixedChain, bound_batch, lines_of
-from pinnedballs.engine.field.fixed_kernels import SQRT2_UP, UP, _ldexp, cap, fold, unfolded
+from pinnedballs.engine.field.fixed_kernels import (
+    RING,
+    SQRT2_UP,
+    UP,
+    _ahead,
+    _filter,
+    _filtered,
+    _ldexp,
+    cap,
+    fold,
+    unfolded,
+)
 
 
 def rounds(picks: np.ndarray, pairs: np.ndarray) -> np.ndarray:
@@ -92,3 +103,27 @@ def test_the_loops_ldexp_is_the_c_librarys_bit_for_bit(x, e):
     with np.errstate(over="ignore"):
         library = np.ldexp(np.float64(x), e)  # the C library's, overflowing to infinity as the loop's does
     assert np.float64(_ldexp(x, e)).tobytes() == library.tobytes()
+
+
+def test_the_filters_decision_made_ahead_is_the_one_the_pick_would_make():
+    """`_ahead` keeps the float filter's ``(decision, line, s, x)`` on the pick ``AHEAD_BALLS`` on, and
+    `_filtered` hands it back to that pick when no collision came between (otherwise it filters anew): on a
+    moving half-plane, every pick's kept decision is the filter's own, the both-at-rest NaN included."""
+    g = pb.HalfPlane(10, 10)
+    rng = np.random.default_rng(5)
+    v = np.zeros((g.n_balls, 2))
+    v[: g.n_balls // 2] = rng.normal(size=(g.n_balls // 2, 2))  # half at rest: NaN closing speeds too
+    c = FixedChain(g, v, lines_of(g), "certified")
+    state, tables = c._state(), c.tables
+    picks = rng.integers(0, g.n_contacts, size=400)
+    ring, flat = np.full((RING, 4), -7.0), state.X.reshape(-1)
+    kinds = set()
+    for t in range(len(picks)):
+        _ahead(tables, state, c.certify, picks, t, flat, ring)
+        kept = _filtered(tables, state.rows, picks, t, ring, 0)
+        fresh = _filter(tables, state.rows, picks[t])
+        assert kept[:3] == fresh[:3] and np.float64(kept[3]).tobytes() == np.float64(fresh[3]).tobytes(), t
+        kinds.add(int(fresh[0]) if fresh[3] == fresh[3] else "rest")
+    assert {0, 1, "rest"} <= kinds
+    assert _filtered(tables, state.rows, picks, 10, np.full((RING, 4), -7.0), 5)[:3] == _filter(
+        tables, state.rows, picks[10])[:3]  # made before the last collision (since 5 > 10 - 6): filtered anew
