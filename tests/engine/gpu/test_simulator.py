@@ -2,6 +2,7 @@
 ``cuda.shared.array`` line, however their Python threads interleave, so a block's sum is the GPU's."""
 
 import sys
+import threading
 import time
 
 import numpy as np
@@ -33,20 +34,28 @@ def _broadcast(out):
 
 class _SlowNumpy:
     """numpy, but ``empty`` gives -1s after a pause: every thread of a block reaches the allocating line before
-    the first stores its array, the interleaving that loses arrays (on a loaded machine, now and then)."""
+    the first stores its array, the interleaving that loses arrays (on a loaded machine, now and then). With a
+    ``barrier``, the pause lasts until every thread of the block is allocating (a fixed pause let a thread that
+    started late on a loaded machine find thread 0's array: the demonstration failed in a CI run)."""
+
+    def __init__(self, barrier: threading.Barrier | None = None):
+        self.barrier = barrier
 
     def __getattr__(self, name):
         return getattr(np, name)
 
     def empty(self, shape, dtype):
-        time.sleep(0.02)
+        if self.barrier is None:
+            time.sleep(0.02)
+        else:
+            self.barrier.wait(timeout=60)
         return np.full(shape, -1, dtype)
 
 
-def broadcast_with_slow_allocations(monkeypatch, method) -> np.ndarray:
+def broadcast_with_slow_allocations(monkeypatch, method, barrier=None) -> np.ndarray:
     monkeypatch.setattr(kernelapi.FakeCUDAShared, "array", method)
-    monkeypatch.setattr(kernelapi, "np", _SlowNumpy())
-    monkeypatch.setattr(simulator, "np", _SlowNumpy())
+    monkeypatch.setattr(kernelapi, "np", _SlowNumpy(barrier))
+    monkeypatch.setattr(simulator, "np", _SlowNumpy(barrier))
     out = np.zeros(THREADS, np.int64)
     _broadcast[1, THREADS](out)
     return out
@@ -59,7 +68,7 @@ def test_the_simulator_is_mended_under_it():
 def test_upstream_gives_a_thread_its_own_array_when_threads_interleave(monkeypatch):
     """The bug, shown: numba-cuda's own method with the interleaving forced; threads other than 0 read an
     array thread 0 never wrote. (If this fails, upstream has fixed it: `simulator.mend` can go.)"""
-    out = broadcast_with_slow_allocations(monkeypatch, simulator.upstream_shared_array)
+    out = broadcast_with_slow_allocations(monkeypatch, simulator.upstream_shared_array, threading.Barrier(THREADS))
     assert out[0] == 7 and (out[1:] == -1).all(), out
 
 
