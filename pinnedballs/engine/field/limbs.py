@@ -177,34 +177,32 @@ def exchange(xi, xj, om, terms, count):
         a, fa = om[terms[0, 0]], terms[0, 1]
         for k in range(xi.shape[0]):
             hk, lk = mac(hk, lk, a[k], fa)
-            hi, lo = _moved(hi, lo, xi[k], lk, -1)
-            hj, lj = _moved(hj, lj, xj[k], lk, 1)
-            xi[k], xj[k] = lo, lj
-            hk, lk = next_limb(hk, lk)
-            hi, lo = next_limb(hi, lo)
-            hj, lj = next_limb(hj, lj)
+            hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
         return
     if count == 2:
         a, fa, b, fb = om[terms[0, 0]], terms[0, 1], om[terms[1, 0]], terms[1, 1]
         for k in range(xi.shape[0]):
             hk, lk = mac(hk, lk, a[k], fa)
             hk, lk = mac(hk, lk, b[k], fb)
-            hi, lo = _moved(hi, lo, xi[k], lk, -1)
-            hj, lj = _moved(hj, lj, xj[k], lk, 1)
-            xi[k], xj[k] = lo, lj
-            hk, lk = next_limb(hk, lk)
-            hi, lo = next_limb(hi, lo)
-            hj, lj = next_limb(hj, lj)
+            hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
         return
     for k in range(xi.shape[0]):
         for t in range(count):
             hk, lk = mac(hk, lk, om[terms[t, 0], k], terms[t, 1])
-        hi, lo = _moved(hi, lo, xi[k], lk, -1)
-        hj, lj = _moved(hj, lj, xj[k], lk, 1)
-        xi[k], xj[k] = lo, lj
-        hk, lk = next_limb(hk, lk)
-        hi, lo = next_limb(hi, lo)
-        hj, lj = next_limb(hj, lj)
+        hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
+
+
+@inlined
+def _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj):
+    """Limb ``k`` of `exchange`, ``K``'s limb ``lk`` gathered: ``xi[k] -= lk``, ``xj[k] += lk``; the three
+    accumulators shifted down to the next limb."""
+    hi, lo = _moved(hi, lo, xi[k], lk, -1)
+    hj, lj = _moved(hj, lj, xj[k], lk, 1)
+    xi[k], xj[k] = lo, lj
+    hk, lk = next_limb(hk, lk)
+    hi, lo = next_limb(hi, lo)
+    hj, lj = next_limb(hj, lj)
+    return hk, lk, hi, lo, hj, lj
 
 
 @inlined
