@@ -28,8 +28,8 @@ from numba.extending import intrinsic
 from ..jit.cache import njit_cached
 
 __all__ = ["mac", "mac_top", "mac_diff", "next_limb", "diff_combination", "exchange", "add_to", "sub_into", "addmul",
-           "negate_into", "shift_round", "low_bits", "is_zero", "sign", "scaled_float", "to_float", "compare_squares",
-           "field_sign", "to_limbs", "from_limbs"]
+           "negate_into", "shift_round", "low_bits", "is_zero", "vanishes", "sign", "scaled_float", "to_float",
+           "compare_squares", "field_sign", "to_limbs", "from_limbs"]
 
 _0, _1 = np.uint64(0), np.uint64(1)
 _LOW32, _32, _63, _64 = np.uint64(0xFFFFFFFF), np.uint64(32), np.uint64(63), np.uint64(64)
@@ -142,6 +142,9 @@ def diff_combination(out, xi, xj, terms, count):
     hi, lo = np.int64(0), _0
     if count == 1:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
+        if vanishes(a) and vanishes(b):  # (half the coefficients of a lattice's velocities are 0 throughout)
+            _clear(out)
+            return
         for k in range(out.shape[0]):
             hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
             out[k] = lo
@@ -150,6 +153,9 @@ def diff_combination(out, xi, xj, terms, count):
     if count == 2:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
         c, d, fc = xi[terms[1, 0], terms[1, 1]], xj[terms[1, 0], terms[1, 1]], terms[1, 2]
+        if vanishes(a) and vanishes(b) and vanishes(c) and vanishes(d):
+            _clear(out)
+            return
         for k in range(out.shape[0]):
             hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
             hi, lo = mac_diff(hi, lo, c[k], d[k], fc)
@@ -175,12 +181,16 @@ def exchange(xi, xj, om, terms, count):
     hk, lk, hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0, np.int64(0), _0
     if count == 1:
         a, fa = om[terms[0, 0]], terms[0, 1]
+        if vanishes(a):  # K = 0
+            return
         for k in range(xi.shape[0]):
             hk, lk = mac(hk, lk, a[k], fa)
             hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
         return
     if count == 2:
         a, fa, b, fb = om[terms[0, 0]], terms[0, 1], om[terms[1, 0]], terms[1, 1]
+        if vanishes(a) and vanishes(b):
+            return
         for k in range(xi.shape[0]):
             hk, lk = mac(hk, lk, a[k], fa)
             hk, lk = mac(hk, lk, b[k], fb)
@@ -309,6 +319,23 @@ def shift_round(out, x, bits):
 
 
 @inlined
+def vanishes(x):
+    """Whether ``X`` is 0: every limb read, without a branch a limb (a loop the compiler vectorises; `is_zero` stops
+    at the first limb that is not 0)."""
+    acc = _0
+    for k in range(x.shape[0]):
+        acc |= x[k]
+    return acc == _0
+
+
+@inlined
+def _clear(out):
+    """``out = 0``."""
+    for k in range(out.shape[0]):
+        out[k] = _0
+
+
+@inlined
 def is_zero(x):
     for k in range(x.shape[0]):
         if x[k] != _0:
@@ -329,21 +356,25 @@ def scaled_float(x):
     """``(f, e)``: ``X`` within ``4 * 2^-53 |X|`` of ``f 2^e``, ``|f| <= 1`` (read from the top two limbs
     that are not sign fill, so there is neither overflow nor underflow, and ``e`` is a multiple of
     64); ``(0.0, 0)`` for zero. A negative number's magnitude ``~X + 1`` is read as ``~X`` when it
-    has two limbs or more: off by at most 2^-64 of it."""
+    has two limbs or more: off by at most 2^-64 of it. Selects rather than branches where the sign decides,
+    and a number that is 0 or -1 (all limbs sign fill: a lattice's velocities have many) told by one pass
+    over its limbs, not a search from the top."""
     n = x.shape[0]
     neg = x[n - 1] >> _63
-    fill = _ALL if neg else _0
+    fill = _0 - neg  # all ones when negative
     h = n - 1
-    while h >= 0 and x[h] == fill:
-        h -= 1
-    if h < 0:
-        return (-(2.0 ** -64) if neg else 0.0), 64 if neg else 0  # 0, or -1 (all ones)
-    top = ~x[h] if neg else x[h]
-    f = float(top) * _TWO64
-    if h > 0:
-        f += float(~x[h - 1] if neg else x[h - 1])
-    elif neg:  # one limb: the magnitude is exactly ~X + 1
-        f += _TWO64
+    if x[h] == fill:  # a short number: its top limb in a lower place, or none
+        acc = _0
+        for k in range(n):
+            acc |= x[k] ^ fill
+        if acc == _0:
+            h = -1
+        else:
+            while x[h] == fill:
+                h -= 1
+    h = max(h, int(neg) - 1)  # -1 (all ones) is read from limb 0, as 2^-64 2^64
+    f = float(x[max(h, 0)] ^ fill) * _TWO64
+    f += float(x[max(h - 1, 0)] ^ fill) if h > 0 else _TWO64 * float(neg)  # one limb: ~X + 1 exactly
     f *= 2.0 ** -128
     return (-f if neg else f), 64 * (h + 1)
 

@@ -178,3 +178,56 @@ def test_a_product_of_a_difference_of_limbs_gathers_as_integers_do(acc, x, y, c)
     twin = limbs._mac_diff_python(hi, lo, np.uint64(x), np.uint64(y), np.int64(c))
     total = (int(hi) << 64) + int(lo) + c * (x - y)
     assert (int(got[0]), int(got[1])) == (int(twin[0]), int(twin[1])) == (total >> 64, total & (2**64 - 1))
+
+
+def _scaled_float_by_search(x: np.ndarray) -> tuple:
+    """`limbs.scaled_float` as it was first written (a search from the top limb down, branches on the sign): the
+    reference its selects must equal bit for bit."""
+    n, neg = len(x), bool(int(x[-1]) >> 63)
+    fill = 2**64 - 1 if neg else 0
+    h = n - 1
+    while h >= 0 and int(x[h]) == fill:
+        h -= 1
+    if h < 0:
+        return (-(2.0**-64) if neg else 0.0), 64 if neg else 0
+    top = int(x[h]) ^ fill
+    f = float(top) * 2.0**64
+    if h > 0:
+        f += float(int(x[h - 1]) ^ fill)
+    elif neg:
+        f += 2.0**64
+    f *= 2.0**-128
+    return (-f if neg else f), 64 * (h + 1)
+
+
+@settings(max_examples=400, deadline=None)
+@given(x=st.one_of(numbers, st.integers(-(2**64), 2**64), st.sampled_from([0, -1, -2, 1, 2**63, -(2**63)])))
+def test_a_numbers_float_is_the_one_a_search_from_the_top_limb_finds(x):
+    """The float of a number, its top limb found by one pass when it is sign fill (0, -1 and short numbers, which
+    a lattice's velocities are full of), is bit for bit the one the search from the top found, and its sign."""
+    f, e = limbs.scaled_float(arr(x))
+    g, h = _scaled_float_by_search(arr(x))
+    assert (f, int(e), math.copysign(1.0, f)) == (g, h, math.copysign(1.0, g))
+
+
+def test_combinations_of_numbers_that_are_0_are_0_whatever_the_output_held():
+    """The shortcuts for sources that are 0 (half the coefficients of a lattice's velocities): the output is cleared
+    (not left as it was), K = 0 moves nothing, and a source that is not 0 beside one that is still counts."""
+    x = limbs.to_limbs(np.array([[0, 5], [0, -7]], dtype=object), P)
+    y = limbs.to_limbs(np.array([[0, 2], [0, 3]], dtype=object), P)
+    out = np.full(P, 12345, dtype=np.uint64)
+    limbs.diff_combination(out, x, y, np.array([[0, 0, 3]], dtype=np.int64), 1)
+    assert val(out) == 0
+    out[:] = 999
+    limbs.diff_combination(out, x, y, np.array([[0, 0, 3], [1, 0, -2]], dtype=np.int64), 2)
+    assert val(out) == 0
+    limbs.diff_combination(out, x, y, np.array([[0, 0, 3], [1, 1, -2]], dtype=np.int64), 2)
+    assert val(out) == -2 * (-7 - 3)
+    a, b = arr(-11), arr(4)
+    om = limbs.to_limbs([0, 0], P)
+    for count in (1, 2):
+        limbs.exchange(a, b, om, np.array([[0, 3], [1, -5]], dtype=np.int64), count)
+        assert (val(a), val(b)) == (-11, 4)
+    limbs.exchange(a, b, limbs.to_limbs([0, 6], P), np.array([[0, 3], [1, -5]], dtype=np.int64), 2)
+    assert (val(a), val(b)) == (-11 + 30, 4 - 30)
+    assert limbs.vanishes(arr(0)) and not limbs.vanishes(arr(1 << 150)) and not limbs.vanishes(arr(-1))
