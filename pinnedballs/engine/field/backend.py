@@ -33,6 +33,16 @@ class FieldBackend(Backend):
         self.loops = loops(model.collide, s.select, s.begin, s.changed, s.skips, g.dim, g.contacts.flat)
         self._to_limits = limits_loop(_no_mark, self._advance, self._live, _no_settle)
 
+    def set_velocities(self, velocities: np.ndarray) -> None:
+        """The chain's exact velocities replaced by ``velocities`` ``(n_balls, dim)`` (each float exactly: the
+        field element with it as rational coefficient), and the state's floats by them; the velocities the chain
+        rounds to already (those read back) leave its exact ones as they are."""
+        v = np.array(velocities, dtype=np.float64)
+        chain = self.state.field_chain
+        if not np.array_equal(v, chain.sync()):
+            chain.set_velocities([[chain.field.of(float(x)) for x in row] for row in v.tolist()])
+        self.state.velocities = v
+
     def _run(self, max_steps: int, max_collisions: int, until_frozen: bool) -> int:
         ex = self.state.field_chain
         ex.prepare(until_frozen)

@@ -79,6 +79,7 @@ from .fixed_kernels import (
     unfolded,
 )
 from .fixed_state import STEP_ORDER_RULE, CertifiedState, error_bound, nearest_floats, power_text, scaled_up
+from .grading import tables_for
 from .limbs import from_limbs, to_limbs
 from .numbers import Field, recognise
 
@@ -170,7 +171,7 @@ def lines_of(geometry) -> Lines:
             kterms[n, d, c_, kcount[n, d, c_]] = s_, f
             kcount[n, d, c_] += 1
     tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, _coefficients(field, lines, dim), root,
-                    int(e.max()), _largest_rounding(e, root, m))
+                    int(e.max()), _largest_rounding(e, root, m), np.full(dim, -1, dtype=np.int64))
     return Lines(field, units, tables)
 
 
@@ -266,7 +267,8 @@ class FixedChain(FieldChain):
     def __init__(self, geometry, velocities: np.ndarray, lines: Lines, policy: str, precision: int | None = None,
                  late_precision: int | None = None, picks=None):
         super().__init__(geometry, lines.field, lines.units, np.ones(geometry.n_balls), exchange)
-        self.policy, self.tables = policy, lines.tables
+        #: the kernels' tables: the geometry's (``lines.tables``), or those graded for the state (`grading`)
+        self.policy, self.tables, self._ungraded = policy, lines.tables, lines.tables
         self.certify = policy == "certified"
         v = np.array(velocities, dtype=np.float64)
         n, dim = v.shape
@@ -319,6 +321,7 @@ class FixedChain(FieldChain):
         self.chunk, self.block = chunk, 4 * chunk
         self.picks = CPUPicks() if picks is None else picks  #: where the picks are tried (a GPU's `DevicePicks`)
         self._scratch()
+        self.tables = tables_for(self._ungraded, self.X)
 
     def _scratch(self) -> None:
         """Scratch and the scales of floats read from each limb, for the current ``P`` and ``S``."""
@@ -543,9 +546,10 @@ class FixedChain(FieldChain):
         self.live, self._after = -1, None
 
     def _reshadow(self) -> None:
-        """Shadows, rest flags and ``shadow`` from ``X`` for every ball."""
+        """Tables (graded for ``X`` where it is: `grading`), shadows, rest flags and ``shadow`` for every ball."""
+        self.tables = tables_for(self._ungraded, self.X)
         self.dirty[:] = 1
-        refresh_shadows(self.X, self.T, self.tables.root, self.rows, self.B, self.S)
+        refresh_shadows(self.X, self.T, self.tables.root, self.rows, self.B, self.S, self.tables.parity)
         self.sync()
 
     # ------------------------------------------------------------ certified policy: the bound

@@ -87,6 +87,9 @@ class Tables(NamedTuple):
     root: np.ndarray  #: (3,): d, sqrt d, sqrt d rounded up
     emax: int  #: the largest ``e``
     rmax: float  #: the largest ``|rho|`` a collision can round off, in units of ``2^-S``, rounded up
+    #: (dim,) int64: the one coefficient of each component that is not 0 throughout, -1 where both may not be
+    #: (`grading`: the terms reading the other are dropped from the terms above)
+    parity: np.ndarray
 
 
 class State(NamedTuple):
@@ -215,23 +218,36 @@ def _settle(k, decision, line, s, x, tables, state, scale, certify, scratch, inf
 
 
 @inlined
-def _shadow(X, b, T, root, rows):
-    """Ball ``b``'s shadows and size from its coefficients."""
+def _coefficient(X, b, d, c, T):
+    """Coefficient ``c`` of ball ``b``'s component ``d`` as a float, scaled by ``T``, and whether it is not 0."""
+    f, e = scaled_float(X[b, d, c])
+    return (f * T[(e >> 6) - 1] if f != 0.0 else 0.0), f != 0.0
+
+
+@inlined
+def _shadow(X, b, T, root, rows, parity):
+    """Ball ``b``'s shadows and size from its coefficients (only the one ``parity[d]`` of a component where it is
+    not -1: the other is 0, `grading`; the same floats as from both, ``a + 0 sqrt d`` being ``a``)."""
     D, m = X.shape[1], X.shape[2]
     size, moving = 0.0, False
     for d in range(D):
-        f0, e0 = scaled_float(X[b, d, 0])
-        a = f0 * T[(e0 >> 6) - 1] if f0 != 0.0 else 0.0
-        moving = moving or f0 != 0.0
         if m == 1:
+            a, live = _coefficient(X, b, d, 0, T)
             rows[b, d] = a
-            size = max(size, abs(a))
+            size, moving = max(size, abs(a)), moving or live
+        elif parity[d] == 0:
+            a, live = _coefficient(X, b, d, 0, T)
+            rows[b, d] = a
+            size, moving = max(size, abs(a)), moving or live
+        elif parity[d] == 1:
+            c, live = _coefficient(X, b, d, 1, T)
+            rows[b, d] = c * root[1]
+            size, moving = max(size, abs(c) * root[1]), moving or live
         else:
-            f1, e1 = scaled_float(X[b, d, 1])
-            c = f1 * T[(e1 >> 6) - 1] if f1 != 0.0 else 0.0
-            moving = moving or f1 != 0.0
+            a, live0 = _coefficient(X, b, d, 0, T)
+            c, live1 = _coefficient(X, b, d, 1, T)
             rows[b, d] = a + c * root[1]
-            size = max(size, abs(a) + abs(c) * root[1])
+            size, moving = max(size, abs(a) + abs(c) * root[1]), moving or live0 or live1
     rows[b, D] = max(size, _SMALLEST) if moving else 0.0
 
 
@@ -243,11 +259,12 @@ def _band(bmax, scale):
 
 
 @kernel
-def refresh_shadows(X, T, root, rows, B, scale):
-    """Every ball's row (shadows, size, largest bound) from ``X`` and ``B`` (units of ``2^-scale``)."""
+def refresh_shadows(X, T, root, rows, B, scale, parity):
+    """Every ball's row (shadows, size, largest bound) from ``X`` and ``B`` (units of ``2^-scale``); ``parity``:
+    `Tables.parity`."""
     D = X.shape[1]
     for b in range(X.shape[0]):
-        _shadow(X, b, T, root, rows)
+        _shadow(X, b, T, root, rows, parity)
         bmax = 0.0
         for m in range(B.shape[1]):
             bmax = max(bmax, B[b, m])
@@ -339,8 +356,8 @@ def _collide(k, tables, state, scale, certify, scratch, step):
     for d in range(X.shape[1]):  # V_i -= omega u_l, V_j += omega u_l
         for c in range(m):
             exchange(X[i, d, c], X[j, d, c], W, tables.kterms[line, d, c], tables.kcount[line, d, c])
-    _shadow(X, i, state.T, root, state.rows)
-    _shadow(X, j, state.T, root, state.rows)
+    _shadow(X, i, state.T, root, state.rows, tables.parity)
+    _shadow(X, j, state.T, root, state.rows, tables.parity)
     state.dirty[i], state.dirty[j] = 1, 1
     if certify:
         _round_off(state, tables, step, line, rho0, rho1)

@@ -70,13 +70,13 @@ def _kernels():
 
     @cuda.jit
     def attempt(picks, order, n, own, own_next, high, high_next, later, count, first, scale, certify,
-                pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax, rmax,
+                pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax, rmax, parity,
                 X, rows, dirty, B, Pp, acc, T, rho, bound, W, tmp, big, info, out, xs, inside):
         """Try the picks ``order[:n]`` whose key ``high | t`` holds both their balls in ``own`` (``out[t]``,
         ``xs[t]``, ``inside[t]``: outcome, closing speed, decided in fixed point); the others go to ``later``
         (``count[0]`` of them) and reserve their balls in ``own_next`` with the next round's key."""
         tid = cuda.grid(1)
-        tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax, rmax)
+        tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax, rmax, parity)
         state = State(X, rows, dirty, B, Pp, acc, T, rho[tid], bound)
         scratch = Scratch(W[tid], tmp[tid], big[tid])
         for idx in range(tid, n, cuda.gridsize(1)):
@@ -104,10 +104,10 @@ def _kernels():
 
     @cuda.jit
     def live(n_contacts, scale, certify, pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax,
-             rmax, X, rows, dirty, B, Pp, acc, T, rho, bound, W, tmp, big, info, counts):
+             rmax, parity, X, rows, dirty, B, Pp, acc, T, rho, bound, W, tmp, big, info, counts):
         """``counts[0]`` += the live contacts, ``counts[1]`` += those that cannot be decided."""
         tid = cuda.grid(1)
-        tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax, rmax)
+        tables = Tables(pairs, ls, uf, usum, e, wterms, wcount, kterms, kcount, coef, root, emax, rmax, parity)
         state = State(X, rows, dirty, B, Pp, acc, T, rho, bound)
         scratch = Scratch(W[tid], tmp[tid], big[tid])
         alive, lost = 0, 0
@@ -195,12 +195,15 @@ class DevicePicks:
         d = self._d
         if self._newest == "host" or d is None or d["shapes"] != [a.shape for a in state]:
             to = self.cuda.to_device
-            d = self._d = {"tables": tuple(to(a) if isinstance(a, np.ndarray) else a for a in tables),
+            d = self._d = {"tables": (), "source": None,
                            "state": [to(np.ascontiguousarray(a)) for a in state], "shapes": [a.shape for a in state],
                            "scratch": tuple(to(np.zeros((THREADS,) + a.shape, dtype=a.dtype)) for a in scratch),
                            "info": to(np.zeros((THREADS, 4)))}
             self._newest = "both"
             self.stats["uploads"] += 1
+        if d["source"] is not tables:  # (the chain grades its tables for each state it is given: `grading`)
+            to = self.cuda.to_device
+            d["tables"], d["source"] = tuple(to(a) if isinstance(a, np.ndarray) else a for a in tables), tables
         return d
 
     def to_host(self, state, writes: bool) -> None:
