@@ -231,11 +231,7 @@ def _shadow(X, b, T, root, rows, parity):
     D, m = X.shape[1], X.shape[2]
     size, moving = 0.0, False
     for d in range(D):
-        if m == 1:
-            a, live = _coefficient(X, b, d, 0, T)
-            rows[b, d] = a
-            size, moving = max(size, abs(a)), moving or live
-        elif parity[d] == 0:
+        if m == 1 or parity[d] == 0:
             a, live = _coefficient(X, b, d, 0, T)
             rows[b, d] = a
             size, moving = max(size, abs(a)), moving or live

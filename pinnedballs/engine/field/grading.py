@@ -71,8 +71,9 @@ def graded(tables: Tables, parity: np.ndarray) -> Tables:
             c = int(parity[d])
             terms = tables.kterms[line, d, c, :tables.kcount[line, d, c]]  # (s, f): keep s = g
             kcount[line, d, c] = _keep(kterms[line, d, c], terms[terms[:, 0] == g])
-    return tables._replace(wterms=wterms, wcount=wcount, kterms=kterms, kcount=kcount,
-                           parity=np.ascontiguousarray(parity, dtype=np.int64))
+    t = tables
+    return Tables(t.pairs, t.ls, t.uf, t.usum, t.e, wterms, wcount, kterms, kcount, t.coef, t.root, t.emax, t.rmax,
+                  np.ascontiguousarray(parity, dtype=np.int64))
 
 
 def _keep(out: np.ndarray, terms: np.ndarray) -> int:

@@ -28,7 +28,7 @@ from numba.extending import intrinsic
 from ..jit.cache import njit_cached
 
 __all__ = ["mac", "mac_top", "mac_diff", "next_limb", "diff_combination", "exchange", "add_to", "sub_into", "addmul",
-           "negate_into", "shift_round", "low_bits", "is_zero", "vanishes", "sign", "scaled_float", "to_float",
+           "negate_into", "shift_round", "low_bits", "is_zero", "sign", "scaled_float", "to_float",
            "compare_squares", "field_sign", "to_limbs", "from_limbs"]
 
 _0, _1 = np.uint64(0), np.uint64(1)
@@ -142,7 +142,7 @@ def diff_combination(out, xi, xj, terms, count):
     hi, lo = np.int64(0), _0
     if count == 1:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
-        if vanishes(a) and vanishes(b):  # (half the coefficients of a lattice's velocities are 0 throughout)
+        if is_zero(a) and is_zero(b):  # (half the coefficients of a lattice's velocities are 0 throughout)
             _clear(out)
             return
         for k in range(out.shape[0]):
@@ -153,7 +153,7 @@ def diff_combination(out, xi, xj, terms, count):
     if count == 2:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
         c, d, fc = xi[terms[1, 0], terms[1, 1]], xj[terms[1, 0], terms[1, 1]], terms[1, 2]
-        if vanishes(a) and vanishes(b) and vanishes(c) and vanishes(d):
+        if is_zero(a) and is_zero(b) and is_zero(c) and is_zero(d):
             _clear(out)
             return
         for k in range(out.shape[0]):
@@ -181,7 +181,7 @@ def exchange(xi, xj, om, terms, count):
     hk, lk, hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0, np.int64(0), _0
     if count == 1:
         a, fa = om[terms[0, 0]], terms[0, 1]
-        if vanishes(a):  # K = 0
+        if is_zero(a):  # K = 0
             return
         for k in range(xi.shape[0]):
             hk, lk = mac(hk, lk, a[k], fa)
@@ -189,7 +189,7 @@ def exchange(xi, xj, om, terms, count):
         return
     if count == 2:
         a, fa, b, fb = om[terms[0, 0]], terms[0, 1], om[terms[1, 0]], terms[1, 1]
-        if vanishes(a) and vanishes(b):
+        if is_zero(a) and is_zero(b):
             return
         for k in range(xi.shape[0]):
             hk, lk = mac(hk, lk, a[k], fa)
@@ -319,16 +319,6 @@ def shift_round(out, x, bits):
 
 
 @inlined
-def vanishes(x):
-    """Whether ``X`` is 0: every limb read, without a branch a limb (a loop the compiler vectorises; `is_zero` stops
-    at the first limb that is not 0)."""
-    acc = _0
-    for k in range(x.shape[0]):
-        acc |= x[k]
-    return acc == _0
-
-
-@inlined
 def _clear(out):
     """``out = 0``."""
     for k in range(out.shape[0]):
@@ -337,10 +327,11 @@ def _clear(out):
 
 @inlined
 def is_zero(x):
+    """Whether ``X`` is 0: every limb read, without a branch a limb (a loop the compiler vectorises)."""
+    acc = _0
     for k in range(x.shape[0]):
-        if x[k] != _0:
-            return False
-    return True
+        acc |= x[k]
+    return acc == _0
 
 
 @inlined
@@ -361,7 +352,7 @@ def scaled_float(x):
     over its limbs, not a search from the top."""
     n = x.shape[0]
     neg = x[n - 1] >> _63
-    fill = _0 - neg  # all ones when negative
+    fill = _ALL if neg else _0
     h = n - 1
     if x[h] == fill:  # a short number: its top limb in a lower place, or none
         acc = _0

@@ -230,4 +230,4 @@ def test_combinations_of_numbers_that_are_0_are_0_whatever_the_output_held():
         assert (val(a), val(b)) == (-11, 4)
     limbs.exchange(a, b, limbs.to_limbs([0, 6], P), np.array([[0, 3], [1, -5]], dtype=np.int64), 2)
     assert (val(a), val(b)) == (-11 + 30, 4 - 30)
-    assert limbs.vanishes(arr(0)) and not limbs.vanishes(arr(1 << 150)) and not limbs.vanishes(arr(-1))
+    assert limbs.is_zero(arr(0)) and not limbs.is_zero(arr(1 << 150)) and not limbs.is_zero(arr(-1))
