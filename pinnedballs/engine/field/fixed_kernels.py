@@ -394,15 +394,26 @@ def _ahead(tables, state, certify, picks, t, flat, ring):
         slot = ring[(t + AHEAD_BALLS) % RING]
         slot[0], slot[1], slot[2], slot[3] = decision, line, s, x
         if decision > 0:  # live or undecided
-            X = state.X
-            size = X.shape[1] * X.shape[2] * X.shape[3]
             for b in (pairs[k, 0], pairs[k, 1]):
-                for q in range(0, size, 8):  # a cache line of limbs at a time, and the last
-                    prefetch(flat, b * size + q)
-                prefetch(flat, b * size + size - 1)
+                _fetch_ball(state.X, flat, b, tables.parity)
                 if certify:
                     prefetch(state.B, b)
                     prefetch(state.Pp, b)
+
+
+@inlined
+def _fetch_ball(X, flat, b, parity):
+    """Cache hints for ball ``b``'s coefficients (``flat``: ``X`` as one axis), a cache line of limbs at a time and
+    the last of each component: only the one coefficient ``parity[d]`` of a component where it is not -1 (the other
+    is 0 throughout and never read, `grading`)."""
+    D, m, P = X.shape[1], X.shape[2], X.shape[3]
+    for d in range(D):
+        p = parity[d]
+        start = (b * D + d) * m * P + (p * P if p >= 0 else 0)
+        length = P if p >= 0 else m * P
+        for q in range(0, length, 8):
+            prefetch(flat, start + q)
+        prefetch(flat, start + length - 1)
 
 
 @inlined
