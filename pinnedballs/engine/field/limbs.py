@@ -138,12 +138,18 @@ def diff_combination(out, xi, xj, terms, count):
     """``out = sum_t f_t (xi[d_t, s_t] - xj[d_t, s_t])`` over ``t < count``, ``terms[t] = (d_t, s_t, f_t)``;
     ``xi, xj``: ``(dim, m, P)`` numbers, ``out``: ``(P,)``. One pass, the terms gathered limb by limb, one product
     a term and limb (the top limb's low 64 bits are the same read signed or not); one or two terms (the usual)
-    with their numbers and factors read once, not once a limb."""
+    with their numbers and factors read once, not once a limb, and factors of -1 and 1 (a lattice's usual: its
+    unit vectors' numerators) as differences, without a product (`_unit_diff`, `_unit_diff2`)."""
     hi, lo = np.int64(0), _0
     if count == 1:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
         if is_zero(a) and is_zero(b):  # (half the coefficients of a lattice's velocities are 0 throughout)
             _clear(out)
+            return
+        if fa == -1:  # -(a - b) = b - a
+            a, b, fa = b, a, np.int64(1)
+        if fa == 1:
+            _unit_diff(out, a, b)
             return
         for k in range(out.shape[0]):
             hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
@@ -155,6 +161,13 @@ def diff_combination(out, xi, xj, terms, count):
         c, d, fc = xi[terms[1, 0], terms[1, 1]], xj[terms[1, 0], terms[1, 1]], terms[1, 2]
         if is_zero(a) and is_zero(b) and is_zero(c) and is_zero(d):
             _clear(out)
+            return
+        if fa == -1:
+            a, b, fa = b, a, np.int64(1)
+        if fc == -1:
+            c, d, fc = d, c, np.int64(1)
+        if fa == 1 and fc == 1:
+            _unit_diff2(out, a, b, c, d)
             return
         for k in range(out.shape[0]):
             hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
@@ -171,11 +184,34 @@ def diff_combination(out, xi, xj, terms, count):
 
 
 @inlined
+def _unit_diff(out, a, b):
+    """``out = a - b``, limb by limb in the accumulator with the factor 1 as a constant: the compiler drops the
+    product (`mac_diff` by a factor read from the tables costs three times as much: bench_limbs.py)."""
+    hi, lo = np.int64(0), _0
+    for k in range(out.shape[0]):
+        hi, lo = mac_diff(hi, lo, a[k], b[k], np.int64(1))
+        out[k] = lo
+        hi, lo = next_limb(hi, lo)
+
+
+@inlined
+def _unit_diff2(out, a, b, c, d):
+    """``out = (a - b) + (c - d)``, as `_unit_diff`."""
+    hi, lo = np.int64(0), _0
+    for k in range(out.shape[0]):
+        hi, lo = mac_diff(hi, lo, a[k], b[k], np.int64(1))
+        hi, lo = mac_diff(hi, lo, c[k], d[k], np.int64(1))
+        out[k] = lo
+        hi, lo = next_limb(hi, lo)
+
+
+@inlined
 def exchange(xi, xj, om, terms, count):
     """``xi -= K``, ``xj += K`` for ``K = sum_t f_t om[s_t]`` over ``t < count``, ``terms[t] = (s_t, f_t)``;
     ``xi, xj``: ``(P,)``, ``om``: ``(m, P)``. One pass: ``K``'s limb gathered once, then taken from one number and
     added to the other (three accumulators; the top limb's low 64 bits are the same read signed or not); one or
-    two terms (the usual) with their numbers and factors read once, not once a limb."""
+    two terms (the usual) with their numbers and factors read once, not once a limb; one term's factor of 1 or 3
+    (up to sign) as a constant (`_exchange_by`)."""
     if count == 0:  # K = 0 (a line across this component)
         return
     hk, lk, hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0, np.int64(0), _0
@@ -183,9 +219,14 @@ def exchange(xi, xj, om, terms, count):
         a, fa = om[terms[0, 0]], terms[0, 1]
         if is_zero(a):  # K = 0
             return
-        for k in range(xi.shape[0]):
-            hk, lk = mac(hk, lk, a[k], fa)
-            hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
+        if fa < 0:  # xi -= K, xj += K for K = -|f| a: xj -= |f| a, xi += |f| a
+            xi, xj, fa = xj, xi, -fa
+        if fa == 1:
+            _exchange_by(xi, xj, a, np.int64(1))
+        elif fa == 3:
+            _exchange_by(xi, xj, a, np.int64(3))
+        else:
+            _exchange_by(xi, xj, a, fa)
         return
     if count == 2:
         a, fa, b, fb = om[terms[0, 0]], terms[0, 1], om[terms[1, 0]], terms[1, 1]
@@ -199,6 +240,17 @@ def exchange(xi, xj, om, terms, count):
     for k in range(xi.shape[0]):
         for t in range(count):
             hk, lk = mac(hk, lk, om[terms[t, 0], k], terms[t, 1])
+        hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
+
+
+@inlined
+def _exchange_by(xi, xj, a, fa):
+    """`exchange` of ``K = fa a``, ``fa > 0``; called with the factors of the usual lattices (1, 3: their unit
+    vectors' numerators and ``d``) as constants, whose products the compiler makes without a multiplication by a
+    factor read from the tables."""
+    hk, lk, hi, lo, hj, lj = np.int64(0), _0, np.int64(0), _0, np.int64(0), _0
+    for k in range(xi.shape[0]):
+        hk, lk = mac(hk, lk, a[k], fa)
         hk, lk, hi, lo, hj, lj = _exchange_limb(xi, xj, k, hk, lk, hi, lo, hj, lj)
 
 

@@ -39,6 +39,8 @@ edges = st.sampled_from([0, 1, -1, 2**64 - 1, 2**64, -(2**64), 2**128 - 1, -(2**
                          (1 << 63), -(1 << 63) - 1])
 numbers = st.one_of(edges, st.integers(-HALF, HALF - 1), st.integers(-(2**70), 2**70))
 small = st.integers(-(2**31) + 1, 2**31 - 1)
+# a lattice's factors (its unit vectors' numerators, d), which the kernels take by paths of their own, and any other
+factors = st.one_of(st.sampled_from([1, -1, 3, -3]), small)
 
 
 @settings(max_examples=300, deadline=None)
@@ -140,7 +142,7 @@ def test_integers_go_in_and_out_unchanged():
 
 @settings(max_examples=200, deadline=None)
 @given(xs=st.lists(numbers, min_size=4, max_size=4), ys=st.lists(numbers, min_size=4, max_size=4),
-       fs=st.lists(small, min_size=3, max_size=3), count=st.integers(0, 3))
+       fs=st.lists(factors, min_size=3, max_size=3), count=st.integers(0, 3))
 def test_a_linear_combination_of_differences_is_that_of_integers(xs, ys, fs, count):
     """``sum f_t (x[d_t, s_t] - y[d_t, s_t])`` in one pass through the 128-bit accumulator."""
     x = limbs.to_limbs(np.array(xs, dtype=object).reshape(2, 2), P)  # (dim, m, P)
@@ -154,8 +156,8 @@ def test_a_linear_combination_of_differences_is_that_of_integers(xs, ys, fs, cou
 
 
 @settings(max_examples=200, deadline=None)
-@given(xi=numbers, xj=numbers, om=st.lists(numbers, min_size=2, max_size=2), fs=st.lists(small, min_size=2, max_size=2),
-       count=st.integers(0, 2))
+@given(xi=numbers, xj=numbers, om=st.lists(numbers, min_size=2, max_size=2),
+       fs=st.lists(factors, min_size=2, max_size=2), count=st.integers(0, 2))
 def test_an_exchange_moves_the_same_combination_out_of_one_number_and_into_the_other(xi, xj, om, fs, count):
     a, b = arr(xi), arr(xj)
     terms = np.array([[s, f] for s, f in zip((1, 0), fs)], dtype=np.int64)
@@ -231,3 +233,23 @@ def test_combinations_of_numbers_that_are_0_are_0_whatever_the_output_held():
     limbs.exchange(a, b, limbs.to_limbs([0, 6], P), np.array([[0, 3], [1, -5]], dtype=np.int64), 2)
     assert (val(a), val(b)) == (-11 + 30, 4 - 30)
     assert limbs.is_zero(arr(0)) and not limbs.is_zero(arr(1 << 150)) and not limbs.is_zero(arr(-1))
+
+
+@pytest.mark.parametrize("fa, fc", [(1, 1), (1, -1), (-1, 1), (-1, -1), (1, 3), (-3, -1)])
+def test_a_lattices_factors_combine_as_integers_do_across_carries(fa, fc):
+    """Factors of 1 and -1 (differences without a product) and 3 (an exchange's constant), each sign, on numbers
+    whose limbs carry and borrow throughout, for one term and two: the integers' combination, modulo 2^(64 P)."""
+    values = [2**64 - 1, -(2**128), HALF - 1, -HALF, 1, -1, 2**190 + 12345, -(2**64) + 7]
+    xs, ys = values[:4], values[4:]
+    x = limbs.to_limbs(np.array(xs, dtype=object).reshape(2, 2), P)
+    y = limbs.to_limbs(np.array(ys, dtype=object).reshape(2, 2), P)
+    out = np.empty(P, dtype=np.uint64)
+    terms = np.array([[0, 1, fa], [1, 0, fc]], dtype=np.int64)
+    limbs.diff_combination(out, x, y, terms, 1)
+    assert val(out) == wrap(fa * (xs[1] - ys[1]))
+    limbs.diff_combination(out, x, y, terms, 2)
+    assert val(out) == wrap(fa * (xs[1] - ys[1]) + fc * (xs[2] - ys[2]))
+    for xi, xj, om in ((values[0], values[3], values[6]), (values[2], values[1], values[7])):
+        a, b = arr(xi), arr(xj)
+        limbs.exchange(a, b, limbs.to_limbs([values[5], om], P), np.array([[1, fa]], dtype=np.int64), 1)
+        assert (val(a), val(b)) == (wrap(xi - fa * om), wrap(xj + fa * om))
