@@ -186,7 +186,7 @@ def diff_combination(out, xi, xj, terms, count):
 @inlined
 def _unit_diff(out, a, b):
     """``out = a - b``, limb by limb in the accumulator with the factor 1 as a constant: the compiler drops the
-    product (`mac_diff` by a factor read from the tables costs three times as much: bench_limbs.py)."""
+    product (by a factor read from the tables, `mac_diff` makes a full 128-bit product a limb)."""
     hi, lo = np.int64(0), _0
     for k in range(out.shape[0]):
         hi, lo = mac_diff(hi, lo, a[k], b[k], np.int64(1))
