@@ -139,8 +139,7 @@ def diff_combination(out, xi, xj, terms, count):
     ``xi, xj``: ``(dim, m, P)`` numbers, ``out``: ``(P,)``. One pass, the terms gathered limb by limb, one product
     a term and limb (the top limb's low 64 bits are the same read signed or not); one or two terms (the usual)
     with their numbers and factors read once, not once a limb, and factors of -1 and 1 (a lattice's usual: its
-    unit vectors' numerators) as differences, without a product (`_unit_diff`, `_unit_diff2`)."""
-    hi, lo = np.int64(0), _0
+    unit vectors' numerators) as the constant 1, whose product the compiler drops (`_diff_by`)."""
     if count == 1:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
         if is_zero(a) and is_zero(b):  # (half the coefficients of a lattice's velocities are 0 throughout)
@@ -149,12 +148,9 @@ def diff_combination(out, xi, xj, terms, count):
         if fa == -1:  # -(a - b) = b - a
             a, b, fa = b, a, np.int64(1)
         if fa == 1:
-            _unit_diff(out, a, b)
-            return
-        for k in range(out.shape[0]):
-            hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
-            out[k] = lo
-            hi, lo = next_limb(hi, lo)
+            _diff_by(out, a, b, np.int64(1), a, b, np.int64(0))
+        else:
+            _diff_by(out, a, b, fa, a, b, np.int64(0))
         return
     if count == 2:
         a, b, fa = xi[terms[0, 0], terms[0, 1]], xj[terms[0, 0], terms[0, 1]], terms[0, 2]
@@ -167,14 +163,11 @@ def diff_combination(out, xi, xj, terms, count):
         if fc == -1:
             c, d, fc = d, c, np.int64(1)
         if fa == 1 and fc == 1:
-            _unit_diff2(out, a, b, c, d)
-            return
-        for k in range(out.shape[0]):
-            hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
-            hi, lo = mac_diff(hi, lo, c[k], d[k], fc)
-            out[k] = lo
-            hi, lo = next_limb(hi, lo)
+            _diff_by(out, a, b, np.int64(1), c, d, np.int64(1))
+        else:
+            _diff_by(out, a, b, fa, c, d, fc)
         return
+    hi, lo = np.int64(0), _0
     for k in range(out.shape[0]):
         for t in range(count):
             d, s = terms[t, 0], terms[t, 1]
@@ -184,23 +177,15 @@ def diff_combination(out, xi, xj, terms, count):
 
 
 @inlined
-def _unit_diff(out, a, b):
-    """``out = a - b``, limb by limb in the accumulator with the factor 1 as a constant: the compiler drops the
-    product (by a factor read from the tables, `mac_diff` makes a full 128-bit product a limb)."""
+def _diff_by(out, a, b, fa, c, d, fc):
+    """``out = fa (a - b) + fc (c - d)`` limb by limb in the accumulator (``fc`` 0: one term). Called with the
+    factors 1 and 0 as constants where they are (a lattice's usual), so that the compiler drops those products: by a
+    factor read from the tables, `mac_diff` makes a full 128-bit product a limb."""
     hi, lo = np.int64(0), _0
     for k in range(out.shape[0]):
-        hi, lo = mac_diff(hi, lo, a[k], b[k], np.int64(1))
-        out[k] = lo
-        hi, lo = next_limb(hi, lo)
-
-
-@inlined
-def _unit_diff2(out, a, b, c, d):
-    """``out = (a - b) + (c - d)``, as `_unit_diff`."""
-    hi, lo = np.int64(0), _0
-    for k in range(out.shape[0]):
-        hi, lo = mac_diff(hi, lo, a[k], b[k], np.int64(1))
-        hi, lo = mac_diff(hi, lo, c[k], d[k], np.int64(1))
+        hi, lo = mac_diff(hi, lo, a[k], b[k], fa)
+        if fc != 0:
+            hi, lo = mac_diff(hi, lo, c[k], d[k], fc)
         out[k] = lo
         hi, lo = next_limb(hi, lo)
 
